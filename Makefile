@@ -1,0 +1,26 @@
+# The README's commands. Every target sets up first (Debian packages + .venv), so each works on a
+# fresh Debian machine with Python 3.11.
+VENV := .venv
+PY := $(VENV)/bin/python
+VTTS := $(VENV)/bin/vtts
+
+.PHONY: setup demo test bench lint models golden clean
+
+setup:
+	@bash scripts/setup.sh test
+
+demo: setup
+	@bash samples/demo.sh
+
+test: setup
+	$(PY) -m pytest -q
+
+lint: setup
+	$(VENV)/bin/ruff check .
+
+bench:
+	@bash scripts/setup.sh test,bench
+	$(PY) bench/run.py
+
+clean:
+	rm -rf $(VENV) out dist build .pytest_cache .ruff_cache .hypothesis

@@ -1,0 +1,233 @@
+"""The ``vtts`` command: a thin layer that parses arguments and calls the library.
+
+Input errors are printed as ``FILE:LINE:COL: error: MESSAGE`` and exit with status 1; no Python
+traceback reaches the user for bad input. Each sub-command is one function in :data:`COMMANDS`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import warnings
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from vtts import __version__
+from vtts.errors import VttsError, VttsWarning
+
+
+def _print_error(e: VttsError, default_file: str | None = None) -> None:
+    if default_file and not e.file:
+        e.file = default_file
+    loc = e.location()
+    head = f"{loc}: error: {e.message}" if loc else f"error: {e.message}"
+    print(head, file=sys.stderr)
+    if e.context:
+        print(e.context, file=sys.stderr)
+
+
+@contextmanager
+def _reported_warnings() -> Iterator[None]:
+    """Print library warnings as ``FILE:LINE:COL: warning: MESSAGE`` lines."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            yield
+        finally:
+            for w in caught:
+                msg = w.message
+                if isinstance(msg, VttsWarning):
+                    parts = [str(p) for p in (msg.file, msg.line, msg.column) if p is not None]
+                    loc = ":".join(parts)
+                    print(f"{loc + ': ' if loc else ''}warning: {msg.message}", file=sys.stderr)
+                else:
+                    print(f"warning: {msg}", file=sys.stderr)
+
+
+# ---- check ---------------------------------------------------------------------------------------
+
+
+def _check_wrl(path: Path, args: argparse.Namespace) -> str:
+    from vtts.vrml import read
+
+    scene = read(path, lenient=args.lenient)
+    return f"{_plural(scene.node_count, 'node')}, {_plural(scene.triangle_count(), 'triangle')}"
+
+
+def _plural(n: int, noun: str) -> str:
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
+def _check_fap(path: Path, args: argparse.Namespace) -> str:
+    from vtts.fap import read_fap
+
+    stream = read_fap(path)
+    masked = int(stream.mask.any(axis=0).sum())
+    return f"{stream.n_frames} frames at {stream.fps:g} fps, {masked} FAPs"
+
+
+#: File suffix → checker returning the summary printed after ``OK FILE``.
+CHECKERS: dict[str, Callable[[Path, argparse.Namespace], str]] = {
+    ".wrl": _check_wrl,
+    ".fap": _check_fap,
+}
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    """Check files; print ``OK FILE (summary)`` or ``FILE:LINE:COL: error: MESSAGE`` for each."""
+    failed = 0
+    for name in args.files:
+        path = Path(name)
+        checker = CHECKERS.get(path.suffix.lower())
+        if checker is None:
+            known = ", ".join(sorted(CHECKERS))
+            print(
+                f"{name}: error: unknown file type '{path.suffix}' (vtts checks {known})",
+                file=sys.stderr,
+            )
+            failed += 1
+            continue
+        if not path.is_file():
+            print(f"{name}: error: no such file", file=sys.stderr)
+            failed += 1
+            continue
+        try:
+            with _reported_warnings():
+                summary = checker(path, args)
+        except VttsError as e:
+            _print_error(e, name)
+            failed += 1
+            continue
+        print(f"OK {name} ({summary})")
+    return 1 if failed else 0
+
+
+# ---- info ----------------------------------------------------------------------------------------
+
+
+def _describe_node(node, seen: set[int], depth: int, out: list[str]) -> None:
+    from vtts.vrml.geometry import polygon_triangle_count
+
+    pad = "  " * depth
+    label = f"DEF {node.name} " if node.name else ""
+    if id(node) in seen:
+        out.append(f"{pad}USE {node.name or '?'} ({node.type.name})")
+        return
+    seen.add(id(node))
+    detail = ""
+    shown = node.expand()
+    kind = node.type.describe() if node.type.kind in ("proto", "externproto") else node.type.name
+    if shown.type.name == "IndexedFaceSet":
+        coord = shown["coord"]
+        n_pts = 0 if coord is None else len(coord.expand()["point"])
+        ci = shown["coordIndex"]
+        n_faces = int((ci == -1).sum() + (1 if len(ci) and ci[-1] != -1 else 0))
+        detail = f": {n_pts} vertices, {n_faces} faces, {polygon_triangle_count(ci)} triangles"
+    elif shown.type.name == "Transform":
+        bits = []
+        for f in ("translation", "rotation", "scale", "center"):
+            if f in shown.fields:
+                bits.append(f"{f} " + " ".join(f"{v:g}" for v in shown.fields[f]))
+        detail = (": " + ", ".join(bits)) if bits else ""
+    elif shown.type.name in ("ImageTexture",) and shown["url"]:
+        detail = f": {shown['url'][0]}"
+    out.append(f"{pad}{label}{kind}{detail}")
+    for fname, value in node.fields.items():
+        children = value if isinstance(value, list) else [value]
+        nodes = [c for c in children if hasattr(c, "type")]
+        if not nodes:
+            continue
+        if fname != "children":
+            out.append(f"{pad}  .{fname}")
+            for c in nodes:
+                _describe_node(c, seen, depth + 2, out)
+        else:
+            for c in nodes:
+                _describe_node(c, seen, depth + 1, out)
+
+
+def scene_tree(scene) -> list[str]:
+    """The scene graph as indented lines (node type, DEF name, vertex and face counts)."""
+    from vtts.vrml.scene import Node, Proto
+
+    out: list[str] = []
+    seen: set[int] = set()
+    for s in scene.statements:
+        if isinstance(s, Node):
+            _describe_node(s, seen, 0, out)
+        elif isinstance(s, Proto):
+            word = "PROTO" if s.kind == "proto" else "EXTERNPROTO"
+            out.append(f"{word} {s.name} [{len(s.decls)} members]")
+    return out
+
+
+def cmd_info(args: argparse.Namespace) -> int:
+    """Describe a file: the scene graph of a ``.wrl``."""
+    from vtts.vrml import read
+
+    path = Path(args.file)
+    if not path.is_file():
+        print(f"{args.file}: error: no such file", file=sys.stderr)
+        return 1
+    try:
+        with _reported_warnings():
+            scene = read(path, lenient=args.lenient)
+    except VttsError as e:
+        _print_error(e, args.file)
+        return 1
+    print(
+        f"{args.file}: {_plural(scene.node_count, 'node')}, "
+        f"{_plural(scene.triangle_count(), 'triangle')}"
+    )
+    for line in scene_tree(scene):
+        print("  " + line)
+    return 0
+
+
+# ---- argument parsing ----------------------------------------------------------------------------
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="vtts",
+        description="MPEG-4 face animation: talking heads, FAP playback, analysis and coding.",
+    )
+    p.add_argument("--version", action="version", version=f"vtts {__version__}")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+
+    c = sub.add_parser("check", help="validate .wrl and .fap files")
+    c.add_argument("files", nargs="+", metavar="FILE")
+    c.add_argument(
+        "--lenient",
+        action="store_true",
+        help="parse unknown VRML node types generically (with a warning)",
+    )
+    c.set_defaults(func=cmd_check)
+
+    i = sub.add_parser("info", help="describe a .wrl scene graph")
+    i.add_argument("file", metavar="FILE")
+    i.add_argument(
+        "--lenient",
+        action="store_true",
+        help="parse unknown VRML node types generically (with a warning)",
+    )
+    i.set_defaults(func=cmd_info)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except VttsError as e:
+        _print_error(e)
+        return 1
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,104 @@
+"""The error hierarchy of vtts: one root, specific subclasses.
+
+Every error a user can cause with bad input is a :class:`VttsError`; the CLI prints it as
+``FILE:LINE:COL: error: MESSAGE`` and exits non-zero, never with a traceback.
+"""
+
+from __future__ import annotations
+
+
+class VttsError(Exception):
+    """Root of every error vtts raises for bad input or a missing resource.
+
+    ``file``, ``line`` and ``column`` (1-based) locate the problem when it has a place in a file;
+    ``context`` is an optional excerpt of the offending line with a caret under the column.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        file: str | None = None,
+        line: int | None = None,
+        column: int | None = None,
+        context: str | None = None,
+    ) -> None:
+        super().__init__(message)
+        self.message = message
+        self.file = file
+        self.line = line
+        self.column = column
+        self.context = context
+
+    def location(self) -> str:
+        """``FILE:LINE:COL`` as far as it is known (empty string when nothing is)."""
+        parts = [self.file or "<input>"] if (self.file or self.line) else []
+        if self.line is not None:
+            parts.append(str(self.line))
+            if self.column is not None:
+                parts.append(str(self.column))
+        return ":".join(parts)
+
+    def __str__(self) -> str:
+        loc = self.location()
+        text = f"{loc}: {self.message}" if loc else self.message
+        if self.context:
+            text += "\n" + self.context
+        return text
+
+
+class VrmlError(VttsError):
+    """A VRML97 file breaks the standard."""
+
+
+class VrmlSyntaxError(VrmlError):
+    """The text is not VRML97 syntax (unexpected character or token)."""
+
+
+class VrmlSemanticError(VrmlError):
+    """The syntax is fine but a rule of the standard is broken (unknown node or field, wrong value
+    type, USE of an undefined name, IS outside a PROTO, incompatible ROUTE, ...)."""
+
+
+class VrmlLimitError(VrmlError):
+    """The file exceeds a safety limit (size, nesting depth)."""
+
+
+class VrmlUrlError(VrmlError):
+    """A url field points outside the file's folder or at the network."""
+
+
+class FapError(VttsError):
+    """A FAP file, FAP value or FAP name is invalid."""
+
+
+class ModelError(VttsError):
+    """A personalized model (scene plus tables) is inconsistent or cannot be found."""
+
+
+class AdtError(ModelError):
+    """An Animation Definition Table is invalid."""
+
+
+class VttsWarning(UserWarning):
+    """A problem vtts works around (lenient parsing, FAPs a model cannot show); carries the same
+    location attributes as :class:`VttsError`."""
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        file: str | None = None,
+        line: int | None = None,
+        column: int | None = None,
+    ) -> None:
+        super().__init__(message)
+        self.message = message
+        self.file = file
+        self.line = line
+        self.column = column
+
+    def __str__(self) -> str:
+        parts = [p for p in (self.file, self.line, self.column) if p is not None]
+        loc = ":".join(str(p) for p in parts)
+        return f"{loc}: {self.message}" if loc else self.message

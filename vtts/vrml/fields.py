@@ -1,0 +1,293 @@
+"""The 20 VRML97 field types: their Python/numpy values, parsing from tokens and writing back.
+
+Values by type (one row of :data:`FIELD_TYPES` each):
+
+============  ===================================================================
+SFBool        ``bool``
+SFInt32       ``int``
+SFFloat       ``float``
+SFTime        ``float`` (seconds)
+SFString      ``str``
+SFColor       ``(3,) float64``
+SFVec2f       ``(2,) float64``
+SFVec3f       ``(3,) float64``
+SFRotation    ``(4,) float64`` (axis x, y, z, angle in radians)
+SFImage       :class:`SFImage` (width, height, components, ``(w*h,) uint32`` pixels)
+SFNode        :class:`~vtts.vrml.scene.Node` or ``None``
+MFInt32       ``(n,) int32``
+MFFloat       ``(n,) float64``
+MFTime        ``(n,) float64``
+MFColor       ``(n, 3) float64``
+MFVec2f       ``(n, 2) float64``
+MFVec3f       ``(n, 3) float64``
+MFRotation    ``(n, 4) float64``
+MFString      ``list[str]``
+MFNode        ``list[Node]``
+============  ===================================================================
+
+Numeric arrays are made from the text in one numpy call, never a Python object per number.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class FieldType:
+    """One VRML97 field type.
+
+    ``width`` is the number of numbers per element of a numeric type (3 for SFVec3f/MFVec3f),
+    ``kind`` one of ``"float" "int" "bool" "string" "node" "image"``.
+    """
+
+    name: str
+    kind: str
+    width: int = 1
+
+    @property
+    def multi(self) -> bool:
+        """True for MF types."""
+        return self.name.startswith("MF")
+
+    @property
+    def numeric(self) -> bool:
+        return self.kind in ("float", "int")
+
+    def describe(self) -> str:
+        """A phrase for error messages: ``SFVec3f (3 numbers)``."""
+        if self.kind in ("float", "int") and not self.multi:
+            noun = "integer" if self.kind == "int" else "number"
+            return f"{self.name} ({self.width} {noun}{'s' if self.width > 1 else ''})"
+        return self.name
+
+
+FIELD_TYPES: dict[str, FieldType] = {
+    t.name: t
+    for t in [
+        FieldType("SFBool", "bool"),
+        FieldType("SFInt32", "int"),
+        FieldType("SFFloat", "float"),
+        FieldType("SFTime", "float"),
+        FieldType("SFString", "string"),
+        FieldType("SFColor", "float", 3),
+        FieldType("SFVec2f", "float", 2),
+        FieldType("SFVec3f", "float", 3),
+        FieldType("SFRotation", "float", 4),
+        FieldType("SFImage", "image"),
+        FieldType("SFNode", "node"),
+        FieldType("MFInt32", "int"),
+        FieldType("MFFloat", "float"),
+        FieldType("MFTime", "float"),
+        FieldType("MFColor", "float", 3),
+        FieldType("MFVec2f", "float", 2),
+        FieldType("MFVec3f", "float", 3),
+        FieldType("MFRotation", "float", 4),
+        FieldType("MFString", "string"),
+        FieldType("MFNode", "node"),
+    ]
+}
+
+INT32_MIN, INT32_MAX = -(2**31), 2**31 - 1
+
+
+@dataclass(frozen=True, eq=False)
+class SFImage:
+    """An uncompressed image value: ``pixels`` is ``(width*height,) uint32``, each pixel packing
+    ``components`` bytes (1 grey, 2 grey+alpha, 3 RGB, 4 RGBA), bottom row first."""
+
+    width: int
+    height: int
+    components: int
+    pixels: np.ndarray
+
+    def __eq__(self, other: object) -> bool:
+        return (
+            isinstance(other, SFImage)
+            and (self.width, self.height, self.components)
+            == (other.width, other.height, other.components)
+            and np.array_equal(self.pixels, other.pixels)
+        )
+
+    def __hash__(self) -> int:
+        return hash((self.width, self.height, self.components, self.pixels.tobytes()))
+
+    def to_rgba(self) -> np.ndarray:
+        """``(height, width, 4) uint8`` with the top row first (image convention)."""
+        p = self.pixels.astype(np.uint32).reshape(self.height, self.width)[::-1]
+        c = self.components
+        shifts = [8 * (c - 1 - k) for k in range(c)]
+        chans = [((p >> s) & 0xFF).astype(np.uint8) for s in shifts]
+        if c == 1:
+            chans = [chans[0], chans[0], chans[0], np.full_like(chans[0], 255)]
+        elif c == 2:
+            chans = [chans[0], chans[0], chans[0], chans[1]]
+        elif c == 3:
+            chans = chans + [np.full_like(chans[0], 255)]
+        return np.stack(chans, axis=-1)
+
+
+class NumberError(ValueError):
+    """A word in a run of numbers is not a number of the required kind; ``offset`` is the word's
+    position in the run's text."""
+
+    def __init__(self, word: str, offset: int, expected: str) -> None:
+        super().__init__(f"{word!r} is not {expected}")
+        self.word = word
+        self.offset = offset
+        self.expected = expected
+
+
+_WORD = re.compile(r"[^\s,]+")
+_SEP = re.compile(r"[\s,]+")
+
+
+def _words(text: str) -> list[str]:
+    return _SEP.split(text.strip(" \t\r\n,"))
+
+
+def _first_bad(text: str, check) -> NumberError:
+    for m in _WORD.finditer(text):
+        try:
+            check(m.group())
+        except (ValueError, OverflowError) as e:
+            return NumberError(m.group(), m.start(), getattr(e, "expected", ""))
+    raise AssertionError("no bad word found")  # pragma: no cover - caller saw one
+
+
+_FLOAT_WORD = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z")
+_INT_WORD = re.compile(r"[+-]?(?:0[xX][0-9a-fA-F]+|[0-9]+)\Z")
+
+
+def _check_float(w: str) -> None:
+    if not _FLOAT_WORD.match(w) and not _INT_WORD.match(w):
+        raise ValueError("a number")
+
+
+def _check_int(w: str) -> None:
+    if not _INT_WORD.match(w):
+        raise ValueError("an integer")
+
+
+def parse_floats(text: str) -> np.ndarray:
+    """All numbers of a run (``"0 0 1, 1 0 0"``) as a ``(n,) float64`` array.
+
+    Hexadecimal integers are accepted (VRML allows them wherever an integer is, and an integer is
+    a valid float). Raises :class:`NumberError` at the first word that is not a number.
+    """
+    words = _words(text)
+    if words == [""]:
+        return np.zeros(0)
+    try:
+        arr = np.array(words, dtype=np.float64)
+    except ValueError:
+        arr = None
+    if arr is None or not np.isfinite(arr).all():
+        # numpy refused a word (or accepted 'inf'/'nan', which the lexer never produces but a
+        # caller might pass): find the culprit, allowing hexadecimal integers.
+        out = []
+        for m in _WORD.finditer(text):
+            w = m.group()
+            if _FLOAT_WORD.match(w):
+                out.append(float(w))
+            elif _INT_WORD.match(w):
+                out.append(float(int(w, 0)))
+            else:
+                raise NumberError(w, m.start(), "a number")
+        arr = np.array(out, dtype=np.float64)
+        if not np.isfinite(arr).all():
+            bad = int(np.argmin(np.isfinite(arr)))
+            m = list(_WORD.finditer(text))[bad]
+            raise NumberError(m.group(), m.start(), "a finite number")
+    return arr
+
+
+def parse_ints(text: str, *, lo: int = INT32_MIN, hi: int = INT32_MAX) -> np.ndarray:
+    """All integers of a run as a ``(n,) int64`` array, each in ``[lo, hi]``.
+
+    Decimal and hexadecimal (``0xFF``) integers; raises :class:`NumberError` at the first word that
+    is not an integer or is out of range.
+    """
+    words = _words(text)
+    if words == [""]:
+        return np.zeros(0, dtype=np.int64)
+    try:
+        arr = np.array(words, dtype=np.int64)
+    except (ValueError, OverflowError):
+        out = []
+        for m in _WORD.finditer(text):
+            w = m.group()
+            if not _INT_WORD.match(w):
+                raise NumberError(w, m.start(), "an integer") from None
+            v = int(w, 0)
+            if not lo <= v <= hi:
+                raise NumberError(w, m.start(), f"an integer in [{lo}, {hi}]") from None
+            out.append(v)
+        arr = np.array(out, dtype=np.int64)
+    if arr.size and (arr.min() < lo or arr.max() > hi):
+        bad = int(np.argmax((arr < lo) | (arr > hi)))
+        m = list(_WORD.finditer(text))[bad]
+        raise NumberError(m.group(), m.start(), f"an integer in [{lo}, {hi}]")
+    return arr
+
+
+_UNESCAPE = re.compile(r"\\(.)", re.S)
+
+
+def unescape_string(token: str) -> str:
+    """The value of a quoted VRML string token: drop the quotes, ``\\"`` → ``"``, ``\\\\`` → ``\\``.
+
+    Any other backslash pair stands for the character after the backslash (as the spec says)."""
+    return _UNESCAPE.sub(r"\1", token[1:-1])
+
+
+def escape_string(value: str) -> str:
+    """A quoted VRML string token for ``value``."""
+    return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+# ---- writing ------------------------------------------------------------------------------------
+
+
+def format_number(x: float) -> str:
+    """Shortest text that reads back to exactly ``x`` (``1`` for 1.0)."""
+    if x == int(x) and abs(x) < 1e15:
+        return str(int(x))
+    return repr(float(x))
+
+
+def format_numbers(arr: np.ndarray, per_line: int = 1) -> list[str]:
+    """One line of text per row of ``arr`` (``(n, k)`` or ``(n,)``), numbers exact.
+
+    ``per_line`` groups scalar arrays (MFInt32 faces, MFFloat) several to a line.
+    """
+    a = np.asarray(arr)
+    if a.ndim == 1:
+        a = a.reshape(-1, per_line) if a.size % per_line == 0 else a.reshape(-1, 1)
+    if a.dtype.kind in "iu":
+        text = a.astype(str)
+    else:
+        # numpy's str of a float64 is the shortest round-trip repr; trim "1.0" to "1".
+        text = a.astype(str)
+        text = np.char.replace(text, ".0e", "e")
+        ends = np.char.endswith(text, ".0")
+        if ends.any():
+            text[ends] = np.char.rstrip(np.char.rstrip(text[ends], "0"), ".")
+    return [" ".join(row) for row in text.tolist()]
+
+
+def equal_values(a: Any, b: Any) -> bool:
+    """Exact equality of two field values of the same type (numpy arrays compared elementwise).
+
+    Node values are compared by :func:`vtts.vrml.scene.same_node`, not here."""
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        a_arr, b_arr = np.asarray(a), np.asarray(b)
+        return a_arr.shape == b_arr.shape and bool(np.array_equal(a_arr, b_arr))
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    return a == b

@@ -1,0 +1,897 @@
+"""Parsing VRML97 text into a :class:`~vtts.vrml.scene.Scene`.
+
+Three steps, as in lark's own design: the LALR parser turns text into a tree
+(``grammars/vrml97.lark``), then :class:`_Builder` walks the tree in file order — DEF/USE and PROTO
+scopes are order-dependent, so this is a walk, not a bottom-up transformer — and types every value
+from the node tables, checking the standard's rules as it goes.
+
+Safety: nothing is ever fetched; url fields that would leave the file's folder are rejected; the
+file size and nesting depth are limited, so hostile input gives a :class:`VrmlLimitError` rather
+than a RecursionError or a hang.
+"""
+
+from __future__ import annotations
+
+import posixpath
+import re
+import warnings
+from dataclasses import dataclass, field
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from lark import Lark, Token, Tree
+from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
+
+from vtts.errors import (
+    VrmlLimitError,
+    VrmlSemanticError,
+    VrmlSyntaxError,
+    VrmlUrlError,
+    VttsWarning,
+)
+from vtts.resources import grammar_text
+from vtts.vrml.fields import (
+    FIELD_TYPES,
+    FieldType,
+    NumberError,
+    SFImage,
+    parse_floats,
+    parse_ints,
+    unescape_string,
+)
+from vtts.vrml.nodes import (
+    ROLES,
+    FieldDecl,
+    NodeType,
+    generic_node_type,
+    interface_conflict,
+    standard_node_types,
+)
+from vtts.vrml.scene import Node, Proto, Route, Scene
+
+#: Default limits (override per call).
+MAX_BYTES = 256 * 1024 * 1024
+MAX_DEPTH = 100
+
+HEADER = "#VRML V2.0 utf8"
+
+#: Fields whose urls are loaded from disk (and so must stay inside the file's folder).
+#: Anchor.url is a hyperlink, never loaded, and is not checked.
+URL_FIELDS: dict[str, tuple[str, ...]] = {
+    "ImageTexture": ("url",),
+    "MovieTexture": ("url",),
+    "AudioClip": ("url",),
+    "Inline": ("url",),
+    "Script": ("url",),
+    "Background": ("backUrl", "bottomUrl", "frontUrl", "leftUrl", "rightUrl", "topUrl"),
+}
+_SCRIPT_SCHEMES = ("javascript", "vrmlscript", "ecmascript")
+_SCHEME = re.compile(r"^([A-Za-z][A-Za-z0-9+.\-]*):")
+
+_TERMINAL_NAMES = {
+    "LBRACE": "'{'",
+    "RBRACE": "'}'",
+    "LSQB": "'['",
+    "RSQB": "']'",
+    "DOT": "'.'",
+    "ID": "a name",
+    "NUMBERS": "a number",
+    "STRING": "a string",
+    "TRUE": "TRUE",
+    "FALSE": "FALSE",
+    "NULL": "NULL",
+    "EVENTIN": "eventIn",
+    "EVENTOUT": "eventOut",
+    "FIELD": "field",
+    "EXPOSEDFIELD": "exposedField",
+    "$END": "the end of the file",
+}
+
+
+@cache
+def _lark() -> Lark:
+    return Lark(grammar_text("vrml97"), parser="lalr", lexer="contextual", maybe_placeholders=False)
+
+
+def parse(
+    text: str | bytes,
+    *,
+    file: str | None = None,
+    lenient: bool = False,
+    max_bytes: int = MAX_BYTES,
+    max_depth: int = MAX_DEPTH,
+) -> Scene:
+    """Parse VRML97 text (``str`` or UTF-8 ``bytes``) into a :class:`Scene`.
+
+    ``file`` names the source in error messages and is the folder url fields resolve against.
+    ``lenient`` parses unknown node types generically (with a :class:`VttsWarning`) instead of
+    rejecting them. Raises a :class:`~vtts.errors.VrmlError` subclass for any invalid input.
+    """
+    where = file or "<text>"
+    if isinstance(text, bytes):
+        if len(text) > max_bytes:
+            raise VrmlLimitError(
+                f"file is {len(text)} bytes, more than the limit of {max_bytes}", file=where
+            )
+        try:
+            text = text.decode("utf-8")
+        except UnicodeDecodeError as e:
+            line = text.count(b"\n", 0, e.start) + 1
+            col = e.start - (text.rfind(b"\n", 0, e.start) + 1) + 1
+            raise VrmlSyntaxError(
+                f"invalid UTF-8 byte 0x{text[e.start]:02x} (VRML97 files are UTF-8)",
+                file=where,
+                line=line,
+                column=col,
+            ) from None
+    if len(text) > max_bytes:
+        raise VrmlLimitError(f"text is longer than the limit of {max_bytes} bytes", file=where)
+    if text.startswith("\ufeff"):
+        text = text[1:]
+    _check_header(text, where)
+    try:
+        tree = _lark().parse(text)
+    except UnexpectedInput as e:
+        raise _syntax_error(e, text, where) from None
+    builder = _Builder(
+        file=where,
+        base_dir=Path(file).resolve().parent if file else None,
+        lenient=lenient,
+        max_depth=max_depth,
+    )
+    scene = builder.build(tree)
+    scene.path = Path(file) if file else None
+    return scene
+
+
+def read(path: str | Path, *, lenient: bool = False, max_bytes: int = MAX_BYTES) -> Scene:
+    """Read and parse a ``.wrl`` file (see :func:`parse`)."""
+    p = Path(path)
+    try:
+        size = p.stat().st_size
+        if size > max_bytes:
+            raise VrmlLimitError(
+                f"file is {size} bytes, more than the limit of {max_bytes}", file=str(p)
+            )
+        data = p.read_bytes()
+    except OSError as e:
+        raise VrmlSyntaxError(f"cannot read file: {e.strerror}", file=str(p)) from None
+    return parse(data, file=str(p), lenient=lenient, max_bytes=max_bytes)
+
+
+def _check_header(text: str, where: str) -> None:
+    first = text.split("\n", 1)[0].rstrip("\r")
+    if first.startswith(HEADER) and (len(first) == len(HEADER) or first[len(HEADER)] in " \t"):
+        return
+    if first.startswith("#VRML V1.0"):
+        raise VrmlSyntaxError(
+            f"VRML 1.0 is not supported: vtts reads VRML97 files, which start with '{HEADER}'",
+            file=where,
+            line=1,
+            column=1,
+        )
+    shown = first[:40] + ("…" if len(first) > 40 else "")
+    raise VrmlSyntaxError(
+        f"missing VRML97 header: the first line must be '{HEADER}', got {shown!r}",
+        file=where,
+        line=1,
+        column=1,
+    )
+
+
+def _caret(text: str, line: int, column: int) -> str:
+    lines = text.splitlines()
+    src = lines[line - 1] if 0 < line <= len(lines) else ""
+    start = max(0, column - 60)
+    src_shown = src[start : start + 100]
+    return f"    {src_shown}\n    {' ' * (column - 1 - start)}^"
+
+
+def _syntax_error(e: UnexpectedInput, text: str, where: str) -> VrmlSyntaxError:
+    line, col = getattr(e, "line", 0) or 0, getattr(e, "column", 0) or 0
+    if isinstance(e, UnexpectedCharacters):
+        ch = text[e.pos_in_stream] if e.pos_in_stream < len(text) else ""
+        msg = f"unexpected character {ch!r}"
+    elif isinstance(e, UnexpectedToken):
+        tok = e.token
+        if tok.type == "$END":
+            msg = "unexpected end of file"
+            line = line if line > 0 else text.count("\n") + 1
+        else:
+            shown = str(tok) if len(str(tok)) <= 30 else str(tok)[:30] + "…"
+            msg = f"unexpected {shown!r}"
+        expected = sorted({_TERMINAL_NAMES.get(t, t) for t in e.expected if not t.startswith("_")})
+        if expected:
+            msg += "; expected " + ", ".join(expected)
+    elif isinstance(e, UnexpectedEOF):
+        msg = "unexpected end of file"
+        line = text.count("\n") + 1
+        col = len(text.rsplit("\n", 1)[-1]) + 1
+    else:  # pragma: no cover - lark has no other kinds
+        msg = str(e)
+    if line <= 0:
+        line, col = text.count("\n") + 1, len(text.rsplit("\n", 1)[-1]) + 1
+    return VrmlSyntaxError(msg, file=where, line=line, column=col, context=_caret(text, line, col))
+
+
+# ---- the builder ---------------------------------------------------------------------------------
+
+
+@dataclass
+class _Scope:
+    """A DEF namespace plus the PROTO names visible in it.
+
+    DEF names do not cross scope boundaries (each PROTO body and each PROTO field default has its
+    own); PROTO names are looked up outward.
+    """
+
+    parent: _Scope | None = None
+    proto: Proto | None = None
+    defs: dict[str, Node] = field(default_factory=dict)
+    protos: dict[str, NodeType] = field(default_factory=dict)
+
+    def lookup_proto(self, name: str) -> NodeType | None:
+        s: _Scope | None = self
+        while s is not None:
+            if name in s.protos:
+                return s.protos[name]
+            s = s.parent
+        return None
+
+    def in_proto(self) -> Proto | None:
+        """The PROTO whose body this scope is (IS is legal only there)."""
+        return self.proto
+
+
+_NODE_TREES = ("node", "def_node", "use_node")
+
+
+class _Builder:
+    def __init__(self, *, file: str, base_dir: Path | None, lenient: bool, max_depth: int):
+        self.file = file
+        self.base_dir = base_dir
+        self.lenient = lenient
+        self.max_depth = max_depth
+        self.standard = standard_node_types()
+        self.node_count = 0
+
+    # ---- errors -----------------------------------------------------------------------------
+
+    def error(self, msg: str, tok: Token | None, cls: type = VrmlSemanticError) -> Exception:
+        line = getattr(tok, "line", None)
+        col = getattr(tok, "column", None)
+        return cls(msg, file=self.file, line=line, column=col)
+
+    def warn(self, msg: str, tok: Token | None) -> None:
+        warnings.warn(
+            VttsWarning(
+                msg,
+                file=self.file,
+                line=getattr(tok, "line", None),
+                column=getattr(tok, "column", None),
+            ),
+            stacklevel=2,
+        )
+
+    # ---- statements -------------------------------------------------------------------------
+
+    def build(self, tree: Tree) -> Scene:
+        scope = _Scope()
+        statements = [self.statement(t, scope, 0) for t in tree.children]
+        return Scene(statements=statements, defs=scope.defs, node_count=self.node_count)
+
+    def statement(self, t: Tree, scope: _Scope, depth: int) -> Any:
+        kind = t.data
+        if kind in _NODE_TREES:
+            return self.node_stmt(t, scope, depth)
+        if kind == "proto":
+            return self.proto(t, scope, depth)
+        if kind == "externproto":
+            return self.externproto(t, scope)
+        if kind == "route":
+            return self.route(t, scope)
+        raise AssertionError(kind)  # pragma: no cover
+
+    def node_stmt(self, t: Tree, scope: _Scope, depth: int) -> Node:
+        if t.data == "use_node":
+            name_tok = t.children[0]
+            node = scope.defs.get(str(name_tok))
+            if node is None:
+                known = ", ".join(sorted(scope.defs)) or "none"
+                raise self.error(
+                    f"USE of undefined name '{name_tok}': a USE must follow a DEF of the same "
+                    f"name in the same scope (DEF names here: {known})",
+                    name_tok,
+                )
+            return node
+        if t.data == "def_node":
+            name_tok, node_tree = t.children
+            return self.node(node_tree, scope, depth, def_name=str(name_tok))
+        return self.node(t, scope, depth)
+
+    def node_type(self, tok: Token, scope: _Scope) -> NodeType:
+        name = str(tok)
+        nt = scope.lookup_proto(name)
+        if nt is not None:
+            return nt
+        std = self.standard.get(name)
+        if std is not None:
+            if name == "Script":
+                # A Script adds its own interface to the fixed members: give each its own type.
+                return NodeType("Script", dict(std.decls), std.roles, "script")
+            return std
+        if self.lenient:
+            self.warn(f"unknown node type '{name}' parsed generically (--lenient)", tok)
+            return generic_node_type(name)
+        raise self.error(
+            f"unknown node type '{name}': not a VRML97 node, an MPEG-4 face node, or a PROTO "
+            "declared before this point (use --lenient to load vendor extension nodes)",
+            tok,
+        )
+
+    def node(self, t: Tree, scope: _Scope, depth: int, def_name: str | None = None) -> Node:
+        type_tok = t.children[0]
+        if depth >= self.max_depth:
+            raise self.error(
+                f"nodes nest deeper than the limit of {self.max_depth} levels",
+                type_tok,
+                VrmlLimitError,
+            )
+        ntype = self.node_type(type_tok, scope)
+        node = Node(ntype, name=def_name, line=type_tok.line, column=type_tok.column)
+        self.node_count += 1
+        if def_name is not None:
+            # Registered before the body: a Script may USE itself in its own fields.
+            scope.defs[def_name] = node
+        for el in t.children[1:]:
+            kind = el.data
+            if kind == "field_value":
+                self.field_value(node, el, scope, depth)
+            elif kind == "field_is":
+                self.field_is(node, el, scope)
+            elif kind in ("route", "proto", "externproto"):
+                node.extras.append(self.statement(el, scope, depth + 1))
+            elif kind in ("event_decl", "field_decl"):
+                self.script_decl(node, el, scope, depth)
+            else:  # pragma: no cover
+                raise AssertionError(kind)
+        self.check_urls(node)
+        return node
+
+    def field_value(self, node: Node, el: Tree, scope: _Scope, depth: int) -> None:
+        name_tok, value_tree = el.children
+        name = str(name_tok)
+        ntype = node.type
+        if ntype.kind == "generic":
+            ftype, value = self.infer_value(value_tree, scope, depth)
+            ntype.decls.setdefault(name, FieldDecl("exposedField", ftype, name, None))
+        else:
+            decl = ntype.field(name)
+            if decl is None or (ntype.kind == "script" and _is_script_decl(node, name)):
+                raise self.unknown_member(ntype, name_tok)
+            value = self.value(value_tree, decl, scope, depth, f"{name}' of {ntype.describe()}")
+        if name in node.fields or name in node.is_maps:
+            raise self.error(f"field '{name}' is given twice in one {ntype.describe()}", name_tok)
+        node.fields[name] = value
+
+    def unknown_member(self, ntype: NodeType, name_tok: Token) -> Exception:
+        name = str(name_tok)
+        if ntype.event_in(name) or ntype.event_out(name):
+            return self.error(
+                f"'{name}' is an event of {ntype.describe()}, not a field: only fields and "
+                "exposedFields take a value",
+                name_tok,
+            )
+        fields = ", ".join(d.name for d in ntype.decls.values() if d.has_value) or "none"
+        return self.error(
+            f"{ntype.describe()} has no field '{name}' (its fields: {fields})", name_tok
+        )
+
+    def field_is(self, node: Node, el: Tree, scope: _Scope) -> None:
+        member_tok, iface_tok = el.children
+        proto = scope.in_proto()
+        if proto is None:
+            raise self.error(
+                f"'{member_tok} IS {iface_tok}' outside a PROTO body: IS binds a node's member "
+                "to its PROTO's interface and is legal only inside a PROTO definition",
+                member_tok,
+            )
+        ntype = node.type
+        iface = proto.decls.get(str(iface_tok))
+        if iface is None:
+            raise self.error(f"PROTO {proto.name} has no interface member '{iface_tok}'", iface_tok)
+        if ntype.kind == "generic":
+            ntype.decls.setdefault(
+                str(member_tok), FieldDecl("exposedField", iface.type, str(member_tok), None)
+            )
+        member = ntype.member(str(member_tok))
+        access = member.access if member is not None else None
+        if member is None:
+            member = ntype.event_in(str(member_tok))
+            access = "eventIn" if member is not None else None
+        if member is None:
+            member = ntype.event_out(str(member_tok))
+            access = "eventOut" if member is not None else None
+        if member is None:
+            raise self.unknown_member(ntype, member_tok)
+        if member.type is not iface.type:
+            raise self.error(
+                f"'{member_tok} IS {iface_tok}': {ntype.describe()}.{member_tok} is "
+                f"{member.type.name} but PROTO {proto.name}.{iface_tok} is {iface.type.name} "
+                "(rule: IS joins members of the same type)",
+                member_tok,
+            )
+        allowed = _IS_ACCESS[iface.access]
+        if access not in allowed:
+            raise self.error(
+                f"'{member_tok} IS {iface_tok}': a {access} cannot be bound to the PROTO's "
+                f"{iface.access} (an interface {iface.access} binds to "
+                f"{' or '.join(sorted(allowed))} members)",
+                member_tok,
+            )
+        if str(member_tok) in node.fields or str(member_tok) in node.is_maps:
+            raise self.error(f"member '{member_tok}' is given twice", member_tok)
+        node.is_maps[str(member_tok)] = str(iface_tok)
+
+    def script_decl(self, node: Node, el: Tree, scope: _Scope, depth: int) -> None:
+        access_tok = el.children[0]
+        if node.type.kind != "script":
+            raise self.error(
+                f"interface declaration '{access_tok} …' inside {node.type.describe()}: only "
+                "PROTO interfaces and Script nodes declare members",
+                access_tok,
+            )
+        if str(access_tok) == "exposedField":
+            raise self.error(
+                "exposedField is not allowed in a Script (rule: a Script declares eventIn, "
+                "eventOut and field members only)",
+                access_tok,
+            )
+        decl, value, is_name = self.declaration(el, scope, depth, in_script=True)
+        problem = interface_conflict(node.type.decls, decl)
+        if problem:
+            raise self.error(f"Script: {problem}", el.children[2])
+        node.type.decls[decl.name] = decl
+        node.script_decls.append(decl)
+        if is_name is not None:
+            fake = Tree("field_is", [el.children[2], is_name])
+            self.field_is(node, fake, scope)
+        elif decl.has_value:
+            node.fields[decl.name] = value
+
+    def declaration(
+        self, el: Tree, scope: _Scope, depth: int, *, in_script: bool
+    ) -> tuple[FieldDecl, Any, Token | None]:
+        """(declaration, value or None, IS target or None) of an event_decl/field_decl tree."""
+        access_tok, type_tok, name_tok = el.children[:3]
+        ftype = FIELD_TYPES.get(str(type_tok))
+        if ftype is None:
+            raise self.error(
+                f"unknown field type '{type_tok}' (VRML97 types: {', '.join(FIELD_TYPES)})",
+                type_tok,
+            )
+        rest = el.children[3:]
+        is_name: Token | None = None
+        value = None
+        if rest and isinstance(rest[0], Token):
+            is_name = rest[0]
+        elif rest:
+            value_scope = scope if in_script else _Scope(parent=scope)
+            value = self.value(
+                rest[0],
+                FieldDecl(str(access_tok), ftype, str(name_tok)),
+                value_scope,
+                depth,
+                f"{name_tok}'",
+            )
+        decl = FieldDecl(str(access_tok), ftype, str(name_tok), None if in_script else value, None)
+        return decl, value, is_name
+
+    # ---- PROTO / EXTERNPROTO / ROUTE ---------------------------------------------------------
+
+    def proto(self, t: Tree, scope: _Scope, depth: int) -> Proto:
+        name_tok = t.children[0]
+        if depth >= self.max_depth:
+            raise self.error(
+                f"PROTOs nest deeper than the limit of {self.max_depth} levels",
+                name_tok,
+                VrmlLimitError,
+            )
+        proto = Proto(
+            str(name_tok), {}, frozenset(ROLES), "proto", line=name_tok.line, column=name_tok.column
+        )
+        body_trees = []
+        for el in t.children[1:]:
+            if el.data in ("event_decl", "field_decl"):
+                decl, _value, is_name = self.declaration(el, scope, depth, in_script=False)
+                if is_name is not None:
+                    raise self.error(
+                        f"PROTO {proto.name}: IS is not allowed in a PROTO interface", is_name
+                    )
+                problem = interface_conflict(proto.decls, decl)
+                if problem:
+                    raise self.error(f"PROTO {proto.name}: {problem}", el.children[2])
+                proto.decls[decl.name] = decl
+            else:
+                body_trees.append(el)
+        body_scope = _Scope(parent=scope, proto=proto)
+        for bt in body_trees:
+            proto.body.append(self.statement(bt, body_scope, depth + 1))
+        first = proto.first_node()
+        if first is None:
+            raise self.error(
+                f"PROTO {proto.name} has no node in its body (rule: a PROTO body starts with "
+                "its root node)",
+                name_tok,
+            )
+        proto.roles = _roles_of(first)
+        scope.protos[proto.name] = proto
+        return proto
+
+    def externproto(self, t: Tree, scope: _Scope) -> Proto:
+        name_tok = t.children[0]
+        proto = Proto(
+            str(name_tok),
+            {},
+            frozenset(ROLES),
+            "externproto",
+            line=name_tok.line,
+            column=name_tok.column,
+        )
+        for el in t.children[1:]:
+            if el.data == "extern_decl":
+                access_tok, type_tok, member_tok = el.children
+                ftype = FIELD_TYPES.get(str(type_tok))
+                if ftype is None:
+                    raise self.error(f"unknown field type '{type_tok}'", type_tok)
+                decl = FieldDecl(str(access_tok), ftype, str(member_tok), None)
+                problem = interface_conflict(proto.decls, decl)
+                if problem:
+                    raise self.error(f"EXTERNPROTO {proto.name}: {problem}", member_tok)
+                proto.decls[decl.name] = decl
+            else:  # url_list
+                for s in el.children:
+                    url = unescape_string(str(s))
+                    self.check_url(url, s)
+                    proto.urls.append(url)
+        scope.protos[proto.name] = proto
+        return proto
+
+    def route(self, t: Tree, scope: _Scope) -> Route:
+        from_tok, out_tok, to_tok, in_tok = t.children
+        ends = []
+        for node_tok in (from_tok, to_tok):
+            node = scope.defs.get(str(node_tok))
+            if node is None:
+                raise self.error(
+                    f"ROUTE names '{node_tok}', which is not DEFed before this point in the "
+                    "same scope",
+                    node_tok,
+                )
+            ends.append(node)
+        src, dst = ends
+        route = Route(
+            str(from_tok), str(out_tok), str(to_tok), str(in_tok), from_tok.line, from_tok.column
+        )
+        if "generic" in (src.type.kind, dst.type.kind):
+            return route
+        out_decl = src.type.event_out(str(out_tok))
+        if out_decl is None:
+            raise self.error(self._route_member_problem(src, str(out_tok), "eventOut"), out_tok)
+        in_decl = dst.type.event_in(str(in_tok))
+        if in_decl is None:
+            raise self.error(self._route_member_problem(dst, str(in_tok), "eventIn"), in_tok)
+        if out_decl.type is not in_decl.type:
+            raise self.error(
+                f"ROUTE {from_tok}.{out_tok} TO {to_tok}.{in_tok} connects an "
+                f"{out_decl.type.name} eventOut to an {in_decl.type.name} eventIn "
+                "(rule: a ROUTE connects events of the same type)",
+                from_tok,
+            )
+        return route
+
+    @staticmethod
+    def _route_member_problem(node: Node, name: str, wanted: str) -> str:
+        d = node.type.member(name)
+        label = f"{node.name}.{name}"
+        if d is not None:
+            return (
+                f"ROUTE uses {label}, a {d.access} of {node.type.describe()}, where an {wanted} "
+                "is needed (rule: a ROUTE goes from an eventOut to an eventIn)"
+            )
+        return f"ROUTE uses {label}, but {node.type.describe()} has no {wanted} '{name}'"
+
+    # ---- values -------------------------------------------------------------------------------
+
+    def value(self, t: Tree, decl: FieldDecl, scope: _Scope, depth: int, what: str) -> Any:
+        """The typed value of a sf_value/mf_value tree for member ``decl``.
+
+        ``what`` names the member in messages (``translation' of Transform``)."""
+        ftype = decl.type
+        bracketed = t.data == "mf_value"
+        items = t.children
+        first_tok = _first_token(t)
+        if bracketed and not ftype.multi:
+            raise self.error(
+                f"field '{what} is {ftype.describe()}: a single value, not a '[ ]' list",
+                first_tok,
+            )
+        kind = ftype.kind
+        if kind in ("float", "int", "image"):
+            toks = [i for i in items if isinstance(i, Token) and i.type == "NUMBERS"]
+            if len(toks) != len(items):
+                raise self.wrong_kind(what, ftype, items, first_tok)
+            return self.numbers(toks, ftype, what, first_tok)
+        if kind == "bool":
+            if (
+                len(items) != 1
+                or not isinstance(items[0], Token)
+                or items[0].type
+                not in (
+                    "TRUE",
+                    "FALSE",
+                )
+            ):
+                raise self.wrong_kind(what, ftype, items, first_tok)
+            return items[0].type == "TRUE"
+        if kind == "string":
+            if not all(isinstance(i, Token) and i.type == "STRING" for i in items):
+                raise self.wrong_kind(what, ftype, items, first_tok)
+            strings = [unescape_string(str(i)) for i in items]
+            if ftype.multi:
+                return strings
+            return strings[0]
+        # nodes
+        if not ftype.multi and len(items) == 1 and isinstance(items[0], Token):
+            if items[0].type == "NULL":
+                return None
+        if not all(isinstance(i, Tree) for i in items):
+            raise self.wrong_kind(what, ftype, items, first_tok)
+        nodes = [self.node_stmt(i, scope, depth + 1) for i in items]
+        for i, n in zip(items, nodes, strict=True):
+            self.check_role(n, decl, what, _first_token(i))
+        return nodes if ftype.multi else nodes[0]
+
+    def wrong_kind(self, what: str, ftype: FieldType, items: list, tok: Token | None) -> Exception:
+        got = _describe_items(items)
+        return self.error(f"field '{what} expects {ftype.describe()}, got {got}", tok)
+
+    def numbers(self, toks: list[Token], ftype: FieldType, what: str, first: Token) -> Any:
+        parts = []
+        for tok in toks:
+            try:
+                if ftype.kind == "float":
+                    parts.append(parse_floats(str(tok)))
+                elif ftype.kind == "image":
+                    parts.append(parse_ints(str(tok), lo=-(2**31), hi=2**32 - 1))
+                else:
+                    parts.append(parse_ints(str(tok)))
+            except NumberError as e:
+                line, col = _offset_position(tok, e.offset)
+                raise VrmlSemanticError(
+                    f"field '{what} expects {ftype.describe()}: {e.word!r} is not {e.expected}",
+                    file=self.file,
+                    line=line,
+                    column=col,
+                ) from None
+        if not parts:
+            parts = [np.zeros(0, dtype=np.float64 if ftype.kind == "float" else np.int64)]
+        arr = parts[0] if len(parts) == 1 else np.concatenate(parts)
+        n = arr.size
+        if ftype.kind == "image":
+            return self.image(arr, what, first)
+        w = ftype.width
+        if not ftype.multi:
+            if n != w:
+                raise self.error(
+                    f"field '{what} expects {ftype.describe()}, got {n} number"
+                    f"{'s' if n != 1 else ''}",
+                    first,
+                )
+            if w > 1:
+                return arr.astype(np.float64)
+            return int(arr[0]) if ftype.kind == "int" else float(arr[0])
+        if n % w:
+            raise self.error(
+                f"field '{what} expects {ftype.name}, a multiple of {w} numbers, got {n}", first
+            )
+        if ftype.kind == "int":
+            return arr.astype(np.int32)
+        return arr.reshape(-1, w) if w > 1 else arr
+
+    def image(self, arr: np.ndarray, what: str, tok: Token) -> SFImage:
+        if arr.size < 3:
+            raise self.error(
+                f"field '{what} expects SFImage (width height components pixels…), got "
+                f"{arr.size} numbers",
+                tok,
+            )
+        w, h, c = (int(v) for v in arr[:3])
+        if w < 0 or h < 0 or not 0 <= c <= 4:
+            raise self.error(
+                f"field '{what}: SFImage size {w}x{h} with {c} components is invalid "
+                "(components must be 1 to 4)",
+                tok,
+            )
+        pixels = arr[3:]
+        if pixels.size != w * h:
+            raise self.error(
+                f"field '{what}: SFImage of {w}x{h} needs {w * h} pixels, got {pixels.size}", tok
+            )
+        pixels = pixels.astype(np.int64) & 0xFFFFFFFF
+        if c and pixels.size and pixels.max() >= 1 << (8 * c):
+            raise self.error(
+                f"field '{what}: pixel value {int(pixels.max()):#x} has more than {c} "
+                f"component byte{'s' if c > 1 else ''}",
+                tok,
+            )
+        return SFImage(w, h, c, pixels.astype(np.uint32))
+
+    def infer_value(self, t: Tree, scope: _Scope, depth: int) -> tuple[FieldType, Any]:
+        """Type and value of a field of a generic (unknown) node, from the value's form."""
+        items = t.children
+        multi = t.data == "mf_value"
+        if items and all(isinstance(i, Tree) for i in items):
+            tname = "MFNode" if multi or len(items) != 1 else "SFNode"
+        elif items and all(isinstance(i, Token) and i.type == "STRING" for i in items):
+            tname = "MFString" if multi else "SFString"
+        elif len(items) == 1 and isinstance(items[0], Token) and items[0].type in ("TRUE", "FALSE"):
+            tname = "SFBool"
+        elif len(items) == 1 and isinstance(items[0], Token) and items[0].type == "NULL":
+            tname = "SFNode"
+        elif items and all(isinstance(i, Token) and i.type == "NUMBERS" for i in items):
+            tname = "MFFloat"
+        elif not items:
+            tname = "MFNode"
+        else:
+            raise self.wrong_kind(
+                "of a generic node", FIELD_TYPES["MFFloat"], items, _first_token(t)
+            )
+        ftype = FIELD_TYPES[tname]
+        decl = FieldDecl("exposedField", ftype, "?")
+        return ftype, self.value(
+            Tree("mf_value" if ftype.multi else "sf_value", items),
+            decl,
+            scope,
+            depth,
+            "?' of a generic node",
+        )
+
+    def check_role(self, node: Node, decl: FieldDecl, what: str, tok: Token | None) -> None:
+        if decl.roles is None:
+            return
+        roles = _roles_of(node)
+        if roles & decl.roles:
+            return
+        want = " or ".join(sorted(decl.roles))
+        have = " or ".join(sorted(roles)) or "no known role"
+        raise self.error(
+            f"field '{what} takes a {want} node; {node.type.describe()} is a {have} node",
+            tok,
+        )
+
+    # ---- urls ---------------------------------------------------------------------------------
+
+    def check_urls(self, node: Node) -> None:
+        for fname in URL_FIELDS.get(node.type.name, ()):
+            urls = node.fields.get(fname)
+            for url in urls or ():
+                self.check_url(url, node, node_name=f"{node.type.name}.{fname}")
+
+    def check_url(self, url: str, where: Any, node_name: str = "EXTERNPROTO") -> None:
+        problem = url_problem(url)
+        if problem:
+            tok = where if isinstance(where, Token) else None
+            line = getattr(where, "line", None)
+            col = getattr(where, "column", None)
+            raise VrmlUrlError(
+                f"{node_name} url {url!r} {problem}; urls may only name files inside the "
+                "folder of the file that refers to them",
+                file=self.file,
+                line=line if tok is None else tok.line,
+                column=col if tok is None else tok.column,
+            )
+
+
+#: Which node-member accesses an interface member of each access may be bound to with IS
+#: (ISO 14772-1 4.8.3, table 4.4).
+_IS_ACCESS = {
+    "exposedField": {"exposedField"},
+    "field": {"field", "exposedField"},
+    "eventIn": {"eventIn", "exposedField"},
+    "eventOut": {"eventOut", "exposedField"},
+}
+
+
+def url_problem(url: str) -> str | None:
+    """Why a url must not be resolved against a file's folder, or None if it is safe.
+
+    Network and script urls are kept as data (vtts never fetches anything); local paths must be
+    relative and stay inside the folder.
+    """
+    path = url.split("#", 1)[0]
+    m = _SCHEME.match(path)
+    if m and len(m.group(1)) > 1:
+        scheme = m.group(1).lower()
+        if scheme != "file":
+            return None  # http, urn, javascript…: data only, never fetched
+        path = path[len("file:") :]
+        if path.startswith("//"):
+            return "is an absolute file: url"
+    elif m:  # a Windows drive letter
+        return "is an absolute path"
+    path = path.replace("\\", "/")
+    if path.startswith("/"):
+        return "is an absolute path"
+    norm = posixpath.normpath(path) if path else path
+    if norm == ".." or norm.startswith("../"):
+        return "leaves the file's folder"
+    return None
+
+
+def resolve_url(urls: list[str], base_dir: Path | None) -> Path | None:
+    """The first url of ``urls`` that names an existing local file inside ``base_dir``.
+
+    Network urls are skipped (never fetched). Symbolic links are followed and the result is
+    checked again, so a link cannot lead outside the folder either.
+    """
+    if base_dir is None:
+        return None
+    root = base_dir.resolve()
+    for url in urls:
+        if (
+            url_problem(url) is not None
+            or _SCHEME.match(url)
+            and not url.lower().startswith("file:")
+        ):
+            continue
+        rel = url.split("#", 1)[0]
+        if rel.lower().startswith("file:"):
+            rel = rel[5:]
+        p = (root / rel.replace("\\", "/")).resolve()
+        if p.is_file() and (p == root or root in p.parents):
+            return p
+    return None
+
+
+def _is_script_decl(node: Node, name: str) -> bool:
+    return any(d.name == name for d in node.script_decls)
+
+
+def _roles_of(node: Node) -> frozenset[str]:
+    return node.type.roles
+
+
+def _first_token(t: Any) -> Token | None:
+    if isinstance(t, Token):
+        return t
+    for c in t.children:
+        tok = _first_token(c)
+        if tok is not None:
+            return tok
+    return None
+
+
+def _describe_items(items: list) -> str:
+    if not items:
+        return "an empty list"
+    i = items[0]
+    if isinstance(i, Tree):
+        return "a node"
+    return {
+        "NUMBERS": "a number",
+        "STRING": "a string",
+        "TRUE": "TRUE",
+        "FALSE": "FALSE",
+        "NULL": "NULL",
+    }.get(i.type, repr(str(i)))
+
+
+def _offset_position(tok: Token, offset: int) -> tuple[int, int]:
+    text = str(tok)[:offset]
+    nl = text.count("\n")
+    if nl == 0:
+        return tok.line, tok.column + offset
+    return tok.line + nl, offset - text.rfind("\n")
