@@ -192,7 +192,7 @@ class _Writer:
                     self.lines.append(pad + body)
                 else:
                     rows = format_numbers(arr, per_line=1 if arr.ndim > 1 else 8)
-                    self.lines.append(pad + ("\n" + pad).join(rows))
+                    self.lines.append(pad + (",\n" + pad).join(rows))
                 self.lines.append(_INDENT * depth + "]")
 
 

@@ -1,0 +1,65 @@
+"""The wheel carries grammars/ and models/ inside the package, and code finds them there."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).parents[1]
+
+
+@pytest.fixture(scope="module")
+def wheel(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("wheel")
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "build",
+            "--wheel",
+            "--no-isolation",
+            "--outdir",
+            str(out),
+            str(ROOT),
+        ],
+        check=True,
+        capture_output=True,
+        timeout=300,
+    )
+    (whl,) = out.glob("vtts-*.whl")
+    return whl
+
+
+def test_wheel_contains_grammars_models_and_both_packages(wheel):
+    names = zipfile.ZipFile(wheel).namelist()
+    assert "vtts/_data/grammars/vrml97.lark" in names
+    assert any(n.startswith("vtts/_data/models/") for n in names)
+    assert "vtts/vrml/standard_nodes.txt" in names
+    assert "adt_tools/__init__.py" in names
+    entry_points = next(n for n in names if n.endswith("entry_points.txt"))
+    text = zipfile.ZipFile(wheel).read(entry_points).decode()
+    assert "vtts = vtts.cli:main" in text and "adi = adt_tools.cli:main" in text
+
+
+def test_installed_wheel_parses_without_the_checkout(wheel, tmp_path):
+    target = tmp_path / "site"
+    zipfile.ZipFile(wheel).extractall(target)
+    code = (
+        "import vtts.resources as r, vtts.vrml as v;"
+        "assert '_data' in str(r.grammar_path('vrml97')), r.grammar_path('vrml97');"
+        "print(v.parse('#VRML V2.0 utf8\\nGroup {}').node_count)"
+    )
+    r = subprocess.run(
+        [sys.executable, "-c", code],
+        cwd=tmp_path,
+        env={"PYTHONPATH": str(target), "PATH": "/usr/bin:/bin"},
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "1"

@@ -1,0 +1,131 @@
+"""IndexedFaceSet → triangles: fan triangulation, -1 separators, ccw, creaseAngle, per-vertex and
+per-face attributes with their index arrays."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from vtts.errors import VrmlSemanticError
+from vtts.vrml import parse, polygon_triangle_count, triangulate
+
+H = "#VRML V2.0 utf8\n"
+CUBE_POINTS = "-1 -1 1, 1 -1 1, 1 1 1, -1 1 1, -1 -1 -1, 1 -1 -1, 1 1 -1, -1 1 -1"
+CUBE_FACES = "0 1 2 3 -1, 7 6 5 4 -1, 1 5 6 2 -1, 0 3 7 4 -1, 3 2 6 7 -1, 0 4 5 1"
+
+
+def ifs(extra: str = "", faces: str = CUBE_FACES, points: str = CUBE_POINTS):
+    scene = parse(
+        H + f"DEF G IndexedFaceSet {{ coord Coordinate {{ point [ {points} ] }} "
+        f"coordIndex [ {faces} ] {extra} }}"
+    )
+    return scene.node("G")
+
+
+def outward(mesh) -> bool:
+    p = mesh.positions[mesh.faces]
+    n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    return bool((np.einsum("ij,ij->i", n, p.mean(axis=1)) > 0).all())
+
+
+@pytest.mark.parametrize(
+    "index, triangles",
+    [
+        ([0, 1, 2], 1),
+        ([0, 1, 2, -1], 1),
+        ([0, 1, 2, 3, 4, -1, 0, 1, 2], 4),
+        ([0, 1, -1, 0, 1, 2], 1),
+        ([-1, -1], 0),
+        ([], 0),
+    ],
+)
+def test_fan_triangle_counts(index, triangles):
+    assert polygon_triangle_count(np.array(index)) == triangles
+
+
+@pytest.mark.parametrize("crease, vertices", [(0, 24), (0.5, 24), (1.6, 8), (3.5, 8)])
+def test_crease_angle_splits_or_shares_vertices(crease, vertices):
+    mesh = triangulate(ifs(f"creaseAngle {crease}"))
+    assert mesh.faces.shape == (12, 3)
+    assert mesh.positions.shape == (vertices, 3)
+    assert outward(mesh)
+    assert np.allclose(np.linalg.norm(mesh.normals, axis=1), 1)
+    if vertices == 24:  # flat: each normal is an axis
+        assert np.allclose(np.abs(mesh.normals).max(axis=1), 1)
+    else:  # smooth: normals point along the corner diagonals
+        assert np.allclose(np.abs(mesh.normals), 1 / np.sqrt(3))
+
+
+def test_ccw_false_flips_winding_and_normals():
+    mesh = triangulate(ifs("ccw FALSE"))
+    assert not outward(mesh)
+    centre = mesh.positions[mesh.faces].mean(axis=1)
+    face_normals = mesh.normals[mesh.faces[:, 0]]
+    assert (np.einsum("ij,ij->i", face_normals, centre) < 0).all()
+
+
+def test_solid_controls_double_sided():
+    assert not triangulate(ifs()).double_sided
+    assert triangulate(ifs("solid FALSE")).double_sided
+
+
+def test_per_face_colors_split_vertices_and_map_back():
+    mesh = triangulate(
+        ifs(
+            "colorPerVertex FALSE color Color { color [ 1 0 0, 0 1 0 ] } colorIndex [ 0 1 0 1 0 1 ]"
+        )
+    )
+    assert mesh.colors is not None and mesh.positions.shape[0] == 24
+    # the two triangles of face 1 are green
+    assert np.allclose(mesh.colors[mesh.faces[mesh.face_polygon == 1]], [0, 1, 0])
+    pts = np.array([[float(v) for v in p.split()] for p in CUBE_POINTS.split(",")])
+    assert np.allclose(mesh.positions, pts[mesh.coord_index])
+
+
+def test_texcoord_index_and_default_mapping():
+    mesh = triangulate(
+        ifs(
+            "texCoord TextureCoordinate { point [ 0 0, 1 0, 1 1, 0 1 ] } "
+            "texCoordIndex [ 0 1 2 3 -1, 0 1 2 3 -1, 0 1 2 3 -1, 0 1 2 3 -1, 0 1 2 3 -1, 0 1 2 3 ]"
+            " creaseAngle 3"
+        )
+    )
+    assert mesh.texcoords.shape == (mesh.positions.shape[0], 2)
+    assert mesh.texcoords.min() == 0 and mesh.texcoords.max() == 1
+    default = triangulate(ifs(points="0 0 0, 4 0 0, 4 2 0, 0 2 0", faces="0 1 2 3"))
+    assert np.allclose(default.texcoords[2], [1, 0.5])  # S along x (longest), T scaled alike
+
+
+def test_given_normals_per_vertex():
+    mesh = triangulate(
+        ifs(
+            points="0 0 0, 1 0 0, 0 1 0",
+            faces="0 1 2",
+            extra="normal Normal { vector [ 0 0 2 ] } normalIndex [ 0 0 0 ]",
+        )
+    )
+    assert np.allclose(mesh.normals, [[0, 0, 1]] * 3)
+
+
+def test_replacement_points_keep_topology():
+    node = ifs()
+    mesh = triangulate(node, points=np.zeros((8, 3)) + [0, 0, 1])
+    assert np.allclose(mesh.positions, [0, 0, 1])
+
+
+@pytest.mark.parametrize(
+    "extra, faces, fragment",
+    [
+        ("", "0 1 8", "coordIndex value 8 (entry 2) is out of range"),
+        ("color Color { color [ 1 0 0 ] } colorIndex [ 0 1 0 ]", "0 1 2", "colorIndex value 1"),
+        (
+            "normal Normal { vector [ 0 0 1 ] } normalIndex [ 0 ]",
+            "0 1 2",
+            "normalIndex has 1 entries but coordIndex needs 3",
+        ),
+    ],
+)
+def test_bad_indices_are_named(extra, faces, fragment):
+    with pytest.raises(VrmlSemanticError, match="IndexedFaceSet") as info:
+        triangulate(ifs(extra, faces=faces))
+    assert fragment in info.value.message
