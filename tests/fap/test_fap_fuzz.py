@@ -1,0 +1,138 @@
+"""Fuzzing the reader: whatever the text, the only exception is FapError."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from vtts.errors import FapError
+from vtts.fap import FapStream, format_fap, parse_fap
+
+DATA = Path(__file__).resolve().parent.parent / "data" / "fap"
+# A short real file keeps each example fast: the header and the first 6 frames of xface-hate.
+REAL_LINES = (DATA / "xface-hate.fap").read_text().split("\n")[:13]
+REAL = "\n".join(REAL_LINES) + "\n"
+
+FUZZ = settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+
+def parse_or_fap_error(text: str) -> FapStream | None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            stream = parse_fap(text, file="fuzz.fap")
+        except FapError as e:
+            assert e.file == "fuzz.fap" and e.line is not None and e.line >= 1
+            assert e.message and str(e)
+            return None
+    # Whatever was accepted must also write and read back unchanged.
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert parse_fap(format_fap(stream)) == stream
+    return stream
+
+
+def test_real_prefix_parses() -> None:
+    s = parse_or_fap_error(REAL)
+    assert s is not None and s.n_frames == 6
+
+
+@FUZZ
+@given(st.binary(max_size=2000))
+def test_random_bytes(data: bytes) -> None:
+    parse_or_fap_error(data.decode("latin-1"))
+
+
+@FUZZ
+@given(st.text(max_size=300))
+def test_random_unicode_text(text: str) -> None:
+    parse_or_fap_error(text)
+    parse_or_fap_error("2.1 x 25 1\n" + text)
+
+
+@FUZZ
+@given(st.binary(max_size=200))
+def test_random_bytes_after_a_header(data: bytes) -> None:
+    parse_or_fap_error("2.1 x 25 1\n" + data.decode("latin-1"))
+
+
+INTERESTING = [
+    "0", "1", "2", "-1", "+1", "1.5", ".", "-", "e", "1e999", "nan", "inf", "#", " ", "\t", "\n",
+    "\r", "\r\n", "\x0b", "\x0c", "\xa0", "\x85", "\u2028", "\ufeff", "\x00", "x", "2.0", "2.1",
+    "9" * 30, "1_0",
+]
+mutations = st.lists(
+    st.tuples(
+        st.sampled_from(["insert", "delete", "replace", "drop_line", "dup_line", "swap_lines",
+                         "truncate"]),
+        st.integers(0, 10**6),
+        st.integers(0, 10**6),
+        st.sampled_from(INTERESTING),
+    ),
+    min_size=1,
+    max_size=4,
+)
+
+
+def mutate(text: str, ops: list[tuple[str, int, int, str]]) -> str:
+    for op, a, b, s in ops:
+        if op in ("insert", "delete", "replace", "truncate"):
+            i = a % (len(text) + 1)
+            if op == "insert":
+                text = text[:i] + s + text[i:]
+            elif op == "delete":
+                text = text[:i] + text[i + 1 + b % 5:]
+            elif op == "replace":
+                j = i + 1 + b % 4
+                text = text[:i] + s + text[j:]
+            else:
+                text = text[:i]
+        else:
+            lines = text.split("\n")
+            i, j = a % len(lines), b % len(lines)
+            if op == "drop_line":
+                del lines[i]
+            elif op == "dup_line":
+                lines.insert(i, lines[i])
+            else:
+                lines[i], lines[j] = lines[j], lines[i]
+            text = "\n".join(lines)
+    return text
+
+
+@FUZZ
+@given(mutations)
+def test_mutated_real_file(ops: list[tuple[str, int, int, str]]) -> None:
+    parse_or_fap_error(mutate(REAL, ops))
+
+
+tokens = st.sampled_from(["0", "1", "2", "-3", "4.5", "1e999", "x", "#", "63", "64", "14", "15"])
+
+
+@FUZZ
+@given(
+    masks=st.lists(st.lists(st.sampled_from(["0", "1"]), min_size=66, max_size=70), max_size=3),
+    values=st.lists(st.lists(tokens, max_size=80), max_size=3),
+    nframes=st.sampled_from(["0", "1", "3", "-1", "x"]),
+)
+def test_token_soup(masks: list[list[str]], values: list[list[str]], nframes: str) -> None:
+    lines = [f"2.1 soup 25 {nframes}"]
+    for i, (m, v) in enumerate(zip(masks, values, strict=False)):
+        lines += [" ".join(m), " ".join([str(i), *v])]
+    parse_or_fap_error("\n".join(lines) + "\n")
+
+
+@FUZZ
+@given(data=st.data())
+def test_high_level_soup(data: st.DataObject) -> None:
+    # Valid masks with FAPs 1 and 2 and random integer tokens: reaches the range checks.
+    mask = ["1", "1"] + ["0"] * 66
+    count = data.draw(st.integers(8, 12))
+    vals = data.draw(st.lists(st.integers(-2, 70).map(str), min_size=count, max_size=count))
+    s = parse_or_fap_error("2.1 hl 25 1\n" + " ".join(mask) + "\n0 " + " ".join(vals) + "\n")
+    if s is not None:
+        assert np.all(s.viseme >= 0) and np.all(s.expression <= 63)
