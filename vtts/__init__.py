@@ -8,4 +8,13 @@ from vtts.errors import VttsError, VttsWarning
 
 __version__ = "0.1.0"
 
-__all__ = ["VttsError", "VttsWarning", "__version__"]
+
+def load_model(name_or_path, *, lenient: bool = False):
+    """Load a personalized model by path or bundled short name (see
+    :func:`vtts.face.load_model`)."""
+    from vtts.face import load_model as _load
+
+    return _load(name_or_path, lenient=lenient)
+
+
+__all__ = ["VttsError", "VttsWarning", "__version__", "load_model"]

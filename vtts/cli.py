@@ -7,6 +7,7 @@ traceback reaches the user for bad input. Each sub-command is one function in :d
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import warnings
 from collections.abc import Callable, Iterator
@@ -49,10 +50,31 @@ def _reported_warnings() -> Iterator[None]:
 
 
 def _check_wrl(path: Path, args: argparse.Namespace) -> str:
+    from vtts.face import load_model
+
+    model = load_model(path, lenient=args.lenient)
+    scene = model.scene
+    text = f"{_plural(scene.node_count, 'node')}, {_plural(scene.triangle_count(), 'triangle')}"
+    if model.tables.adts:
+        text += f", {_plural(len(model.tables.adts), 'MIAP')}"
+    return text
+
+
+def _check_adt(path: Path, args: argparse.Namespace) -> str:
+    from vtts.errors import AdtError
+    from vtts.face import check_tables, read_adt
     from vtts.vrml import read
 
-    scene = read(path, lenient=args.lenient)
-    return f"{_plural(scene.node_count, 'node')}, {_plural(scene.triangle_count(), 'triangle')}"
+    tables = read_adt(path)
+    wrl = path.with_suffix(".wrl")
+    if not wrl.is_file():
+        raise AdtError(
+            f"no {wrl.name} beside it: an .adt is checked against the scene it animates",
+            file=str(path),
+        )
+    check_tables(tables, read(wrl, lenient=args.lenient), file=str(path))
+    nodes = len(tables.mesh_nodes()) + len(tables.transform_nodes())
+    return f"{_plural(len(tables.adts), 'MIAP')} on {_plural(nodes, 'node')} of {wrl.name}"
 
 
 def _plural(n: int, noun: str) -> str:
@@ -70,6 +92,7 @@ def _check_fap(path: Path, args: argparse.Namespace) -> str:
 #: File suffix → checker returning the summary printed after ``OK FILE``.
 CHECKERS: dict[str, Callable[[Path, argparse.Namespace], str]] = {
     ".wrl": _check_wrl,
+    ".adt": _check_adt,
     ".fap": _check_fap,
 }
 
@@ -163,26 +186,92 @@ def scene_tree(scene) -> list[str]:
 
 
 def cmd_info(args: argparse.Namespace) -> int:
-    """Describe a file: the scene graph of a ``.wrl``."""
-    from vtts.vrml import read
+    """Describe a scene or model: the scene graph, and what the model can do."""
+    from vtts.face import find_model, load_model
 
-    path = Path(args.file)
-    if not path.is_file():
-        print(f"{args.file}: error: no such file", file=sys.stderr)
-        return 1
     try:
+        path = find_model(args.file)
         with _reported_warnings():
-            scene = read(path, lenient=args.lenient)
+            model = load_model(path, lenient=args.lenient)
     except VttsError as e:
         _print_error(e, args.file)
         return 1
+    scene = model.scene
     print(
-        f"{args.file}: {_plural(scene.node_count, 'node')}, "
+        f"{path}: {_plural(scene.node_count, 'node')}, "
         f"{_plural(scene.triangle_count(), 'triangle')}"
     )
     for line in scene_tree(scene):
         print("  " + line)
+    if model.tables:
+        print(f"model {model.name}:")
+        for line in model.describe():
+            print("  " + line)
     return 0
+
+
+# ---- pose ----------------------------------------------------------------------------------------
+
+
+def parse_assignments(text: str, what: str, default: float | None = None) -> dict[str, float]:
+    """``"19=512,open_jaw=300"`` → ``{"19": 512.0, "open_jaw": 300.0}``.
+
+    Without ``=VALUE`` an item takes ``default`` (an error when None)."""
+    from vtts.errors import FapError
+
+    out: dict[str, float] = {}
+    for item in filter(None, (x.strip() for x in text.split(","))):
+        key, eq, value = item.partition("=")
+        if not eq:
+            if default is None:
+                raise FapError(f"{what} '{item}' needs a value: write {item}=VALUE")
+            out[key.strip()] = default
+            continue
+        try:
+            out[key.strip()] = float(value)
+        except ValueError:
+            raise FapError(f"{what} '{key.strip()}': {value!r} is not a number") from None
+    return out
+
+
+def cmd_pose(args: argparse.Namespace) -> int:
+    """Write the model posed by the given FAPs, visemes and expressions as plain VRML97."""
+    from vtts.face import load_model
+    from vtts.vrml import write
+
+    faps: dict[str, float] = {}
+    visemes: dict[str, float] = {}
+    expressions: dict[str, float] = {}
+    for text in args.fap or []:
+        faps.update(parse_assignments(text, "FAP"))
+    for text in args.viseme or []:
+        visemes.update(parse_assignments(text, "viseme", default=1.0))
+    for text in args.expression or []:
+        expressions.update(parse_assignments(text, "expression", default=1.0))
+    model = load_model(args.model)
+    pose = model.deform(faps, visemes=visemes, expressions=expressions)
+    unused = [
+        k
+        for k in [
+            *faps,
+            *(f"viseme {v}" for v in visemes),
+            *(f"expression {e}" for e in expressions),
+        ]
+        if _miap_of(k) not in model.tables.adts
+    ]
+    if unused:
+        print(
+            f"warning: {model.name} has no table for {', '.join(unused)}; ignored", file=sys.stderr
+        )
+    write(model.posed_scene(pose), args.output, comment=f"{model.name} posed by vtts pose")
+    print(f"wrote {args.output}")
+    return 0
+
+
+def _miap_of(key: str):
+    from vtts.face import Miap
+
+    return Miap.parse(key)
 
 
 # ---- argument parsing ----------------------------------------------------------------------------
@@ -197,7 +286,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
-    c = sub.add_parser("check", help="validate .wrl and .fap files")
+    c = sub.add_parser("check", help="validate .wrl, .adt and .fap files")
     c.add_argument("files", nargs="+", metavar="FILE")
     c.add_argument(
         "--lenient",
@@ -206,7 +295,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     c.set_defaults(func=cmd_check)
 
-    i = sub.add_parser("info", help="describe a .wrl scene graph")
+    i = sub.add_parser("info", help="describe a scene graph and what a model can do")
     i.add_argument("file", metavar="FILE")
     i.add_argument(
         "--lenient",
@@ -214,6 +303,28 @@ def build_parser() -> argparse.ArgumentParser:
         help="parse unknown VRML node types generically (with a warning)",
     )
     i.set_defaults(func=cmd_info)
+    po = sub.add_parser("pose", help="write a model posed by FAPs, visemes and expressions")
+    po.add_argument("--model", required=True, help="bundled model name or .wrl path")
+    po.add_argument(
+        "--fap",
+        action="append",
+        metavar="N=V,...",
+        help="FAP values in FAP units, by number or name (19=512,open_jaw=300)",
+    )
+    po.add_argument(
+        "--viseme",
+        action="append",
+        metavar="V[=W]",
+        help="viseme number or phoneme with an optional weight 0-1 (7 or 7=0.5)",
+    )
+    po.add_argument(
+        "--expression",
+        action="append",
+        metavar="NAME[=W]",
+        help="expression with an optional weight 0-1 (joy=0.8)",
+    )
+    po.add_argument("-o", "--output", required=True, help="output .wrl")
+    po.set_defaults(func=cmd_pose)
     return p
 
 
@@ -227,6 +338,10 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # the reader went away (``vtts check … | head``): not an error worth a traceback
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
 
 
 if __name__ == "__main__":  # pragma: no cover

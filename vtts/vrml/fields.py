@@ -151,27 +151,19 @@ def _words(text: str) -> list[str]:
     return text.replace(",", " ").split() or [""]
 
 
-def _first_bad(text: str, check) -> NumberError:
-    for m in _WORD.finditer(text):
-        try:
-            check(m.group())
-        except (ValueError, OverflowError) as e:
-            return NumberError(m.group(), m.start(), getattr(e, "expected", ""))
-    raise AssertionError("no bad word found")  # pragma: no cover - caller saw one
-
-
 _FLOAT_WORD = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z")
 _INT_WORD = re.compile(r"[+-]?(?:0[xX][0-9a-fA-F]+|[0-9]+)\Z")
 
 
-def _check_float(w: str) -> None:
-    if not _FLOAT_WORD.match(w) and not _INT_WORD.match(w):
-        raise ValueError("a number")
-
-
-def _check_int(w: str) -> None:
-    if not _INT_WORD.match(w):
-        raise ValueError("an integer")
+def _int_value(word: str) -> int:
+    """The value of a decimal or hexadecimal integer word (``int(w, 0)`` refuses ``010``)."""
+    sign = -1 if word.startswith("-") else 1
+    digits = word.lstrip("+-")
+    if len(digits) > 64:  # far beyond any VRML integer; Python refuses >4300 digits anyway
+        raise OverflowError(word)
+    if digits[:2] in ("0x", "0X"):
+        return sign * int(digits[2:], 16)
+    return sign * int(digits, 10)
 
 
 def parse_floats(text: str) -> np.ndarray:
@@ -196,7 +188,10 @@ def parse_floats(text: str) -> np.ndarray:
             if _FLOAT_WORD.match(w):
                 out.append(float(w))
             elif _INT_WORD.match(w):
-                out.append(float(int(w, 0)))
+                try:
+                    out.append(float(_int_value(w)))
+                except (OverflowError, ValueError):
+                    raise NumberError(w, m.start(), "a finite number") from None
             else:
                 raise NumberError(w, m.start(), "a number")
         arr = np.array(out, dtype=np.float64)
@@ -224,7 +219,10 @@ def parse_ints(text: str, *, lo: int = INT32_MIN, hi: int = INT32_MAX) -> np.nda
             w = m.group()
             if not _INT_WORD.match(w):
                 raise NumberError(w, m.start(), "an integer") from None
-            v = int(w, 0)
+            try:
+                v = _int_value(w)
+            except (OverflowError, ValueError):
+                raise NumberError(w, m.start(), f"an integer in [{lo}, {hi}]") from None
             if not lo <= v <= hi:
                 raise NumberError(w, m.start(), f"an integer in [{lo}, {hi}]") from None
             out.append(v)
@@ -256,6 +254,8 @@ def escape_string(value: str) -> str:
 
 def format_number(x: float) -> str:
     """Shortest text that reads back to exactly ``x`` (``1`` for 1.0)."""
+    if x == 0 and math.copysign(1.0, x) < 0:
+        return "-0"
     if x == int(x) and abs(x) < 1e15:
         return str(int(x))
     return repr(float(x))

@@ -349,12 +349,16 @@ class _Builder:
             kind = el.data
             if kind == "field_value":
                 self.field_value(node, el, scope, depth)
+                node.order.append(("field", str(el.children[0])))
             elif kind == "field_is":
                 self.field_is(node, el, scope)
+                node.order.append(("is", str(el.children[0])))
             elif kind in ("route", "proto", "externproto"):
+                node.order.append(("extra", len(node.extras)))
                 node.extras.append(self.statement(el, scope, depth + 1))
             elif kind in ("event_decl", "field_decl"):
                 self.script_decl(node, el, scope, depth)
+                node.order.append(("decl", str(el.children[2])))
             else:  # pragma: no cover
                 raise AssertionError(kind)
         self.check_urls(node)

@@ -19,9 +19,13 @@ from typing import Any
 
 import numpy as np
 
-from vtts.errors import VrmlSemanticError
+from vtts.errors import VrmlLimitError, VrmlSemanticError
 from vtts.vrml.fields import equal_values
 from vtts.vrml.nodes import FieldDecl, NodeType
+
+#: Most node instances a traversal visits (USE shared inside shared nodes can make a small file
+#: describe an exponentially large graph).
+MAX_INSTANCES = 200_000
 
 
 @dataclass(eq=False)
@@ -62,7 +66,11 @@ class Node:
 
     ``is_maps`` (inside PROTO bodies) maps a member of this node to the PROTO interface member it
     is bound to by ``IS``. ``script_decls`` lists a Script's own interface declarations in order.
-    ``extras`` holds ROUTE and PROTO statements written inside the node's body.
+    ``extras`` holds ROUTE and PROTO statements written inside the node's body. ``order`` records
+    the body as written — ``("field", name)``, ``("is", member)``, ``("decl", name)`` and
+    ``("extra", index into extras)`` — so the writer keeps PROTO and ROUTE statements where they
+    were (a PROTO defined in a body after a USE of an outer PROTO of the same name must stay
+    after it).
     """
 
     type: NodeType
@@ -71,6 +79,7 @@ class Node:
     is_maps: dict[str, str] = field(default_factory=dict)
     script_decls: list[FieldDecl] = field(default_factory=list)
     extras: list[Any] = field(default_factory=list)
+    order: list[tuple[str, Any]] = field(default_factory=list, repr=False)
     line: int = 0
     column: int = 0
     _expansion: Node | None = field(default=None, repr=False)
@@ -231,8 +240,17 @@ class Scene:
         """
         from vtts.vrml.transform import transform_matrix
 
+        visits = [0]
+
         def walk(n: Node, m: np.ndarray, path: tuple[Node, ...]) -> Iterator:
             n = n.expand()
+            visits[0] += 1
+            if visits[0] > MAX_INSTANCES:
+                raise VrmlLimitError(
+                    f"the scene graph expands to more than {MAX_INSTANCES} node instances "
+                    "(nodes USEd inside nodes USEd again multiply)",
+                    line=n.line,
+                )
             yield n, m, path
             t = n.type.name
             if t == "Transform":

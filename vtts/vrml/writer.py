@@ -84,28 +84,43 @@ class _Writer:
         opening = len(self.lines)
         inner = depth + 1
         pad = _INDENT * inner
-        for extra in node.extras:
-            if isinstance(extra, Proto):
-                self.proto(extra, inner)
-        for decl in node.script_decls:
-            self.script_decl(node, decl, inner)
-        script_names = {d.name for d in node.script_decls}
-        for fname, value in node.fields.items():
-            if fname in script_names:
-                continue
-            decl = node.type.field(fname)
-            assert decl is not None, fname
-            self.value(f"{pad}{fname} ", decl.type, value, inner)
-        for member, iface in node.is_maps.items():
-            if member not in script_names:
-                self.lines.append(f"{pad}{member} IS {iface}")
-        for extra in node.extras:
-            if isinstance(extra, Route):
-                self.statement(extra, inner)
+        decls = {d.name: d for d in node.script_decls}
+        for kind, key in self.body_order(node):
+            if kind == "extra":
+                self.statement(node.extras[key], inner)
+            elif kind == "decl":
+                self.script_decl(node, decls[key], inner)
+            elif kind == "field":
+                decl = node.type.field(key)
+                assert decl is not None, key
+                self.value(f"{pad}{key} ", decl.type, node.fields[key], inner)
+            else:
+                self.lines.append(f"{pad}{key} IS {node.is_maps[key]}")
         if len(self.lines) == opening:  # an empty body: "Group {}"
             self.lines[-1] += "}"
         else:
             self.lines.append(_INDENT * depth + "}")
+
+    @staticmethod
+    def body_order(node: Node) -> list[tuple[str, Any]]:
+        """The node's body as parsed, then whatever was added to the node since (PROTOs first,
+        then Script declarations, fields, IS bindings and ROUTEs)."""
+        decl_names = {d.name for d in node.script_decls}
+        present = {
+            ("decl", d) for d in decl_names
+        } | {("field", f) for f in node.fields if f not in decl_names} | {
+            ("is", m) for m in node.is_maps if m not in decl_names
+        } | {("extra", i) for i in range(len(node.extras))}
+        order = [item for item in node.order if item in present]
+        seen = set(order)
+        rest = (
+            [("extra", i) for i, e in enumerate(node.extras) if isinstance(e, Proto)]
+            + [("decl", d.name) for d in node.script_decls]
+            + [("field", f) for f in node.fields if f not in decl_names]
+            + [("is", m) for m in node.is_maps if m not in decl_names]
+            + [("extra", i) for i, e in enumerate(node.extras) if not isinstance(e, Proto)]
+        )
+        return order + [item for item in rest if item not in seen]
 
     def script_decl(self, node: Node, decl: FieldDecl, depth: int) -> None:
         pad = _INDENT * depth

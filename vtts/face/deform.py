@@ -1,0 +1,208 @@
+"""The deformation engine: one parameter vector in, the posed geometry of the model out.
+
+Every (MIAP, IndexedFaceSet, interval) of the tables becomes one column of a sparse matrix ``A``
+of shape ``(3p, C)`` per IndexedFaceSet (p points): the interval's displacement per unit. For a
+parameter vector, each column's weight is how much of its interval lies between 0 and the MIAP's
+value (:func:`vtts.face.adt.interval_weights`), so the posed points are
+
+    points = neutral + (A @ w).reshape(p, 3)
+
+which is the integral of the piecewise-constant slopes of every MIAP, superimposed linearly.
+When few MIAPs are active (the usual case while speaking) only their columns are gathered.
+
+Transforms: a rotation keeps its axis and adds ``f · unit`` to the angle per MIAP (rotations about
+different axes, possible only around a zero neutral angle, are composed in MIAP order);
+translation and scale add ``f · unit``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from vtts.face.adt import AnimationTables
+from vtts.face.miap import N_PARAMS
+
+
+@dataclass
+class Pose:
+    """The posed geometry of a model.
+
+    points      IndexedFaceSet DEF name → ``(p, 3) float64`` Coordinate points (model units)
+    transforms  Transform DEF name → {field name → value}: rotation ``(4,)`` axis + angle (rad),
+                translation and scale ``(3,)``
+    """
+
+    points: dict[str, np.ndarray] = field(default_factory=dict)
+    transforms: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
+
+
+@dataclass
+class _MeshBlock:
+    neutral: np.ndarray  # (p, 3)
+    csr: sp.csr_matrix  # (3p, C)
+    csc: sp.csc_matrix
+    param: np.ndarray  # (C,) parameter index of each column
+    lo: np.ndarray  # (C,) interval lower border (-inf for the first)
+    hi: np.ndarray  # (C,)
+    at_zero: np.ndarray  # (C,) clip(0, lo, hi): the weight offset
+
+
+@dataclass
+class _TransformBlock:
+    neutral: np.ndarray
+    param: np.ndarray  # (k,)
+    unit: np.ndarray  # (k,) for rotations (signed along the reference axis), (k, 3) otherwise
+    axes: np.ndarray | None = None  # (k, 3) unit axes of rotations, None when all parallel
+
+
+class DeformationEngine:
+    """Compiled tables of one model.
+
+    ``neutral_points``: IndexedFaceSet DEF name → ``(p, 3)`` neutral Coordinate points;
+    ``neutral_transforms``: Transform DEF name → {field: neutral value}.
+    """
+
+    #: Below this fraction of active columns, gather columns instead of a full product.
+    GATHER_BELOW = 0.25
+
+    def __init__(
+        self,
+        tables: AnimationTables,
+        neutral_points: dict[str, np.ndarray],
+        neutral_transforms: dict[str, dict[str, np.ndarray]],
+    ) -> None:
+        self.meshes: dict[str, _MeshBlock] = {}
+        self.transforms: dict[tuple[str, str], _TransformBlock] = {}
+        self._compile_meshes(tables, neutral_points)
+        self._compile_transforms(tables, neutral_transforms)
+
+    def _compile_meshes(self, tables: AnimationTables, neutral_points) -> None:
+        cols: dict[str, list] = {}
+        for adt in tables.adts.values():
+            pi = adt.miap.index
+            for m in adt.meshes:
+                entry = cols.setdefault(m.node, [])
+                n = m.borders.size - 1
+                for k in range(n):
+                    lo = -np.inf if k == 0 else m.borders[k]
+                    hi = np.inf if k == n - 1 else m.borders[k + 1]
+                    rows = (3 * m.vertices[:, None] + np.arange(3)).reshape(-1)
+                    entry.append((pi, lo, hi, rows, m.displacements[k].reshape(-1)))
+        for name, entries in cols.items():
+            neutral = np.asarray(neutral_points[name], dtype=np.float64)
+            nrows = 3 * neutral.shape[0]
+            rows = np.concatenate([e[3] for e in entries])
+            vals = np.concatenate([e[4] for e in entries])
+            colidx = np.repeat(np.arange(len(entries)), [e[3].size for e in entries])
+            coo = sp.coo_matrix((vals, (rows, colidx)), shape=(nrows, len(entries)))
+            lo = np.array([e[1] for e in entries])
+            hi = np.array([e[2] for e in entries])
+            self.meshes[name] = _MeshBlock(
+                neutral=neutral,
+                csr=coo.tocsr(),
+                csc=coo.tocsc(),
+                param=np.array([e[0] for e in entries], dtype=np.int64),
+                lo=lo,
+                hi=hi,
+                at_zero=np.clip(0.0, lo, hi),
+            )
+
+    def _compile_transforms(self, tables: AnimationTables, neutral_transforms) -> None:
+        groups: dict[tuple[str, str], list] = {}
+        for adt in tables.adts.values():
+            for t in adt.transforms:
+                groups.setdefault((t.node, t.field), []).append((adt.miap.index, t))
+        for (node, fld), entries in groups.items():
+            neutral = np.asarray(neutral_transforms[node][fld], dtype=np.float64)
+            param = np.array([pi for pi, _ in entries], dtype=np.int64)
+            if fld != "rotation":
+                unit = np.array([t.unit for _, t in entries]).reshape(-1, 3)
+                self.transforms[(node, fld)] = _TransformBlock(neutral, param, unit)
+                continue
+            axes = np.array([t.neutral[:3] / np.linalg.norm(t.neutral[:3]) for _, t in entries])
+            units = np.array([t.unit[0] for _, t in entries])
+            ref_norm = np.linalg.norm(neutral[:3])
+            # a zero angle is the identity about any axis: then the tables' axis is the reference
+            ref = neutral[:3] / ref_norm if ref_norm > 0 and neutral[3] != 0 else axes[0]
+            dots = axes @ ref
+            if np.allclose(np.abs(dots), 1.0, atol=1e-9):
+                block = _TransformBlock(np.r_[ref, neutral[3]], param, units * np.sign(dots))
+            else:
+                block = _TransformBlock(neutral, param, units, axes)
+            self.transforms[(node, fld)] = block
+
+    # ---- evaluation ---------------------------------------------------------------------------
+
+    def deform(self, params: np.ndarray) -> Pose:
+        """The :class:`Pose` for a ``(N_PARAMS,)`` parameter vector
+        (see :mod:`vtts.face.miap`)."""
+        params = np.asarray(params, dtype=np.float64)
+        if params.shape != (N_PARAMS,):
+            raise ValueError(f"parameter vector must have shape ({N_PARAMS},), got {params.shape}")
+        pose = Pose()
+        for name, b in self.meshes.items():
+            pose.points[name] = b.neutral + self.displacement(b, params).reshape(-1, 3)
+        for (node, fld), t in self.transforms.items():
+            pose.transforms.setdefault(node, {})[fld] = _transform_value(t, fld, params)
+        return pose
+
+    def displacement(self, b: _MeshBlock, params: np.ndarray) -> np.ndarray:
+        f = params[b.param]
+        w = np.clip(f, b.lo, b.hi) - b.at_zero
+        active = np.flatnonzero(w)
+        if active.size == 0:
+            return np.zeros(b.csr.shape[0])
+        if active.size >= self.GATHER_BELOW * w.size:
+            return b.csr @ w
+        ptr, ind, val = b.csc.indptr, b.csc.indices, b.csc.data
+        starts, ends = ptr[active], ptr[active + 1]
+        lengths = ends - starts
+        idx = np.repeat(starts - np.cumsum(lengths) + lengths, lengths) + np.arange(lengths.sum())
+        weights = np.repeat(w[active], lengths) * val[idx]
+        return np.bincount(ind[idx], weights=weights, minlength=b.csr.shape[0])
+
+
+def _transform_value(t: _TransformBlock, fld: str, params: np.ndarray) -> np.ndarray:
+    f = params[t.param]
+    if fld != "rotation":
+        return t.neutral + f @ t.unit
+    if t.axes is None:
+        return np.r_[t.neutral[:3], t.neutral[3] + float(f @ t.unit)]
+    q = _quat(t.neutral[:3], t.neutral[3])
+    for axis, angle in zip(t.axes, f * t.unit, strict=True):
+        if angle:
+            q = _qmul(q, _quat(axis, angle))
+    return _axis_angle(q)
+
+
+def _quat(axis: np.ndarray, angle: float) -> np.ndarray:
+    n = np.linalg.norm(axis)
+    if n == 0:
+        return np.array([1.0, 0, 0, 0])
+    s = np.sin(angle / 2) / n
+    return np.array([np.cos(angle / 2), axis[0] * s, axis[1] * s, axis[2] * s])
+
+
+def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    w1, x1, y1, z1 = a
+    w2, x2, y2, z2 = b
+    return np.array(
+        [
+            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
+        ]
+    )
+
+
+def _axis_angle(q: np.ndarray) -> np.ndarray:
+    w = np.clip(q[0], -1.0, 1.0)
+    angle = 2 * np.arccos(w)
+    s = np.sqrt(max(1 - w * w, 0.0))
+    if s < 1e-12:
+        return np.array([0.0, 0.0, 1.0, 0.0])
+    return np.r_[q[1:] / s, angle]
