@@ -28,7 +28,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 GENERATED = ROOT / "bench" / "_generated"
-GOOD_DIRS = (ROOT / "tests" / "data" / "vrml97" / "good", Path("/work/shared/data/vrml97/good"))
+GOOD_DIRS = (ROOT / "tests" / "data" / "vrml97" / "good",)
 MODELS = ROOT / "models"
 
 BIG_NAME = "ifs100k.wrl"
@@ -106,7 +106,7 @@ def big_file() -> Path:
 
 def real_files() -> list[Path]:
     files: list[Path] = []
-    for d in GOOD_DIRS:  # the repository's copy; the shared folder only as a local fallback
+    for d in GOOD_DIRS:
         found = sorted(d.glob("*.wrl")) if d.is_dir() else []
         if found:
             files += found
