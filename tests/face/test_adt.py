@@ -219,3 +219,22 @@ def test_embedded_table_errors_name_the_node_line():
                 "FaceDefTransform { faceSceneGraphNode USE T fieldId 7 } ] }"
             )
         )
+
+
+def test_embedding_keeps_the_direction_of_an_opposite_axis_rotation(tmp_path):
+    """A table written about (-axis, -angle) must turn the same way once embedded."""
+    (tmp_path / "eye.wrl").write_text(
+        "#VRML V2.0 utf8\nDEF EYE Transform { rotation 0 1 0 0.5 children Shape { geometry "
+        "IndexedFaceSet { coord Coordinate { point [ 0 0 0, 1 0 0, 0 1 0 ] } coordIndex [ 0 1 2 ] "
+        "} } }\n"
+    )
+    (tmp_path / "eye.adt").write_text(
+        "#AnimationDefinitionTables\nMIAP 23\nTransform: EYE\n"
+        "rotation neutral value: 0 -1 0 (axis) -0.5 (angle)\n"
+    )
+    model = load_model(tmp_path / "eye.wrl")
+    want = model.deform({23: 10000}).transforms["EYE"]["rotation"]
+    (tmp_path / "emb").mkdir()
+    write(embed_tables(model.scene, model.tables), tmp_path / "emb" / "eye.wrl")
+    got = load_model(tmp_path / "emb" / "eye.wrl").deform({23: 10000}).transforms["EYE"]["rotation"]
+    assert np.allclose(got, want) and np.allclose(want, [0, 1, 0, 0.4])

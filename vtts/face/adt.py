@@ -668,6 +668,9 @@ def tables_from_scene(scene, *, file: str | None = None) -> AnimationTables | No
                 unit = np.array([rdef[3]])
                 if abs(neutral[3]) < 1e-12:
                     neutral = np.r_[rdef[:3], 0.0]
+                elif float(np.dot(rdef[:3], neutral[:3])) < 0:
+                    # rotationDef about the opposite axis turns the other way round the scene's
+                    unit = -unit
             else:
                 unit = tr["scaleDef" if field_name == "scale" else "translationDef"]
             adt.transforms.append(TransformTable(name, field_name, neutral, unit))

@@ -1,0 +1,986 @@
+"""Building Animation Definition Tables from deformed exports of a neutral model (the ADI).
+
+Ostermann & Haratsch, section 3.3 ("Rapid Synthesis of ADTs"): the modeler deforms the neutral
+head for one MIAP, exports it in one or more phases of the animation, and the ADI compares the
+vertex positions of each export with the neutral model to make the table.
+
+Each deformed export is a :class:`DeformedPose`: which MIAP it shows, at which amplitude, and the
+posed Coordinate points of the IndexedFaceSets (and changed Transform fields) it carries.
+:func:`load_poses` reads them from VRML97 (``.wrl``), OBJ, PLY and glTF (``.glb``/``.gltf``)
+files, including glTF morph targets named after MIAPs; :func:`build_tables` turns a list of
+poses into :class:`~vtts.face.AnimationTables`.
+
+Interval construction: for one MIAP with poses at amplitudes a_1 < … < a_k, the interval borders
+are the amplitudes plus 0, and each interval's displacement per unit is
+``(d(b[i+1]) - d(b[i])) / (b[i+1] - b[i])`` with ``d(0) = 0``, so that the MPEG-4 integration of
+the piecewise-constant slope (:func:`vtts.face.interval_weights`) reproduces every exported pose
+exactly and extends the outer intervals beyond the borders.
+"""
+
+from __future__ import annotations
+
+import base64
+import math
+import os
+import re
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+from urllib.parse import unquote
+
+import numpy as np
+
+from vtts.errors import AdtError, FapError, VttsError, VttsWarning
+from vtts.face import Adt, AnimationTables, MeshTable, Miap, TransformTable
+from vtts.face.adt import strip_tables, tables_from_scene
+from vtts.fap import AU
+from vtts.vrml import Node, Scene, read, resolve_url
+from vtts.vrml.fields import format_number
+
+TRANSFORM_FIELDS = ("rotation", "translation", "scale")
+
+#: Default tolerance (model units; radians for rotations): smaller motion counts as none.
+DEFAULT_TOLERANCE = 1e-6
+
+
+@dataclass
+class DeformedPose:
+    """One deformed export of the neutral model: the model showing ``miap`` at ``amplitude``.
+
+    miap          the MIAP the pose shows
+    amplitude     its value in the MIAP's units (FAPU or AU for FAPs, weight for visemes and
+                  expressions); never 0, which is the neutral model
+    source        where it came from: the file, or ``file#target`` for a glTF morph target
+    points        IndexedFaceSet DEF name → ``(p, 3) float64`` posed Coordinate points, for
+                  the IndexedFaceSets the source carries (all DEFed ones for a ``.wrl``, one
+                  per mesh for mesh files)
+    transforms    Transform DEF name → {field → value}: the rotation ``(4,)`` axis + angle (rad),
+                  translation ``(3,)`` or scale ``(3,)`` fields that differ from the neutral scene
+    has_transforms  whether the source describes Transforms at all (a ``.wrl`` does, mesh files
+                  do not: a Transform missing from ``transforms`` is then unchanged)
+    """
+
+    miap: Miap
+    amplitude: float
+    source: str
+    points: dict[str, np.ndarray] = field(default_factory=dict)
+    transforms: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
+    has_transforms: bool = True
+
+
+# ---- naming the MIAP and amplitude ---------------------------------------------------------------
+
+_INFO_WORD = re.compile(r"\s*miap(\s|$)", re.IGNORECASE)
+
+
+def parse_miap_name(
+    name: str,
+    amplitude: str | None,
+    *,
+    what: str,
+    file: str,
+    line: int | None = None,
+) -> tuple[Miap, float]:
+    """The MIAP and amplitude named by ``name`` (``close_t_l_eyelid``, ``19``, ``viseme3``,
+    ``joy``) and ``amplitude`` (text, or None when not given: 1 for visemes and expressions, an
+    error for FAPs). ``what`` says where the name was found, for error messages."""
+    try:
+        miap = Miap.parse(name)
+    except (FapError, ValueError) as e:
+        reason = getattr(e, "message", str(e))
+        raise AdtError(f"unknown MIAP '{name}' in {what}: {reason}", file=file, line=line) from None
+    if amplitude is None:
+        if miap.kind == "fap":
+            raise AdtError(
+                f"{what} names FAP MIAP {miap} without an amplitude: a FAP pose needs one "
+                f"(write {miap.name}@AMPLITUDE, in FAP units)",
+                file=file,
+                line=line,
+            )
+        return miap, 1.0
+    try:
+        value = float(amplitude)
+    except ValueError:
+        raise AdtError(
+            f"amplitude '{amplitude}' in {what} is not a number", file=file, line=line
+        ) from None
+    if not math.isfinite(value):
+        raise AdtError(f"amplitude '{amplitude}' in {what} is not finite", file=file, line=line)
+    if value == 0:
+        raise AdtError(
+            f"amplitude 0 in {what}: MIAP {miap} at 0 is the neutral model, not a deformed pose",
+            file=file,
+            line=line,
+        )
+    return miap, value
+
+
+def miap_from_label(label: str, *, what: str, file: str) -> tuple[Miap, float]:
+    """MIAP and amplitude from ``NAME@AMPLITUDE`` or ``NAME`` (a file stem, a morph target)."""
+    name, sep, amp = label.rpartition("@")
+    if not sep:
+        return parse_miap_name(label, None, what=what, file=file)
+    return parse_miap_name(name, amp, what=what, file=file)
+
+
+def miap_from_info(text: str, *, file: str, line: int | None) -> tuple[Miap, float]:
+    """MIAP and amplitude from a WorldInfo info string ``miap NAME_OR_NUMBER [AMPLITUDE]``."""
+    words = text.split()[1:]
+    what = f"WorldInfo string {text.strip()!r}"
+    if not words:
+        raise AdtError(
+            f"{what} names no MIAP: write 'miap NAME AMPLITUDE' (e.g. 'miap 19 1024')",
+            file=file,
+            line=line,
+        )
+    if len(words) >= 2 and _is_number(words[-1]):
+        name = " ".join(words[:-1])
+        try:
+            Miap.parse(name)
+        except (FapError, ValueError):
+            try:  # 'miap viseme 3': the number belongs to the name, the amplitude is 1
+                whole = Miap.parse(" ".join(words))
+            except (FapError, ValueError):
+                whole = None
+            if whole is not None and whole.kind != "fap":
+                return whole, 1.0
+        return parse_miap_name(name, words[-1], what=what, file=file, line=line)
+    return parse_miap_name(" ".join(words), None, what=what, file=file, line=line)
+
+
+def _is_number(word: str) -> bool:
+    try:
+        float(word)
+    except ValueError:
+        return False
+    return True
+
+
+def _miap_of_scene(scene: Scene, file: str) -> tuple[Miap, float] | None:
+    """The ``miap …`` WorldInfo string of a deformed scene, parsed; None when it has none."""
+    found: list[tuple[str, int]] = []
+    for info in scene.find("WorldInfo"):
+        for s in info["info"]:
+            if _INFO_WORD.match(s):
+                found.append((s, info.line))
+    if not found:
+        return None
+    if len(found) > 1:
+        raise AdtError(
+            f"{len(found)} WorldInfo 'miap' strings ({', '.join(repr(s) for s, _ in found)}): "
+            "a deformed file shows one MIAP",
+            file=file,
+            line=found[1][1],
+        )
+    text, line = found[0]
+    return miap_from_info(text, file=file, line=line)
+
+
+def _miap_of_file(path: Path) -> tuple[Miap, float]:
+    """MIAP and amplitude from a file name ``NAME@AMPLITUDE.ext`` (or ``NAME.ext`` for a viseme
+    or expression at weight 1)."""
+    stem = path.name[: -len(path.suffix)] if path.suffix else path.name
+    if "@" not in stem:
+        try:
+            Miap.parse(stem)
+        except (FapError, ValueError):
+            raise AdtError(
+                f"no MIAP given: {path.name} has no WorldInfo \"miap NAME AMPLITUDE\" string and "
+                f"its name is not NAME@AMPLITUDE{path.suffix} (e.g. close_t_l_eyelid@1024"
+                f"{path.suffix}, viseme3@1{path.suffix})",
+                file=str(path),
+            ) from None
+    return miap_from_label(stem, what=f"file name {path.name}", file=str(path))
+
+
+# ---- the neutral scene ---------------------------------------------------------------------------
+
+
+def mesh_nodes(scene: Scene) -> dict[str, Node]:
+    """DEF name → IndexedFaceSet node for every DEFed IndexedFaceSet, in file order."""
+    return {n.name: n for n in scene.find("IndexedFaceSet") if n.name}
+
+
+def transform_nodes(scene: Scene) -> dict[str, Node]:
+    """DEF name → Transform node for every DEFed Transform, in file order."""
+    return {n.name: n for n in scene.find("Transform") if n.name}
+
+
+def node_points(node: Node) -> np.ndarray:
+    """``(p, 3) float64`` Coordinate points of an IndexedFaceSet (``(0, 3)`` without coord)."""
+    coord = node["coord"]
+    if coord is None:
+        return np.zeros((0, 3))
+    return np.asarray(coord.expand()["point"], dtype=np.float64).reshape(-1, 3)
+
+
+def _scene_name(scene: Scene) -> str:
+    return str(scene.path) if scene.path else "the neutral scene"
+
+
+def _transform_values(node: Node) -> dict[str, np.ndarray]:
+    return {f: np.asarray(node[f], dtype=np.float64) for f in TRANSFORM_FIELDS}
+
+
+# ---- loaders -------------------------------------------------------------------------------------
+
+
+def load_poses(
+    path: str | os.PathLike[str], neutral: Scene, *, node: str | None = None
+) -> list[DeformedPose]:
+    """The deformed poses in one file: one for a ``.wrl``, ``.obj``, ``.ply`` or a glTF without
+    morph targets, one per morph target for a glTF with morph targets.
+
+    ``neutral`` is the neutral scene the poses are compared with; ``node`` names the
+    IndexedFaceSet a single-mesh file (OBJ, PLY) maps onto (default: the only IndexedFaceSet of
+    the neutral scene with the same number of points). Raises :class:`AdtError` (or a VRML parse
+    error) naming the file.
+    """
+    p = Path(path)
+    loader = LOADERS.get(p.suffix.lower())
+    if loader is None:
+        known = ", ".join(sorted(LOADERS))
+        raise AdtError(
+            f"unknown file type '{p.suffix}' for a deformed pose (the ADI reads {known})",
+            file=str(p),
+        )
+    if not p.is_file():
+        raise AdtError("no such file", file=str(p))
+    return loader(p, neutral, node)
+
+
+def load_pose(
+    path: str | os.PathLike[str], neutral: Scene, *, node: str | None = None
+) -> DeformedPose:
+    """The one deformed pose in ``path`` (see :func:`load_poses`; a file with several morph
+    targets is an error here)."""
+    poses = load_poses(path, neutral, node=node)
+    if len(poses) != 1:
+        raise AdtError(
+            f"the file holds {len(poses)} poses (morph targets); use load_poses", file=str(path)
+        )
+    return poses[0]
+
+
+def _load_wrl(path: Path, neutral: Scene, node: str | None) -> list[DeformedPose]:
+    file = str(path)
+    scene = read(path)
+    named = _miap_of_scene(scene, file)
+    miap, amplitude = named if named is not None else _miap_of_file(path)
+    pose = DeformedPose(miap, amplitude, file)
+    deformed_meshes = mesh_nodes(scene)
+    for name, n0 in mesh_nodes(neutral).items():
+        n1 = deformed_meshes.get(name)
+        if n1 is None:
+            raise AdtError(
+                f"topology differs: {_scene_name(neutral)} has an IndexedFaceSet DEFed as {name} "
+                f"but {path.name} has none",
+                file=file,
+            )
+        p0, p1 = node_points(n0), node_points(n1)
+        if p0.shape != p1.shape:
+            raise AdtError(
+                f"topology differs: {name} has {len(p0)} points in {_scene_name(neutral)} but "
+                f"{len(p1)} in {path.name}",
+                file=file,
+                line=n1.line,
+            )
+        if not np.array_equal(np.asarray(n0["coordIndex"]), np.asarray(n1["coordIndex"])):
+            raise AdtError(
+                f"topology differs: the faces (coordIndex) of {name} in {path.name} differ from "
+                f"those in {_scene_name(neutral)} (were vertices reordered?)",
+                file=file,
+                line=n1.line,
+            )
+        pose.points[name] = p1
+    deformed_transforms = transform_nodes(scene)
+    for name, t0 in transform_nodes(neutral).items():
+        t1 = deformed_transforms.get(name)
+        if t1 is None:
+            raise AdtError(
+                f"topology differs: {_scene_name(neutral)} has a Transform DEFed as {name} but "
+                f"{path.name} has none",
+                file=file,
+            )
+        v0, v1 = _transform_values(t0), _transform_values(t1)
+        changed = {f: v1[f] for f in TRANSFORM_FIELDS if not np.array_equal(v0[f], v1[f])}
+        if changed:
+            pose.transforms[name] = changed
+    return [pose]
+
+
+def _read_obj_vertices(path: Path) -> np.ndarray:
+    """``(v, 3)`` the ``v`` lines of an OBJ file in file order.
+
+    Read directly rather than through trimesh: trimesh drops unreferenced vertices and splits
+    vertices at texture seams, and either breaks the vertex order the tables index into."""
+    rows: list[list[float]] = []
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except OSError as e:
+        raise AdtError(f"cannot read file: {e.strerror}", file=str(path)) from None
+    for lineno, line in enumerate(text.splitlines(), 1):
+        if line.startswith("v ") or line.startswith("v\t"):
+            parts = line.split()[1:4]
+            try:
+                if len(parts) != 3:
+                    raise ValueError
+                rows.append([float(x) for x in parts])
+            except ValueError:
+                raise AdtError(
+                    "a 'v' line needs three numbers", file=str(path), line=lineno
+                ) from None
+    return np.array(rows, dtype=np.float64).reshape(-1, 3)
+
+
+def _read_trimesh_vertices(path: Path) -> np.ndarray:
+    """``(v, 3)`` vertices of a PLY (or other trimesh format) in file order."""
+    import trimesh
+
+    try:
+        # process=False keeps the vertices as written; fix_texture=False keeps PLY vertices
+        # from being split at texture seams.
+        loaded = trimesh.load(path, process=False, fix_texture=False)
+    except Exception as e:  # trimesh raises many types for malformed files
+        raise AdtError(f"cannot read the mesh: {e}", file=str(path)) from None
+    if isinstance(loaded, trimesh.Scene):
+        geoms = list(loaded.geometry.values())
+        if len(geoms) != 1:
+            raise AdtError(
+                f"the file holds {len(geoms)} meshes; a deformed pose in {path.suffix} must "
+                "hold one",
+                file=str(path),
+            )
+        loaded = geoms[0]
+    vertices = getattr(loaded, "vertices", None)
+    if vertices is None:
+        raise AdtError("the file holds no vertices", file=str(path))
+    return np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+
+
+def _target_mesh(
+    neutral: Scene,
+    count: int,
+    *,
+    file: str,
+    node: str | None,
+    mesh_name: str | None = None,
+    what: str = "the mesh",
+) -> str:
+    """The DEF name of the neutral IndexedFaceSet a mesh of ``count`` vertices maps onto: the
+    one named like the mesh, else ``node``, else the only one with ``count`` points."""
+    meshes = mesh_nodes(neutral)
+    name = mesh_name if mesh_name in meshes else node
+    if name is not None:
+        if name not in meshes:
+            raise AdtError(
+                f"--node {name}: {_scene_name(neutral)} has no IndexedFaceSet DEFed as {name} "
+                f"(it has {', '.join(meshes) or 'none'})",
+                file=file,
+            )
+        n = len(node_points(meshes[name]))
+        if n != count:
+            raise AdtError(
+                f"topology differs: {name} has {n} points in {_scene_name(neutral)} but "
+                f"{what} in {Path(file).name} has {count} vertices",
+                file=file,
+            )
+        return name
+    same = [k for k, v in meshes.items() if len(node_points(v)) == count]
+    if len(same) == 1:
+        return same[0]
+    sizes = ", ".join(f"{k} ({len(node_points(v))})" for k, v in meshes.items()) or "none"
+    if not same:
+        raise AdtError(
+            f"topology differs: {what} in {Path(file).name} has {count} vertices but no "
+            f"IndexedFaceSet of {_scene_name(neutral)} has that many points "
+            f"(IndexedFaceSets: {sizes})",
+            file=file,
+        )
+    raise AdtError(
+        f"ambiguous: {what} in {Path(file).name} has {count} vertices, as have the "
+        f"IndexedFaceSets {', '.join(same)} of {_scene_name(neutral)}; name one with --node",
+        file=file,
+    )
+
+
+PoseLoader = Callable[[Path, Scene, str | None], list[DeformedPose]]
+
+
+def _load_mesh(reader: Callable[[Path], np.ndarray]) -> PoseLoader:
+    """A loader of single-mesh files (OBJ, PLY) whose vertices ``reader`` returns."""
+
+    def load(path: Path, neutral: Scene, node: str | None) -> list[DeformedPose]:
+        miap, amplitude = _miap_of_file(path)
+        vertices = reader(path)
+        _check_finite(vertices, str(path))
+        name = _target_mesh(neutral, len(vertices), file=str(path), node=node)
+        return [
+            DeformedPose(miap, amplitude, str(path), {name: vertices}, {}, has_transforms=False)
+        ]
+
+    return load
+
+
+def _check_finite(a: np.ndarray, file: str) -> None:
+    if not np.isfinite(a).all():
+        raise AdtError("the mesh has non-finite coordinates (nan or inf)", file=file)
+
+
+# ---- glTF ----------------------------------------------------------------------------------------
+# trimesh's glTF loader ignores morph targets (primitive "targets") entirely, and flattens meshes
+# into world coordinates; the ADI needs mesh-local positions and the target displacements, so it
+# reads the accessors itself from the document pygltflib parses.
+
+_COMPONENT_TYPES: dict[int, str] = {
+    5120: "<i1",
+    5121: "<u1",
+    5122: "<i2",
+    5123: "<u2",
+    5125: "<u4",
+    5126: "<f4",
+}
+_NORMALIZE = {5120: 127.0, 5121: 255.0, 5122: 32767.0, 5123: 65535.0}
+_COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
+
+
+@dataclass
+class GltfMesh:
+    """One glTF mesh, its primitives' vertices concatenated in order.
+
+    name      the mesh name (may be None)
+    base      ``(v, 3) float64`` POSITION of the base mesh (mesh-local coordinates)
+    targets   morph target name → ``(v, 3) float64`` POSITION displacements
+    """
+
+    name: str | None
+    base: np.ndarray
+    targets: dict[str, np.ndarray]
+
+
+class _GltfReader:
+    def __init__(self, path: Path) -> None:
+        from pygltflib import GLTF2
+
+        self.path = path
+        self.file = str(path)
+        try:
+            self.doc = GLTF2.load(str(path))
+        except Exception as e:  # pygltflib raises IOError, json and struct errors alike
+            raise AdtError(f"not a readable glTF file: {e}", file=self.file) from None
+        if self.doc is None:
+            raise AdtError("not a readable glTF file: no JSON chunk", file=self.file)
+        self.buffers: dict[int, bytes] = {}
+
+    def error(self, msg: str) -> AdtError:
+        return AdtError(msg, file=self.file)
+
+    def buffer(self, index: int) -> bytes:
+        if index in self.buffers:
+            return self.buffers[index]
+        try:
+            buf = self.doc.buffers[index]
+        except IndexError:
+            raise self.error(f"buffer {index} does not exist") from None
+        uri = buf.uri
+        if uri is None:
+            data = self.doc.binary_blob()
+            if data is None:
+                raise self.error(f"buffer {index} has no uri and the file no binary chunk")
+        elif uri.startswith("data:"):
+            head, _, payload = uri.partition(",")
+            if not head.endswith(";base64"):
+                raise self.error(f"buffer {index}: only base64 data uris are supported")
+            try:
+                data = base64.b64decode(payload, validate=False)
+            except ValueError as e:
+                raise self.error(f"buffer {index}: bad base64 data: {e}") from None
+        else:
+            found = resolve_url([unquote(uri)], self.path.parent)
+            if found is None:
+                raise self.error(
+                    f"buffer {index}: '{uri}' is not a file inside the glTF file's folder"
+                )
+            data = found.read_bytes()
+        self.buffers[index] = data
+        return data
+
+    def view_bytes(self, view_index: int) -> tuple[bytes, int, int, int | None]:
+        """(buffer bytes, view start, view length, byte stride) of a bufferView."""
+        try:
+            view = self.doc.bufferViews[view_index]
+        except IndexError:
+            raise self.error(f"bufferView {view_index} does not exist") from None
+        data = self.buffer(view.buffer)
+        start = view.byteOffset or 0
+        if start + view.byteLength > len(data):
+            raise self.error(f"bufferView {view_index} reaches past the end of its buffer")
+        return data, start, view.byteLength, view.byteStride
+
+    def read(self, view_index: int, offset: int, count: int, ctype: int, ncomp: int,
+             what: str) -> np.ndarray:
+        """``(count, ncomp)`` values of a (possibly strided) view region."""
+        dtype = np.dtype(_COMPONENT_TYPES[ctype])
+        data, start, length, stride = self.view_bytes(view_index)
+        item = dtype.itemsize * ncomp
+        stride = stride or item
+        end = offset + stride * (count - 1) + item if count else offset
+        if end > length:
+            raise self.error(f"{what} reaches past the end of bufferView {view_index}")
+        return np.ndarray(
+            (count, ncomp), dtype=dtype, buffer=data, offset=start + offset,
+            strides=(stride, dtype.itemsize),
+        ).copy()
+
+    def accessor(self, index: int, what: str) -> np.ndarray:
+        """``(count, components) float64`` values of an accessor (sparse and normalized
+        accessors included)."""
+        try:
+            acc = self.doc.accessors[index]
+        except (IndexError, TypeError):
+            raise self.error(f"{what}: accessor {index} does not exist") from None
+        ncomp = _COMPONENTS.get(acc.type)
+        if ncomp is None or acc.componentType not in _COMPONENT_TYPES:
+            raise self.error(
+                f"{what}: accessor {index} has type {acc.type}/{acc.componentType}"
+            )
+        what = f"{what} (accessor {index})"
+        if acc.bufferView is None:
+            values = np.zeros((acc.count, ncomp))
+        else:
+            values = self.read(acc.bufferView, acc.byteOffset or 0, acc.count, acc.componentType,
+                               ncomp, what).astype(np.float64)
+        if acc.normalized and acc.componentType in _NORMALIZE:
+            values = np.maximum(values / _NORMALIZE[acc.componentType], -1.0)
+        sparse = acc.sparse
+        if sparse is not None and sparse.count:
+            idx = self.read(sparse.indices.bufferView, sparse.indices.byteOffset or 0,
+                            sparse.count, sparse.indices.componentType, 1,
+                            f"{what} sparse indices").reshape(-1).astype(np.int64)
+            vals = self.read(sparse.values.bufferView, sparse.values.byteOffset or 0,
+                             sparse.count, acc.componentType, ncomp,
+                             f"{what} sparse values").astype(np.float64)
+            if acc.normalized and acc.componentType in _NORMALIZE:
+                vals = np.maximum(vals / _NORMALIZE[acc.componentType], -1.0)
+            if idx.size and (idx.min() < 0 or idx.max() >= acc.count):
+                raise self.error(f"{what}: a sparse index is out of range")
+            values[idx] = vals
+        return values
+
+    def meshes(self) -> list[GltfMesh]:
+        out = []
+        for mi, mesh in enumerate(self.doc.meshes or []):
+            label = f"mesh {mesh.name or mi}"
+            names = _target_names(mesh)
+            bases: list[np.ndarray] = []
+            deltas: list[list[np.ndarray]] = []
+            for pi, prim in enumerate(mesh.primitives):
+                pos = _attr(prim.attributes, "POSITION")
+                if pos is None:
+                    raise self.error(f"{label}, primitive {pi} has no POSITION")
+                bases.append(self.accessor(pos, f"{label} POSITION"))
+                targets = prim.targets or []
+                if pi and len(targets) != len(deltas):
+                    raise self.error(
+                        f"{label}: primitive {pi} has {len(targets)} morph targets but primitive "
+                        f"0 has {len(deltas)} (glTF requires the same number)"
+                    )
+                if not pi:
+                    deltas = [[] for _ in targets]
+                for ti, t in enumerate(targets):
+                    tpos = _attr(t, "POSITION")
+                    n = len(bases[-1])
+                    deltas[ti].append(
+                        np.zeros((n, 3)) if tpos is None
+                        else self.accessor(tpos, f"{label} morph target {ti} POSITION")
+                    )
+            base = np.concatenate(bases) if bases else np.zeros((0, 3))
+            if base.shape[1:] != (3,):
+                raise self.error(f"{label}: POSITION must be VEC3")
+            if deltas and len(names) != len(deltas):
+                raise self.error(
+                    f"{label} has {len(deltas)} morph targets but "
+                    f"{'no' if not names else len(names)} target names: name each target after "
+                    "its MIAP (mesh extras 'targetNames', e.g. close_t_l_eyelid@1024, viseme3, joy)"
+                )
+            targets_by_name: dict[str, np.ndarray] = {}
+            for tname, parts in zip(names, deltas, strict=False):
+                if tname in targets_by_name:
+                    raise self.error(f"{label}: morph target '{tname}' is named twice")
+                delta = np.concatenate(parts)
+                if delta.shape[1:] != (3,):
+                    raise self.error(f"{label}: morph target '{tname}' POSITION must be VEC3")
+                targets_by_name[tname] = delta
+            out.append(GltfMesh(mesh.name, base, targets_by_name))
+        return out
+
+
+def _attr(attributes: Any, name: str) -> int | None:
+    if isinstance(attributes, dict):
+        return attributes.get(name)
+    return getattr(attributes, name, None)
+
+
+def _target_names(mesh: Any) -> list[str]:
+    """Morph target names: mesh ``extras.targetNames`` (the de-facto convention of Blender and
+    three.js), else the first primitive's."""
+    for holder in [mesh, *(mesh.primitives[:1])]:
+        extras = getattr(holder, "extras", None)
+        if isinstance(extras, dict) and isinstance(extras.get("targetNames"), list):
+            return [str(n) for n in extras["targetNames"]]
+    return []
+
+
+def read_gltf_meshes(path: str | os.PathLike[str]) -> list[GltfMesh]:
+    """Every mesh of a ``.glb``/``.gltf`` file with its morph targets (see :class:`GltfMesh`)."""
+    return _GltfReader(Path(path)).meshes()
+
+
+def _load_gltf(path: Path, neutral: Scene, node: str | None) -> list[DeformedPose]:
+    file = str(path)
+    meshes = read_gltf_meshes(path)
+    if not meshes:
+        raise AdtError("the glTF file holds no mesh", file=file)
+    for m in meshes:
+        _check_finite(m.base, file)
+        for d in m.targets.values():
+            _check_finite(d, file)
+    morphing = [m for m in meshes if m.targets]
+    if not morphing:
+        miap, amplitude = _miap_of_file(path)
+        pose = DeformedPose(miap, amplitude, file, has_transforms=False)
+        for m in meshes:
+            name = _map_gltf_mesh(m, meshes, neutral, file, node)
+            if name in pose.points:
+                raise AdtError(f"two meshes map onto IndexedFaceSet {name}", file=file)
+            pose.points[name] = m.base
+        return [pose]
+    poses: dict[str, DeformedPose] = {}
+    for m in morphing:
+        name = _map_gltf_mesh(m, morphing, neutral, file, node)
+        neutral_pts = node_points(mesh_nodes(neutral)[name])
+        _check_base(m, name, neutral_pts, neutral, file)
+        for tname, delta in m.targets.items():
+            pose = poses.get(tname)
+            if pose is None:
+                miap, amplitude = miap_from_label(
+                    tname, what=f"morph target name '{tname}' of mesh {m.name}", file=file
+                )
+                pose = poses[tname] = DeformedPose(
+                    miap, amplitude, f"{file}#{tname}", has_transforms=False
+                )
+            if name in pose.points:
+                raise AdtError(
+                    f"two meshes with morph target '{tname}' map onto IndexedFaceSet {name}",
+                    file=file,
+                )
+            pose.points[name] = neutral_pts + delta
+    return list(poses.values())
+
+
+def _map_gltf_mesh(
+    m: GltfMesh, meshes: list[GltfMesh], neutral: Scene, file: str, node: str | None
+) -> str:
+    # --node can only name the target of a file's single mesh
+    single = node if len(meshes) == 1 else None
+    return _target_mesh(neutral, len(m.base), file=file, node=single, mesh_name=m.name,
+                        what=f"glTF mesh {m.name or '(unnamed)'}")
+
+
+def _check_base(m: GltfMesh, name: str, neutral_pts: np.ndarray, neutral: Scene,
+                file: str) -> None:
+    """Morph targets are displacements from the glTF base mesh: it must be the neutral pose, in
+    the same vertex order (float32 storage allowed for)."""
+    if not len(neutral_pts):
+        return
+    extent = float(np.ptp(neutral_pts, axis=0).max()) or 1.0
+    err = np.linalg.norm(m.base - neutral_pts, axis=1)
+    worst = int(err.argmax())
+    if err[worst] > 1e-5 * extent:
+        raise AdtError(
+            f"topology differs: the base of glTF mesh {m.name or '(unnamed)'} is not the neutral "
+            f"{name} of {_scene_name(neutral)}: vertex {worst} is at "
+            f"{' '.join(format_number(v) for v in m.base[worst])} but at "
+            f"{' '.join(format_number(v) for v in neutral_pts[worst])} in the neutral (export "
+            "the neutral pose as the base, in the same vertex order)",
+            file=file,
+        )
+
+
+#: File suffix → loader of the poses in a file.
+LOADERS: dict[str, PoseLoader] = {
+    ".wrl": _load_wrl,
+    ".obj": _load_mesh(_read_obj_vertices),
+    ".ply": _load_mesh(_read_trimesh_vertices),
+    ".glb": _load_gltf,
+    ".gltf": _load_gltf,
+}
+
+
+# ---- building the tables -------------------------------------------------------------------------
+
+
+def build_tables(
+    neutral: Scene,
+    poses: Sequence[DeformedPose],
+    tolerance: float = DEFAULT_TOLERANCE,
+) -> AnimationTables:
+    """The Animation Definition Tables that reproduce ``poses`` from ``neutral``.
+
+    Per MIAP (in parameter order): for each DEFed IndexedFaceSet some pose moves, a
+    :class:`~vtts.face.MeshTable` with borders = the poses' amplitudes plus 0 and, per interval,
+    the displacement per unit ``(d(b[i+1]) - d(b[i])) / (b[i+1] - b[i])`` (``d(0) = 0``) of every
+    vertex that moves more than ``tolerance`` (model units, Euclidean) in some pose; for each
+    DEFed Transform field that changes by more than ``tolerance``, a
+    :class:`~vtts.face.TransformTable` with the change per unit (radians per unit for a rotation,
+    about the neutral axis, or the deformed axis when the neutral angle is 0), which must be the
+    same for every pose of the MIAP (a Transform moves linearly).
+
+    Temporal tables and feature points embedded in ``neutral`` are kept. Raises
+    :class:`AdtError` for duplicate amplitudes, non-linear or axis-changing Transform motion and
+    poses whose IndexedFaceSets are unknown or of another size. A MIAP whose poses move nothing
+    gets no table (with a :class:`~vtts.errors.VttsWarning`).
+    """
+    if not tolerance >= 0:
+        raise AdtError(f"tolerance must be a non-negative number, got {tolerance}")
+    try:
+        embedded = tables_from_scene(neutral, file=_scene_name(neutral))
+    except VttsError as e:
+        warnings.warn(
+            VttsWarning(f"the tables embedded in the neutral scene are ignored: {e.message}",
+                        file=e.file, line=e.line),
+            stacklevel=2,
+        )
+        embedded = None
+    neutral = strip_tables(neutral)
+    meshes = {k: node_points(v) for k, v in mesh_nodes(neutral).items()}
+    transforms = {k: _transform_values(v) for k, v in transform_nodes(neutral).items()}
+    groups: dict[Miap, list[DeformedPose]] = {}
+    for p in poses:
+        for name, pts in p.points.items():
+            if name not in meshes:
+                raise AdtError(
+                    f"{_scene_name(neutral)} has no IndexedFaceSet DEFed as {name}", file=p.source
+                )
+            if pts.shape != meshes[name].shape:
+                raise AdtError(
+                    f"topology differs: {name} has {len(meshes[name])} points in "
+                    f"{_scene_name(neutral)} but {len(pts)} in {p.source}",
+                    file=p.source,
+                )
+        if p.amplitude == 0 or not math.isfinite(p.amplitude):
+            raise AdtError(
+                f"MIAP {p.miap}: amplitude {p.amplitude} is not a deformed pose", file=p.source
+            )
+        groups.setdefault(p.miap, []).append(p)
+
+    tables = AnimationTables()
+    for miap in sorted(groups, key=lambda m: m.index):
+        group = sorted(groups[miap], key=lambda p: p.amplitude)
+        for a, b in zip(group, group[1:], strict=False):
+            if a.amplitude == b.amplitude:
+                raise AdtError(
+                    f"MIAP {miap}: amplitude {format_number(a.amplitude)} is given twice, by "
+                    f"{a.source} and {b.source}",
+                    file=b.source,
+                )
+        adt = Adt(miap)
+        for name, neutral_pts in meshes.items():
+            table = _mesh_table(name, neutral_pts, group, tolerance)
+            if table is not None:
+                adt.meshes.append(table)
+        for name, values in transforms.items():
+            for fld in TRANSFORM_FIELDS:
+                table = _transform_table(name, fld, values[fld], miap, group, tolerance)
+                if table is not None:
+                    adt.transforms.append(table)
+        if adt.meshes or adt.transforms:
+            tables.add(adt)
+        else:
+            warnings.warn(
+                VttsWarning(
+                    f"MIAP {miap}: its poses move nothing by more than {tolerance:g} "
+                    f"({', '.join(p.source for p in group)}): no table",
+                    file=group[0].source,
+                ),
+                stacklevel=2,
+            )
+    if embedded is not None:
+        tables.temporal = embedded.temporal
+        tables.feature_points = dict(embedded.feature_points)
+    return tables
+
+
+def _mesh_table(
+    name: str, neutral_pts: np.ndarray, group: list[DeformedPose], tolerance: float
+) -> MeshTable | None:
+    covering = [p for p in group if name in p.points]
+    if not covering:
+        return None
+    disp = np.stack([p.points[name] - neutral_pts for p in covering])  # (k, p, 3)
+    moved = (np.linalg.norm(disp, axis=2) > tolerance).any(axis=0)
+    if not moved.any():
+        return None
+    vertices = np.flatnonzero(moved)
+    amps = np.array([p.amplitude for p in covering])
+    zero_at = int(np.searchsorted(amps, 0.0))
+    borders = np.insert(amps, zero_at, 0.0)
+    d = np.insert(disp[:, vertices], zero_at, 0.0, axis=0)  # (n+1, v, 3) displacement at borders
+    slopes = np.diff(d, axis=0) / np.diff(borders)[:, None, None]
+    return MeshTable(name, borders, vertices, round_significant(slopes))
+
+
+def _transform_table(
+    name: str,
+    fld: str,
+    neutral: np.ndarray,
+    miap: Miap,
+    group: list[DeformedPose],
+    tolerance: float,
+) -> TransformTable | None:
+    poses = [p for p in group if p.has_transforms]
+    if not any(fld in p.transforms.get(name, {}) for p in poses):
+        return None
+    if fld == "rotation":
+        return _rotation_table(name, neutral, miap, poses, tolerance)
+    deltas = np.array(
+        [p.transforms.get(name, {}).get(fld, neutral) - neutral for p in poses]
+    )  # (k, 3)
+    if not (np.abs(deltas) > tolerance).any():
+        return None
+    amps = np.array([p.amplitude for p in poses])
+    unit = _linear_unit(amps, deltas, tolerance, name, fld, miap, poses)
+    return TransformTable(name, fld, neutral, round_significant(unit))
+
+
+def _linear_unit(
+    amps: np.ndarray,
+    deltas: np.ndarray,
+    tolerance: float,
+    name: str,
+    fld: str,
+    miap: Miap,
+    poses: list[DeformedPose],
+) -> np.ndarray:
+    """The change per unit that fits every pose (least squares), checked to be linear."""
+    deltas = deltas.reshape(len(amps), -1)
+    unit = (amps @ deltas) / (amps @ amps)
+    residual = np.abs(np.outer(amps, unit) - deltas).max(axis=1)
+    allowed = tolerance + 1e-9 * np.abs(deltas).max()
+    bad = int(residual.argmax())
+    if residual[bad] > allowed:
+        ref = int(np.abs(amps).argmax())
+        if ref == bad:
+            ref = int(np.argsort(np.abs(amps))[-2])
+        units = {"rotation": " rad"}.get(fld, "")
+
+        def show(i: int) -> str:
+            d = " ".join(format_number(v) for v in deltas[i])
+            return f"{d}{units} at {format_number(amps[i])} ({poses[i].source})"
+
+        raise AdtError(
+            f"Transform {name}: {fld} is not linear in MIAP {miap}: it changes by {show(ref)} "
+            f"but by {show(bad)}; a Transform table has one change per unit (model non-linear "
+            "motion with an IndexedFaceSet)",
+            file=poses[bad].source,
+        )
+    return unit
+
+
+def _unit_axis(r: np.ndarray) -> np.ndarray | None:
+    n = float(np.linalg.norm(r[:3]))
+    return r[:3] / n if n > 0 else None
+
+
+def _rotation_table(
+    name: str,
+    neutral: np.ndarray,
+    miap: Miap,
+    poses: list[DeformedPose],
+    tolerance: float,
+) -> TransformTable | None:
+    axis0 = _unit_axis(neutral)
+    identity = abs(neutral[3]) <= tolerance or axis0 is None
+    axis = None if identity else axis0
+    deltas: list[float] = []
+    for p in poses:
+        r = p.transforms.get(name, {}).get("rotation", neutral)
+        a = _unit_axis(r)
+        angle = float(r[3])
+        if a is None or abs(angle) <= tolerance:  # the identity rotation
+            deltas.append(0.0 if identity else -float(neutral[3]))
+            continue
+        if axis is None:
+            axis = a
+        if np.allclose(a, axis, atol=1e-6):
+            pass
+        elif np.allclose(a, -axis, atol=1e-6):
+            angle = -angle
+        else:
+            fmt = " ".join(format_number(v) for v in axis)
+            what = (
+                f"its neutral axis {fmt} (neutral angle {format_number(neutral[3])})"
+                if not identity
+                else f"axis {fmt} of the other poses"
+            )
+            raise AdtError(
+                f"Transform {name}: the rotation axis changes in MIAP {miap}: "
+                f"{' '.join(format_number(v) for v in r[:3])} in {p.source} but {what}; a "
+                "MIAP rotates a Transform about one axis (the neutral one when the neutral angle "
+                "is not 0)",
+                file=p.source,
+            )
+        deltas.append(angle - (0.0 if identity else float(neutral[3])))
+    d = np.array(deltas)
+    if axis is None or not (np.abs(d) > tolerance).any():
+        return None
+    amps = np.array([p.amplitude for p in poses])
+    unit = float(_linear_unit(amps, d, tolerance, name, "rotation", miap, poses)[0])
+    if identity:
+        if unit < 0:  # the same rotation about the opposite axis: keep the unit positive
+            axis, unit = -axis, -unit
+        neutral_value = np.r_[axis, 0.0]
+    else:
+        neutral_value = neutral  # axis is the neutral axis here
+    unit = float(round_significant(np.array([unit]))[0])
+    if abs(unit - AU) <= 1e-9 * AU:
+        unit = AU  # the angle unit of FAPs: keeps the .adt free of a 'per unit' line
+    return TransformTable(name, "rotation", neutral_value + 0.0, np.array([unit]))
+
+
+#: Significant digits kept in displacements and units: subtracting and dividing exported
+#: coordinates leaves float noise in the last digits (9.999999999999999e-05 for 1e-4); rounding it
+#: away changes a displacement by a 1e-12 fraction, far below any tolerance.
+SIGNIFICANT_DIGITS = 12
+
+
+def round_significant(a: np.ndarray, digits: int = SIGNIFICANT_DIGITS) -> np.ndarray:
+    """``a`` (any shape, float64) rounded to ``digits`` significant decimal digits."""
+    a = np.asarray(a, dtype=np.float64)
+    flat = [float(f"{v:.{digits}g}") for v in a.reshape(-1).tolist()]
+    return np.array(flat, dtype=np.float64).reshape(a.shape) + 0.0
+
+
+def summary(tables: AnimationTables) -> str:
+    """``12 MIAPs, 3 nodes``."""
+    n = len(tables.adts)
+    k = len(tables.mesh_nodes()) + len(tables.transform_nodes())
+    return f"{n} MIAP{'' if n == 1 else 's'}, {k} node{'' if k == 1 else 's'}"
+
+
+def build(
+    neutral_path: str | os.PathLike[str],
+    deformed: Sequence[str | os.PathLike[str]],
+    *,
+    tolerance: float = DEFAULT_TOLERANCE,
+    node: str | None = None,
+) -> tuple[Scene, AnimationTables]:
+    """Read the neutral model and the deformed files and build the tables: what ``adi build``
+    does before writing. Returns the neutral scene (tables stripped) and the tables."""
+    neutral = read(neutral_path)
+    poses: list[DeformedPose] = []
+    for path in deformed:
+        poses.extend(load_poses(path, neutral, node=node))
+    return neutral, build_tables(neutral, poses, tolerance)
