@@ -216,18 +216,26 @@ class Scene:
         out: list[Node] = []
         seen: set[int] = set()
 
-        def visit(n: Node) -> None:
+        def visit(n: Node, depth: int) -> None:
             n = n.expand()
             if id(n) in seen:
                 return
+            if depth > 256:
+                raise VrmlLimitError("scene graph nests deeper than 256 levels", line=n.line)
             seen.add(id(n))
+            if len(seen) > MAX_INSTANCES:
+                raise VrmlLimitError(
+                    f"the scene graph expands to more than {MAX_INSTANCES} nodes (PROTOs that "
+                    "instance PROTOs multiply)",
+                    line=n.line,
+                )
             if n.type.name == type_name:
                 out.append(n)
             for c in n.children_nodes():
-                visit(c)
+                visit(c, depth + 1)
 
         for r in self.roots:
-            visit(r)
+            visit(r, 0)
         return out
 
     def traverse(self) -> Iterator[tuple[Node, np.ndarray, tuple[Node, ...]]]:
@@ -267,7 +275,7 @@ class Scene:
             else:
                 return
             if len(path) > 256:
-                raise VrmlSemanticError("scene graph nests deeper than 256 levels", line=n.line)
+                raise VrmlLimitError("scene graph nests deeper than 256 levels", line=n.line)
             for c in kids:
                 yield from walk(c, m2, (*path, n))
 
