@@ -308,3 +308,24 @@ def test_resolve_url_follows_links_only_inside(tmp_path):
 def test_every_error_is_a_vtts_error():
     for cls in (VrmlSyntaxError, VrmlSemanticError, VrmlLimitError, VrmlUrlError):
         assert issubclass(cls, VttsError)
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        'PROTO P [ exposedField MFString u [] ] { ImageTexture { url IS u } }\n'
+        'Shape { appearance Appearance { texture P { u "/etc/passwd" } } }',
+        'PROTO P [ exposedField MFString u [ "../../secret.png" ] ] { ImageTexture { url IS u } }',
+        'PROTO P [ exposedField MFString u [] ] { ImageTexture { url IS u } }\n'
+        'PROTO Q [ field MFString v [] ] { P { u IS v } }\n'
+        'Shape { appearance Appearance { texture Q { v "../x.png" } } }',
+    ],
+)
+def test_urls_reaching_a_loader_through_proto_are_checked(text):
+    with pytest.raises(VrmlUrlError, match="inside the folder"):
+        parse(H + text, file="/tmp/m.wrl")
+
+
+def test_lenient_mixed_values_name_the_field():
+    with pytest.raises(VrmlSemanticError, match="field 'odd' of Vendor mixes kinds of values"):
+        parse(H + 'Vendor { odd [ 1 "a" ] }', lenient=True)

@@ -369,7 +369,9 @@ class _Builder:
         name = str(name_tok)
         ntype = node.type
         if ntype.kind == "generic":
-            ftype, value = self.infer_value(value_tree, scope, depth)
+            ftype, value = self.infer_value(
+                value_tree, scope, depth, f"{name}' of {ntype.describe()}"
+            )
             ntype.decls.setdefault(name, FieldDecl("exposedField", ftype, name, None))
         else:
             decl = ntype.field(name)
@@ -531,6 +533,11 @@ class _Builder:
                 name_tok,
             )
         proto.roles = _roles_of(first)
+        proto.url_members = _url_members(proto)
+        for name in proto.url_members:
+            d = proto.decls[name]
+            for url in d.default or ():
+                self.check_url(url, name_tok, node_name=f"PROTO {proto.name}.{name}")
         scope.protos[proto.name] = proto
         return proto
 
@@ -733,8 +740,12 @@ class _Builder:
             )
         return SFImage(w, h, c, pixels.astype(np.uint32))
 
-    def infer_value(self, t: Tree, scope: _Scope, depth: int) -> tuple[FieldType, Any]:
-        """Type and value of a field of a generic (unknown) node, from the value's form."""
+    def infer_value(
+        self, t: Tree, scope: _Scope, depth: int, what: str
+    ) -> tuple[FieldType, Any]:
+        """Type and value of a field of a generic (unknown) node, from the value's form.
+
+        ``what`` names the field in messages (``gain' of VendorNode``)."""
         items = t.children
         multi = t.data == "mf_value"
         if items and all(isinstance(i, Tree) for i in items):
@@ -750,8 +761,10 @@ class _Builder:
         elif not items:
             tname = "MFNode"
         else:
-            raise self.wrong_kind(
-                "of a generic node", FIELD_TYPES["MFFloat"], items, _first_token(t)
+            raise self.error(
+                f"field '{what} mixes kinds of values ({_describe_items(items)} and more); a "
+                "field of an unknown node type must hold one kind",
+                _first_token(t),
             )
         ftype = FIELD_TYPES[tname]
         decl = FieldDecl("exposedField", ftype, "?")
@@ -760,7 +773,7 @@ class _Builder:
             decl,
             scope,
             depth,
-            "?' of a generic node",
+            what,
         )
 
     def check_role(self, node: Node, decl: FieldDecl, what: str, tok: Token | None) -> None:
@@ -779,7 +792,10 @@ class _Builder:
     # ---- urls ---------------------------------------------------------------------------------
 
     def check_urls(self, node: Node) -> None:
-        for fname in URL_FIELDS.get(node.type.name, ()):
+        fnames = URL_FIELDS.get(node.type.name, ())
+        if isinstance(node.type, Proto):
+            fnames = tuple(node.type.url_members)
+        for fname in fnames:
             urls = node.fields.get(fname)
             for url in urls or ():
                 self.check_url(url, node, node_name=f"{node.type.name}.{fname}")
@@ -858,6 +874,29 @@ def resolve_url(urls: list[str], base_dir: Path | None) -> Path | None:
         if p.is_file() and (p == root or root in p.parents):
             return p
     return None
+
+
+def _url_members(proto: Proto) -> set[str]:
+    """Interface members of ``proto`` whose value ends up in a url field that loads a file
+    (through IS, directly or through PROTO instances in the body), so that instance values and
+    defaults are checked like the url fields themselves."""
+    out: set[str] = set()
+    seen: set[int] = set()
+    stack = list(proto.body)
+    while stack:
+        n = stack.pop()
+        if not isinstance(n, Node) or id(n) in seen:
+            continue
+        seen.add(id(n))
+        inner = n.type.url_members if isinstance(n.type, Proto) else set(
+            URL_FIELDS.get(n.type.name, ())
+        )
+        for member, iface in n.is_maps.items():
+            if member in inner:
+                out.add(iface)
+        for v in n.fields.values():
+            stack.extend(v if isinstance(v, list) else [v])
+    return out
 
 
 def _is_script_decl(node: Node, name: str) -> bool:

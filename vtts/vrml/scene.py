@@ -50,6 +50,8 @@ class Proto(NodeType):
 
     body: list[Any] = field(default_factory=list)
     urls: list[str] = field(default_factory=list)
+    #: interface members whose values reach a url field that loads a file (checked like one)
+    url_members: set[str] = field(default_factory=set)
     line: int = 0
     column: int = 0
 
