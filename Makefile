@@ -22,5 +22,10 @@ bench:
 	@bash scripts/setup.sh test,bench
 	$(PY) bench/run.py
 
+# Regenerate the golden images on purpose; look at them (git diff) before committing.
+golden: setup
+	VTTS_REGENERATE_GOLDEN=1 $(PY) -m pytest -q -k golden tests
+	@echo "golden images rewritten in tests/golden/: inspect them before committing"
+
 clean:
 	rm -rf $(VENV) out dist build .pytest_cache .ruff_cache .hypothesis

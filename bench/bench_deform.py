@@ -24,7 +24,7 @@ FRAMES = 2000
 
 
 def build_model(n_points: int = 10_000, seed: int = 7):
-    from vtts.face import Adt, AnimationTables, DeformationEngine, MeshTable, Miap, TransformTable
+    from vtts.face import Adt, AnimationTables, DeformationEngine, MeshTable, TransformTable
     from vtts.face.miap import all_miaps
 
     rng = np.random.default_rng(seed)
@@ -44,8 +44,13 @@ def build_model(n_points: int = 10_000, seed: int = 7):
         if miap.kind == "fap" and miap.number in (23, 24, 25, 26, 48, 49, 50):
             adt.transforms.append(TransformTable("HEAD", "rotation", [0, 1, 0, 0], [1e-5]))
         tables.add(adt)
-    neutral_t = {"HEAD": {"rotation": np.array([0, 1, 0, 0.0]), "translation": np.zeros(3),
-                          "scale": np.ones(3)}}
+    neutral_t = {
+        "HEAD": {
+            "rotation": np.array([0, 1, 0, 0.0]),
+            "translation": np.zeros(3),
+            "scale": np.ones(3),
+        }
+    }
     return DeformationEngine(tables, {"FACE": points}, neutral_t), nnz
 
 

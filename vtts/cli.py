@@ -7,12 +7,15 @@ traceback reaches the user for bad input. Each sub-command is one function in :d
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+
+import numpy as np
 
 from vtts import __version__
 from vtts.errors import VttsError, VttsWarning
@@ -234,11 +237,8 @@ def parse_assignments(text: str, what: str, default: float | None = None) -> dic
     return out
 
 
-def cmd_pose(args: argparse.Namespace) -> int:
-    """Write the model posed by the given FAPs, visemes and expressions as plain VRML97."""
-    from vtts.face import load_model
-    from vtts.vrml import write
-
+def _pose_request(args: argparse.Namespace) -> tuple[dict, dict, dict]:
+    """(faps, visemes, expressions) from the --fap/--viseme/--expression flags."""
     faps: dict[str, float] = {}
     visemes: dict[str, float] = {}
     expressions: dict[str, float] = {}
@@ -248,8 +248,13 @@ def cmd_pose(args: argparse.Namespace) -> int:
         visemes.update(parse_assignments(text, "viseme", default=1.0))
     for text in args.expression or []:
         expressions.update(parse_assignments(text, "expression", default=1.0))
-    model = load_model(args.model)
-    pose = model.deform(faps, visemes=visemes, expressions=expressions)
+    return faps, visemes, expressions
+
+
+def _posed_params(model, request: tuple[dict, dict, dict]) -> np.ndarray:
+    """The model's parameter vector for a pose request, warning once about MIAPs it lacks."""
+    faps, visemes, expressions = request
+    params = model.params(faps, visemes=visemes, expressions=expressions)
     unused = [
         k
         for k in [
@@ -261,10 +266,123 @@ def cmd_pose(args: argparse.Namespace) -> int:
     ]
     if unused:
         print(
-            f"warning: {model.name} has no table for {', '.join(unused)}; ignored", file=sys.stderr
+            f"warning: {model.name} has no table for {', '.join(unused)}; ignored",
+            file=sys.stderr,
         )
+    return params
+
+
+def cmd_pose(args: argparse.Namespace) -> int:
+    """Write the model posed by the given FAPs, visemes and expressions as plain VRML97."""
+    from vtts.face import load_model
+    from vtts.vrml import write
+
+    request = _pose_request(args)
+    model = load_model(args.model)
+    pose = model.engine.deform(_posed_params(model, request))
     write(model.posed_scene(pose), args.output, comment=f"{model.name} posed by vtts pose")
     print(f"wrote {args.output}")
+    return 0
+
+
+def _size(text: str) -> tuple[int, int]:
+    from vtts.errors import RenderError
+
+    w, x, h = text.lower().partition("x")
+    if not x or not w.isdigit() or not h.isdigit():
+        raise RenderError(f"--size takes WIDTHxHEIGHT in pixels, such as 352x288; got {text!r}")
+    return int(w), int(h)
+
+
+def _renderer(args: argparse.Namespace, models, supersample: int = 1):
+    from vtts.render import Camera, FaceRenderer
+
+    camera = Camera.parse(args.camera) if getattr(args, "camera", None) else None
+    return FaceRenderer(
+        models,
+        size=_size(args.size),
+        camera=camera,
+        layout=getattr(args, "layout", "row"),
+        supersample=supersample,
+    )
+
+
+def cmd_render(args: argparse.Namespace) -> int:
+    """Render one pose of one or more models to a PNG."""
+    from vtts.face import load_model
+    from vtts.render import write_png
+
+    request = _pose_request(args)
+    models = [load_model(m) for m in args.model]
+    params = [_posed_params(m, request) for m in models]
+    # a still can afford antialiasing: render at twice the size and filter down
+    with _renderer(args, models, supersample=2) as renderer:
+        frame = renderer.render(params)
+    write_png(args.output, frame)
+    print(f"wrote {args.output} ({frame.shape[1]}x{frame.shape[0]})")
+    return 0
+
+
+def cmd_play(args: argparse.Namespace) -> int:
+    """Play a FAP stream on one or more models into an MP4 and/or a folder of PNGs."""
+    from vtts.animate.fapstream import stream_params, warn_ignored
+    from vtts.errors import RenderError
+    from vtts.face import load_model
+    from vtts.fap import read_fap
+    from vtts.render import PngSequenceWriter, VideoWriter, progress
+
+    if not args.output and not args.png_dir:
+        raise RenderError("nothing to write: give -o OUT.mp4 and/or --png-dir DIR")
+    if not 0 < args.fps <= 240:
+        raise RenderError(f"--fps must be within 0–240, got {args.fps:g}")
+    stream = read_fap(args.stream)
+    models = [load_model(m) for m in args.model]
+    tracks = []
+    for m in models:
+        sp = stream_params(stream, set(m.tables.adts), fps=args.fps)
+        warn_ignored(m.name, sp.ignored)
+        tracks.append(sp.params)
+    n = tracks[0].shape[0]
+    with contextlib.ExitStack() as stack:
+        renderer = stack.enter_context(_renderer(args, models))
+        sinks = []
+        if args.output:
+            sinks.append(
+                stack.enter_context(
+                    VideoWriter(args.output, args.fps, renderer.size, audio=args.audio)
+                )
+            )
+        if args.png_dir:
+            sinks.append(stack.enter_context(PngSequenceWriter(args.png_dir)))
+        bar = stack.enter_context(progress(n, f"rendering {Path(args.stream).name}", args.quiet))
+        for frame in renderer.frames([t[i] for t in tracks] for i in range(n)):
+            for sink in sinks:
+                sink.write(frame)
+            bar.advance()
+    outputs = " and ".join(str(p) for p in (args.output, args.png_dir) if p)
+    if not args.quiet:
+        print(f"wrote {outputs}: {n} frames at {args.fps:g} fps ({n / args.fps:.2f} s)")
+    return 0
+
+
+def cmd_models(args: argparse.Namespace) -> int:
+    """List the bundled models."""
+    from vtts.face import bundled_models, load_model
+
+    names = bundled_models()
+    if not names:
+        print("no bundled models")
+        return 0
+    for name in names:
+        try:
+            m = load_model(name)
+        except VttsError as e:
+            print(f"{name:12s} broken: {e.message}")
+            continue
+        print(
+            f"{name:12s} {len(m.tables.adts):3d} MIAPs {m.scene.triangle_count():7d} triangles  "
+            f"{m.path}"
+        )
     return 0
 
 
@@ -305,33 +423,84 @@ def build_parser() -> argparse.ArgumentParser:
     i.set_defaults(func=cmd_info)
     po = sub.add_parser("pose", help="write a model posed by FAPs, visemes and expressions")
     po.add_argument("--model", required=True, help="bundled model name or .wrl path")
-    po.add_argument(
+    _pose_flags(po)
+    po.add_argument("-o", "--output", required=True, help="output .wrl")
+    po.set_defaults(func=cmd_pose)
+
+    r = sub.add_parser("render", help="render one pose to a PNG")
+    r.add_argument(
+        "--model",
+        action="append",
+        required=True,
+        help="bundled model name or .wrl path (repeat for several heads)",
+    )
+    _pose_flags(r)
+    _view_flags(r)
+    r.add_argument("-o", "--output", required=True, help="output .png")
+    r.set_defaults(func=cmd_render)
+
+    pl = sub.add_parser("play", help="play a FAP stream on one or more models")
+    pl.add_argument("stream", help="a .fap file")
+    pl.add_argument(
+        "--model",
+        action="append",
+        required=True,
+        help="bundled model name or .wrl path (repeat for several heads)",
+    )
+    pl.add_argument("--audio", help="a WAV file to mux into the MP4 (as AAC)")
+    pl.add_argument("--fps", type=float, default=30.0, help="output frame rate (default 30)")
+    pl.add_argument("--png-dir", help="also (or only) write lossless PNG frames into this folder")
+    pl.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    _view_flags(pl)
+    pl.add_argument("-o", "--output", help="output .mp4")
+    pl.set_defaults(func=cmd_play)
+
+    ms = sub.add_parser("models", help="list the bundled models")
+    ms.set_defaults(func=cmd_models)
+    return p
+
+
+def _pose_flags(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
         "--fap",
         action="append",
         metavar="N=V,...",
         help="FAP values in FAP units, by number or name (19=512,open_jaw=300)",
     )
-    po.add_argument(
+    p.add_argument(
         "--viseme",
         action="append",
         metavar="V[=W]",
         help="viseme number or phoneme with an optional weight 0-1 (7 or 7=0.5)",
     )
-    po.add_argument(
+    p.add_argument(
         "--expression",
         action="append",
         metavar="NAME[=W]",
         help="expression with an optional weight 0-1 (joy=0.8)",
     )
-    po.add_argument("-o", "--output", required=True, help="output .wrl")
-    po.set_defaults(func=cmd_pose)
-    return p
+
+
+def _view_flags(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--size", default="352x288", help="WIDTHxHEIGHT in pixels (default 352x288)")
+    p.add_argument(
+        "--camera",
+        metavar="FX,FY,X0,Y0",
+        help="pinhole camera of Eisert-Girod Eq. 3 in pixels (default: frame the heads)",
+    )
+    p.add_argument(
+        "--layout",
+        choices=("row", "room"),
+        default="row",
+        help="several heads side by side, or side by side in a simple room",
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        return args.func(args)
+        with _reported_warnings():
+            return args.func(args)
     except VttsError as e:
         _print_error(e)
         return 1

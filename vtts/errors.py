@@ -102,3 +102,7 @@ class VttsWarning(UserWarning):
         parts = [p for p in (self.file, self.line, self.column) if p is not None]
         loc = ":".join(str(p) for p in parts)
         return f"{loc}: {self.message}" if loc else self.message
+
+
+class RenderError(VttsError):
+    """Rendering or writing an output (image, video, audio) failed."""

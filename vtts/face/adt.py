@@ -224,7 +224,9 @@ class AnimationTables:
 
 @cache
 def _lark() -> Lark:
-    return Lark(grammar_text("adt"), parser="lalr", lexer="contextual", maybe_placeholders=False)
+    return Lark(
+        grammar_text("adt"), parser="lalr", lexer="contextual", maybe_placeholders=False, cache=True
+    )
 
 
 def read_adt(path: str | os.PathLike[str]) -> AnimationTables:

@@ -92,7 +92,13 @@ _TERMINAL_NAMES = {
 
 @cache
 def _lark() -> Lark:
-    return Lark(grammar_text("vrml97"), parser="lalr", lexer="contextual", maybe_placeholders=False)
+    return Lark(
+        grammar_text("vrml97"),
+        parser="lalr",
+        lexer="contextual",
+        maybe_placeholders=False,
+        cache=True,
+    )
 
 
 def parse(
@@ -740,9 +746,7 @@ class _Builder:
             )
         return SFImage(w, h, c, pixels.astype(np.uint32))
 
-    def infer_value(
-        self, t: Tree, scope: _Scope, depth: int, what: str
-    ) -> tuple[FieldType, Any]:
+    def infer_value(self, t: Tree, scope: _Scope, depth: int, what: str) -> tuple[FieldType, Any]:
         """Type and value of a field of a generic (unknown) node, from the value's form.
 
         ``what`` names the field in messages (``gain' of VendorNode``)."""
@@ -888,8 +892,10 @@ def _url_members(proto: Proto) -> set[str]:
         if not isinstance(n, Node) or id(n) in seen:
             continue
         seen.add(id(n))
-        inner = n.type.url_members if isinstance(n.type, Proto) else set(
-            URL_FIELDS.get(n.type.name, ())
+        inner = (
+            n.type.url_members
+            if isinstance(n.type, Proto)
+            else set(URL_FIELDS.get(n.type.name, ()))
         )
         for member, iface in n.is_maps.items():
             if member in inner:
