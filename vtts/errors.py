@@ -106,3 +106,7 @@ class VttsWarning(UserWarning):
 
 class RenderError(VttsError):
     """Rendering or writing an output (image, video, audio) failed."""
+
+
+class BookmarkError(VttsError):
+    """Text with bookmarks is malformed or names something unknown (``column`` is 1-based)."""

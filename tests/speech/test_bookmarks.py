@@ -1,0 +1,77 @@
+"""Bookmarked text: the grammar, every kind of bookmark, SSML marks, escapes and errors."""
+
+from __future__ import annotations
+
+import pytest
+
+from vtts.errors import BookmarkError
+from vtts.speech.bookmarks import Bookmark, parse_bookmarks
+
+
+def test_the_issue_example():
+    t = parse_bookmarks(
+        "Hello <smile 5s> nice to <surprise 1.5s 0.7> meet you <blink> \\<not a bookmark>"
+    )
+    b = t.bookmarks
+    assert [(x.kind, x.name, x.duration, x.amplitude) for x in b] == [
+        ("expression", "joy", 5.0, None),
+        ("expression", "surprise", 1.5, 0.7),
+        ("action", "blink", None, None),
+    ]
+    assert t.text == "Hello  nice to  meet you  <not a bookmark>"
+    assert [x.column for x in b] == [7, 26, 55]
+    assert t.ssml() == (
+        '<speak>Hello <mark name="b0"/> nice to <mark name="b1"/> meet you <mark name="b2"/> '
+        "&lt;not a bookmark&gt;</speak>"
+    )
+
+
+@pytest.mark.parametrize(
+    "text, expected",
+    [
+        ("<fap 3=400 19=1024 1s>", Bookmark("fap", "fap", 1.0, None, {3: 400, 19: 1024})),
+        ("<fap open_jaw=-20 300ms>", Bookmark("fap", "fap", 0.3, None, {3: -20})),
+        ('<mark name="nod 300ms 0.5"/>', Bookmark("action", "nod", 0.3, 0.5)),
+        ('<mark name="happy" />', Bookmark("expression", "joy")),
+        ("< look_left 2s >", Bookmark("action", "look_left", 2.0)),
+        ("<Surprise>", Bookmark("expression", "surprise")),
+    ],
+)
+def test_bookmark_kinds(text, expected):
+    (b,) = parse_bookmarks("Hi " + text + " there").bookmarks
+    assert (b.kind, b.name, b.duration, b.amplitude, b.faps) == (
+        expected.kind,
+        expected.name,
+        expected.duration,
+        expected.amplitude,
+        expected.faps,
+    )
+
+
+@pytest.mark.parametrize(
+    "text, column, fragment",
+    [
+        ("Hi <grin> there", 4, "unknown bookmark <grin>; known names: joy"),
+        ("Hi <smile 2>", 4, "amplitude 2 of <smile> must be within 0–1"),
+        ("Hi <smile 1s 2s>", 4, "two durations"),
+        ("Hi <smile 3=4>", 4, "belongs in a <fap ...> bookmark"),
+        ("Hi <fap>", 4, "<fap> needs values"),
+        ("Hi <fap 1=3>", 4, "not a MIAP"),
+        ("Hi <fap nope=3>", 4, "unknown FAP 'nope'"),
+        ("Hi <smile", 5, "cannot read a bookmark here"),
+        ("Hi <smile 5x>", 10, "cannot read a bookmark here"),
+        ('Hi <mark name="x y z"/>', 15, "is not a bookmark"),
+    ],
+)
+def test_errors_have_the_column_and_the_names(text, column, fragment):
+    with pytest.raises(BookmarkError) as info:
+        parse_bookmarks(text)
+    assert info.value.column == column, str(info.value)
+    assert fragment in info.value.message
+
+
+def test_escapes_and_plain_text_survive():
+    t = parse_bookmarks("a \\< b \\\\ c \\d e")
+    assert t.text == "a < b \\ c \\d e" and not t.bookmarks
+    with pytest.raises(BookmarkError, match="unknown bookmark <marker>"):
+        parse_bookmarks("a <marker> b")  # 'mark' starts an SSML mark only as <mark name=…>

@@ -1,0 +1,1 @@
+"""Speech: bookmarked text, the espeak-ng synthesizer, phonemes and visemes."""

@@ -1,0 +1,208 @@
+"""Text with bookmarks: ``Hello <smile 5s> nice to <surprise 1.5s 0.7> meet you <blink>``.
+
+A bookmark is ``<NAME [DURATION] [AMPLITUDE]>`` where NAME is an expression (joy, sadness, anger,
+fear, disgust, surprise, or an alias such as smile), an action (blink, nod, shake, look_left …),
+or ``fap`` with explicit values (``<fap 3=400 19=1024 1s>``); DURATION is in s or ms, AMPLITUDE
+in 0–1. SSML ``<mark name="smile 2s"/>`` carries a bookmark in its name. ``\\<`` is a literal
+``<``. The grammar is ``grammars/bookmarks.lark``.
+
+The text goes to the speech synthesizer as SSML with one ``<mark/>`` per bookmark, so each
+bookmark gets its time in the audio from the synthesizer's own mark event.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cache
+from xml.sax.saxutils import escape
+
+from lark import Lark, Token, Tree
+from lark.exceptions import UnexpectedInput
+
+from vtts.errors import BookmarkError, FapError
+from vtts.face.miap import EXPRESSION_ALIASES, Miap
+from vtts.resources import grammar_text
+
+EXPRESSIONS = ("joy", "sadness", "anger", "fear", "disgust", "surprise")
+#: Actions a bookmark can ask for; each maps to an autonomous behaviour it overrides.
+ACTIONS = {
+    "blink": "blink",
+    "nod": "nod",
+    "shake": "head_motion",
+    "look_left": "gaze",
+    "look_right": "gaze",
+    "look_up": "gaze",
+    "look_down": "gaze",
+    "look_ahead": "gaze",
+}
+
+
+@dataclass
+class Bookmark:
+    """One bookmark.
+
+    kind       ``"expression"``, ``"action"`` or ``"fap"``
+    name       the expression (canonical, e.g. ``joy`` for ``smile``) or action name
+    duration   seconds, or None for the model's default
+    amplitude  0–1, or None for the default (1)
+    faps       FAP number → value in FAP units (``fap`` bookmarks)
+    column     1-based column of the bookmark in the text (for messages)
+    written    the name as written (``smile``)
+    """
+
+    kind: str
+    name: str
+    duration: float | None = None
+    amplitude: float | None = None
+    faps: dict[int, float] = field(default_factory=dict)
+    column: int = 0
+    written: str = ""
+    time: float | None = None  # seconds in the audio, once known
+
+
+@dataclass
+class BookmarkedText:
+    """Text pieces and bookmarks in order."""
+
+    pieces: list[str | Bookmark]
+
+    @property
+    def bookmarks(self) -> list[Bookmark]:
+        return [p for p in self.pieces if isinstance(p, Bookmark)]
+
+    @property
+    def text(self) -> str:
+        """The plain text that is spoken."""
+        return "".join(p for p in self.pieces if isinstance(p, str))
+
+    def ssml(self) -> str:
+        """SSML for the synthesizer: the text escaped, ``<mark name="bN"/>`` per bookmark."""
+        out = ["<speak>"]
+        k = 0
+        for p in self.pieces:
+            if isinstance(p, str):
+                out.append(escape(p))
+            else:
+                out.append(f'<mark name="b{k}"/>')
+                k += 1
+        out.append("</speak>")
+        return "".join(out)
+
+    def check_names(self, expressions: set[str], model: str = "the model") -> list[Bookmark]:
+        """Bookmarks naming an expression the model has no table for (to warn about)."""
+        return [b for b in self.bookmarks if b.kind == "expression" and b.name not in expressions]
+
+
+@cache
+def _lark() -> Lark:
+    return Lark(
+        grammar_text("bookmarks"), parser="lalr", lexer="contextual", maybe_placeholders=False
+    )
+
+
+def known_names() -> list[str]:
+    """Every bookmark name, for messages."""
+    aliases = sorted(EXPRESSION_ALIASES)
+    return [*EXPRESSIONS, *aliases, *ACTIONS, "fap"]
+
+
+def parse_bookmarks(text: str) -> BookmarkedText:
+    """Parse text with bookmarks; errors are :class:`BookmarkError` with the column (1-based)
+    and, for unknown names, the names vtts knows."""
+    try:
+        tree = _lark().parse(text)
+    except UnexpectedInput as e:
+        col = getattr(e, "column", 0) or 1
+        pos = getattr(e, "pos_in_stream", None)
+        near = text[pos : pos + 12] if pos is not None else ""
+        raise BookmarkError(
+            f"column {col}: cannot read a bookmark here ({near!r}); a bookmark is "
+            "<NAME [DURATION] [AMPLITUDE]> or <fap N=V ... [DURATION]>, and \\< writes a "
+            "literal <",
+            column=col,
+        ) from None
+    pieces: list[str | Bookmark] = []
+    for item in tree.children:
+        if isinstance(item, Token):
+            piece = item[1:] if item.type == "ESCAPE" else str(item)
+            if pieces and isinstance(pieces[-1], str):
+                pieces[-1] += piece
+            else:
+                pieces.append(piece)
+        elif item.data == "bookmark":
+            pieces.append(_bookmark(item, item.children[0].column))
+        else:  # an SSML mark: its name holds a bookmark
+            quoted = item.children[1]
+            inner = str(quoted)[1:-1]
+            try:
+                sub = _lark().parse(f"<{inner}>")
+                (bm_tree,) = [c for c in sub.children if isinstance(c, Tree)]
+            except (UnexpectedInput, ValueError):
+                raise BookmarkError(
+                    f"column {quoted.column}: mark name {inner!r} is not a bookmark such as "
+                    '"smile 2s"',
+                    column=quoted.column,
+                ) from None
+            pieces.append(_bookmark(bm_tree, item.children[0].column))
+    return BookmarkedText(pieces)
+
+
+def _bookmark(t: Tree, column: int) -> Bookmark:
+    name_tok = t.children[1]
+    written = str(name_tok)
+    key = written.lower()
+    args = [c for c in t.children[2:] if c.type != "CLOSE"]
+    duration = amplitude = None
+    faps: dict[int, float] = {}
+    for a in args:
+        v = str(a).strip()
+        if a.type == "DURATION":
+            if duration is not None:
+                raise BookmarkError(
+                    f"column {column}: <{written}> has two durations", column=column
+                )
+            duration = float(v[:-2]) / 1000 if v.endswith("ms") else float(v[:-1])
+        elif a.type == "AMPLITUDE":
+            if amplitude is not None:
+                raise BookmarkError(
+                    f"column {column}: <{written}> has two amplitudes", column=column
+                )
+            amplitude = float(v)
+            if not 0.0 <= amplitude <= 1.0:
+                raise BookmarkError(
+                    f"column {column}: amplitude {v} of <{written}> must be within 0–1",
+                    column=column,
+                )
+        else:
+            if key != "fap":
+                raise BookmarkError(
+                    f"column {column}: '{v}' belongs in a <fap ...> bookmark, not <{written}>",
+                    column=column,
+                )
+            fap_key, value = v.split("=")
+            try:
+                miap = Miap.parse(fap_key)
+            except FapError as e:
+                raise BookmarkError(f"column {column}: {e.message}", column=column) from None
+            if miap.kind != "fap":
+                raise BookmarkError(
+                    f"column {column}: <fap> takes low-level FAPs 3–68, got '{fap_key}'",
+                    column=column,
+                )
+            faps[miap.number] = float(value)
+    if key == "fap":
+        if not faps:
+            raise BookmarkError(
+                f"column {column}: <fap> needs values such as <fap 3=400 19=1024 1s>",
+                column=column,
+            )
+        return Bookmark("fap", "fap", duration, amplitude, faps, column, written)
+    canonical = EXPRESSION_ALIASES.get(key, key)
+    if canonical in EXPRESSIONS:
+        return Bookmark("expression", canonical, duration, amplitude, {}, column, written)
+    if key in ACTIONS:
+        return Bookmark("action", key, duration, amplitude, {}, column, written)
+    raise BookmarkError(
+        f"column {column}: unknown bookmark <{written}>; known names: " + ", ".join(known_names()),
+        column=column,
+    )
