@@ -80,6 +80,12 @@ def _check_adt(path: Path, args: argparse.Namespace) -> str:
     return f"{_plural(len(tables.adts), 'MIAP')} on {_plural(nodes, 'node')} of {wrl.name}"
 
 
+def _check_fbs(path: Path) -> str:
+    from vtts.fap.cli_coding import check_fbs
+
+    return check_fbs(path)
+
+
 def _plural(n: int, noun: str) -> str:
     return f"{n} {noun}{'' if n == 1 else 's'}"
 
@@ -97,6 +103,7 @@ CHECKERS: dict[str, Callable[[Path, argparse.Namespace], str]] = {
     ".wrl": _check_wrl,
     ".adt": _check_adt,
     ".fap": _check_fap,
+    ".fbs": lambda path, args: _check_fbs(path),
 }
 
 
@@ -328,14 +335,14 @@ def cmd_play(args: argparse.Namespace) -> int:
     from vtts.animate.fapstream import stream_params, warn_ignored
     from vtts.errors import RenderError
     from vtts.face import load_model
-    from vtts.fap import read_fap
+    from vtts.fap.cli_coding import read_stream
     from vtts.render import PngSequenceWriter, VideoWriter, progress
 
     if not args.output and not args.png_dir:
         raise RenderError("nothing to write: give -o OUT.mp4 and/or --png-dir DIR")
     if not 0 < args.fps <= 240:
         raise RenderError(f"--fps must be within 0–240, got {args.fps:g}")
-    stream = read_fap(args.stream)
+    stream = read_stream(args.stream)
     models = [load_model(m) for m in args.model]
     tracks = []
     for m in models:
@@ -362,6 +369,96 @@ def cmd_play(args: argparse.Namespace) -> int:
     outputs = " and ".join(str(p) for p in (args.output, args.png_dir) if p)
     if not args.quiet:
         print(f"wrote {outputs}: {n} frames at {args.fps:g} fps ({n / args.fps:.2f} s)")
+    return 0
+
+
+def cmd_say(args: argparse.Namespace) -> int:
+    """Speak bookmarked text with one or more models into an MP4 (and/or PNGs, WAV, FAP)."""
+    import tempfile
+
+    from vtts.animate.timeline import build_timeline, timeline_stream
+    from vtts.errors import RenderError
+    from vtts.face import load_model
+    from vtts.fap import write_fap
+    from vtts.render import PngSequenceWriter, VideoWriter, progress, write_wav
+    from vtts.speech.say import prepare_utterance
+
+    if not (args.output or args.png_dir or args.fap_out or args.wav_out):
+        raise RenderError("nothing to write: give -o OUT.mp4, --png-dir, --fap-out or --wav-out")
+    if not 0 < args.fps <= 240:
+        raise RenderError(f"--fps must be within 0–240, got {args.fps:g}")
+    text = args.text
+    if args.file:
+        text = Path(args.file).read_text(encoding="utf-8")
+    if not text or not text.strip():
+        raise RenderError("nothing to say: give the text, or --file FILE")
+    models = [load_model(m) for m in args.model]
+    utt = prepare_utterance(
+        text,
+        voice=args.voice,
+        rate=args.rate,
+        pitch=args.pitch,
+        phonemes=args.phonemes,
+        audio=args.audio,
+    )
+    for m in models:
+        shown = {x.name for x in m.tables.adts if x.kind == "expression"}
+        lacking = sorted({b.written for b in utt.text.check_names(shown)})
+        if lacking:
+            print(
+                f"warning: {m.name} has no table for <{'>, <'.join(lacking)}>; not shown",
+                file=sys.stderr,
+            )
+    timelines = [
+        build_timeline(
+            m,
+            utt.phones,
+            utt.bookmarks,
+            utt.duration,
+            fps=args.fps,
+            seed=args.seed,
+            autonomous=not args.no_autonomous,
+        )
+        for m in models
+    ]
+    if args.fap_out:
+        write_fap(timeline_stream(timelines[0], models[0].name), args.fap_out)
+    if args.wav_out:
+        write_wav(args.wav_out, utt.audio, utt.rate)
+    n = timelines[0].n_frames
+    if args.output or args.png_dir:
+        with contextlib.ExitStack() as stack:
+            tmp = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="vtts-say-")))
+            wav = tmp / "speech.wav"
+            write_wav(wav, utt.audio, utt.rate)
+            renderer = stack.enter_context(_renderer(args, models))
+            sinks = []
+            if args.output:
+                sinks.append(
+                    stack.enter_context(
+                        VideoWriter(args.output, args.fps, renderer.size, audio=wav)
+                    )
+                )
+            if args.png_dir:
+                sinks.append(stack.enter_context(PngSequenceWriter(args.png_dir)))
+            bar = stack.enter_context(progress(n, "speaking", args.quiet))
+            frames = ([tl.params[i] for tl in timelines] for i in range(n))
+            for frame in renderer.frames(frames):
+                for sink in sinks:
+                    sink.write(frame)
+                bar.advance()
+    if not args.quiet:
+        outputs = [str(p) for p in (args.output, args.png_dir, args.fap_out, args.wav_out) if p]
+        print(f"wrote {', '.join(outputs)}: {utt.duration:.2f} s, {n} frames at {args.fps:g} fps")
+    return 0
+
+
+def cmd_voices(args: argparse.Namespace) -> int:
+    """List espeak-ng's voices."""
+    from vtts.speech.tts import voices
+
+    for v in voices(args.language):
+        print(f"{v.name:24s} {v.language:8s} {v.identifier}")
     return 0
 
 
@@ -404,7 +501,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
-    c = sub.add_parser("check", help="validate .wrl, .adt and .fap files")
+    c = sub.add_parser("check", help="validate .wrl, .adt, .fap and .fbs files")
     c.add_argument("files", nargs="+", metavar="FILE")
     c.add_argument(
         "--lenient",
@@ -440,7 +537,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.set_defaults(func=cmd_render)
 
     pl = sub.add_parser("play", help="play a FAP stream on one or more models")
-    pl.add_argument("stream", help="a .fap file")
+    pl.add_argument("stream", help="a .fap file or a coded .fbs stream")
     pl.add_argument(
         "--model",
         action="append",
@@ -457,6 +554,52 @@ def build_parser() -> argparse.ArgumentParser:
 
     ms = sub.add_parser("models", help="list the bundled models")
     ms.set_defaults(func=cmd_models)
+
+    sy = sub.add_parser("say", help="speak text with bookmarks: a talking-head video")
+    sy.add_argument(
+        "text",
+        nargs="?",
+        default="",
+        help='text with bookmarks, e.g. "Hello <smile 2s> world <blink>"',
+    )
+    sy.add_argument("--file", help="read the text from a file instead")
+    sy.add_argument(
+        "--model",
+        action="append",
+        required=True,
+        help="bundled model name or .wrl path (repeat for several heads)",
+    )
+    sy.add_argument("--voice", default="en-us", help="espeak-ng voice (see vtts voices)")
+    sy.add_argument("--rate", type=int, help="speaking rate in words per minute")
+    sy.add_argument("--pitch", type=int, help="pitch 0-99")
+    sy.add_argument(
+        "--phonemes",
+        help="timings from another engine: Polly speech marks or a "
+        "'start end phoneme' table (needs --audio)",
+    )
+    sy.add_argument("--audio", help="the WAV that --phonemes describes")
+    sy.add_argument("--seed", type=int, default=0, help="seed of the autonomous behaviour")
+    sy.add_argument(
+        "--no-autonomous",
+        action="store_true",
+        help="no autonomous blinks, nods, head motion or gaze",
+    )
+    sy.add_argument("--fps", type=float, default=30.0, help="frame rate (default 30)")
+    sy.add_argument("--fap-out", help="also write the FAP stream (.fap)")
+    sy.add_argument("--wav-out", help="also write the speech (.wav)")
+    sy.add_argument("--png-dir", help="also (or only) write lossless PNG frames into this folder")
+    sy.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    _view_flags(sy)
+    sy.add_argument("-o", "--output", help="output .mp4")
+    sy.set_defaults(func=cmd_say)
+
+    vo = sub.add_parser("voices", help="list espeak-ng voices")
+    vo.add_argument("language", nargs="?", help="only voices of this language (e.g. en)")
+    vo.set_defaults(func=cmd_voices)
+
+    from vtts.fap.cli_coding import register
+
+    register(sub)
     return p
 
 

@@ -110,3 +110,25 @@ class RenderError(VttsError):
 
 class BookmarkError(VttsError):
     """Text with bookmarks is malformed or names something unknown (``column`` is 1-based)."""
+
+
+class SpeechError(VttsError):
+    """Speech synthesis failed or its input (voice, phoneme file, audio) is invalid."""
+
+
+class CodingError(FapError):
+    """A FAP bitstream (``.fbs``) is corrupt, truncated or inconsistent, or a stream cannot be
+    coded.
+
+    ``offset`` is the 0-based byte offset in the bitstream where the problem was found, and the
+    message starts with ``byte N:``; it is ``None`` (and the message has no prefix) for problems
+    that have no place in a bitstream, such as a value too large for the encoder. ``reason`` is the
+    message without the prefix.
+    """
+
+    def __init__(
+        self, message: str, *, offset: int | None = None, file: str | None = None
+    ) -> None:
+        super().__init__(f"byte {offset}: {message}" if offset is not None else message, file=file)
+        self.reason = message
+        self.offset = offset

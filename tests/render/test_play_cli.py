@@ -125,3 +125,18 @@ def test_play_bad_input_is_a_clear_error_and_leaves_nothing(tmp_path, args, frag
     assert "Traceback" not in r.stderr
     assert not (tmp_path / "x.mp4").exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.fap"]
+
+
+def test_play_and_check_accept_coded_streams(tmp_path):
+    fbs = tmp_path / "joy.fbs"
+    assert vtts("encode", str(JOY), "-o", str(fbs), "--quiet").returncode == 0
+    r = vtts("check", str(fbs))
+    assert r.returncode == 0 and r.stdout.startswith(f"OK {fbs} (108 frames at 25 Hz")
+    out = tmp_path / "joy.mp4"
+    r = vtts("play", str(fbs), "--model", str(HEAD), "--size", "96x80", "-o", str(out), "--quiet")
+    assert r.returncode == 0, r.stderr
+    assert abs(probe_media(out).frames - round(read_fap(JOY).duration * 30)) <= 1
+    bad = tmp_path / "bad.fbs"
+    bad.write_bytes(fbs.read_bytes()[:40])
+    r = vtts("check", str(bad))
+    assert r.returncode == 1 and f"{bad}: error: byte " in r.stderr and "Traceback" not in r.stderr

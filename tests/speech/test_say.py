@@ -1,0 +1,102 @@
+"""vtts say end to end with the real espeak-ng: marks on the right frame, closures, durations."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from vtts.animate.timeline import build_timeline
+from vtts.face import load_model
+from vtts.face.miap import EXPRESSION_BASE
+from vtts.fap import read_fap
+from vtts.render import probe_media
+from vtts.speech.say import prepare_utterance
+
+HEAD = Path(__file__).parents[1] / "data" / "models" / "head.wrl"
+TEXT = "Hello <smile 1s> my name is Bob. <surprise 0.5s 0.7> Maybe <blink> we meet."
+
+
+def vtts(*args: str) -> subprocess.CompletedProcess:
+    exe = Path(sys.executable).with_name("vtts")
+    return subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=300)
+
+
+@pytest.fixture(scope="module")
+def utterance():
+    return prepare_utterance(TEXT)
+
+
+def test_utterance_has_audio_phones_and_bookmark_times(utterance):
+    u = utterance
+    assert u.rate > 8000 and u.audio.size > u.rate  # more than a second of speech
+    assert len(u.phones) > 20
+    starts = [p.start for p in u.phones]
+    assert starts == sorted(starts)
+    times = [b.time for b in u.bookmarks]
+    assert all(t is not None for t in times) and times == sorted(times)
+    assert 0 < times[0] < times[1] < times[2] < u.duration
+    assert any(p.viseme == 1 for p in u.phones)  # the m and b of "my name is Bob"
+
+
+def test_expressions_start_on_their_marks_frame(utterance):
+    model = load_model(HEAD)
+    tl = build_timeline(
+        model, utterance.phones, utterance.bookmarks, utterance.duration, autonomous=False
+    )
+    smile = utterance.bookmarks[0]
+    w = tl.params[:, EXPRESSION_BASE + 1]
+    first = int(np.flatnonzero(w > 0)[0])
+    assert abs(first - smile.time * 30) <= 1.0 + 1e-9
+
+
+def test_say_writes_mp4_wav_and_fap_with_matching_durations(tmp_path):
+    out, wav, fap = tmp_path / "hello.mp4", tmp_path / "hello.wav", tmp_path / "hello.fap"
+    r = vtts(
+        "say",
+        TEXT,
+        "--model",
+        str(HEAD),
+        "-o",
+        str(out),
+        "--wav-out",
+        str(wav),
+        "--fap-out",
+        str(fap),
+        "--size",
+        "176x144",
+        "--quiet",
+    )
+    assert r.returncode == 0, r.stderr
+    info = probe_media(out)
+    assert info.duration_audio is not None
+    assert abs(info.duration_video - info.duration_audio) <= 1 / 30 + 1e-6
+    stream = read_fap(fap)
+    assert abs(stream.n_frames - info.frames) <= 1
+    assert probe_media(wav).duration_audio == pytest.approx(info.duration_audio, abs=1 / 30)
+    assert "no table for <surprise>" in r.stderr  # the test head has only joy
+
+
+@pytest.mark.parametrize(
+    "args, fragment",
+    [
+        (["Hi <grin>"], "column 4: unknown bookmark <grin>"),
+        (["Hi", "--voice", "xx-nope"], "xx-nope"),
+        (["Hi", "--phonemes", "{tmp}/p.txt"], "--audio"),
+        (["Hi"], "nothing to write"),
+        (["", "-o", "{tmp}/x.mp4"], "nothing to say"),
+    ],
+)
+def test_say_bad_input(tmp_path, args, fragment):
+    (tmp_path / "p.txt").write_text("0 0.1 h\n")
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in args]
+    if "-o" not in argv and fragment != "nothing to write":
+        argv += ["-o", str(tmp_path / "x.mp4")]
+    r = vtts("say", *argv, "--model", str(HEAD))
+    assert r.returncode == 1
+    assert fragment in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr
+    assert not (tmp_path / "x.mp4").exists()

@@ -1,0 +1,1318 @@
+"""FAP stream coding below 0.6 kbit/s: the ``.fbs`` bitstream (Eisert & Girod's FAP coder).
+
+The scheme of the paper ("Camera sequences"): every FAP is predicted from the previous *decoded*
+frame, the prediction error is quantized with a per-FAP step, and the quantized error is entropy
+coded — Huffman, as in the paper, or adaptive binary arithmetic coding.
+
+Quantizer
+    A low-level FAP k is coded on the grid of its step ``step_k = base_k · quantizer``: ``base_k``
+    is the FAP's ``quant_step`` of ISO/IEC 14496-2 (``vtts/data/faps.tsv``: 4 for open_jaw,
+    170 AU for the head rotations, …) and ``quantizer`` a global factor like MPEG-4's
+    ``fap_quant`` (1 = the standard's steps, 2 = twice as coarse, fewer bits). Both are stored in
+    the bitstream, so a decoder never depends on the table it has. A value x is sent as the
+    index ``round(x / step)``; the prediction is the previous *decoded* index of the same FAP
+    (held over frames that do not set it, 0 before the first), so the quantized prediction error
+    is ``q = index − previous index``. Because the prediction lies on the grid, this is exactly
+    closed-loop DPCM: quantizing the error ``x − decoded`` gives the same q, the encoder tracks
+    exactly what the decoder reconstructs, and errors never accumulate. The reconstruction is
+    ``index · step`` and ``|x − reconstruction| ≤ step / 2`` for every value, whatever the jump
+    (no clamp anywhere). :func:`reconstruct` returns it without coding.
+
+Huffman mode (the paper's)
+    q is a 7-bit symbol: −63…63 directly, and −64 is an escape followed by a sign bit and the
+    Exp-Golomb code of ``|q| − 64`` for larger jumps. The canonical code (lengths ≤ 15 bits) is
+    built from the stream's own symbol counts (two passes) and its code lengths are stored in the
+    header. One table serves all FAPs, as in the paper.
+
+Arithmetic mode
+    An adaptive binary range coder (LZMA's carry-propagating coder, 32-bit, 16-bit probabilities
+    estimated from halved counts) with context modelling, so no table is sent: q is binarized as
+    zero? / sign / magnitude class (unary) / mantissa bits, each decision with its own adaptive
+    probability per FAP, conditioned on the previous error of the same FAP and on whether the
+    FAP coded just before it in the frame moved. A FAP may also be predicted from another FAP's
+    error in the same frame (the encoder picks, per FAP, the earlier FAP of the same unit and step
+    that lowers its estimated cost most, e.g. the right eyebrow from the left, FAP 54 from 53):
+    the pairs are listed in the header. No library is used: entropy-coding libraries such as
+    constriction take the probabilities as given, so the adaptive modelling would be ours anyway,
+    and the binary range coder under it is a few dozen lines of exact integer arithmetic.
+
+High-level FAPs 1 (viseme) and 2 (expression) are lossless: a "same as before" decision, then the
+changed fields (raw bits in Huffman mode, differences in arithmetic mode). Frames whose mask of
+coded FAPs differs from the previous frame's send the new mask (unless the header says the mask is
+constant). The byte-by-byte layout is in ``docs/fap-coding.md`` and :func:`read_header`.
+
+Every problem in a bitstream is a :class:`~vtts.errors.CodingError` carrying the byte offset where
+it was found. Two CRC-32s (header, frame data) make sure corruption is reported, never decoded
+into a silently different stream; truncation is reported at the byte where the data ends.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+import re
+import struct
+import zlib
+from collections.abc import Iterable
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from vtts.errors import CodingError, FapError
+from vtts.fap.stream import EXPRESSION_FIELDS, MAX_RESAMPLED_FRAMES, VISEME_FIELDS, FapStream
+from vtts.fap.table import FAPS, N_FAPS
+from vtts.fap.table import fap as fap_def
+
+MAGIC = b"VFBS"
+VERSION = 1
+#: Coder names and their ids in the header.
+CODERS: dict[str, int] = {"huffman": 0, "arithmetic": 1}
+_CODER_NAMES = {v: k for k, v in CODERS.items()}
+
+#: The 17 FAPs of Eisert & Girod's camera experiment in MPEG-4 numbering. The paper estimated six
+#: global head-motion parameters (3 rotations, 3 translations), four eyebrow and seven mouth
+#: parameters. MPEG-4 has FAPs for the three head rotations only (48–50): head translation is the
+#: scene's Transform, not a FAP. The three translation slots are taken by the eye parameters a
+#: talking head sends alongside head motion: both upper eyelids (19, 20: blinks) and the gaze
+#: (23, yaw of the left eyeball; a decoder derives 24 from it by the left/right FIT rule).
+#: Eyebrows: inner and outer raisers, left and right (31, 32, 35, 36). Mouth: jaw (3), the mid
+#: lips (4, 5), the lip corners' stretch (6, 7) and raise (12, 13).
+PAPER_17: tuple[int, ...] = (48, 49, 50, 19, 20, 23, 31, 32, 35, 36, 3, 4, 5, 6, 7, 12, 13)
+
+#: Named FAP sets for ``--faps``.
+FAP_SETS: dict[str, tuple[int, ...]] = {
+    "paper17": PAPER_17,
+    "all": tuple(range(1, N_FAPS + 1)),
+    "low": tuple(range(3, N_FAPS + 1)),
+}
+
+#: Huffman mode: symbols −63…63 are errors sent directly, −64 escapes a larger one.
+ESCAPE = -64
+SYMBOL_MAX = 63
+MAX_CODE_LENGTH = 15
+#: ``|value / step|`` must stay below this (2^40): indices and errors fit any machine integer.
+MAX_INDEX = 1 << 40
+#: A magnitude needs at most this many bits (errors between FAPs reach 2^42).
+_MAX_MAGNITUDE_BITS = 43
+#: Limits a decoder enforces on a header, so that no input can make it allocate without bound.
+MAX_FRAMES = MAX_RESAMPLED_FRAMES
+MAX_NAME_BYTES = 4096
+MAX_BASE_STEP = 1 << 20
+QUANTIZER_RANGE = (2.0**-6, 2.0**12)
+
+_FIXED = struct.Struct(">4sBBBdII9sf")  # magic … quantizer: 36 bytes
+_VISEME_BITS = tuple(hi.bit_length() for _, _, hi in VISEME_FIELDS)
+_EXPRESSION_BITS = tuple(hi.bit_length() for _, _, hi in EXPRESSION_FIELDS)
+_FLAG_CONSTANT_MASK = 0x01
+
+
+# --- FAP selection ------------------------------------------------------------------------------
+
+
+def fap_set(text: str | Iterable[int | str]) -> tuple[int, ...]:
+    """FAP numbers from a list such as ``"3,4,5"``, ``"3-13 48"``, ``"open_jaw,head_yaw"`` or a
+    named set (``paper17``, ``low``: 3–68, ``all``: 1–68); sorted, without duplicates."""
+    items = re.split(r"[,\s]+", text.strip()) if isinstance(text, str) else list(text)
+    out: set[int] = set()
+    for item in items:
+        if isinstance(item, str):
+            word = item.strip()
+            if not word:
+                continue
+            if word.lower() in FAP_SETS:
+                out.update(FAP_SETS[word.lower()])
+                continue
+            m = re.fullmatch(r"(\d+)-(\d+)", word)
+            if m:
+                lo, hi = int(m.group(1)), int(m.group(2))
+                if not 1 <= lo <= hi <= N_FAPS:
+                    raise FapError(f"FAP range {word!r} must be within 1-{N_FAPS}, low to high")
+                out.update(range(lo, hi + 1))
+                continue
+        out.add(fap_def(item).number)
+    if not out:
+        raise FapError(f"no FAPs selected by {text!r}")
+    return tuple(sorted(out))
+
+
+# --- what the encoder sends and the decoder reconstructs ---------------------------------------
+
+
+def _float32(x: float) -> float:
+    return float(np.float32(x))
+
+
+def _check_quantizer(quantizer: float) -> float:
+    try:
+        q = float(quantizer)
+    except (TypeError, ValueError):
+        raise FapError(f"quantizer must be a number, got {quantizer!r}") from None
+    lo, hi = QUANTIZER_RANGE
+    if not (math.isfinite(q) and lo <= q <= hi):
+        raise FapError(f"quantizer must be within {lo:g}–{hi:g}, got {quantizer!r}")
+    return _float32(q)
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """A stream ready to code: the FAPs to send, their steps and quantization indices."""
+
+    source: FapStream  # the stream after FAP selection and resampling
+    faps: tuple[int, ...]  # coded FAPs, ascending (1 and 2 included when coded)
+    low: tuple[int, ...]  # coded low-level FAPs
+    base_steps: tuple[int, ...]
+    quantizer: float  # as stored (float32)
+    mask: np.ndarray  # (n, len(faps)) bool
+    index: np.ndarray  # (n, len(low)) int64, 0 where not set
+    reconstruction: FapStream
+
+
+def _steps(base_steps: Iterable[int], quantizer: float) -> np.ndarray:
+    """``(k,) float64``: step = base · quantizer, the same arithmetic in encoder and decoder."""
+    return np.array([float(b) for b in base_steps], dtype=np.float64) * np.float64(quantizer)
+
+
+def _assemble(
+    fps: float,
+    name: str,
+    first_frame: int,
+    faps: tuple[int, ...],
+    low: tuple[int, ...],
+    steps: np.ndarray,
+    mask: np.ndarray,
+    index: np.ndarray,
+    viseme: np.ndarray,
+    expression: np.ndarray,
+) -> FapStream:
+    """The decoded stream: ``index · step`` for the low-level FAPs, the rest as sent."""
+    n = mask.shape[0]
+    full_mask = np.zeros((n, N_FAPS), dtype=bool)
+    full_mask[:, [k - 1 for k in faps]] = mask
+    values = np.zeros((n, N_FAPS), dtype=np.float64)
+    if low:
+        values[:, [k - 1 for k in low]] = index.astype(np.float64) * steps
+    return FapStream(
+        fps=fps,
+        name=name,
+        values=values,
+        mask=full_mask,
+        viseme=viseme,
+        expression=expression,
+        first_frame=first_frame,
+    )
+
+
+def _prepare(
+    stream: FapStream,
+    faps: Iterable[int | str] | str | None,
+    rate: float | None,
+    quantizer: float,
+) -> _Plan:
+    if not isinstance(stream, FapStream):
+        raise FapError(f"expected a FapStream, got {type(stream).__name__}")
+    q32 = _check_quantizer(quantizer)
+    wanted = set(range(1, N_FAPS + 1)) if faps is None else set(fap_set(faps))
+    if rate is not None and float(rate) != stream.fps:
+        stream = stream.resample(rate)
+    n = stream.n_frames
+    if n > MAX_FRAMES:
+        raise CodingError(f"the stream has {n} frames; at most {MAX_FRAMES} can be coded")
+    if stream.first_frame >= 1 << 32:
+        raise CodingError(f"first frame number {stream.first_frame} must be below 2^32")
+    name_bytes = len(stream.name.encode("utf-8"))
+    if name_bytes > MAX_NAME_BYTES:
+        raise CodingError(f"the stream's name has {name_bytes} bytes; at most {MAX_NAME_BYTES}")
+    present = stream.mask.any(axis=0)
+    coded = tuple(k for k in range(1, N_FAPS + 1) if present[k - 1] and k in wanted)
+    low = tuple(k for k in coded if k >= 3)
+    base = tuple(FAPS[k - 1].quant_step for k in low)
+    steps = _steps(base, q32)
+    mask = stream.mask[:, [k - 1 for k in coded]]
+    low_mask = stream.mask[:, [k - 1 for k in low]]
+    with np.errstate(over="ignore", invalid="ignore"):
+        ratio = stream.values[:, [k - 1 for k in low]] / steps
+    bad = ~(np.abs(ratio) < MAX_INDEX - 1)
+    if np.any(bad):
+        i, j = (int(x) for x in np.argwhere(bad)[0])
+        raise CodingError(
+            f"FAP {low[j]} = {stream.values[i, low[j] - 1]!r} in frame {i} is too large to code "
+            f"with step {steps[j]:g}: |value / step| must stay below 2^40"
+        )
+    index = np.where(low_mask, np.rint(ratio), 0.0).astype(np.int64)
+    viseme = stream.viseme if 1 in coded else None
+    expression = stream.expression if 2 in coded else None
+    recon = _assemble(
+        stream.fps,
+        stream.name,
+        stream.first_frame,
+        coded,
+        low,
+        steps,
+        mask,
+        index,
+        np.zeros((n, 4), np.int64) if viseme is None else viseme,
+        np.zeros((n, 6), np.int64) if expression is None else expression,
+    )
+    return _Plan(stream, coded, low, base, q32, mask, index, recon)
+
+
+def reconstruct(
+    stream: FapStream,
+    *,
+    faps: Iterable[int | str] | str | None = None,
+    rate: float | None = None,
+    quantizer: float = 1.0,
+) -> FapStream:
+    """The stream a decoder reconstructs from ``encode(stream, …)`` with the same arguments
+    (either coder): the selected FAPs at ``rate``, low-level values on their quantizer grid.
+
+    ``decode(encode(s, **kw)) == reconstruct(s, **kw)`` holds exactly (same arrays, name, rate,
+    first frame; version 2.1).
+    """
+    return _prepare(stream, faps, rate, quantizer).reconstruction
+
+
+def source_stream(
+    stream: FapStream,
+    *,
+    faps: Iterable[int | str] | str | None = None,
+    rate: float | None = None,
+) -> FapStream:
+    """What the encoder codes before quantization: ``stream`` resampled to ``rate`` with only the
+    selected FAPs (those masked in some frame) kept. Compare a decoded stream with this one."""
+    plan = _prepare(stream, faps, rate, 1.0)
+    s = plan.source
+    keep = np.zeros(N_FAPS, dtype=bool)
+    keep[[k - 1 for k in plan.faps]] = True
+    mask = s.mask & keep
+    return FapStream(
+        fps=s.fps,
+        name=s.name,
+        values=np.where(mask, s.values, 0.0),
+        mask=mask,
+        viseme=s.viseme if keep[0] else None,
+        expression=s.expression if keep[1] else None,
+        first_frame=s.first_frame,
+    )
+
+
+def error_stats(reference: FapStream, decoded: FapStream) -> dict[int, tuple[float, float]]:
+    """Per low-level FAP set in ``decoded``: ``(max, rms)`` of ``|decoded − reference|`` in FAP
+    units over the frames that set it. The streams must have the same frames."""
+    if reference.n_frames != decoded.n_frames:
+        raise FapError(
+            f"the streams have {reference.n_frames} and {decoded.n_frames} frames: "
+            "compare a decoded stream with source_stream() of the original"
+        )
+    out = {}
+    for k in range(3, N_FAPS + 1):
+        m = decoded.mask[:, k - 1]
+        if m.any():
+            d = np.abs(decoded.values[m, k - 1] - reference.values[m, k - 1])
+            out[k] = (float(d.max()), float(np.sqrt(np.mean(d * d))))
+    return out
+
+
+# --- the header ---------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class FbsHeader:
+    """What a ``.fbs`` header says (see ``docs/fap-coding.md`` for the bytes).
+
+    Attributes:
+        coder: ``"huffman"`` or ``"arithmetic"``.
+        fps: frame rate of the coded stream, Hz.
+        first_frame: the number of the first frame (as in a ``.fap`` file).
+        n_frames: number of frames.
+        faps: the coded FAPs, ascending.
+        quantizer: the global step factor (float32).
+        base_steps: the base step of each coded low-level FAP, in order.
+        constant_mask: every frame sets every coded FAP (no mask is sent per frame).
+        name: the stream's name.
+        huffman_tables: Huffman mode: up to 4 codes, each the code length (bits) of each
+            symbol −64…63 it has (−64 = escape).
+        huffman_table_of: Huffman mode: the table of each coded low-level FAP, in order.
+        predictors: arithmetic mode: FAP → the earlier FAP whose error in the same frame
+            predicts its error.
+        header_size, payload_size: bytes of the header (with its CRC) and of the frame data
+            (without its CRC); the file has ``header_size + payload_size + 4`` bytes.
+    """
+
+    coder: str
+    fps: float
+    first_frame: int
+    n_frames: int
+    faps: tuple[int, ...]
+    quantizer: float
+    base_steps: tuple[int, ...]
+    constant_mask: bool
+    name: str
+    huffman_tables: tuple[dict[int, int], ...] = ()
+    huffman_table_of: tuple[int, ...] = ()
+    predictors: dict[int, int] = field(default_factory=dict)
+    version: int = VERSION
+    header_size: int = 0
+    payload_size: int = 0
+
+    @property
+    def low(self) -> tuple[int, ...]:
+        """The coded low-level FAPs (3–68)."""
+        return tuple(k for k in self.faps if k >= 3)
+
+    @property
+    def steps(self) -> dict[int, float]:
+        """Quantizer step of each coded low-level FAP, in its FAP units."""
+        return dict(zip(self.low, _steps(self.base_steps, self.quantizer).tolist(), strict=True))
+
+    @property
+    def size(self) -> int:
+        """Bytes of the whole bitstream."""
+        return self.header_size + self.payload_size + 4
+
+    @property
+    def bits_per_frame(self) -> float:
+        """Bits of the whole bitstream (header included) per frame."""
+        return 8 * self.size / self.n_frames if self.n_frames else 0.0
+
+    @property
+    def kbit_per_s(self) -> float:
+        """Bit rate of the whole bitstream, kbit/s."""
+        return self.bits_per_frame * self.fps / 1000
+
+
+def _varint(value: int) -> bytes:
+    out = bytearray()
+    while True:
+        byte = value & 0x7F
+        value >>= 7
+        if value:
+            out.append(byte | 0x80)
+        else:
+            out.append(byte)
+            return bytes(out)
+
+
+def _mask_bytes(faps: Iterable[int]) -> bytes:
+    bits = 0
+    for k in faps:
+        bits |= 1 << (71 - (k - 1))  # FAP 1 is the first (most significant) bit
+    return bits.to_bytes(9, "big")
+
+
+def _zigzag(s: int) -> int:
+    return 2 * s if s >= 0 else -2 * s - 1
+
+
+def _unzigzag(z: int) -> int:
+    return z >> 1 if not z & 1 else -((z + 1) >> 1)
+
+
+def _pack_table(lengths: dict[int, int]) -> bytes:
+    """A code's lengths: the count n of entries, then 4-bit lengths of the escape and of the
+    symbols 0, −1, 1, −2, 2, … (n of them), two per byte."""
+    n = max((_zigzag(s) + 1 for s in lengths if s != ESCAPE), default=0)
+    nibbles = [lengths.get(ESCAPE, 0)] + [lengths.get(_unzigzag(z), 0) for z in range(n)]
+    if len(nibbles) % 2:
+        nibbles.append(0)
+    pairs = zip(nibbles[::2], nibbles[1::2], strict=True)
+    return bytes([n]) + bytes((a << 4) | b for a, b in pairs)
+
+
+def _pack_header(h: FbsHeader, payload_size: int) -> bytes:
+    flags = _FLAG_CONSTANT_MASK if h.constant_mask else 0
+    out = bytearray(
+        _FIXED.pack(
+            MAGIC,
+            VERSION,
+            CODERS[h.coder],
+            flags,
+            h.fps,
+            h.first_frame,
+            h.n_frames,
+            _mask_bytes(h.faps),
+            h.quantizer,
+        )
+    )
+    for b in h.base_steps:
+        out += _varint(b)
+    name = h.name.encode("utf-8")
+    out += _varint(len(name)) + name
+    if h.coder == "huffman":
+        out.append(len(h.huffman_tables))
+        if len(h.huffman_tables) > 1:
+            bits = 0
+            for t in h.huffman_table_of:
+                bits = (bits << 2) | t
+            nbytes = (2 * len(h.huffman_table_of) + 7) // 8
+            out += (bits << (8 * nbytes - 2 * len(h.huffman_table_of))).to_bytes(nbytes, "big")
+        for table in h.huffman_tables:
+            out += _pack_table(table)
+    else:
+        out.append(len(h.predictors))
+        for k in sorted(h.predictors):
+            out += bytes([k, h.predictors[k]])
+    out += struct.pack(">I", payload_size)
+    out += struct.pack(">I", zlib.crc32(out))
+    return bytes(out)
+
+
+class _Cursor:
+    """Reads the header's fields, reporting where data ends or a field is wrong."""
+
+    def __init__(self, data: bytes, file: str | None) -> None:
+        self.data = data
+        self.pos = 0
+        self.file = file
+
+    def error(self, message: str, offset: int | None = None) -> CodingError:
+        return CodingError(message, offset=self.pos if offset is None else offset, file=self.file)
+
+    def take(self, n: int, what: str) -> bytes:
+        if self.pos + n > len(self.data):
+            raise self.error(
+                f"unexpected end of data inside the {what} ({n} bytes from byte {self.pos}): "
+                "the file is truncated (or a length before it is damaged)",
+                len(self.data),
+            )
+        chunk = self.data[self.pos : self.pos + n]
+        self.pos += n
+        return chunk
+
+    def varint(self, what: str, limit: int) -> tuple[int, int]:
+        start = self.pos
+        value = shift = 0
+        while True:
+            byte = self.take(1, what)[0]
+            value |= (byte & 0x7F) << shift
+            shift += 7
+            if not byte & 0x80:
+                break
+            if shift > 28:
+                raise self.error(f"{what} is not a varint of at most 5 bytes", start)
+        if value > limit:
+            raise self.error(f"{what} must be at most {limit}, got {value}", start)
+        return value, start
+
+
+def read_header(data: bytes, *, file: str | None = None) -> FbsHeader:
+    """Parse and check the header of a ``.fbs`` bitstream, and the framing of the whole.
+
+    Checks, in this order, each failure a :class:`CodingError` at the byte concerned: magic,
+    version, coder, flags, frame rate, frame count and FAP mask; the variable fields' extents; the
+    header CRC; the fields' values (steps, name, Huffman code, predictors); the file's length
+    against the announced frame data; the frame data's CRC. Frames are not decoded.
+    """
+    if not isinstance(data, bytes | bytearray | memoryview):
+        raise CodingError(f"expected bytes, got {type(data).__name__}", file=file)
+    data = bytes(data)
+    cur = _Cursor(data, file)
+    head = data[:4]
+    if head != MAGIC[: len(head)]:
+        raise cur.error(f"not a vtts FAP bitstream: expected the magic {MAGIC!r}, got {head!r}", 0)
+    magic, version, coder_id, flags, fps, first_frame, n_frames, mask, quantizer = _FIXED.unpack(
+        cur.take(_FIXED.size, "fixed header")
+    )
+    del magic
+    if version != VERSION:
+        raise cur.error(f"unsupported bitstream version {version} (this decoder reads 1)", 4)
+    if coder_id not in _CODER_NAMES:
+        raise cur.error(f"unknown coder {coder_id} (0 = Huffman, 1 = arithmetic)", 5)
+    if flags & ~_FLAG_CONSTANT_MASK:
+        raise cur.error(f"unknown flags 0x{flags:02x} (only bit 0 is defined)", 6)
+    if not (math.isfinite(fps) and fps > 0):
+        raise cur.error(f"frame rate must be finite and > 0, got {fps!r}", 7)
+    if n_frames > MAX_FRAMES:
+        raise cur.error(f"{n_frames} frames exceed the decoder's limit of {MAX_FRAMES}", 19)
+    bits = int.from_bytes(mask, "big")
+    if bits & 0xF:
+        raise cur.error("FAP mask sets bits past FAP 68", 31)
+    faps = tuple(k for k in range(1, N_FAPS + 1) if bits >> (71 - (k - 1)) & 1)
+    lo_q, hi_q = QUANTIZER_RANGE
+    if not (math.isfinite(quantizer) and lo_q <= quantizer <= hi_q):
+        raise cur.error(f"quantizer must be within {lo_q:g}–{hi_q:g}, got {quantizer!r}", 32)
+    coder = _CODER_NAMES[coder_id]
+    low = tuple(k for k in faps if k >= 3)
+
+    # variable fields: extents now, values once the CRC vouches for them
+    steps = [cur.varint(f"base step of FAP {k}", MAX_BASE_STEP) for k in low]
+    name_len, name_at = cur.varint("name length", MAX_NAME_BYTES)
+    name_at = cur.pos
+    name_raw = cur.take(name_len, "name")
+    table_at = cur.pos
+    raw_tables: list[tuple[int, int, bytes]] = []
+    assignment = b""
+    if coder == "huffman":
+        count = cur.take(1, "Huffman table count")[0]
+        if count > 4:
+            raise cur.error(f"at most 4 Huffman tables, got {count}", table_at)
+        if count > 1:
+            assignment = cur.take((2 * len(low) + 7) // 8, "Huffman table assignment")
+        for _ in range(count):
+            at = cur.pos
+            n = cur.take(1, "Huffman table")[0]
+            if n > 2 * SYMBOL_MAX + 1:
+                raise cur.error(f"a Huffman table has at most 127 symbols, got {n}", at)
+            raw_tables.append((at, n, cur.take((n + 2) // 2, "Huffman table")))
+        table = b""
+    else:
+        count = cur.take(1, "predictor list")[0]
+        table = cur.take(2 * count, "predictor list")
+    (payload_size,) = struct.unpack(">I", cur.take(4, "frame data length"))
+    crc_at = cur.pos
+    (stored,) = struct.unpack(">I", cur.take(4, "header CRC"))
+    computed = zlib.crc32(data[:crc_at])
+    if stored != computed:
+        raise cur.error(
+            f"header CRC-32 mismatch (stored 0x{stored:08x}, computed 0x{computed:08x}): "
+            f"bytes 0–{crc_at - 1} are corrupt",
+            crc_at,
+        )
+    header_size = cur.pos
+
+    base_steps = []
+    for value, at in steps:
+        if value < 1:
+            raise cur.error("a base step must be ≥ 1, got 0", at)
+        base_steps.append(value)
+    try:
+        name = name_raw.decode("utf-8")
+        FapStream(fps=fps, name=name, values=np.zeros((0, N_FAPS)), mask=np.zeros((0, N_FAPS)))
+    except (UnicodeDecodeError, FapError) as e:
+        raise cur.error(f"invalid stream name {name_raw!r}: {e}", name_at) from None
+    tables: list[dict[int, int]] = []
+    table_of: list[int] = []
+    predictors: dict[int, int] = {}
+    if coder == "huffman":
+        for at, n, raw in raw_tables:
+            nibbles = [x for b in raw for x in (b >> 4, b & 0xF)][: n + 1]
+            lengths = {ESCAPE: nibbles[0]} | {_unzigzag(z): x for z, x in enumerate(nibbles[1:])}
+            lengths = {s: x for s, x in lengths.items() if x}
+            kraft = sum(1 << (MAX_CODE_LENGTH - x) for x in lengths.values())
+            single = len(lengths) == 1 and next(iter(lengths.values())) == 1
+            if kraft != 1 << MAX_CODE_LENGTH and not single:
+                raise cur.error("Huffman code lengths do not form a complete prefix code", at)
+            tables.append(lengths)
+        if len(tables) > 1:
+            bits = int.from_bytes(assignment, "big") >> (8 * len(assignment) - 2 * len(low))
+            table_of = [(bits >> (2 * (len(low) - 1 - j))) & 3 for j in range(len(low))]
+            for j, x in enumerate(table_of):
+                if x >= len(tables):
+                    raise cur.error(
+                        f"FAP {low[j]} uses Huffman table {x} of {len(tables)}",
+                        table_at + 1 + j // 4,
+                    )
+        else:
+            table_of = [0] * len(low) if tables else []
+    elif coder == "arithmetic":
+        low_set = set(low)
+        for i in range(count):
+            k, p = table[2 * i], table[2 * i + 1]
+            at = table_at + 1 + 2 * i
+            if k not in low_set or p not in low_set or p >= k or k in predictors:
+                raise cur.error(
+                    f"predictor entry {k} ← {p}: both must be coded low-level FAPs, the "
+                    "predicting one earlier, each FAP listed once",
+                    at,
+                )
+            predictors[k] = p
+
+    end = header_size + payload_size
+    if end + 4 > len(data):
+        raise cur.error(
+            f"unexpected end of data: the header announces {payload_size} bytes of frame data "
+            f"and a CRC ending at byte {end + 4}, the file ends at byte {len(data)}: "
+            "the file is truncated",
+            len(data),
+        )
+    if end + 4 < len(data):
+        raise cur.error(
+            f"{len(data) - end - 4} unexpected bytes after the end of the bitstream", end + 4
+        )
+    (stored,) = struct.unpack(">I", data[end : end + 4])
+    computed = zlib.crc32(data[header_size:end])
+    if stored != computed:
+        raise cur.error(
+            f"frame data CRC-32 mismatch (stored 0x{stored:08x}, computed 0x{computed:08x}): "
+            f"bytes {header_size}–{end - 1} are corrupt",
+            end,
+        )
+    return FbsHeader(
+        coder=coder,
+        fps=fps,
+        first_frame=first_frame,
+        n_frames=n_frames,
+        faps=faps,
+        quantizer=quantizer,
+        base_steps=tuple(base_steps),
+        constant_mask=bool(flags & _FLAG_CONSTANT_MASK),
+        name=name,
+        huffman_tables=tuple(tables),
+        huffman_table_of=tuple(table_of),
+        predictors=predictors,
+        version=version,
+        header_size=header_size,
+        payload_size=payload_size,
+    )
+
+
+# --- the frame syntax, shared by encoder and decoder -------------------------------------------
+
+
+class _Io:
+    """One coder's way of sending the syntax elements. Each method sends ``value`` and returns
+    it when encoding (``value`` given), and returns the value read when decoding (``None``)."""
+
+    def begin_frame(self) -> None:
+        pass
+
+    def flag(self, ctx: tuple, bit: int | None) -> int:
+        raise NotImplementedError
+
+    def field(self, channel: int, nbits: int, value: int | None, prev: int) -> int:
+        raise NotImplementedError
+
+    def residual(self, channel: int, value: int | None) -> int:
+        raise NotImplementedError
+
+    def offset(self) -> int:
+        """Byte offset (in the whole bitstream) of the data being read, for error messages."""
+        return 0
+
+    def error(self, message: str) -> CodingError:
+        return CodingError(message, offset=self.offset(), file=getattr(self, "file", None))
+
+
+def _syntax(io: _Io, h: FbsHeader, plan: _Plan | None) -> tuple[np.ndarray, ...]:
+    """Send (``plan`` given) or read the frames; return ``(mask, index, viseme, expression)`` as
+    the decoder sees them: ``(n, K) bool``, ``(n, L) int64``, ``(n, 4)`` and ``(n, 6) int64``."""
+    n, faps, low = h.n_frames, h.faps, h.low
+    nk, nl = len(faps), len(low)
+    enc = plan is not None
+    pos = {k: i for i, k in enumerate(faps)}
+    low_pos = [pos[k] for k in low]
+    pred = [low.index(h.predictors[k]) if k in h.predictors else -1 for k in low]
+    v_fields = [(VISEME_FIELDS, _VISEME_BITS, nl), (EXPRESSION_FIELDS, _EXPRESSION_BITS, nl + 4)]
+    mask = np.zeros((n, nk), dtype=bool)
+    index = np.zeros((n, nl), dtype=np.int64)
+    high = [np.zeros((n, 4), dtype=np.int64), np.zeros((n, 6), dtype=np.int64)]
+    cur = [True] * nk
+    last = [0] * nl
+    last_high = [[0] * 4, [0] * 6]
+    src_high = None if plan is None else [plan.source.viseme, plan.source.expression]
+    for i in range(n):
+        io.begin_frame()
+        if not h.constant_mask:
+            row = None if plan is None else plan.mask[i].tolist()
+            changed = io.flag(("mask?",), None if row is None else int(row != cur))
+            if changed:
+                for j in range(nk):
+                    cur[j] = bool(io.flag(("mask", j, cur[j]), None if row is None else row[j]))
+        mask[i] = cur
+        for which in (0, 1):
+            if (which + 1) not in pos or not cur[pos[which + 1]]:
+                continue
+            fields, widths, channel = v_fields[which]
+            prev = last_high[which]
+            want = None if src_high is None else src_high[which][i].tolist()
+            same = io.flag(("same", which), None if want is None else int(want == prev))
+            if not same:
+                for f, (label, lo, hi) in enumerate(fields):
+                    value = io.field(
+                        channel + f, widths[f], None if want is None else want[f], prev[f]
+                    )
+                    if not lo <= value <= hi:
+                        raise io.error(f"{label} {value} in frame {i} is outside {lo}–{hi}")
+                    prev[f] = value
+            high[which][i] = prev
+        q_now = [0] * nl
+        for j in range(nl):
+            if not cur[low_pos[j]]:
+                continue
+            p = pred[j]
+            base = q_now[p] if p >= 0 and cur[low_pos[p]] else 0
+            q = None if plan is None else int(plan.index[i, j]) - last[j]
+            v = io.residual(j, None if q is None else q - base)
+            q = v + base
+            value = last[j] + q
+            if not -MAX_INDEX < value < MAX_INDEX:
+                raise io.error(f"FAP {low[j]} leaves the codable range in frame {i}")
+            last[j] = value
+            q_now[j] = q
+            index[i, j] = value
+    if enc:
+        assert np.array_equal(mask, plan.mask) and np.array_equal(index, plan.index)
+    return mask, index, high[0], high[1]
+
+
+# --- Huffman mode -------------------------------------------------------------------------------
+
+
+def _symbol(q: int, lengths: dict[int, int] | None = None) -> int:
+    """The symbol that sends error ``q``: q itself, or the escape for |q| > 63 and for errors
+    the table has no code for."""
+    if -SYMBOL_MAX <= q <= SYMBOL_MAX and (lengths is None or q in lengths):
+        return q
+    return ESCAPE
+
+
+def _exp_golomb_bits(x: int) -> int:
+    return 2 * (x + 1).bit_length() - 1
+
+
+def huffman_lengths(counts: dict[int, int], limit: int = MAX_CODE_LENGTH) -> dict[int, int]:
+    """Code lengths of a Huffman code for symbol ``counts`` (ties broken by symbol, so the
+    result is deterministic), no longer than ``limit`` bits: if the optimal code is deeper, the
+    counts are halved until it fits. A single symbol gets length 1."""
+    items = sorted((s, c) for s, c in counts.items() if c > 0)
+    if not items:
+        return {}
+    if len(items) == 1:
+        return {items[0][0]: 1}
+    while True:
+        heap = [(c, i, [s]) for i, (s, c) in enumerate(items)]
+        heapq.heapify(heap)
+        depth = dict.fromkeys((s for s, _ in items), 0)
+        order = len(heap)
+        while len(heap) > 1:
+            c1, _, s1 = heapq.heappop(heap)
+            c2, _, s2 = heapq.heappop(heap)
+            for s in s1 + s2:
+                depth[s] += 1
+            heapq.heappush(heap, (c1 + c2, order, s1 + s2))
+            order += 1
+        if max(depth.values()) <= limit:
+            return depth
+        items = [(s, (c + 1) // 2) for s, c in items]
+
+
+def _code_cost(errors: dict[int, int], lengths: dict[int, int]) -> float:
+    """Bits to send the errors (error → count) with a code; inf if it cannot."""
+    bits = 0
+    for q, c in errors.items():
+        s = _symbol(q, lengths)
+        if s not in lengths:
+            return math.inf
+        bits += c * lengths[s]
+        if s == ESCAPE:
+            bits += c * _exp_golomb_bits(_zigzag(q))
+    return bits
+
+
+def _group_code(errors: list[dict[int, int]], escape: bool, trim: bool = False) -> dict[int, int]:
+    """The Huffman code for a group of FAPs' errors. ``escape``: give the escape a code even if
+    no error needs it (so that any FAP can use the table). ``trim``: also choose how many
+    symbols the table lists, the rarer large errors going through the escape, for the fewest
+    bits of table plus data."""
+    merged: dict[int, int] = {}
+    for e in errors:
+        for q, c in e.items():
+            merged[q] = merged.get(q, 0) + c
+    cutoffs = [2 * SYMBOL_MAX + 1]
+    if trim:
+        cutoffs = sorted({_zigzag(q) + 1 for q in merged if -SYMBOL_MAX <= q <= SYMBOL_MAX})
+        cutoffs = [0, *cutoffs]
+    best: tuple[float, dict[int, int]] | None = None
+    for n in cutoffs:
+        counts: dict[int, int] = {ESCAPE: 1} if escape else {}
+        escaped = 0
+        for q, c in merged.items():
+            s = q if -SYMBOL_MAX <= q <= SYMBOL_MAX and _zigzag(q) < n else ESCAPE
+            counts[s] = counts.get(s, 0) + c
+            if s == ESCAPE:
+                escaped += c * _exp_golomb_bits(_zigzag(q))
+        lengths = huffman_lengths(counts)
+        if not trim:
+            return lengths
+        bits = escaped + sum(c * lengths[s] for s, c in counts.items())
+        bits += 8 * len(_pack_table(lengths))
+        if best is None or bits < best[0]:
+            best = (bits, lengths)
+    return best[1] if best else {}
+
+
+def _choose_tables(errors: list[dict[int, int]]) -> tuple[tuple[dict[int, int], ...], tuple]:
+    """Huffman tables for the FAPs' errors (``errors[j]``: error → count of low-level FAP j) and
+    the table of each FAP: 1 to 4 tables, the FAPs grouped by k-means on their code cost, the
+    number that needs the fewest bits with the tables' header bytes counted."""
+    used = [j for j, e in enumerate(errors) if e]
+    if not used:
+        return (), ()
+    single = _group_code(errors, escape=False, trim=True)
+    best = (_code_cost_all(errors, [single], [0] * len(errors)), (single,), (0,) * len(errors))
+    # start groups: FAPs ordered by how often they do not move
+    order = sorted(used, key=lambda j: -errors[j].get(0, 0) / sum(errors[j].values()))
+    for n_tables in range(2, min(4, len(used)) + 1):
+        assign = [0] * len(errors)
+        for rank, j in enumerate(order):
+            assign[j] = rank * n_tables // len(order)
+        for _ in range(10):
+            groups = [[errors[j] for j in used if assign[j] == t] for t in range(n_tables)]
+            if not all(groups):
+                break
+            tables = [_group_code(g, escape=True) for g in groups]
+            new = list(assign)
+            for j in used:
+                costs = [_code_cost(errors[j], tb) for tb in tables]
+                new[j] = costs.index(min(costs))
+            if new == assign:
+                break
+            assign = new
+        groups = [[errors[j] for j in used if assign[j] == t] for t in range(n_tables)]
+        if not all(groups):
+            continue
+        tables = [_group_code(g, escape=True, trim=True) for g in groups]
+        bits = _code_cost_all(errors, tables, assign) + 8 * ((2 * len(errors) + 7) // 8)
+        if bits < best[0]:
+            best = (bits, tuple(tables), tuple(assign))
+    return best[1], best[2]
+
+
+def _code_cost_all(errors: list[dict[int, int]], tables: list, assign: list[int]) -> float:
+    data = sum(_code_cost(e, tables[assign[j]]) for j, e in enumerate(errors) if e)
+    return data + 8 * sum(len(_pack_table(t)) for t in tables)
+
+
+def _canonical(lengths: dict[int, int]) -> tuple[dict[int, tuple[int, int]], list[int], list[int]]:
+    """Canonical codes ``symbol → (code, length)``, and for decoding the number of codes of each
+    length (index 0…15) and the symbols in code order."""
+    order = sorted(lengths, key=lambda s: (lengths[s], s))
+    codes = {}
+    code = prev = 0
+    for s in order:
+        code <<= lengths[s] - prev
+        prev = lengths[s]
+        codes[s] = (code, prev)
+        code += 1
+    counts = [0] * (MAX_CODE_LENGTH + 1)
+    for n in lengths.values():
+        counts[n] += 1
+    return codes, counts, order
+
+
+class _ErrorCounter(_Io):
+    """First pass of the Huffman encoder: counts each FAP's errors."""
+
+    def __init__(self, n_low: int) -> None:
+        self.errors: list[dict[int, int]] = [{} for _ in range(n_low)]
+
+    def flag(self, ctx: tuple, bit: int | None) -> int:
+        return int(bit)  # type: ignore[arg-type]
+
+    def field(self, channel: int, nbits: int, value: int | None, prev: int) -> int:
+        return int(value)  # type: ignore[arg-type]
+
+    def residual(self, channel: int, value: int | None) -> int:
+        q = int(value)  # type: ignore[arg-type]
+        e = self.errors[channel]
+        e[q] = e.get(q, 0) + 1
+        return q
+
+
+class _HuffmanWriter(_Io):
+    def __init__(self, tables: tuple[dict[int, int], ...], table_of: tuple[int, ...]) -> None:
+        self.tables = [(lengths, _canonical(lengths)[0]) for lengths in tables]
+        self.table_of = table_of
+        self.out = bytearray()
+        self.acc = 0
+        self.nbits = 0
+
+    def bits(self, value: int, n: int) -> None:
+        self.acc = (self.acc << n) | value
+        self.nbits += n
+        while self.nbits >= 8:
+            self.nbits -= 8
+            self.out.append((self.acc >> self.nbits) & 0xFF)
+        self.acc &= (1 << self.nbits) - 1
+
+    def flag(self, ctx: tuple, bit: int | None) -> int:
+        self.bits(int(bit), 1)  # type: ignore[arg-type]
+        return int(bit)  # type: ignore[arg-type]
+
+    def field(self, channel: int, nbits: int, value: int | None, prev: int) -> int:
+        self.bits(int(value), nbits)  # type: ignore[arg-type]
+        return int(value)  # type: ignore[arg-type]
+
+    def residual(self, channel: int, value: int | None) -> int:
+        q = int(value)  # type: ignore[arg-type]
+        lengths, codes = self.tables[self.table_of[channel]]
+        s = _symbol(q, lengths)
+        self.bits(*codes[s])
+        if s == ESCAPE:  # Exp-Golomb (order 0) of the zigzagged error
+            x = _zigzag(q) + 1
+            n = x.bit_length()
+            self.bits(0, n - 1)
+            self.bits(x, n)
+        return q
+
+    def finish(self) -> bytes:
+        if self.nbits:
+            self.bits(0, 8 - self.nbits)
+        return bytes(self.out)
+
+
+class _HuffmanReader(_Io):
+    def __init__(
+        self,
+        data: bytes,
+        base: int,
+        tables: tuple[dict[int, int], ...],
+        table_of: tuple[int, ...],
+        file: str | None,
+    ) -> None:
+        self.tables = [_canonical(lengths)[1:] for lengths in tables]
+        self.table_of = table_of
+        self.data = data
+        self.end = 8 * len(data)
+        self.pos = 0
+        self.base = base
+        self.file = file
+
+    def offset(self) -> int:
+        return self.base + min(self.pos, self.end) // 8
+
+    def bit(self) -> int:
+        pos = self.pos
+        if pos >= self.end:
+            raise self.error("unexpected end of the frame data")
+        self.pos = pos + 1
+        return (self.data[pos >> 3] >> (7 - (pos & 7))) & 1
+
+    def read(self, n: int) -> int:
+        value = 0
+        for _ in range(n):
+            value = (value << 1) | self.bit()
+        return value
+
+    def flag(self, ctx: tuple, bit: int | None) -> int:
+        return self.bit()
+
+    def field(self, channel: int, nbits: int, value: int | None, prev: int) -> int:
+        return self.read(nbits)
+
+    def residual(self, channel: int, value: int | None) -> int:
+        start = self.offset()
+        if not self.tables:
+            raise self.error("a frame sends a FAP error but the header has no Huffman table")
+        counts, symbols = self.tables[self.table_of[channel]]
+        code = first = index = 0
+        for length in range(1, MAX_CODE_LENGTH + 1):
+            code |= self.bit()
+            count = counts[length]
+            if code - first < count:
+                s = symbols[index + code - first]
+                break
+            index += count
+            first = (first + count) << 1
+            code <<= 1
+        else:
+            raise CodingError("invalid Huffman code", offset=start, file=self.file)
+        if s != ESCAPE:
+            return s
+        zeros = 0
+        while not self.bit():
+            zeros += 1
+            if zeros > _MAX_MAGNITUDE_BITS:
+                raise self.error("escape code longer than any codable error")
+        return _unzigzag(((1 << zeros) | self.read(zeros)) - 1)
+
+    def finish(self) -> None:
+        if self.end - self.pos >= 8:
+            raise self.error(f"{(self.end - self.pos) // 8} unused bytes after the last frame")
+        if self.pos < self.end and self.read(self.end - self.pos):
+            raise self.error("non-zero padding bits after the last frame")
+
+
+# --- arithmetic mode ----------------------------------------------------------------------------
+
+_PROB_BITS = 16
+_PROB_ONE = 1 << _PROB_BITS
+_PROB_MIN = 32
+_HALF = _PROB_ONE // 2
+_COUNT_LIMIT = 60  # counts are halved beyond this: the estimate follows changes in the stream
+_TOP = 1 << 24
+_MANTISSA_CONTEXT_BITS = 8  # magnitudes up to 2^8 have adaptive mantissa bits, larger bypass
+
+
+def _magnitude_class(v: int) -> int:
+    v = abs(v)
+    return 0 if v == 0 else 1 if v == 1 else 2 if v < 4 else 3
+
+
+class _Adaptive(_Io):
+    """The context modelling of the arithmetic mode over an abstract binary coder ``code``."""
+
+    def __init__(self) -> None:
+        self.models: dict[tuple, list[int]] = {}
+        self.prev: dict[int, int] = {}
+        self.active = 0
+
+    def code(self, bit: int | None, p0: int) -> int:
+        raise NotImplementedError
+
+    def bit(self, ctx: tuple | None, bit: int | None) -> int:
+        if ctx is None:
+            return self.code(bit, _HALF)
+        m = self.models.get(ctx)
+        if m is None:
+            m = self.models[ctx] = [0, 0]
+        n0, n1 = m
+        p0 = ((2 * n0 + 1) << _PROB_BITS) // (2 * (n0 + n1) + 2)
+        p0 = min(max(p0, _PROB_MIN), _PROB_ONE - _PROB_MIN)
+        b = self.code(bit, p0)
+        m[b] += 1
+        if n0 + n1 >= _COUNT_LIMIT:
+            m[0] = (m[0] + 1) // 2
+            m[1] = (m[1] + 1) // 2
+        return b
+
+    def begin_frame(self) -> None:
+        self.active = 0
+
+    def flag(self, ctx: tuple, bit: int | None) -> int:
+        return self.bit(ctx, bit)
+
+    def field(self, channel: int, nbits: int, value: int | None, prev: int) -> int:
+        d = self.residual(channel, None if value is None else value - prev)
+        return prev + d
+
+    def residual(self, channel: int, value: int | None) -> int:
+        enc = value is not None
+        prev = self.prev.get(channel, 0)
+        c = _magnitude_class(prev)
+        nonzero = self.bit(("z", channel, c, self.active), None if not enc else int(value != 0))
+        if not nonzero:
+            self.prev[channel] = 0
+            self.active = 0
+            return 0
+        sign_ctx = 0 if prev == 0 else 1 if prev > 0 else 2
+        negative = self.bit(("s", channel, sign_ctx), None if not enc else int(value < 0))
+        m = abs(value) if enc else 0  # type: ignore[arg-type]
+        e = m.bit_length()
+        k = 1
+        while k < _MAX_MAGNITUDE_BITS:
+            more = self.bit(("e", channel, min(c, 2), min(k, 12)), None if not enc else int(e > k))
+            if not more:
+                break
+            k += 1
+        magnitude = 1
+        for b in range(k - 2, -1, -1):
+            ctx = ("m", channel, k, b) if k <= _MANTISSA_CONTEXT_BITS else None
+            magnitude = (magnitude << 1) | self.bit(ctx, None if not enc else (m >> b) & 1)
+        v = -magnitude if negative else magnitude
+        self.prev[channel] = v
+        self.active = 1
+        return v
+
+
+class _RangeWriter(_Adaptive):
+    """LZMA's range encoder: 32-bit range, carries propagated through a cached byte."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.low = 0
+        self.range = 0xFFFFFFFF
+        self.cache = 0
+        self.pending = 1
+        self.out = bytearray()
+
+    def code(self, bit: int | None, p0: int) -> int:
+        bound = (self.range >> _PROB_BITS) * p0
+        if bit:
+            self.low += bound
+            self.range -= bound
+        else:
+            self.range = bound
+        while self.range < _TOP:
+            self.range <<= 8
+            self._shift_low()
+        return int(bit)  # type: ignore[arg-type]
+
+    def _shift_low(self) -> None:
+        low = self.low
+        if (low & 0xFFFFFFFF) < 0xFF000000 or low >> 32:
+            carry = low >> 32
+            temp = self.cache
+            while self.pending:
+                self.out.append((temp + carry) & 0xFF)
+                temp = 0xFF
+                self.pending -= 1
+            self.cache = (low >> 24) & 0xFF
+        self.pending += 1
+        self.low = (low & 0x00FFFFFF) << 8
+
+    def finish(self) -> bytes:
+        for _ in range(5):
+            self._shift_low()
+        assert self.out[0] == 0  # the first byte is always 0: not sent
+        return bytes(self.out[1:])
+
+
+class _RangeReader(_Adaptive):
+    def __init__(self, data: bytes, base: int, file: str | None) -> None:
+        super().__init__()
+        self.data = data
+        self.pos = 0
+        self.base = base
+        self.file = file
+        self.range = 0xFFFFFFFF
+        self.code_value = 0
+        for _ in range(4):
+            self.code_value = (self.code_value << 8) | self._byte()
+
+    def offset(self) -> int:
+        return self.base + self.pos
+
+    def _byte(self) -> int:
+        if self.pos >= len(self.data):
+            raise self.error("unexpected end of the frame data")
+        b = self.data[self.pos]
+        self.pos += 1
+        return b
+
+    def code(self, bit: int | None, p0: int) -> int:
+        bound = (self.range >> _PROB_BITS) * p0
+        if self.code_value < bound:
+            self.range = bound
+            b = 0
+        else:
+            self.code_value -= bound
+            self.range -= bound
+            b = 1
+        while self.range < _TOP:
+            self.range <<= 8
+            self.code_value = ((self.code_value << 8) | self._byte()) & 0xFFFFFFFF
+        return b
+
+    def finish(self) -> None:
+        if self.pos != len(self.data):
+            raise self.error(f"{len(self.data) - self.pos} unused bytes after the last frame")
+
+
+def _errors(plan: _Plan) -> np.ndarray:
+    """``(n, L) int64``: each low-level FAP's quantized prediction error (0 where not set)."""
+    q = np.zeros_like(plan.index)
+    low_mask = plan.mask[:, [plan.faps.index(k) for k in plan.low]]
+    for j in range(len(plan.low)):
+        rows = np.flatnonzero(low_mask[:, j])
+        idx = plan.index[rows, j]
+        q[rows, j] = np.diff(idx, prepend=0)
+    return q
+
+
+def _cost(v: np.ndarray) -> float:
+    """Estimated bits to send the errors ``v`` (1-D): the entropy of their magnitude classes and
+    signs plus the mantissa bits — what the adaptive binarization approaches."""
+    if v.size == 0:
+        return 0.0
+    a = np.abs(v)
+    cls = np.where(a <= 8, v, np.sign(v) * (8 + np.ceil(np.log2(np.maximum(a, 1)))))
+    _, counts = np.unique(cls, return_counts=True)
+    p = counts / v.size
+    mantissa = np.where(a > 8, np.floor(np.log2(np.maximum(a, 1))), 0).sum()
+    return float(-(counts * np.log2(p)).sum() + mantissa)
+
+
+def _choose_predictors(plan: _Plan) -> dict[int, int]:
+    """For each low-level FAP, the earlier FAP (same unit and step) whose error in the same frame
+    best predicts its error, where that saves more than the header entry costs."""
+    q = _errors(plan)
+    low_mask = plan.mask[:, [plan.faps.index(k) for k in plan.low]]
+    chosen = {}
+    for j, k in enumerate(plan.low):
+        rows = low_mask[:, j]
+        if rows.sum() < 2:
+            continue
+        best, best_cost = -1, _cost(q[rows, j]) - 24.0  # a header entry costs 16 bits
+        for p in range(j):
+            kp = plan.low[p]
+            if FAPS[kp - 1].fapu != FAPS[k - 1].fapu or plan.base_steps[p] != plan.base_steps[j]:
+                continue
+            v = q[:, j] - np.where(low_mask[:, p], q[:, p], 0)
+            cost = _cost(v[rows])
+            if cost < best_cost:
+                best, best_cost = p, cost
+        if best >= 0:
+            chosen[k] = plan.low[best]
+    return chosen
+
+
+# --- encode and decode --------------------------------------------------------------------------
+
+
+def encode(
+    stream: FapStream,
+    *,
+    faps: Iterable[int | str] | str | None = None,
+    rate: float | None = None,
+    quantizer: float = 1.0,
+    coder: str = "arithmetic",
+) -> bytes:
+    """Code ``stream`` as a ``.fbs`` bitstream.
+
+    Args:
+        stream: the FAP stream.
+        faps: the FAPs to send (numbers, names, ``"paper17"``…; see :func:`fap_set`); default
+            all. FAPs no frame of the stream sets are not sent.
+        rate: code at this frame rate, Hz (the stream is resampled, see
+            :meth:`FapStream.resample`); default the stream's own.
+        quantizer: the global factor of the quantizer steps (1 = the MPEG-4 steps of
+            ``faps.tsv``); the reconstruction error of every value is at most half a step.
+        coder: ``"huffman"`` (the paper's) or ``"arithmetic"`` (adaptive, fewer bits).
+
+    Returns the bitstream; ``decode`` of it equals :func:`reconstruct` with the same arguments.
+    """
+    if coder not in CODERS:
+        raise FapError(f"unknown coder {coder!r}: expected one of {', '.join(CODERS)}")
+    plan = _prepare(stream, faps, rate, quantizer)
+    src = plan.source
+    constant = bool(plan.mask.all())
+    h = FbsHeader(
+        coder=coder,
+        fps=src.fps,
+        first_frame=src.first_frame,
+        n_frames=src.n_frames,
+        faps=plan.faps,
+        quantizer=plan.quantizer,
+        base_steps=plan.base_steps,
+        constant_mask=constant,
+        name=src.name,
+    )
+    if coder == "huffman":
+        counter = _ErrorCounter(len(plan.low))
+        _syntax(counter, h, plan)
+        tables, table_of = _choose_tables(counter.errors)
+        h = replace(h, huffman_tables=tables, huffman_table_of=table_of)
+        writer: _HuffmanWriter | _RangeWriter = _HuffmanWriter(tables, table_of)
+    else:
+        h = replace(h, predictors=_choose_predictors(plan))
+        writer = _RangeWriter()
+    _syntax(writer, h, plan)
+    payload = writer.finish()
+    return _pack_header(h, len(payload)) + payload + struct.pack(">I", zlib.crc32(payload))
+
+
+def decode(data: bytes, *, file: str | None = None) -> FapStream:
+    """Decode a ``.fbs`` bitstream. ``file`` names it in errors.
+
+    Raises :class:`CodingError` with the byte offset for anything that is not a complete, intact
+    bitstream; never returns a stream that differs from what the encoder reconstructed.
+    """
+    h = read_header(data, file=file)
+    payload = bytes(data[h.header_size : h.header_size + h.payload_size])
+    reader: _HuffmanReader | _RangeReader
+    if h.coder == "huffman":
+        reader = _HuffmanReader(payload, h.header_size, h.huffman_tables, h.huffman_table_of, file)
+    else:
+        reader = _RangeReader(payload, h.header_size, file)
+    mask, index, viseme, expression = _syntax(reader, h, None)
+    reader.finish()
+    steps = _steps(h.base_steps, h.quantizer)
+    try:
+        return _assemble(
+            h.fps, h.name, h.first_frame, h.faps, h.low, steps, mask, index, viseme, expression
+        )
+    except FapError as e:  # pragma: no cover - the syntax checks every field's range
+        raise CodingError(
+            f"decoded frames are invalid: {e}", offset=h.header_size, file=file
+        ) from None

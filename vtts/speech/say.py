@@ -1,0 +1,126 @@
+"""From bookmarked text to an utterance: audio, timed visemes and bookmark times.
+
+``prepare_utterance`` runs the bookmark parser, then either espeak-ng (its own phoneme and mark
+events, in the audio's clock) or another engine's timings (``--phonemes FILE`` with a WAV), and
+returns what the timeline needs. It knows nothing about models or rendering.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from vtts.animate.timeline import TimedPhone
+from vtts.errors import SpeechError, VttsWarning
+from vtts.speech.bookmarks import Bookmark, BookmarkedText, parse_bookmarks
+
+
+@dataclass
+class Utterance:
+    """Speech ready for the timeline.
+
+    audio      ``(n,)`` int16 samples (mono) at ``rate`` Hz
+    phones     the phones with their MPEG-4 visemes, in the audio's clock (s)
+    bookmarks  the text's bookmarks with ``time`` set (s)
+    """
+
+    text: BookmarkedText
+    audio: np.ndarray
+    rate: int
+    phones: list[TimedPhone]
+    bookmarks: list[Bookmark]
+
+    @property
+    def duration(self) -> float:
+        """Length of the audio in s (at least the end of the last phone)."""
+        end = self.phones[-1].end if self.phones else 0.0
+        return max(self.audio.shape[0] / self.rate, end)
+
+
+def prepare_utterance(
+    text: str,
+    *,
+    voice: str = "en-us",
+    rate: int | None = None,
+    pitch: int | None = None,
+    phonemes: str | Path | None = None,
+    audio: str | Path | None = None,
+) -> Utterance:
+    """Parse ``text`` and synthesize it with espeak-ng, or take the timings from ``phonemes``
+    (an Amazon Polly speech-marks file or a ``start end phoneme`` table) with the WAV ``audio``."""
+    from vtts.speech.phonemes import read_phoneme_file, viseme_of
+
+    bt = parse_bookmarks(text)
+    language = voice.split("-")[0] if voice else "en"
+    if phonemes is not None:
+        if audio is None:
+            raise SpeechError("--phonemes needs the speech itself: give --audio FILE.wav too")
+        pf = read_phoneme_file(phonemes)
+        samples, sr = _read_wav(Path(audio))
+        phones = [
+            TimedPhone(p.start, p.end, viseme_of(p.phoneme, language), p.phoneme) for p in pf.phones
+        ]
+        marks = [(m.name, m.time) for m in pf.marks]
+        utt = Utterance(bt, samples, sr, phones, bt.bookmarks)
+        _place_marks(utt, marks, fallback=True)
+        return utt
+    from vtts.speech.tts import synthesize
+
+    speech = synthesize(bt.ssml(), voice=voice, rate=rate, pitch=pitch)
+    phones = [
+        TimedPhone(p.start, p.end, viseme_of(p.phoneme, language), p.phoneme)
+        for p in speech.phonemes
+    ]
+    utt = Utterance(bt, np.asarray(speech.audio), int(speech.rate), phones, bt.bookmarks)
+    _place_marks(utt, [(m.name, m.time) for m in speech.marks], fallback=False)
+    return utt
+
+
+def _place_marks(utt: Utterance, marks: list[tuple[str, float]], *, fallback: bool) -> None:
+    """Give every bookmark the time of its ``<mark name="bK"/>`` event."""
+    times = dict(marks)
+    missing = []
+    for k, b in enumerate(utt.bookmarks):
+        t = times.get(f"b{k}")
+        if t is None:
+            missing.append(b)
+        b.time = t
+    if not missing:
+        return
+    if not fallback:
+        raise SpeechError(
+            f"the synthesizer reported no time for {len(missing)} bookmark(s) "
+            f"(<{missing[0].written}> at column {missing[0].column})"
+        )
+    # Another engine's file without marks: place each bookmark at the same fraction of the audio
+    # as of the text (a rough estimate; say so).
+    warnings.warn(
+        VttsWarning(
+            "the phoneme file gives no mark times (SSML marks named b0, b1, …): bookmarks are "
+            "placed in proportion to their position in the text"
+        ),
+        stacklevel=3,
+    )
+    total = max(len(utt.text.text), 1)
+    pos = 0
+    k = 0
+    for piece in utt.text.pieces:
+        if isinstance(piece, str):
+            pos += len(piece)
+        else:
+            if piece.time is None:
+                piece.time = utt.duration * pos / total
+            k += 1
+
+
+def _read_wav(path: Path) -> tuple[np.ndarray, int]:
+    import soundfile as sf
+
+    try:
+        data, sr = sf.read(str(path), dtype="int16", always_2d=True)
+    except (RuntimeError, OSError) as e:
+        raise SpeechError(f"cannot read audio: {e}", file=str(path)) from None
+    return data.mean(axis=1).astype(np.int16), int(sr)
