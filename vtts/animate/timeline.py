@@ -164,7 +164,7 @@ def build_timeline(
 ) -> Timeline:
     """The :class:`Timeline` of ``model`` speaking ``phones`` with ``bookmarks`` (times set)
     for ``duration`` s."""
-    n = max(1, int(np.ceil(duration * fps)) + 1)
+    n = max(1, int(np.ceil(duration * fps - 1e-9)))
     t = np.arange(n) / fps
     p = np.zeros((n, N_PARAMS))
     events: dict[str, list[tuple[float, float]]] = {}

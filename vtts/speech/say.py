@@ -51,18 +51,16 @@ def prepare_utterance(
 ) -> Utterance:
     """Parse ``text`` and synthesize it with espeak-ng, or take the timings from ``phonemes``
     (an Amazon Polly speech-marks file or a ``start end phoneme`` table) with the WAV ``audio``."""
-    from vtts.speech.phonemes import read_phoneme_file, viseme_of
+    from vtts.speech.phonemes import read_phoneme_file
 
     bt = parse_bookmarks(text)
     language = voice.split("-")[0] if voice else "en"
     if phonemes is not None:
         if audio is None:
             raise SpeechError("--phonemes needs the speech itself: give --audio FILE.wav too")
-        pf = read_phoneme_file(phonemes)
+        pf = read_phoneme_file(phonemes, language=language)
         samples, sr = _read_wav(Path(audio))
-        phones = [
-            TimedPhone(p.start, p.end, viseme_of(p.phoneme, language), p.phoneme) for p in pf.phones
-        ]
+        phones = [TimedPhone(p.start, p.end, p.viseme, p.phoneme) for p in pf.phones]
         marks = [(m.name, m.time) for m in pf.marks]
         utt = Utterance(bt, samples, sr, phones, bt.bookmarks)
         _place_marks(utt, marks, fallback=True)
@@ -70,10 +68,7 @@ def prepare_utterance(
     from vtts.speech.tts import synthesize
 
     speech = synthesize(bt.ssml(), voice=voice, rate=rate, pitch=pitch)
-    phones = [
-        TimedPhone(p.start, p.end, viseme_of(p.phoneme, language), p.phoneme)
-        for p in speech.phonemes
-    ]
+    phones = [TimedPhone(p.start, p.end, p.viseme, p.phoneme) for p in speech.phonemes]
     utt = Utterance(bt, np.asarray(speech.audio), int(speech.rate), phones, bt.bookmarks)
     _place_marks(utt, [(m.name, m.time) for m in speech.marks], fallback=False)
     return utt
