@@ -90,3 +90,15 @@ def test_info_bad_file(tmp_path, capsys):
 def test_usage_errors_exit_two():
     r = run("check")
     assert r.returncode == 2 and "usage: vtts check" in r.stderr
+
+
+def test_outputs_get_ordinary_permissions(tmp_path):
+    """Atomic writes go through a private temp file; the result is readable like any output."""
+    import os
+    import stat
+
+    from vtts.atomic import current_umask, write_text
+
+    out = tmp_path / "x.txt"
+    write_text(out, "hi")
+    assert stat.S_IMODE(os.stat(out).st_mode) == 0o666 & ~current_umask()

@@ -32,7 +32,7 @@ from typing import IO, Any
 
 import numpy as np
 
-from vtts.atomic import atomic_path
+from vtts.atomic import atomic_path, current_umask
 from vtts.errors import RenderError
 
 __all__ = [
@@ -354,6 +354,7 @@ class PngSequenceWriter:
         self._tmp = Path(
             tempfile.mkdtemp(prefix=f".{self.directory.name}.", suffix=".part", dir=parent)
         )
+        os.chmod(self._tmp, 0o777 & ~current_umask())  # mkdtemp's 0700 is for the temp only
         self.frames_written = 0
         self._shape = None
         return self
