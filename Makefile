@@ -22,9 +22,14 @@ bench:
 	@bash scripts/setup.sh test,bench
 	$(PY) bench/run.py
 
+# Rebuild the bundled heads (models/*.wrl, *.adt, *-face.png) from models/src with the ADI.
+models: setup
+	$(PY) models/src/build_models.py
+
 # Regenerate the golden images on purpose; look at them (git diff) before committing.
 golden: setup
 	VTTS_REGENERATE_GOLDEN=1 $(PY) -m pytest -q -k golden tests
+	$(PY) models/src/contact_sheet.py
 	@echo "golden images rewritten in tests/golden/: inspect them before committing"
 
 clean:
