@@ -1,16 +1,10 @@
 #!/usr/bin/env bash
-# What `make demo` runs. Until the bundled heads and `vtts say` land, it checks and describes the
-# test head and plays a real MPEG-4 FAP stream on it into out/demo.mp4.
+# What `make demo` runs: cybatt, a bundled personalized head, says a bookmarked text — it smiles,
+# blinks, is surprised and closes its lips on every b, p and m — into out/demo.mp4.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-vtts=.venv/bin/vtts
-head=tests/data/models/head.wrl
-echo "== vtts check $head tests/data/fap/xface-joy.fap"
-$vtts check "$head" tests/data/fap/xface-joy.fap
-echo
-echo "== vtts info $head"
-$vtts info "$head" | tail -n 12
-echo
-echo "== vtts play tests/data/fap/xface-joy.fap --model $head -o out/demo.mp4"
-$vtts play tests/data/fap/xface-joy.fap --model "$head" -o out/demo.mp4
+echo "== vtts say --file samples/texts/welcome.txt --model cybatt -o out/demo.mp4"
+cat samples/texts/welcome.txt
+.venv/bin/vtts say --file samples/texts/welcome.txt --model cybatt -o out/demo.mp4 \
+  --fap-out out/demo.fap
 echo "the video is in $(pwd)/out/demo.mp4"
