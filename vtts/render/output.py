@@ -118,6 +118,20 @@ def _popen_group_kwargs() -> dict[str, Any]:
     return {"creationflags": getattr(subprocess, "CREATE_NEW_PROCESS_GROUP", 0)}
 
 
+def _finish_or_abort(
+    self,
+    exc_type: type[BaseException] | None,
+    exc: BaseException | None,
+    tb: TracebackType | None,
+) -> None:
+    """``__exit__`` of the writers: complete the output, or leave nothing when the block failed
+    (an exception or Ctrl-C)."""
+    if exc_type is None:
+        self.close()
+    else:
+        self.abort()
+
+
 class VideoWriter:
     """Write frames to an MP4 file (H.264, yuv420p, optionally with a WAV muxed as AAC).
 
@@ -297,16 +311,8 @@ class VideoWriter:
     def __enter__(self) -> VideoWriter:
         return self.open()
 
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        if exc_type is None:
-            self.close()
-        else:
-            self.abort()
+    __exit__ = _finish_or_abort
+
 
 
 class _Aborted(Exception):
@@ -411,16 +417,8 @@ class PngSequenceWriter:
     def __enter__(self) -> PngSequenceWriter:
         return self.open()
 
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        if exc_type is None:
-            self.close()
-        else:
-            self.abort()
+    __exit__ = _finish_or_abort
+
 
 
 def write_png(path: str | os.PathLike[str], frame: np.ndarray, compress_level: int = 6) -> None:
