@@ -84,8 +84,11 @@ def _engine_with(tables_list, points):
     return DeformationEngine(t, {"F": points}, neutral_t)
 
 
+@pytest.mark.parametrize("split", [False, True])  # large tables run in two threads
 @pytest.mark.parametrize("active", [1, 30])  # few active MIAPs (gather) and many (full product)
-def test_engine_equals_the_sum_of_table_integrals(active):
+def test_engine_equals_the_sum_of_table_integrals(active, split, monkeypatch):
+    if split:
+        monkeypatch.setattr(DeformationEngine, "SPLIT_ABOVE", 0)
     rng = np.random.default_rng(3)
     pts = rng.normal(size=(500, 3))
     adts = []

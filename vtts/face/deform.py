@@ -48,6 +48,7 @@ class _MeshBlock:
     lo: np.ndarray  # (C,) interval lower border (-inf for the first)
     hi: np.ndarray  # (C,)
     at_zero: np.ndarray  # (C,) clip(0, lo, hi): the weight offset
+    halves: tuple[sp.csr_matrix, sp.csr_matrix] | None = None  # row halves of csr, when large
 
 
 @dataclass
@@ -67,6 +68,8 @@ class DeformationEngine:
 
     #: Below this fraction of active columns, gather columns instead of a full product.
     GATHER_BELOW = 0.25
+    #: Table entries above which the full product runs in two threads.
+    SPLIT_ABOVE = 300_000
 
     def __init__(
         self,
@@ -100,9 +103,15 @@ class DeformationEngine:
             coo = sp.coo_matrix((vals, (rows, colidx)), shape=(nrows, len(entries)))
             lo = np.array([e[1] for e in entries])
             hi = np.array([e[2] for e in entries])
+            csr = coo.tocsr()
+            halves = None
+            if csr.nnz >= self.SPLIT_ABOVE:
+                h = (nrows // 6) * 3
+                halves = (csr[:h], csr[h:])
             self.meshes[name] = _MeshBlock(
                 neutral=neutral,
-                csr=coo.tocsr(),
+                halves=halves,
+                csr=csr,
                 csc=coo.tocsc(),
                 param=np.array([e[0] for e in entries], dtype=np.int64),
                 lo=lo,
@@ -156,13 +165,32 @@ class DeformationEngine:
         if active.size == 0:
             return np.zeros(b.csr.shape[0])
         if active.size >= self.GATHER_BELOW * w.size:
-            return b.csr @ w
+            if b.halves is None:
+                return b.csr @ w
+            # large tables: the two halves of the rows in two threads (scipy releases the GIL)
+            top, bottom = b.halves
+            upper = _pool().submit(top.__matmul__, w)
+            lower = bottom @ w
+            return np.concatenate([upper.result(), lower])
         ptr, ind, val = b.csc.indptr, b.csc.indices, b.csc.data
         starts, ends = ptr[active], ptr[active + 1]
         lengths = ends - starts
         idx = np.repeat(starts - np.cumsum(lengths) + lengths, lengths) + np.arange(lengths.sum())
         weights = np.repeat(w[active], lengths) * val[idx]
         return np.bincount(ind[idx], weights=weights, minlength=b.csr.shape[0])
+
+
+_POOL = None
+
+
+def _pool():
+    """One worker thread shared by every engine (the caller's thread does the other half)."""
+    global _POOL
+    if _POOL is None:
+        from concurrent.futures import ThreadPoolExecutor
+
+        _POOL = ThreadPoolExecutor(max_workers=1, thread_name_prefix="vtts-deform")
+    return _POOL
 
 
 def _transform_value(t: _TransformBlock, fld: str, params: np.ndarray) -> np.ndarray:
