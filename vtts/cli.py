@@ -393,8 +393,10 @@ def cmd_say(args: argparse.Namespace) -> int:
     if not text or not text.strip():
         raise RenderError("nothing to say: give the text, or --file FILE")
     models = [load_model(m) for m in args.model]
+    known = {x.name for m in models for x in m.tables.adts if x.kind == "expression"}
     utt = prepare_utterance(
         text,
+        known=known,
         voice=args.voice,
         rate=args.rate,
         pitch=args.pitch,

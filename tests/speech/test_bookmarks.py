@@ -59,7 +59,8 @@ def test_bookmark_kinds(text, expected):
         ("Hi <fap 1=3>", 4, "not a MIAP"),
         ("Hi <fap nope=3>", 4, "unknown FAP 'nope'"),
         ("Hi <smile", 5, "cannot read a bookmark here"),
-        ("Hi <smile 5x>", 10, "cannot read a bookmark here"),
+        ("Hi <smile 5x>", 11, "'5x' in <smile> is neither a duration (1.5s, 300ms) nor an"),
+        ("Hi <fap 3=1 x>", 13, "nor a FAP value"),
         ('Hi <mark name="x y z"/>', 15, "is not a bookmark"),
     ],
 )
@@ -75,3 +76,11 @@ def test_escapes_and_plain_text_survive():
     assert t.text == "a < b \\ c \\d e" and not t.bookmarks
     with pytest.raises(BookmarkError, match="unknown bookmark <marker>"):
         parse_bookmarks("a <marker> b")  # 'mark' starts an SSML mark only as <mark name=…>
+
+
+def test_unknown_names_list_what_the_model_knows():
+    with pytest.raises(BookmarkError) as info:
+        parse_bookmarks("Hi <grin>", known={"joy", "surprise"})
+    msg = info.value.message
+    assert "known names: joy (happiness, happy, smile), surprise (surprised), blink" in msg
+    assert "sadness" not in msg

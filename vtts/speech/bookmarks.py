@@ -100,15 +100,21 @@ def _lark() -> Lark:
     )
 
 
-def known_names() -> list[str]:
-    """Every bookmark name, for messages."""
-    aliases = sorted(EXPRESSION_ALIASES)
-    return [*EXPRESSIONS, *aliases, *ACTIONS, "fap"]
+def known_names(expressions: set[str] | None = None) -> list[str]:
+    """The bookmark names that work, for messages: the expressions (of a model, when given) with
+    their aliases, the actions, and ``fap``."""
+    shown = [e for e in EXPRESSIONS if expressions is None or e in expressions]
+    names = []
+    for e in shown:
+        aliases = sorted(a for a, target in EXPRESSION_ALIASES.items() if target == e)
+        names.append(f"{e} ({', '.join(aliases)})" if aliases else e)
+    return [*names, *ACTIONS, "fap"]
 
 
-def parse_bookmarks(text: str) -> BookmarkedText:
+def parse_bookmarks(text: str, known: set[str] | None = None) -> BookmarkedText:
     """Parse text with bookmarks; errors are :class:`BookmarkError` with the column (1-based)
-    and, for unknown names, the names vtts knows."""
+    and, for unknown names, the names that work: ``known`` is the set of expressions the model
+    has tables for (None: all six)."""
     try:
         tree = _lark().parse(text)
     except UnexpectedInput as e:
@@ -130,7 +136,7 @@ def parse_bookmarks(text: str) -> BookmarkedText:
             else:
                 pieces.append(piece)
         elif item.data == "bookmark":
-            pieces.append(_bookmark(item, item.children[0].column))
+            pieces.append(_bookmark(item, item.children[0].column, known))
         else:  # an SSML mark: its name holds a bookmark
             quoted = item.children[1]
             inner = str(quoted)[1:-1]
@@ -143,11 +149,18 @@ def parse_bookmarks(text: str) -> BookmarkedText:
                     '"smile 2s"',
                     column=quoted.column,
                 ) from None
-            pieces.append(_bookmark(bm_tree, item.children[0].column))
+            try:
+                pieces.append(_bookmark(bm_tree, item.children[0].column, known))
+            except BookmarkError as e:
+                reason = e.message.split(": ", 1)[-1]
+                raise BookmarkError(
+                    f"column {quoted.column}: mark name {inner!r} is not a bookmark: {reason}",
+                    column=quoted.column,
+                ) from None
     return BookmarkedText(pieces)
 
 
-def _bookmark(t: Tree, column: int) -> Bookmark:
+def _bookmark(t: Tree, column: int, known: set[str] | None = None) -> Bookmark:
     name_tok = t.children[1]
     written = str(name_tok)
     key = written.lower()
@@ -156,6 +169,13 @@ def _bookmark(t: Tree, column: int) -> Bookmark:
     faps: dict[int, float] = {}
     for a in args:
         v = str(a).strip()
+        if a.type == "BAD_ARG":
+            col = a.column + len(a) - len(v)
+            raise BookmarkError(
+                f"column {col}: {v!r} in <{written}> is neither a duration (1.5s, 300ms) nor an "
+                "amplitude (0–1)" + (" nor a FAP value (3=400)" if key == "fap" else ""),
+                column=col,
+            )
         if a.type == "DURATION":
             if duration is not None:
                 raise BookmarkError(
@@ -203,6 +223,7 @@ def _bookmark(t: Tree, column: int) -> Bookmark:
     if key in ACTIONS:
         return Bookmark("action", key, duration, amplitude, {}, column, written)
     raise BookmarkError(
-        f"column {column}: unknown bookmark <{written}>; known names: " + ", ".join(known_names()),
+        f"column {column}: unknown bookmark <{written}>; known names: "
+        + ", ".join(known_names(known)),
         column=column,
     )

@@ -48,12 +48,14 @@ def prepare_utterance(
     pitch: int | None = None,
     phonemes: str | Path | None = None,
     audio: str | Path | None = None,
+    known: set[str] | None = None,
 ) -> Utterance:
     """Parse ``text`` and synthesize it with espeak-ng, or take the timings from ``phonemes``
-    (an Amazon Polly speech-marks file or a ``start end phoneme`` table) with the WAV ``audio``."""
+    (an Amazon Polly speech-marks file or a ``start end phoneme`` table) with the WAV ``audio``.
+    ``known``: the expressions the models have tables for (for the unknown-name message)."""
     from vtts.speech.phonemes import read_phoneme_file
 
-    bt = parse_bookmarks(text)
+    bt = parse_bookmarks(text, known)
     language = voice.split("-")[0] if voice else "en"
     if phonemes is not None:
         if audio is None:
