@@ -8,9 +8,10 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 extras="${1:-test}"
-# espeak-ng: speech with phoneme and mark events; libegl1 + libgl1-mesa-dri: offscreen rendering
-# with Mesa's software EGL (llvmpipe).
-deb_packages=(espeak-ng libespeak-ng1 libegl1 libgl1-mesa-dri libgles2)
+# espeak-ng: speech with phoneme and mark events. Offscreen rendering with Mesa's software EGL
+# (llvmpipe): libegl1 + libegl-mesa0 (the EGL vendor), libgl1 (PyOpenGL loads libGL.so.1 for
+# desktop GL), libgl1-mesa-dri (the llvmpipe driver).
+deb_packages=(espeak-ng libespeak-ng1 libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri libgles2)
 
 missing=()
 for p in "${deb_packages[@]}"; do
