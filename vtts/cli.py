@@ -389,7 +389,11 @@ def cmd_say(args: argparse.Namespace) -> int:
         raise RenderError(f"--fps must be within 0–240, got {args.fps:g}")
     text = args.text
     if args.file:
-        text = Path(args.file).read_text(encoding="utf-8")
+        try:
+            text = Path(args.file).read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as e:
+            reason = getattr(e, "strerror", None) or "not UTF-8 text"
+            raise VttsError(f"cannot read the text: {reason}", file=args.file) from None
     if not text or not text.strip():
         raise RenderError("nothing to say: give the text, or --file FILE")
     models = [load_model(m) for m in args.model]
@@ -459,7 +463,15 @@ def cmd_voices(args: argparse.Namespace) -> int:
     """List espeak-ng's voices."""
     from vtts.speech.tts import voices
 
-    for v in voices(args.language):
+    found = voices(args.language)
+    if not found:
+        print(
+            f"error: espeak-ng has no voice for language '{args.language}' "
+            "(vtts voices lists them all)",
+            file=sys.stderr,
+        )
+        return 1
+    for v in found:
         print(f"{v.name:24s} {v.language:8s} {v.identifier}")
     return 0
 
@@ -527,12 +539,7 @@ def build_parser() -> argparse.ArgumentParser:
     po.set_defaults(func=cmd_pose)
 
     r = sub.add_parser("render", help="render one pose to a PNG")
-    r.add_argument(
-        "--model",
-        action="append",
-        required=True,
-        help="bundled model name or .wrl path (repeat for several heads)",
-    )
+    _models_flag(r)
     _pose_flags(r)
     _view_flags(r)
     r.add_argument("-o", "--output", required=True, help="output .png")
@@ -540,12 +547,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     pl = sub.add_parser("play", help="play a FAP stream on one or more models")
     pl.add_argument("stream", help="a .fap file or a coded .fbs stream")
-    pl.add_argument(
-        "--model",
-        action="append",
-        required=True,
-        help="bundled model name or .wrl path (repeat for several heads)",
-    )
+    _models_flag(pl)
     pl.add_argument("--audio", help="a WAV file to mux into the MP4 (as AAC)")
     pl.add_argument("--fps", type=float, default=30.0, help="output frame rate (default 30)")
     pl.add_argument("--png-dir", help="also (or only) write lossless PNG frames into this folder")
@@ -565,12 +567,7 @@ def build_parser() -> argparse.ArgumentParser:
         help='text with bookmarks, e.g. "Hello <smile 2s> world <blink>"',
     )
     sy.add_argument("--file", help="read the text from a file instead")
-    sy.add_argument(
-        "--model",
-        action="append",
-        required=True,
-        help="bundled model name or .wrl path (repeat for several heads)",
-    )
+    _models_flag(sy)
     sy.add_argument("--voice", default="en-us", help="espeak-ng voice (see vtts voices)")
     sy.add_argument("--rate", type=int, help="speaking rate in words per minute")
     sy.add_argument("--pitch", type=int, help="pitch 0-99")
@@ -603,6 +600,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     register(sub)
     return p
+
+
+def _models_flag(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--model",
+        action="append",
+        required=True,
+        help="bundled model name or .wrl path (repeat for several heads)",
+    )
 
 
 def _pose_flags(p: argparse.ArgumentParser) -> None:
@@ -656,6 +662,11 @@ def main(argv: list[str] | None = None) -> int:
         # the reader went away (``vtts check … | head``): not an error worth a traceback
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
+    except OSError as e:
+        # an output that cannot be written (permissions, a full disk, a missing folder)
+        where = f"{e.filename}: " if getattr(e, "filename", None) else ""
+        print(f"{where}error: {e.strerror or e}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":  # pragma: no cover

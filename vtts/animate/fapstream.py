@@ -75,6 +75,7 @@ from vtts.errors import FapError, VttsWarning
 from vtts.face.miap import EXPRESSION_BASE, N_PARAMS, VISEME_BASE, Miap
 from vtts.fap import FAPS, N_FAPS, FapStream, fap
 from vtts.fap.stream import MAX_RESAMPLED_FRAMES
+from vtts.fap.table import positive_number
 
 #: The range of FAP 1's viseme_blend and FAP 2's intensities: weight = value / 63.
 HIGH_LEVEL_SCALE = 63.0
@@ -252,16 +253,6 @@ def plan_fills(used: Iterable[int], shown: Iterable[int]) -> tuple[dict[int, int
     return filled, pending
 
 
-def _check_fps(fps: object) -> float:
-    try:
-        value = float(fps)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        raise FapError(f"fps must be a number, got {fps!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise FapError(f"fps must be finite and > 0, got {fps!r}")
-    return value
-
-
 def resample_params(params: np.ndarray, fps_in: float, fps_out: float) -> np.ndarray:
     """``(m, p)`` rows at ``fps_out`` from ``(n, p)`` rows at ``fps_in``, linear in time.
 
@@ -270,7 +261,7 @@ def resample_params(params: np.ndarray, fps_in: float, fps_out: float) -> np.nda
     it). Output frames that coincide in time with an input frame (every 6th at 25 → 30 fps) copy
     it exactly. The same timing as :meth:`vtts.fap.FapStream.resample`.
     """
-    fps_in, fps_out = _check_fps(fps_in), _check_fps(fps_out)
+    fps_in, fps_out = _fps(fps_in), _fps(fps_out)
     params = np.asarray(params, dtype=np.float64)
     n = params.shape[0]
     frames = n * fps_out / fps_in
@@ -312,7 +303,7 @@ def stream_params(
     :class:`~vtts.errors.FapError` for a bad ``fps`` or ``available``.
     """
     shown_miaps = _miaps(available)
-    fps_out = stream.fps if fps is None else _check_fps(fps)
+    fps_out = stream.fps if fps is None else _fps(fps)
     values, viseme, expression, _ = hold(stream)
     n = stream.n_frames
 
@@ -331,9 +322,7 @@ def stream_params(
 
     shown_visemes = {m.number for m in shown_miaps if m.kind == "viseme"}
     shown_expressions = {m.number for m in shown_miaps if m.kind == "expression"}
-    missing_visemes = [
-        v for v in range(1, 15) if v not in shown_visemes and np.any(vw[:, v] > 0)
-    ]
+    missing_visemes = [v for v in range(1, 15) if v not in shown_visemes and np.any(vw[:, v] > 0)]
     missing_expressions = [
         e for e in range(1, 7) if e not in shown_expressions and np.any(ew[:, e] > 0)
     ]
@@ -378,9 +367,7 @@ def missing_fap_warning(
     for kind, numbers in (("viseme", vis), ("expression", exps)):
         if numbers:
             word = kind + ("s" if len(numbers) > 1 else "")
-            groups.append(
-                word + " " + ", ".join(f"{k} ({Miap(kind, k).name})" for k in numbers)
-            )
+            groups.append(word + " " + ", ".join(f"{k} ({Miap(kind, k).name})" for k in numbers))
     if not groups:
         return ""
     count = len(faps) + len(vis) + len(exps)
@@ -408,10 +395,12 @@ def warn_ignored(
         visemes = [*visemes, *ignored.missing_visemes]
         expressions = [*expressions, *ignored.missing_expressions]
         ignored = ignored.ignored
-    message = missing_fap_warning(
-        ignored, model_name, visemes=visemes, expressions=expressions
-    )
+    message = missing_fap_warning(ignored, model_name, visemes=visemes, expressions=expressions)
     if not message:
         return None
     warnings.warn(MissingTableWarning(message), stacklevel=2)
     return message
+
+
+def _fps(fps: object) -> float:
+    return positive_number("fps", fps)

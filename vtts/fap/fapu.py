@@ -22,7 +22,6 @@ Lengths are in the model's own length units.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -30,7 +29,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from vtts.errors import FapError
-from vtts.fap.table import FAPS, N_FAPS, fap
+from vtts.fap.table import FAPS, N_FAPS, fap, positive_number
 
 #: The angle unit of the rotation FAPs, in radians.
 AU = 1e-5
@@ -39,17 +38,6 @@ AU = 1e-5
 FAPU_DIVISOR = 1024.0
 
 _DISTANCES = ("irisd", "es", "ens", "mns", "mw")
-
-
-def _positive(what: str, value: object) -> float:
-    """``value`` as a finite positive float, or a FapError naming ``what``."""
-    try:
-        number = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        raise FapError(f"{what} must be a number, got {value!r}") from None
-    if not (math.isfinite(number) and number > 0):
-        raise FapError(f"{what} must be finite and positive, got {value!r}")
-    return number
 
 
 @dataclass(frozen=True)
@@ -69,15 +57,17 @@ class Fapu:
 
     def __post_init__(self) -> None:
         for name in _DISTANCES:
-            object.__setattr__(self, name, _positive(f"FAPU {name.upper()}", getattr(self, name)))
+            object.__setattr__(
+                self, name, positive_number(f"FAPU {name.upper()}", getattr(self, name))
+            )
 
     @classmethod
-    def from_distances(
-        cls, *, irisd: float, es: float, ens: float, mns: float, mw: float
-    ) -> Fapu:
+    def from_distances(cls, *, irisd: float, es: float, ens: float, mns: float, mw: float) -> Fapu:
         """FAPUs from the neutral-face distances IRISD0, ES0, ENS0, MNS0, MW0 (model units)."""
         given = {"irisd": irisd, "es": es, "ens": ens, "mns": mns, "mw": mw}
-        return cls(**{k: _positive(f"{k.upper()}0", v) / FAPU_DIVISOR for k, v in given.items()})
+        return cls(
+            **{k: positive_number(f"{k.upper()}0", v) / FAPU_DIVISOR for k, v in given.items()}
+        )
 
     @classmethod
     def from_feature_points(cls, points: Mapping[str, ArrayLike]) -> Fapu:

@@ -30,7 +30,7 @@ import numpy as np
 
 from vtts.atomic import write_text
 from vtts.errors import FapError, VttsWarning
-from vtts.fap.table import N_FAPS
+from vtts.fap.table import N_FAPS, positive_number
 
 #: The versions of the format we read; we always write the last one.
 VERSIONS = ("2.0", "2.1")
@@ -108,7 +108,7 @@ class FapStream:
     version: str = WRITE_VERSION
 
     def __post_init__(self) -> None:
-        self.fps = _check_fps(self.fps)
+        self.fps = _fps(self.fps)
         self.name = _check_name(self.name)
         if not isinstance(self.version, str) or self.version not in VERSIONS:
             raise FapError(f"version must be one of {', '.join(VERSIONS)}, got {self.version!r}")
@@ -197,7 +197,7 @@ class FapStream:
         high-level FAPs 1 and 2 are table indices and cannot be interpolated: they, and their
         mask, come from the nearest input frame.
         """
-        fps = _check_fps(fps)
+        fps = _fps(fps)
         n = self.n_frames
         frames = n * fps / self.fps
         if not frames < MAX_RESAMPLED_FRAMES:
@@ -233,16 +233,6 @@ class FapStream:
 
 
 # --- validation helpers ----------------------------------------------------------------------
-
-
-def _check_fps(fps: object) -> float:
-    try:
-        value = float(fps)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        raise FapError(f"fps must be a number, got {fps!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise FapError(f"fps must be finite and > 0, got {fps!r}")
-    return value
 
 
 def _check_name(name: object) -> str:
@@ -409,9 +399,7 @@ class _Parser:
     def mask(self, line: _Line) -> list[bool]:
         tokens = line.tokens
         if len(tokens) not in (N_FAPS, N_FAPS + 1):
-            raise self.error(
-                f"expected {N_FAPS} mask values (0 or 1), got {len(tokens)}", line
-            )
+            raise self.error(f"expected {N_FAPS} mask values (0 or 1), got {len(tokens)}", line)
         for k, t in enumerate(tokens):
             if t != "0" and t != "1":
                 raise self.error(f"expected a mask value 0 or 1, got {t!r}", line, k)
@@ -576,9 +564,7 @@ def _format_number(value: float) -> str:
 
 def format_fap(stream: FapStream) -> str:
     """The text of ``stream`` as a version 2.1 ``.fap`` file (68 mask values per frame)."""
-    out = [
-        f"{WRITE_VERSION} {stream.name} {_format_number(stream.fps)} {stream.n_frames}\n"
-    ]
+    out = [f"{WRITE_VERSION} {stream.name} {_format_number(stream.fps)} {stream.n_frames}\n"]
     for i in range(stream.n_frames):
         row = stream.mask[i]
         out.append(" ".join("1" if m else "0" for m in row))
@@ -597,3 +583,7 @@ def format_fap(stream: FapStream) -> str:
 def write_fap(stream: FapStream, path: str | os.PathLike[str]) -> None:
     """Write ``stream`` to ``path`` as a version 2.1 ``.fap`` file (atomically)."""
     write_text(path, format_fap(stream))
+
+
+def _fps(fps: object) -> float:
+    return positive_number("fps", fps)

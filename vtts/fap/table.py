@@ -9,6 +9,7 @@ value and the valid range otherwise.
 from __future__ import annotations
 
 import csv
+import math
 import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -117,8 +118,10 @@ def _load_visemes() -> Mapping[int, Viseme]:
 
 def _load_expressions() -> Mapping[int, Expression]:
     return MappingProxyType(
-        {int(r["expression"]): Expression(int(r["expression"]), r["name"])
-         for r in _rows("expressions.tsv")}
+        {
+            int(r["expression"]): Expression(int(r["expression"]), r["name"])
+            for r in _rows("expressions.tsv")
+        }
     )
 
 
@@ -136,6 +139,17 @@ _VISEME_BY_TEXT = {v.label: v for v in VISEMES.values()} | {
     p: v for v in VISEMES.values() for p in v.phonemes
 }
 _EXPRESSION_BY_NAME = {e.name.lower(): e for e in EXPRESSIONS.values()}
+
+
+def positive_number(what: str, value: object) -> float:
+    """``value`` as a finite float > 0, or a :class:`FapError` naming ``what`` and the value."""
+    try:
+        number = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise FapError(f"{what} must be a number, got {value!r}") from None
+    if not (math.isfinite(number) and number > 0):
+        raise FapError(f"{what} must be finite and > 0, got {value!r}")
+    return number
 
 
 def _as_number(key: object) -> int | None:

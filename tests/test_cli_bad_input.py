@@ -1,0 +1,44 @@
+"""Every command, given bad input, prints a clear error and exits non-zero — no traceback."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+DATA = Path(__file__).parent / "data"
+HEAD = str(DATA / "models" / "head.wrl")
+JOY = str(DATA / "fap" / "xface-joy.fap")
+
+
+def vtts(*args: str) -> subprocess.CompletedProcess:
+    exe = Path(sys.executable).with_name("vtts")
+    return subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=120)
+
+
+@pytest.mark.parametrize(
+    "args, fragment",
+    [
+        (["render", "--model", HEAD, "--fap", "99=1", "-o", "{tmp}/x.png"], "unknown FAP 99"),
+        (["render", "--model", HEAD, "--size", "8x8", "-o", "{tmp}/x.png"], "image size"),
+        (["render", "--model", "{tmp}/none.wrl", "-o", "{tmp}/x.png"], "no model"),
+        (["render", "--model", HEAD, "-o", "{tmp}/file.txt/x.png"], "error:"),
+        (["encode", "{tmp}/none.fap", "-o", "{tmp}/x.fbs"], "cannot read FAP file"),
+        (["encode", JOY, "-o", "{tmp}/x.fbs", "--faps", "999"], "unknown FAP '999'"),
+        (["decode", "{tmp}/none.fbs", "-o", "{tmp}/x.fap"], "cannot read FAP bitstream"),
+        (["decode", "{tmp}/file.txt", "-o", "{tmp}/x.fap"], "byte 0"),
+        (["voices", "zz"], "no voice for language 'zz'"),
+        (["say", "--file", "{tmp}/none.txt", "--model", HEAD, "-o", "{tmp}/x.mp4"],
+         "cannot read the text"),
+        (["pose", "--model", HEAD, "--fap", "3=1", "-o", "{tmp}/file.txt/x.wrl"], "error:"),
+    ],
+)
+def test_bad_input_is_a_clear_error(tmp_path, args, fragment):
+    (tmp_path / "file.txt").write_text("not a bitstream")
+    r = vtts(*(a.replace("{tmp}", str(tmp_path)) for a in args))
+    assert r.returncode != 0
+    assert fragment in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file.txt"]
