@@ -375,6 +375,7 @@ def cmd_play(args: argparse.Namespace) -> int:
 def cmd_say(args: argparse.Namespace) -> int:
     """Speak bookmarked text with one or more models into an MP4 (and/or PNGs, WAV, FAP)."""
     import tempfile
+    from concurrent.futures import ThreadPoolExecutor
 
     from vtts.animate.timeline import build_timeline, timeline_stream
     from vtts.errors import RenderError
@@ -398,15 +399,26 @@ def cmd_say(args: argparse.Namespace) -> int:
         raise RenderError("nothing to say: give the text, or --file FILE")
     models = [load_model(m) for m in args.model]
     known = {x.name for m in models for x in m.tables.adts if x.kind == "expression"}
-    utt = prepare_utterance(
-        text,
-        known=known,
-        voice=args.voice,
-        rate=args.rate,
-        pitch=args.pitch,
-        phonemes=args.phonemes,
-        audio=args.audio,
-    )
+    # espeak-ng speaks in a process of its own: set up the renderer meanwhile
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        speaking = pool.submit(
+            prepare_utterance,
+            text,
+            known=known,
+            voice=args.voice,
+            rate=args.rate,
+            pitch=args.pitch,
+            phonemes=args.phonemes,
+            audio=args.audio,
+        )
+        renderer = None
+        if args.output or args.png_dir:
+            try:
+                renderer = _renderer(args, models)
+            except VttsError:
+                speaking.result()  # a problem with the text is reported first, as it comes first
+                raise
+        utt = speaking.result()
     for m in models:
         shown = {x.name for x in m.tables.adts if x.kind == "expression"}
         lacking = sorted({b.written for b in utt.text.check_names(shown)})
@@ -437,7 +449,7 @@ def cmd_say(args: argparse.Namespace) -> int:
             tmp = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="vtts-say-")))
             wav = tmp / "speech.wav"
             write_wav(wav, utt.audio, utt.rate)
-            renderer = stack.enter_context(_renderer(args, models))
+            renderer = stack.enter_context(renderer)
             sinks = []
             if args.output:
                 sinks.append(
@@ -457,6 +469,110 @@ def cmd_say(args: argparse.Namespace) -> int:
         outputs = [str(p) for p in (args.output, args.png_dir, args.fap_out, args.wav_out) if p]
         print(f"wrote {', '.join(outputs)}: {utt.duration:.2f} s, {n} frames at {args.fps:g} fps")
     return 0
+
+
+def cmd_analyze(args: argparse.Namespace) -> int:
+    """Estimate FAPs from a video (Eisert–Girod analysis by synthesis) into a .fap/.fbs file."""
+    from vtts.analysis.report import mean_psnr, write_report
+    from vtts.analysis.unknowns import parse_unknowns
+    from vtts.analysis.video import read_video
+    from vtts.atomic import atomic_path
+    from vtts.errors import AnalysisError
+    from vtts.face import load_model
+    from vtts.fap.stream import format_fap
+    from vtts.render import Camera, progress
+
+    # everything that can be wrong with the input fails here, before minutes of estimation
+    if len(args.model) != 1:
+        raise AnalysisError(f"vtts analyze fits one model, got {len(args.model)} --model flags")
+    if args.step < 1:
+        raise AnalysisError(f"--step must be a whole number ≥ 1, got {args.step}")
+    if args.fps is not None and not 0 < args.fps <= 1000:
+        raise AnalysisError(f"--fps must be within 0–1000, got {args.fps:g}")
+    unknowns = parse_unknowns(args.faps) if args.faps is not None else None
+    camera = Camera.parse(args.camera) if args.camera else None
+    out = Path(args.output)
+    fbs = out.suffix.lower() == ".fbs"
+    extra_fbs = out.with_suffix(".fbs") if args.fbs and not fbs else None
+    if args.report and Path(args.report).exists() and not Path(args.report).is_dir():
+        raise AnalysisError("the report folder is a file", file=args.report)
+    for path in (out, extra_fbs, args.report and Path(args.report) / "frames.csv"):
+        if path:
+            _check_writable(path)
+    video = read_video(args.video, fps=args.fps)
+    model = load_model(args.model[0])
+    total = None if video.n_frames is None else -(-video.n_frames // args.step)
+
+    with contextlib.ExitStack() as stack:
+        # the outputs' temporary files exist from the start (an unwritable -o fails now) and
+        # are renamed into place only when everything succeeded
+        tmp_out = stack.enter_context(atomic_path(out))
+        tmp_fbs = stack.enter_context(atomic_path(extra_fbs)) if extra_fbs else None
+        from vtts.analysis.estimator import analyze
+
+        bar = stack.enter_context(progress(total, f"analyzing {Path(args.video).name}", args.quiet))
+        options = {} if unknowns is None else {"unknowns": unknowns}
+        analysis = analyze(
+            video.frames(),
+            model,
+            fps=video.fps,
+            step=args.step,
+            camera=camera,
+            progress=lambda _index: bar.advance(),
+            **options,
+        )
+        stream = analysis.stream(_stream_name(args.video))
+        if fbs:
+            tmp_out.write_bytes(_encode_fbs(stream))
+        else:
+            tmp_out.write_text(format_fap(stream), encoding="utf-8")
+        if tmp_fbs is not None:
+            tmp_fbs.write_bytes(_encode_fbs(stream))
+        if args.report:
+            write_report(analysis, args.report)
+    if not args.quiet:
+        written = [str(p) for p in (out, extra_fbs) if p]
+        if args.report:
+            written.append(f"report in {args.report}")
+        n = len(analysis.frames)
+        print(
+            f"wrote {', '.join(written)}: {n} frame{'s' if n != 1 else ''} at "
+            f"{analysis.fps:g} fps, {len(analysis.unknowns)} unknowns, "
+            f"mean face PSNR {mean_psnr(analysis.psnr()):.2f} dB"
+        )
+    return 0
+
+
+def _check_writable(path: Path) -> None:
+    """Fail now, with a clear message, when ``path`` could not be created later (a file where a
+    folder must be, a folder without write permission)."""
+    from vtts.errors import AnalysisError
+
+    folder = path.parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir():
+        raise AnalysisError(f"cannot write here: {folder} is a file, not a folder", file=str(path))
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise AnalysisError(
+            f"cannot write here: no permission to write in {folder}", file=str(path)
+        )
+    if path.is_dir():
+        raise AnalysisError("cannot write here: it is a folder", file=str(path))
+
+
+def _stream_name(video: str) -> str:
+    """The name in the header of the estimated stream: the video's name as one word."""
+    import re
+
+    return re.sub(r"\s+", "_", Path(video).stem.strip()).lstrip("#") or "vtts_analyze"
+
+
+def _encode_fbs(stream) -> bytes:
+    """``stream`` coded as ``vtts encode`` codes it by default."""
+    from vtts.fap.coding import encode
+
+    return encode(stream)
 
 
 def cmd_voices(args: argparse.Namespace) -> int:
@@ -591,6 +707,48 @@ def build_parser() -> argparse.ArgumentParser:
     _view_flags(sy)
     sy.add_argument("-o", "--output", help="output .mp4")
     sy.set_defaults(func=cmd_say)
+
+    an = sub.add_parser(
+        "analyze",
+        help="estimate FAPs from a video of a face (Eisert-Girod)",
+        description=(
+            "Estimate FAPs and head motion from a video by analysis by synthesis: the model is "
+            "rendered with the current estimate and the optical-flow constraint at every face "
+            "pixel gives a linear update, over a pyramid, frame after frame."
+        ),
+    )
+    an.add_argument("video", metavar="VIDEO", help="a video file (MP4, ...) or a folder of PNGs")
+    _models_flag(an)
+    an.add_argument(
+        "-o", "--output", required=True, metavar="OUT.fap", help="output .fap (or coded .fbs)"
+    )
+    an.add_argument(
+        "--faps",
+        metavar="LIST",
+        help="what to estimate: FAP numbers 3-68, ranges, names, tx,ty,tz (head translation) "
+        "or a set (paper17, table1); default paper17",
+    )
+    an.add_argument(
+        "--camera",
+        metavar="FX,FY,X0,Y0",
+        help="the video camera, Eisert-Girod Eq. 3 in pixels (default: the framing of "
+        "vtts render for the video's size)",
+    )
+    an.add_argument("--step", type=int, default=1, metavar="N", help="analyze every N-th frame")
+    an.add_argument(
+        "--fps",
+        type=float,
+        metavar="F",
+        help="frame rate of a PNG folder (default 25), or instead of a video's own",
+    )
+    an.add_argument(
+        "--report", metavar="DIR", help="also write frames.csv, psnr.png and faps.png into DIR"
+    )
+    an.add_argument(
+        "--fbs", action="store_true", help="also write the coded bitstream beside OUT (.fbs)"
+    )
+    an.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    an.set_defaults(func=cmd_analyze)
 
     vo = sub.add_parser("voices", help="list espeak-ng voices")
     vo.add_argument("language", nargs="?", help="only voices of this language (e.g. en)")

@@ -108,6 +108,10 @@ class RenderError(VttsError):
     """Rendering or writing an output (image, video, audio) failed."""
 
 
+class AnalysisError(VttsError):
+    """Estimating FAPs from video failed, or its input (video, PNG folder, FAP list) is invalid."""
+
+
 class BookmarkError(VttsError):
     """Text with bookmarks is malformed or names something unknown (``column`` is 1-based)."""
 

@@ -25,6 +25,8 @@ class Camera:
 
     ``pose`` is the ``(4, 4)`` camera-to-world matrix in the OpenGL convention (the camera looks
     along its −z axis, y up). ``znear``/``zfar`` bound the depth range (model units).
+    ``placed`` is False for a camera given by its intrinsics alone (``--camera fx,fy,X0,Y0``):
+    the renderer then puts it in front of the heads, far enough for them to fill its view.
     """
 
     fx: float
@@ -34,6 +36,7 @@ class Camera:
     pose: np.ndarray = field(default_factory=lambda: np.eye(4))
     znear: float = 0.01
     zfar: float = 100.0
+    placed: bool = True
 
     def __post_init__(self) -> None:
         for name in ("fx", "fy"):
@@ -57,7 +60,7 @@ class Camera:
             values = []
         if len(values) != 4:
             raise RenderError(f"--camera takes four numbers fx,fy,X0,Y0, got {text!r}")
-        return cls.eisert_girod(*values)
+        return cls.eisert_girod(*values, placed=False)
 
     def project(self, points: np.ndarray) -> np.ndarray:
         """Pixel coordinates ``(n, 2)`` (X right, Y down) of world points ``(n, 3)``."""
@@ -86,16 +89,23 @@ def frame_bounds(
     *,
     fill: float = 0.8,
     fovy_deg: float = 25,
+    intrinsics: Camera | None = None,
 ) -> Camera:
     """A camera on +z looking at the box ``lo``–``hi`` (world units) so that it fills ``fill`` of
-    the image's height or width, whichever is tighter."""
+    the image's height or width, whichever is tighter: with a vertical field of view of
+    ``fovy_deg`` and the principal point in the middle, or with the focal lengths and principal
+    point of ``intrinsics``."""
     w, h = size
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     centre = (lo + hi) / 2
     extent = np.maximum(hi - lo, 1e-6)
-    f = (h / 2) / math.tan(math.radians(fovy_deg) / 2)
-    dist_h = (extent[1] / 2) / (fill * (h / 2) / f)
-    dist_w = (extent[0] / 2) / (fill * (w / 2) / f)
+    if intrinsics is None:
+        f = (h / 2) / math.tan(math.radians(fovy_deg) / 2)
+        fx, fy, cx, cy = f, f, w / 2, h / 2
+    else:
+        fx, fy, cx, cy = intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy
+    dist_h = (extent[1] / 2) / (fill * (h / 2) / fy)
+    dist_w = (extent[0] / 2) / (fill * (w / 2) / fx)
     dist = max(dist_h, dist_w) + extent[2] / 2
     eye = centre + np.array([0.0, 0.0, dist])
-    return Camera(f, f, w / 2, h / 2, look_at(eye, centre), znear=dist / 50, zfar=dist * 10)
+    return Camera(fx, fy, cx, cy, look_at(eye, centre), znear=dist / 50, zfar=dist * 10)

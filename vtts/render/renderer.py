@@ -154,14 +154,17 @@ class FaceRenderer:
         )
         self.instances = [self._add_model(m) for m in self.models]
         self._place(layout)
-        self.camera = camera or frame_bounds(self._lo, self._hi, self.size)
+        if camera is None or not camera.placed:
+            camera = frame_bounds(self._lo, self._hi, self.size, intrinsics=camera)
+        self.camera = camera
         self._cam_node = self.scene.add(
-            # intrinsics are in pixels of the rendered (supersampled) image
+            # intrinsics are in pixels of the rendered (supersampled) image; pixel edges lie at
+            # integer coordinates (pixel i spans [i, i + 1]), so every coordinate scales alike
             pr.IntrinsicsCamera(
                 self.camera.fx * supersample,
                 self.camera.fy * supersample,
-                (self.camera.cx + 0.5) * supersample - 0.5,
-                (self.camera.cy + 0.5) * supersample - 0.5,
+                self.camera.cx * supersample,
+                self.camera.cy * supersample,
                 znear=self.camera.znear,
                 zfar=self.camera.zfar,
             ),

@@ -1,0 +1,216 @@
+"""The estimator: triangle indices, the model's linear motion, and estimates on synthetic frames
+rendered from known FAPs (the paper's first experiment, shortened)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import vtts
+from vtts.analysis import TABLE1_FAPS, Estimator, analyze, face_psnr
+from vtts.analysis.geometry import HeadGeometry
+from vtts.analysis.raster import ray_barycentrics
+from vtts.analysis.synthetic import (
+    TABLE1_EXTREMES,
+    relative_errors,
+    render_sequence,
+    side_camera,
+    table1_truth,
+)
+from vtts.errors import VttsError
+from vtts.face import N_PARAMS
+from vtts.fap.stream import format_fap, parse_fap
+from vtts.render.camera import Camera
+from vtts.render.renderer import FaceRenderer
+
+SIZE = (352, 288)
+
+
+@pytest.fixture(scope="module")
+def cybatt():
+    return vtts.load_model("cybatt")
+
+
+@pytest.fixture(scope="module")
+def estimator(cybatt):
+    return Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS)
+
+
+def _params(values: dict[int, float]) -> np.ndarray:
+    p = np.zeros(N_PARAMS)
+    for k, v in values.items():
+        p[k - 1] = v
+    return p
+
+
+# ---- rendering what the estimator needs --------------------------------------------------------
+
+
+def test_every_model_pixel_has_a_triangle_and_its_ray_meets_it_inside(estimator):
+    estimator.params[:] = _params({3: 200, 48: 3000, 49: -5000})
+    image, ids = estimator.render(1)
+    background = np.all(image == image[0, 0], axis=2)
+    covered = ids >= 0
+    # the index buffer and pyrender's colors agree on which pixels show the model
+    assert (covered != ~background).mean() < 0.003
+    rows, cols = np.nonzero(covered)
+    pix = np.stack([cols + 0.5, rows + 0.5], axis=1)
+    positions = estimator.geometry.positions(estimator.params, estimator.translation)
+    tri = positions[estimator.geometry.faces[ids[rows, cols]]]
+    lam, points = ray_barycentrics(pix, estimator.camera, tri)
+    # each pixel's centre lies in the triangle drawn there (up to the rasterizer's rounding)
+    assert lam.min() > -0.02 and lam.max() < 1.02
+    assert np.allclose(lam.sum(axis=1), 1.0)
+    assert np.all(points[:, 2] < 0)  # in front of the camera
+    # and it projects back onto the pixel centre
+    world = points @ np.linalg.inv(np.linalg.inv(estimator.camera.pose)[:3, :3]).T
+    world += estimator.camera.pose[:3, 3]
+    assert np.allclose(estimator.camera.project(world), pix, atol=1e-6)
+
+
+def test_the_motion_of_the_model_matches_finite_differences(cybatt):
+    r = FaceRenderer(cybatt, size=SIZE)
+    root = r.scene.get_pose(r.instances[0].root)
+    unknowns = (3, 19, 35, 48, 49, 50, "tx", "tz")
+    g = HeadGeometry(cybatt, unknowns, root)
+    p = _params({3: 120, 19: 300, 35: 80, 48: 2000, 49: -3000, 50: 1000})
+    t = np.array([0.01, -0.02, 0.03])
+    verts = np.arange(0, g.n_vertices, 7)
+    jac = g.jacobian(p, t, verts)
+    for j, u in enumerate(unknowns):
+        dp, dt = p.copy(), t.copy()
+        h = 1e-4 if isinstance(u, str) else 1.0
+        if isinstance(u, str):
+            dt["xyz".index(u[1])] += h
+        else:
+            dp[u - 1] += h
+        fd = (g.positions(dp, dt)[verts] - g.positions(p, t)[verts]) / h
+        scale = np.abs(fd).max()
+        assert scale > 0, f"unknown {u} moves nothing"
+        assert np.abs(jac[:, :, j] - fd).max() < 1e-3 * scale, f"unknown {u}"
+
+
+# ---- estimates ---------------------------------------------------------------------------------
+
+
+def test_one_frame_from_neutral(cybatt, estimator):
+    truth = _params({3: 250, 12: 120, 13: -90, 35: 150, 36: -120, 48: 4000, 49: -6000, 50: 2500})
+    frame = FaceRenderer(cybatt, size=SIZE).render(truth)
+    estimator.params[:] = 0
+    estimator.gain[:], estimator.offset[:] = 1, 0
+    fe = estimator.estimate(frame)
+    for fap in (3, 12, 13, 35, 36):
+        assert abs(fe.params[fap - 1] - truth[fap - 1]) <= 3, fap
+    for fap in (48, 49, 50):
+        assert abs(fe.params[fap - 1] - truth[fap - 1]) <= 30, fap  # 3e-4 rad
+    assert fe.psnr > 45  # a pixel or two may flip at an occluding edge
+    assert fe.face_pixels > 10_000
+    assert np.allclose(fe.gain, 1, atol=0.01) and np.allclose(fe.offset, 0, atol=1)
+
+
+def test_a_short_table1_sequence_every_fifth_frame(cybatt):
+    truth = table1_truth(100)[:30]
+    frames = render_sequence(cybatt, truth, size=SIZE)
+    result = analyze(frames, cybatt, fps=25, step=5, unknowns=TABLE1_FAPS)
+    assert [fe.index for fe in result.frames] == [0, 5, 10, 15, 20, 25]
+    assert result.fps == 5
+    idx = [f - 1 for f in TABLE1_FAPS]
+    extremes = np.array([TABLE1_EXTREMES[f] for f in TABLE1_FAPS])
+    errors = relative_errors(result.fap_values(), truth[::5][:, idx], extremes)
+    assert errors.max() < 0.5, dict(zip(TABLE1_FAPS, errors.round(3), strict=True))
+    psnr = result.psnr()
+    assert np.median(psnr) > 60
+    # the stream carries the estimates as integers and reads back
+    stream = result.stream()
+    again = parse_fap(format_fap(stream))
+    assert np.array_equal(again.values, stream.values)
+    assert again.mask[:, [f - 1 for f in TABLE1_FAPS]].all()
+
+
+def test_a_change_of_light_is_not_read_as_motion(cybatt):
+    truth = _params({3: 200, 35: 100, 49: 3000})
+    frame = FaceRenderer(cybatt, size=SIZE).render(truth).astype(float)
+    brighter = np.clip(np.round(frame * 1.15 + 4), 0, 255).astype(np.uint8)
+    fe_light = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS).estimate(brighter)
+    fe_plain = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, illumination=False).estimate(
+        brighter
+    )
+    err_light = np.abs(fe_light.params - truth)[[2, 34, 48]]
+    err_plain = np.abs(fe_plain.params - truth)[[2, 34, 48]]
+    assert fe_light.gain.mean() == pytest.approx(1.15, abs=0.03)
+    assert err_light.max() <= 15, (err_light, err_plain)
+    assert fe_light.psnr > fe_plain.psnr
+    assert 5 * err_light.sum() < err_plain.sum(), (err_light, err_plain)
+
+
+def test_a_turned_camera_is_tracked(cybatt):
+    cam = side_camera(cybatt, SIZE, 25.0)
+    truth = _params({3: 300, 48: -3000, 49: 5000})
+    frame = FaceRenderer(cybatt, size=SIZE, camera=cam).render(truth)
+    fe = Estimator(cybatt, size=SIZE, camera=cam, unknowns=(3, 48, 49, 50)).estimate(frame)
+    assert abs(fe.params[2] - 300) <= 3
+    assert abs(fe.params[48] - 5000) <= 30
+
+
+def test_face_psnr():
+    a = np.zeros((4, 4, 3))
+    b = a.copy()
+    mask = np.zeros((4, 4), bool)
+    mask[:2] = True
+    assert face_psnr(a, b, mask) == float("inf")
+    b[3, 3] = 255  # outside the mask
+    assert face_psnr(a, b, mask) == float("inf")
+    b[0, 0] = 10
+    assert face_psnr(a, b, mask) == pytest.approx(10 * np.log10(255**2 / (100 / 8)))
+    assert np.isnan(face_psnr(a, b, np.zeros((4, 4), bool)))
+
+
+# ---- bad input ---------------------------------------------------------------------------------
+
+
+def test_unknowns_are_checked(cybatt):
+    cases = (([2], "FAP 2"), ([3, 3], "twice"), (["tw"], "tx, ty and tz"), ([], "empty"))
+    for bad, fragment in cases:
+        with pytest.raises(VttsError, match=fragment):
+            Estimator(cybatt, size=SIZE, unknowns=bad)
+
+
+def test_a_frame_of_the_wrong_size(estimator):
+    with pytest.raises(VttsError, match=r"frame 7 is \(100, 100, 3\), expected \(288, 352, 3\)"):
+        estimator.estimate(np.zeros((100, 100, 3), np.uint8), 7)
+
+
+def test_a_model_out_of_view_is_a_clear_error(cybatt):
+    away = Camera(400, 400, 176, 144)  # at the origin, inside the head, looking away from it
+    away.pose[:3, 3] = [0, 0, -50]
+    est = Estimator(cybatt, size=SIZE, camera=away, unknowns=(3,))
+    with pytest.raises(VttsError, match="out of view"):
+        est.estimate(np.zeros((288, 352, 3), np.uint8))
+
+
+def test_analyze_checks_its_arguments(cybatt):
+    with pytest.raises(VttsError, match="no frames"):
+        analyze([], cybatt, fps=25)
+    with pytest.raises(VttsError, match="fps"):
+        analyze([], cybatt, fps=0)
+    with pytest.raises(VttsError, match="step"):
+        analyze([], cybatt, fps=25, step=0)
+
+
+def test_the_table1_truth_reaches_each_extreme_in_whole_units():
+    truth = table1_truth(100)
+    assert truth.shape == (100, N_PARAMS)
+    assert np.array_equal(truth, np.round(truth))
+    assert not truth[0].any()  # starts neutral
+    for fap, peak in TABLE1_EXTREMES.items():
+        column = truth[:, fap - 1]
+        assert abs(column).max() == pytest.approx(abs(peak), rel=0.01), fap
+        assert np.all(np.sign(column[column != 0]) == np.sign(peak))
+    moving = [f - 1 for f in TABLE1_EXTREMES]
+    assert not truth[:, [i for i in range(N_PARAMS) if i not in moving]].any()
+
+
+def test_relative_errors_are_mean_absolute_errors_over_the_extreme():
+    est = np.array([[1.0, 10.0], [3.0, 10.0]])
+    truth = np.array([[0.0, 12.0], [0.0, 10.0]])
+    assert relative_errors(est, truth, np.array([100.0, -50.0])) == pytest.approx([2.0, 2.0])

@@ -1,0 +1,415 @@
+"""Estimating FAPs from video by analysis by synthesis (Eisert & Girod 1998).
+
+For every camera frame I(n) the model is rendered with the current estimate, and the parameter
+change that carries the synthetic image onto the camera frame is solved for in the least-squares
+sense over all face pixels. Each pixel gives, per color channel, the optical-flow constraint
+(Equation 10) with the image motion written as a linear function of the parameter changes
+(Equations 14–15, 16): the pixel's 3D point moves by ``T · ΔFAP`` (Equation 9), where T combines
+the model's per-vertex motion (:mod:`vtts.analysis.geometry`) with the pixel's barycentric
+coordinates in the triangle it shows (:mod:`vtts.analysis.raster`), and the depth comes from the
+model. Because the estimate is always made between the camera frame and the model rendered with
+the current parameters — never between two camera frames — errors do not accumulate.
+
+A three-level pyramid (88×72, 176×144, 352×288 for CIF: moving-average subsampling, then a
+Gaussian filter on both images) handles large motion; pixels whose displacement estimate
+(Equation 17) exceeds the level's threshold G (5 → 0.5 pixels) are dropped as outliers; after
+each solve the model is rendered again with the new parameters.
+
+Beyond the paper, the camera frame is modelled as ``gain · synthetic + offset`` per color channel,
+with gain and offset estimated along with the FAPs, so that a change of light does not read as
+motion.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.ndimage import binary_erosion, gaussian_filter
+
+from vtts.analysis.geometry import HeadGeometry
+from vtts.analysis.raster import TriangleIndexBuffer, ray_barycentrics
+from vtts.analysis.result import TRANSLATION, Analysis, FrameEstimate
+from vtts.analysis.unknowns import DEFAULT_UNKNOWNS, TABLE1_FAPS  # noqa: F401
+from vtts.errors import VttsError
+from vtts.face import N_PARAMS, FaceModel
+from vtts.render.camera import Camera
+from vtts.render.renderer import FaceRenderer
+
+#: Pixels next to the model's outline left out of the estimation.
+EDGE = 2
+
+#: Residuals beyond this many gray levels count as this many in the match energy (robust).
+TRUNCATE = 10.0
+
+#: Rec. 601 luminance weights (Equation 18 is on luminance).
+LUMA = np.array([0.299, 0.587, 0.114])
+
+
+@dataclass
+class Level:
+    """One level of the pyramid: subsampling ``factor``, outlier threshold ``g`` (pixels of
+    that level), linear solves ``iterations`` (each followed by a new rendering), ``limit``, the
+    most (pixels of that level) one solve may move the image of any unknown, and ``support``,
+    the fewest pixels an unknown must move to be estimated at that level (an eyelid covers a
+    handful of pixels at 88×72 and is held until a finer level resolves it)."""
+
+    factor: int
+    g: float
+    iterations: int
+    limit: float = 2.0
+    support: int = 0
+
+
+#: The paper's pyramid: 88×72 → 352×288 for CIF, G from 5 to 0.5.
+PYRAMID = (
+    Level(4, 5.0, 2, support=40),
+    Level(2, 1.6, 2, support=4),
+    Level(1, 0.5, 8),
+)
+
+
+class Estimator:
+    """Tracks one model through a sequence of frames of ``size`` (W, H).
+
+    ``camera`` is the camera of the video (default: the framing ``vtts render`` uses for this
+    model and size). ``unknowns`` are FAP numbers and ``"tx"``, ``"ty"``, ``"tz"``.
+    ``illumination`` estimates a gain and offset per color channel. ``sigma`` is the Gaussian
+    filter (pixels of each level) applied to both images before the gradients.
+    """
+
+    def __init__(
+        self,
+        model: FaceModel,
+        *,
+        size: tuple[int, int] = (352, 288),
+        camera: Camera | None = None,
+        unknowns: Sequence[int | str] = DEFAULT_UNKNOWNS,
+        pyramid: Sequence[Level] = PYRAMID,
+        illumination: bool = True,
+        sigma: float = 0.6,
+        tolerance: float = 0.05,
+    ) -> None:
+        self.unknowns = _check_unknowns(unknowns)
+        self.model = model
+        self.size = (int(size[0]), int(size[1]))
+        self.pyramid = tuple(pyramid)
+        self.illumination = illumination
+        self.sigma = sigma
+        self.tolerance = tolerance
+        w, h = self.size
+        top = FaceRenderer(model, size=self.size, camera=camera)
+        self.camera = top.camera
+        self._renderers: dict[int, tuple[FaceRenderer, Camera, tuple[int, int]]] = {}
+        for lv in self.pyramid:
+            f = lv.factor
+            if f in self._renderers:
+                continue
+            if f == 1:
+                self._renderers[1] = (top, self.camera, self.size)
+                continue
+            cam = _scaled(self.camera, f)
+            lsize = (w // f, h // f)
+            if min(lsize) < 16:
+                raise VttsError(f"a {w}x{h} video is too small for a pyramid level of 1/{f}")
+            # supersampled by the level's factor, the synthetic image is subsampled exactly as
+            # the camera frame is (a moving average over the same full-size pixels)
+            renderer = FaceRenderer(model, size=lsize, camera=cam, supersample=min(f, 4))
+            self._renderers[f] = (renderer, cam, lsize)
+        self._root = top.scene.get_pose(top.instances[0].root)
+        self.geometry = HeadGeometry(model, self.unknowns, self._root)
+        self._ids = TriangleIndexBuffer(
+            self.geometry.faces, self.geometry.culled, self.geometry.n_vertices
+        )
+        self._last_step: _Step | None = None
+        self.params = np.zeros(N_PARAMS)
+        self.translation = np.zeros(3)
+        self.gain = np.ones(3)
+        self.offset = np.zeros(3)
+
+    # ---- rendering -----------------------------------------------------------------------------
+
+    def render(self, factor: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """The model at the current estimate at pyramid ``factor``: the image ``(h, w, 3)
+        float32`` (0–255, before gain and offset) and triangle indices ``(h, w)`` (−1: none)."""
+        renderer, cam, lsize = self._renderers[factor]
+        inst = renderer.instances[0]
+        root = self._root.copy()
+        root[:3, 3] += self.translation
+        renderer.scene.set_pose(inst.root, root)
+        image = renderer.render(self.params).astype(np.float32)
+        ids = self._ids.draw(self.geometry.positions(self.params, self.translation), cam, lsize)
+        return image, ids
+
+    def reconstruct(self) -> np.ndarray:
+        """The synthetic frame ``(H, W, 3) uint8`` at full size with gain and offset applied."""
+        image, _ = self.render(1)
+        return np.clip(np.round(image * self.gain + self.offset), 0, 255).astype(np.uint8)
+
+    # ---- estimation ----------------------------------------------------------------------------
+
+    def estimate(self, frame: np.ndarray, index: int = 0, time: float = 0.0) -> FrameEstimate:
+        """Update the estimate to the camera ``frame`` ``(H, W, 3) uint8`` and return it."""
+        frame = np.asarray(frame)
+        w, h = self.size
+        if frame.shape != (h, w, 3):
+            raise VttsError(f"frame {index} is {frame.shape}, expected ({h}, {w}, 3)")
+        full = frame.astype(np.float32)
+        pyramid: dict[int, np.ndarray] = {}
+        solves = 0
+        for lv in self.pyramid:
+            if lv.factor not in pyramid:
+                pyramid[lv.factor] = _smooth(_subsample(full, lv.factor), self.sigma)
+            camera_image = pyramid[lv.factor]
+            self._last_step = None  # energies of different levels do not compare
+            for _ in range(lv.iterations):
+                step = self._solve(camera_image, lv)
+                solves += 1
+                if step < self.tolerance:
+                    break
+        # the estimate as a FAP stream carries it: integer FAPs
+        params = self.params.copy()
+        for u in self.unknowns:
+            if not isinstance(u, str):
+                params[u - 1] = np.round(params[u - 1]) + 0.0  # no negative zeros
+        kept, self.params = self.params, params
+        try:
+            image, ids = self.render(1)
+        finally:
+            self.params = kept
+        synth = np.clip(np.round(image * self.gain + self.offset), 0, 255)
+        mask = ids >= 0
+        return FrameEstimate(
+            index=index,
+            time=time,
+            params=params,
+            translation=self.translation.copy(),
+            gain=self.gain.copy(),
+            offset=self.offset.copy(),
+            psnr=face_psnr(full, synth, mask),
+            face_pixels=int(mask.sum()),
+            iterations=solves,
+        )
+
+    def _solve(self, camera_image: np.ndarray, lv: Level) -> float:
+        """One Gauss–Newton step at one level; returns the largest parameter change relative
+        to each unknown's scale (FAPU: 1, translation: 1e-4 model units)."""
+        _, cam, _ = self._renderers[lv.factor]
+        image, ids = self.render(lv.factor)
+        raw = _smooth(image, self.sigma)
+        synth = raw * self.gain + self.offset
+        # pixels within the model's outline: at the outline the synthetic background (which a
+        # camera never shows) and antialiasing would read as motion
+        rows, cols = np.nonzero(binary_erosion(ids >= 0, iterations=EDGE))
+        if rows.size < 4 * len(self.unknowns):
+            raise VttsError(
+                f"the model covers only {rows.size} pixels at 1/{lv.factor} size: it is out of "
+                "view (check --camera and the first frame)"
+            )
+        r = camera_image - synth
+        # a step that made the match worse is taken back by half (at most three times in a row)
+        # before the next linear solve: the linear model can be wrong where shading or
+        # occlusion, not texture motion, dominates what an unknown does to the image
+        energy = float(np.mean(np.minimum((r[rows, cols] @ LUMA) ** 2, TRUNCATE**2)))
+        last = self._last_step
+        if last is not None and energy > last.energy and last.halvings < 3:
+            half = last.delta / 2
+            self._apply(-half)
+            self._last_step = _Step(last.energy, half, last.halvings + 1)
+            return self._step_size(half)
+        avg = 0.5 * (camera_image + synth)
+        gy, gx = _gradients(avg)
+        gx_p, gy_p, r_p, s_p = gx[rows, cols], gy[rows, cols], r[rows, cols], raw[rows, cols]
+        # Equation 17 on luminance: drop pixels whose displacement estimate exceeds G
+        ry, gxy, gyy = r_p @ LUMA, gx_p @ LUMA, gy_p @ LUMA
+        d = np.abs(ry) / np.sqrt(gxy * gxy + gyy * gyy + 1e-6)
+        keep = d <= lv.g
+        rows, cols = rows[keep], cols[keep]
+        gx_p, gy_p, r_p, s_p = gx_p[keep], gy_p[keep], r_p[keep], s_p[keep]
+        tri = ids[rows, cols]
+        pix = np.stack([cols + 0.5, rows + 0.5], axis=1)
+        positions = self.geometry.positions(self.params, self.translation)
+        verts = self.geometry.faces[tri]  # (N, 3)
+        lam, pc = ray_barycentrics(pix, cam, positions[verts])
+        uniq, inverse = np.unique(verts, return_inverse=True)
+        jac = self.geometry.jacobian(self.params, self.translation, uniq)  # (U, 3, K) world
+        jac = np.einsum("ab,ubk->uak", np.linalg.inv(cam.pose)[:3, :3], jac)  # camera axes
+        tc = np.einsum("nm,nmak->nak", lam, jac[inverse.reshape(verts.shape)])  # (N, 3, K)
+        depth = -pc[:, 2:3]  # distance along the view axis, > 0
+        x_rel = pix[:, 0:1] - cam.cx
+        y_rel = cam.cy - pix[:, 1:2]
+        du = (cam.fx * tc[:, 0] + x_rel * tc[:, 2]) / depth  # (N, K) pixels per unit
+        dv = -(cam.fy * tc[:, 1] + y_rel * tc[:, 2]) / depth
+        n, k = du.shape
+        # an unknown whose motion covers too few pixels at this level is held
+        speed = np.hypot(du, dv)
+        support = (speed > 0.2 * speed.max(axis=0, initial=0.0)).sum(axis=0)
+        held = support < lv.support
+        du[:, held] = 0.0
+        dv[:, held] = 0.0
+        extra = 6 if self.illumination else 0
+        a = np.zeros((n, 3, k + extra))
+        a[:, :, :k] = -(gx_p[:, :, None] * du[:, None, :] + gy_p[:, :, None] * dv[:, None, :])
+        if self.illumination:
+            for c in range(3):
+                a[:, c, k + c] = s_p[:, c]  # d/dgain of gain·S + offset
+                a[:, c, k + 3 + c] = 1.0
+        a = a.reshape(3 * n, k + extra)
+        b = r_p.reshape(-1)
+        delta = _least_squares(a, b)
+        # the linearization holds for small motion: no unknown may move any of its pixels
+        # further than the level's step limit in one solve
+        if k:
+            reach = np.hypot(du * delta[:k], dv * delta[:k]).max(axis=0)
+            delta[:k] *= np.minimum(1.0, lv.limit / np.maximum(reach, 1e-12))
+        self._apply(delta)
+        self._last_step = _Step(energy, delta, 0)
+        return self._step_size(delta)
+
+    def _apply(self, delta: np.ndarray) -> None:
+        """Add a change of the unknowns (then gains and offsets, if estimated)."""
+        k = len(self.unknowns)
+        for j, u in enumerate(self.unknowns):
+            if isinstance(u, str):
+                self.translation[TRANSLATION.index(u)] += delta[j]
+            else:
+                self.params[u - 1] += delta[j]
+        if self.illumination:
+            self.gain += delta[k : k + 3]
+            self.offset += delta[k + 3 : k + 6]
+
+    def _step_size(self, delta: np.ndarray) -> float:
+        """The largest change of an unknown relative to its scale (FAPU: 1, translation: 1e-4
+        model units)."""
+        k = len(self.unknowns)
+        scale = np.array([1e-4 if isinstance(u, str) else 1.0 for u in self.unknowns])
+        return float(np.max(np.abs(delta[:k]) / scale))
+
+
+@dataclass
+class _Step:
+    """The last change made at a level: the match before it (``energy``), the change, and how
+    often it has been halved."""
+
+    energy: float
+    delta: np.ndarray
+    halvings: int
+
+
+def analyze(
+    frames: Iterable[np.ndarray],
+    model: FaceModel,
+    *,
+    fps: float,
+    step: int = 1,
+    camera: Camera | None = None,
+    unknowns: Sequence[int | str] = DEFAULT_UNKNOWNS,
+    progress: Callable[[int], None] | None = None,
+    **options,
+) -> Analysis:
+    """Estimate the parameters of every ``step``-th frame of ``frames`` (each ``(H, W, 3)
+    uint8`` RGB, all the same size) of a video at ``fps`` frames per second. ``options`` go to
+    :class:`Estimator`. ``progress`` is called with the frame index after each estimate."""
+    if not (math.isfinite(fps) and fps > 0):
+        raise VttsError(f"fps must be a positive number, got {fps}")
+    if step < 1:
+        raise VttsError(f"step must be at least 1, got {step}")
+    estimator: Estimator | None = None
+    out: list[FrameEstimate] = []
+    for i, frame in enumerate(frames):
+        if i % step:
+            continue
+        if estimator is None:
+            h, w = frame.shape[:2]
+            estimator = Estimator(model, size=(w, h), camera=camera, unknowns=unknowns, **options)
+        out.append(estimator.estimate(frame, i, i / fps))
+        if progress is not None:
+            progress(i)
+    if estimator is None:
+        raise VttsError("the video has no frames")
+    return Analysis(out, estimator.unknowns, fps / step, estimator.camera, model.name)
+
+
+def face_psnr(frame: np.ndarray, synthetic: np.ndarray, mask: np.ndarray) -> float:
+    """Luminance PSNR (dB) of two ``(H, W, 3)`` images (0–255) over the ``(H, W)`` ``mask``;
+    ``inf`` when they agree there exactly."""
+    if not mask.any():
+        return float("nan")
+    diff = (np.asarray(frame, np.float64) - np.asarray(synthetic, np.float64)) @ LUMA
+    mse = float(np.mean(diff[mask] ** 2))
+    return float("inf") if mse == 0 else 10 * math.log10(255.0**2 / mse)
+
+
+# ---- helpers -----------------------------------------------------------------------------------
+
+
+def _check_unknowns(unknowns: Sequence[int | str]) -> tuple[int | str, ...]:
+    out: list[int | str] = []
+    for u in unknowns:
+        if isinstance(u, str):
+            if u not in TRANSLATION:
+                raise VttsError(f"unknown {u!r}: the non-FAP unknowns are tx, ty and tz")
+        elif not (isinstance(u, int | np.integer) and 3 <= int(u) <= 68):
+            raise VttsError(f"FAP {u!r} cannot be estimated: FAPs 3–68 can")
+        else:
+            u = int(u)
+        if u in out:
+            raise VttsError(f"{u} is listed twice among the unknowns")
+        out.append(u)
+    if not out:
+        raise VttsError("nothing to estimate: the list of unknowns is empty")
+    return tuple(out)
+
+
+def _scaled(camera: Camera, factor: int) -> Camera:
+    """The camera of an image subsampled by ``factor`` (pixel edges at integers)."""
+    return Camera(
+        camera.fx / factor,
+        camera.fy / factor,
+        camera.cx / factor,
+        camera.cy / factor,
+        camera.pose,
+        znear=camera.znear,
+        zfar=camera.zfar,
+    )
+
+
+def _subsample(image: np.ndarray, factor: int) -> np.ndarray:
+    """Moving-average subsampling of ``(H, W, C)`` by ``factor`` (edges that do not fill a
+    block are dropped)."""
+    if factor == 1:
+        return image
+    h, w, c = image.shape[0] // factor, image.shape[1] // factor, image.shape[2]
+    blocks = image[: h * factor, : w * factor].reshape(h, factor, w, factor, c)
+    return blocks.mean(axis=(1, 3), dtype=np.float32)
+
+
+def _smooth(image: np.ndarray, sigma: float) -> np.ndarray:
+    if sigma <= 0:
+        return image
+    return gaussian_filter(image, sigma=(sigma, sigma, 0), mode="nearest", truncate=2.0)
+
+
+def _gradients(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Central differences ``(d/dY, d/dX)`` of ``(H, W, C)`` (one-sided at the border)."""
+    return np.gradient(image, axis=(0, 1))
+
+
+def _least_squares(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Solve ``a x ≈ b`` through the normal equations with column scaling and a whisper of
+    damping, so that unknowns the pixels say nothing about stay put."""
+    ata = a.T @ a
+    atb = a.T @ b
+    d = np.sqrt(np.diag(ata))
+    big = d.max() if d.size else 1.0
+    ok = d > 1e-9 * big
+    x = np.zeros(a.shape[1])
+    if not ok.any():
+        return x
+    s = 1.0 / d[ok]
+    m = ata[np.ix_(ok, ok)] * s[:, None] * s[None, :]
+    m[np.diag_indices_from(m)] += 1e-9
+    x[ok] = s * np.linalg.solve(m, atb[ok] * s)
+    return x

@@ -1,0 +1,286 @@
+"""The model's surface as the estimator sees it: world positions and their linear motion.
+
+For the parameters of the current estimate this gives every vertex's world position and, for
+each unknown k, its 3D motion per unit — the columns of Eisert–Girod's matrix T (Equation 9)
+before the barycentric combination:
+
+* a FAP that deforms a mesh moves a vertex by the slope of its ADT interval at the current value
+  (the table is piecewise linear, so the slope is exact within the interval), carried to world
+  space by the Transforms above the mesh;
+* a FAP that rotates a Transform (head, eyes) moves the points below it along the tangent of the
+  rotation — the linearized rotation of Equations 6–7 — obtained by differentiating the posed
+  Transform chain;
+* the head translation (unknowns ``tx``, ``ty``, ``tz``) moves every point along a world axis.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from vtts.face import FaceModel
+from vtts.face.deform import _transform_value
+from vtts.vrml import Node, transform_matrix, triangulate
+from vtts.vrml.geometry import TriangleMesh
+from vtts.vrml.transform import compose_transform
+
+#: Step (in parameter units) of the central difference of a Transform chain: rotations are in
+#: 1e-5 rad, so this is exact to far below the estimator's resolution.
+_H = 1.0
+
+
+@dataclass
+class _Shape:
+    chain: list[Node]  # the Transforms above the shape, outermost first
+    mesh: TriangleMesh
+    name: str | None  # DEF name of the IndexedFaceSet when the tables deform it
+    solid: bool
+    first_vertex: int
+
+
+class HeadGeometry:
+    """Every IndexedFaceSet of ``model`` as one triangle set, placed by ``root`` ``(4, 4)`` (the
+    model's placement in the renderer's world).
+
+    ``unknowns`` are FAP numbers and ``"tx"``, ``"ty"``, ``"tz"``.
+    Attributes: ``faces`` ``(m, 3)`` global vertex indices, ``culled`` ``(m,)`` whether back
+    faces are culled, ``n_vertices``.
+    """
+
+    def __init__(self, model: FaceModel, unknowns, root: np.ndarray) -> None:
+        self.model = model
+        self.engine = model.engine
+        self.root = np.asarray(root, dtype=np.float64)
+        self.unknowns = tuple(unknowns)
+        self.shapes: list[_Shape] = []
+        animated = set(model.tables.mesh_nodes())
+        self._static_cache: dict[int, np.ndarray] = {}
+        self._last = None
+        self._columns: dict[tuple[str, int], np.ndarray] = {}
+        faces, culled = [], []
+        count = 0
+
+        def walk(node: Node, chain: list[Node], depth: int) -> None:
+            nonlocal count
+            node = node.expand()
+            t = node.type.name
+            if depth > 128:
+                return
+            if t == "Transform":
+                for c in node["children"]:
+                    walk(c, [*chain, node], depth + 1)
+            elif t in ("Group", "Anchor", "Billboard", "Collision"):
+                for c in node["children"]:
+                    walk(c, chain, depth + 1)
+            elif t == "Switch":
+                k = node["whichChoice"]
+                if 0 <= k < len(node["choice"]):
+                    walk(node["choice"][k], chain, depth + 1)
+            elif t == "LOD":
+                if node["level"]:
+                    walk(node["level"][0], chain, depth + 1)
+            elif t == "Shape":
+                geom = node["geometry"]
+                if geom is None:
+                    return
+                geom = geom.expand()
+                if geom.type.name != "IndexedFaceSet":
+                    return
+                tm = triangulate(geom)
+                if tm.faces.size == 0:
+                    return
+                name = geom.name if geom.name in animated else None
+                solid = bool(geom.get("solid", True))
+                self.shapes.append(_Shape(chain, tm, name, solid, count))
+                faces.append(tm.faces + count)
+                culled.append(np.full(len(tm.faces), solid))
+                count += tm.positions.shape[0]
+
+        for r in model.scene.roots:
+            walk(r, [], 0)
+        self.faces = np.concatenate(faces).astype(np.int64)
+        self.culled = np.concatenate(culled)
+        self.n_vertices = count
+        self.shape_of_vertex = np.repeat(
+            np.arange(len(self.shapes)), [s.mesh.positions.shape[0] for s in self.shapes]
+        )
+
+    # ---- posing --------------------------------------------------------------------------------
+
+    def _transforms(self, params: np.ndarray) -> dict[str, dict[str, np.ndarray]]:
+        out: dict[str, dict[str, np.ndarray]] = {}
+        for (node, fld), t in self.engine.transforms.items():
+            out.setdefault(node, {})[fld] = _transform_value(t, fld, params)
+        return out
+
+    def _node_matrix(self, node: Node, posed: dict[str, dict[str, np.ndarray]]) -> np.ndarray:
+        """The local matrix of a Transform: posed by the tables, or its own fields."""
+        fields = posed.get(node.name)
+        if not fields:
+            return self._static(node)
+        return compose_transform(
+            fields.get("translation", node["translation"]),
+            fields.get("rotation", node["rotation"]),
+            fields.get("scale", node["scale"]),
+            node["scaleOrientation"],
+            node["center"],
+        )
+
+    def _top(self, translation: np.ndarray) -> np.ndarray:
+        top = self.root.copy()
+        top[:3, 3] += translation
+        return top
+
+    def _matrices(self, params: np.ndarray, translation: np.ndarray) -> list[np.ndarray]:
+        """World matrix ``(4, 4)`` of each shape."""
+        posed = self._transforms(params)
+        top = self._top(translation)
+        local: dict[int, np.ndarray] = {}
+        out = []
+        for s in self.shapes:
+            m = top
+            for node in s.chain:
+                if id(node) not in local:
+                    local[id(node)] = self._node_matrix(node, posed)
+                m = m @ local[id(node)]
+            out.append(m)
+        return out
+
+    def _matrix_derivatives(
+        self, params: np.ndarray, translation: np.ndarray, pi: int
+    ) -> list[np.ndarray | None]:
+        """d(world matrix)/d(parameter ``pi``) of each shape (None where it does not depend on
+        it): the product rule over the shape's Transform chain, with each driven Transform's own
+        derivative by central differences of its posed fields (exact for the tables' linear
+        angles)."""
+        names = {node for (node, _), t in self.engine.transforms.items() if pi in t.param}
+        posed = self._transforms(params)
+        up, down = params.copy(), params.copy()
+        up[pi] += _H
+        down[pi] -= _H
+        posed_up, posed_down = self._transforms(up), self._transforms(down)
+        top = self._top(translation)
+        local: dict[int, np.ndarray] = {}
+        slope: dict[int, np.ndarray] = {}
+        out: list[np.ndarray | None] = []
+        for s in self.shapes:
+            if not any(n.name in names for n in s.chain):
+                out.append(None)
+                continue
+            for n in s.chain:
+                if id(n) not in local:
+                    local[id(n)] = self._node_matrix(n, posed)
+                if n.name in names and id(n) not in slope:
+                    slope[id(n)] = (
+                        self._node_matrix(n, posed_up) - self._node_matrix(n, posed_down)
+                    ) / (2 * _H)
+            total = None
+            for i, node in enumerate(s.chain):
+                if id(node) not in slope:
+                    continue
+                m = top
+                for j, other in enumerate(s.chain):
+                    m = m @ (slope[id(node)] if j == i else local[id(other)])
+                total = m if total is None else total + m
+            out.append(total)
+        return out
+
+    def _static(self, node: Node) -> np.ndarray:
+        key = id(node)
+        if key not in self._static_cache:
+            self._static_cache[key] = transform_matrix(node)
+        return self._static_cache[key]
+
+    def local_points(self, params: np.ndarray) -> list[np.ndarray]:
+        """Each shape's vertex positions ``(n_s, 3)`` in its own coordinates."""
+        pose = self.engine.deform(params)
+        out = []
+        for s in self.shapes:
+            if s.name is not None and s.name in pose.points:
+                out.append(pose.points[s.name][s.mesh.coord_index])
+            else:
+                out.append(s.mesh.positions)
+        return out
+
+    def _state(self, params: np.ndarray, translation: np.ndarray):
+        """Local points, world matrices and world positions for the given pose (the last one is
+        kept: the estimator asks for the same pose several times per solve)."""
+        key = (params.tobytes(), np.asarray(translation, np.float64).tobytes())
+        if self._last is None or self._last[0] != key:
+            local = self.local_points(params)
+            mats = self._matrices(params, translation)
+            world = np.concatenate(
+                [p @ m[:3, :3].T + m[:3, 3] for p, m in zip(local, mats, strict=True)]
+            )
+            self._last = (key, local, mats, world)
+        return self._last[1:]
+
+    def positions(self, params: np.ndarray, translation: np.ndarray) -> np.ndarray:
+        """World positions ``(n_vertices, 3)`` for ``params`` ``(N_PARAMS,)`` and the head
+        ``translation`` ``(3,)``."""
+        return self._state(params, translation)[2]
+
+    # ---- linear motion -------------------------------------------------------------------------
+
+    def jacobian(
+        self, params: np.ndarray, translation: np.ndarray, vertices: np.ndarray
+    ) -> np.ndarray:
+        """World motion per unit of each unknown, ``(len(vertices), 3, K)``, of the global
+        ``vertices`` ``(n,)`` at ``params`` and ``translation``."""
+        vertices = np.asarray(vertices, dtype=np.int64)
+        k_count = len(self.unknowns)
+        out = np.zeros((len(vertices), 3, k_count))
+        if len(vertices) == 0:
+            return out
+        shape_ids = self.shape_of_vertex[vertices]
+        local, mats, _ = self._state(params, translation)
+        # Transform chains: the derivative of each shape's world matrix
+        d_mats: dict[int, list[np.ndarray | None]] = {}
+        for j, u in enumerate(self.unknowns):
+            if isinstance(u, str):
+                out[:, "xyz".index(u[1]), j] = 1.0
+            elif any(u - 1 in t.param for t in self.engine.transforms.values()):
+                d_mats[j] = self._matrix_derivatives(params, translation, u - 1)
+        for si in np.unique(shape_ids):
+            sel = np.flatnonzero(shape_ids == si)
+            s = self.shapes[si]
+            lv = vertices[sel] - s.first_vertex
+            pts = local[si][lv]
+            rot = mats[si][:3, :3]
+            for j, dm in d_mats.items():
+                d = dm[si]
+                if d is not None:
+                    out[sel, :, j] += pts @ d[:3, :3].T + d[:3, 3]
+            if s.name is None or s.name not in self.engine.meshes:
+                continue
+            slopes = self._slopes(s.name, params, s.mesh.coord_index[lv])
+            for j, sl in slopes.items():
+                out[sel, :, j] += sl @ rot.T
+        return out
+
+    def _slopes(self, name: str, params: np.ndarray, points: np.ndarray) -> dict[int, np.ndarray]:
+        """Displacement per unit ``(len(points), 3)`` of the Coordinate ``points`` of mesh
+        ``name`` for each FAP unknown with an active table interval at ``params``."""
+        b = self.engine.meshes[name]
+        out = {}
+        for j, u in enumerate(self.unknowns):
+            if isinstance(u, str):
+                continue
+            v = params[u - 1]
+            cols = np.flatnonzero((b.param == u - 1) & (b.lo <= v) & (v < b.hi))
+            if cols.size == 0:
+                continue
+            out[j] = self._column(name, int(cols[0]))[points]
+        return out
+
+    def _column(self, name: str, col: int) -> np.ndarray:
+        """Table column ``col`` of mesh ``name`` as dense per-point slopes ``(p, 3)``."""
+        key = (name, col)
+        if key not in self._columns:
+            b = self.engine.meshes[name]
+            c = b.csc[:, col]
+            dense = np.zeros(b.csc.shape[0])
+            dense[c.indices] = c.data
+            self._columns[key] = dense.reshape(-1, 3)
+        return self._columns[key]
