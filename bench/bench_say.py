@@ -1,8 +1,10 @@
-"""``vtts say`` speed: the real-time factor for a 10 s utterance, end to end, and the time to the
-first rendered frame.
+"""``vtts say`` speed: the real-time factor for a 10 s utterance (and a longer one), end to end,
+and the time to the first rendered frame.
 
 Model: the bundled ``cybatt`` when it is installed, otherwise the test head. The utterance is a
-fixed English paragraph with bookmarks (about 10 s with espeak-ng's default voice).
+fixed English paragraph with bookmarks (15.8 s with espeak-ng 1.51's default voice). The model
+cache (``vtts.face.cache``) is warm for the command: the in-process measurement loads the model
+first (``VTTS_CACHE_DIR= make bench`` measures without it).
 
 Targets (issue 6): at least 2x faster than real time at 352x288 (``vtts say`` as a subprocess:
 startup, synthesis, timeline, rendering and encoding included); time to the first frame reported.
@@ -23,6 +25,12 @@ TEXT = (
     "I speak with bookmarked expressions, <surprise 1s 0.6> I blink when I like, "
     "and my lips close for every b, p and m. <blink> Maybe you would like to meet my friend, "
     "who smiles in her own way. <nod> Thank you for listening, and have a pleasant day."
+)
+#: The issue's case: about 10 s of speech (its first two sentences and the last).
+TEXT_10S = (
+    "Good morning <smile 3s> and welcome to the face animation system. "
+    "I speak with bookmarked expressions, <surprise 1s 0.6> I blink when I like, "
+    "and my lips close for every b, p and m. <blink> Thank you for listening."
 )
 
 
@@ -57,32 +65,27 @@ def run() -> list[dict]:
         }
     ]
     vtts = Path(sys.executable).with_name("vtts")
-    with tempfile.TemporaryDirectory() as d:
-        t0 = time.perf_counter()
-        subprocess.run(
-            [
-                str(vtts),
-                "say",
-                TEXT,
-                "--model",
-                model_name,
-                "-o",
-                str(Path(d) / "s.mp4"),
-                "--quiet",
-            ],
-            check=True,
-            capture_output=True,
+    for text in (TEXT_10S, TEXT):
+        duration = prepare_utterance(text).duration
+        with tempfile.TemporaryDirectory() as d:
+            t0 = time.perf_counter()
+            subprocess.run(
+                [str(vtts), "say", text, "--model", model_name, "-o", str(Path(d) / "s.mp4"),
+                 "--quiet"],
+                check=True,
+                capture_output=True,
+            )  # fmt: skip
+            wall = time.perf_counter() - t0
+        rtf = duration / wall
+        judged = text is TEXT_10S
+        rows.append(
+            {
+                "benchmark": "vtts say (end to end)",
+                "case": f"{duration:.1f} s, {Path(model_name).stem}, 352x288, startup included",
+                "value": round(rtf, 2),
+                "unit": "x real time",
+                "target": ">= 2x" if judged else "",
+                "ok": rtf >= 2.0 if judged else None,
+            }
         )
-        wall = time.perf_counter() - t0
-    rtf = utt.duration / wall
-    rows.append(
-        {
-            "benchmark": "vtts say (end to end)",
-            "case": f"{utt.duration:.1f} s, {Path(model_name).stem}, 352x288, startup included",
-            "value": round(rtf, 2),
-            "unit": "x real time",
-            "target": ">= 2x",
-            "ok": rtf >= 2.0,
-        }
-    )
     return rows

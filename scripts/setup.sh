@@ -49,3 +49,6 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   .venv/bin/python -m pip install -q -e ".[$extras]"
   touch "$stamp"
 fi
+# Byte-compile vtts itself (an editable install is not compiled, and PYTHONDONTWRITEBYTECODE=1
+# would have every command compile it again at startup); up-to-date files are skipped.
+.venv/bin/python -m compileall -q vtts adt_tools >/dev/null

@@ -611,7 +611,7 @@ def test_generator_covers_the_brief() -> None:
     seen: set[str] = set()
 
     @settings(
-        max_examples=120,
+        max_examples=400,
         deadline=None,
         database=None,
         derandomize=True,

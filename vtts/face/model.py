@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from vtts.errors import ModelError, VttsError
+from vtts.face import cache
 from vtts.face.adt import (
     AnimationTables,
     check_tables,
@@ -62,9 +63,25 @@ def load_model(name_or_path: str | Path, *, lenient: bool = False) -> FaceModel:
     """Load a personalized model by path or bundled short name.
 
     The tables come from FaceDefTables nodes in the ``.wrl`` or from a sidecar ``.adt`` beside it
-    (not both). Raises :class:`~vtts.errors.ModelError` (or a parse error) for bad input.
+    (not both). Raises :class:`~vtts.errors.ModelError` (or a parse error) for bad input. Large
+    models come from :mod:`vtts.face.cache` after their first load.
     """
     path = find_model(name_or_path)
+    sidecar = path.with_suffix(".adt")
+    entry = None
+    if not lenient:
+        entry = cache.entry_path([path, sidecar] if sidecar.is_file() else [path])
+        model = cache.load(entry) if entry is not None else None
+        if model is not None:
+            model.path = model.scene.path = path  # spelled as this call spells it
+            return model
+    model = _parse_model(path, lenient)
+    if entry is not None:
+        cache.store(entry, model)
+    return model
+
+
+def _parse_model(path: Path, lenient: bool) -> FaceModel:
     scene = read(path, lenient=lenient)
     embedded = tables_from_scene(scene, file=str(path))
     sidecar = path.with_suffix(".adt")

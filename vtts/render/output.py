@@ -32,6 +32,11 @@ from typing import IO, Any
 
 import numpy as np
 
+try:
+    import fcntl
+except ImportError:  # pragma: no cover - Windows
+    fcntl = None  # type: ignore[assignment]
+
 from vtts.atomic import atomic_path, current_umask
 from vtts.errors import RenderError
 
@@ -116,6 +121,22 @@ def _popen_group_kwargs() -> dict[str, Any]:
     if os.name == "posix":
         return {"process_group": 0}
     return {"creationflags": getattr(subprocess, "CREATE_NEW_PROCESS_GROUP", 0)}
+
+
+def _widen_pipe(fd: int, size: int) -> None:
+    """Let the pipe ``fd`` hold ``size`` bytes where the system allows (Linux; up to
+    ``/proc/sys/fs/pipe-max-size``, 1 MiB by default). A frame then goes to ffmpeg in one write
+    instead of a handful of 64 KiB turns between the two processes, which costs both of them
+    about a millisecond per frame."""
+    set_size = getattr(fcntl, "F_SETPIPE_SZ", None) if fcntl is not None else None
+    if set_size is None:
+        return
+    try:
+        limit = int(Path("/proc/sys/fs/pipe-max-size").read_text())
+    except (OSError, ValueError):
+        limit = 1 << 20
+    with contextlib.suppress(OSError):
+        fcntl.fcntl(fd, set_size, min(size, limit))
 
 
 def _finish_or_abort(
@@ -240,6 +261,9 @@ class VideoWriter:
             if isinstance(exc, OSError):
                 raise RenderError(f"{self.path}: cannot start ffmpeg: {exc}") from exc
             raise
+        assert self._proc.stdin is not None
+        frame_bytes = int(np.prod(self._shape))
+        _widen_pipe(self._proc.stdin.fileno(), 3 * frame_bytes)  # room for a few frames
         self._stack = stack
         self.frames_written = 0
         return self

@@ -12,7 +12,10 @@ of Ostermann & Haratsch, Figure 15).
 
 from __future__ import annotations
 
+import importlib.util
 import os
+import sys
+import types
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,6 +41,11 @@ def _pr():
     if _pyrender is None:
         # Mesa's software EGL: headless, deterministic. Must be set before OpenGL is imported.
         os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+        if os.environ["PYOPENGL_PLATFORM"] in ("egl", "osmesa"):
+            # pyrender's interactive Viewer (a pyglet window) cannot run headless, and importing
+            # it and pyglet is a fifth of pyrender's import time: leave it out.
+            sys.modules.setdefault("pyrender.viewer", _headless_viewer_module())
+        _defer_package("trimesh")
         try:
             import pyrender
             import pyrender.renderer as pr_renderer
@@ -55,6 +63,44 @@ def _pr():
     return _pyrender
 
 
+def _defer_package(name: str) -> None:
+    """Run package ``name``'s ``__init__`` only when one of its names is first used; its
+    submodules import as usual meanwhile. pyrender imports trimesh in every module but uses it only
+    to convert trimesh meshes (vtts: VRML's Box, Sphere, Cylinder and Cone, and the room), and
+    trimesh's own import (scipy.spatial, networkx graphs) is half of pyrender's import time."""
+    if name in sys.modules:
+        return
+    spec = importlib.util.find_spec(name)
+    if spec is None or spec.loader is None or spec.submodule_search_locations is None:
+        return
+    module = importlib.util.module_from_spec(spec)
+    module.__class__ = _DeferredPackage
+    sys.modules[name] = module
+
+
+class _DeferredPackage(types.ModuleType):
+    """A package whose ``__init__`` has not run yet (see :func:`_defer_package`)."""
+
+    def __getattr__(self, attr: str):
+        # only called for names the module does not have yet: run the package body once, as a
+        # plain module (a name missing while it runs is then a plain AttributeError)
+        self.__class__ = types.ModuleType
+        self.__spec__.loader.exec_module(self)
+        return getattr(self, attr)
+
+
+def _headless_viewer_module() -> types.ModuleType:
+    """A stand-in for ``pyrender.viewer`` whose Viewer says why there is none."""
+    module = types.ModuleType("pyrender.viewer")
+
+    class Viewer:
+        def __init__(self, *args, **kwargs) -> None:
+            raise RenderError("pyrender's Viewer needs a display; vtts renders offscreen (EGL)")
+
+    module.Viewer = Viewer
+    return module
+
+
 @dataclass
 class _AnimatedMesh:
     """One animated IndexedFaceSet instance in the pyrender scene."""
@@ -65,6 +111,12 @@ class _AnimatedMesh:
     node: object  # the current mesh node
     material: object
     incidence: sp.csr_matrix  # (vertices, triangles): which triangles touch each output vertex
+    # the vertex buffer's constant columns after positions and normals (texture coordinates,
+    # colors) as pyrender lays them out, (vertices, k) float32; None: not updatable in place
+    constant_columns: np.ndarray | None = None
+    # the last Coordinate points prepared and what came of them (positions, normals, vertex
+    # buffer): parts of a face that a frame leaves as they were cost nothing
+    last: tuple | None = None
 
 
 @dataclass
@@ -72,6 +124,7 @@ class _AnimatedTransform:
     name: str
     vrml: Node
     nodes: list = field(default_factory=list)  # pyrender nodes (one per instance)
+    last: tuple | None = None  # the last animated field values prepared, and their matrix
 
 
 @dataclass
@@ -89,8 +142,17 @@ def vertex_normals(
 ) -> np.ndarray:
     """Area-weighted unit vertex normals ``(n, 3)`` from ``positions (n, 3)`` and
     ``faces (m, 3)``, summing over each vertex's triangles through ``incidence (n, m)``."""
-    p = positions[faces]
-    fn = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    # np.cross on gathered (m, 3, 3) corners, computed per coordinate on contiguous columns:
+    # the same arithmetic (so the same bits), without the strided gathers
+    x, y, z = (np.ascontiguousarray(positions[:, k]) for k in range(3))
+    i0, i1, i2 = faces[:, 0], faces[:, 1], faces[:, 2]
+    ax, ay, az = x[i0], y[i0], z[i0]
+    ux, uy, uz = x[i1] - ax, y[i1] - ay, z[i1] - az
+    vx, vy, vz = x[i2] - ax, y[i2] - ay, z[i2] - az
+    fn = np.empty((faces.shape[0], 3))
+    fn[:, 0] = uy * vz - uz * vy
+    fn[:, 1] = uz * vx - ux * vz
+    fn[:, 2] = ux * vy - uy * vx
     vn = incidence @ fn
     norm = np.linalg.norm(vn, axis=1, keepdims=True)
     return np.divide(vn, norm, out=np.zeros_like(vn), where=norm > 0)
@@ -152,6 +214,7 @@ class FaceRenderer:
             bg_color=[*bg, 0.0 if self.background_image is not None else 1.0],
             ambient_light=[0.35, 0.35, 0.35],
         )
+        self._image_textures: dict[Path, object] = {}  # image file -> its pyrender texture
         self.instances = [self._add_model(m) for m in self.models]
         self._place(layout)
         if camera is None or not camera.placed:
@@ -240,7 +303,11 @@ class FaceRenderer:
             pts = tm.positions
             if geom.name in animated:
                 inc = _incidence(tm.faces, tm.positions.shape[0])
-                inst.meshes.append(_AnimatedMesh(geom.name, tm, parent, node, material, inc))
+                inst.meshes.append(
+                    _AnimatedMesh(
+                        geom.name, tm, parent, node, material, inc, _constant_columns(mesh)
+                    )
+                )
         else:
             tri = _primitive(geom)
             if tri is None:
@@ -303,23 +370,23 @@ class FaceRenderer:
         return material
 
     def _texture(self, model: FaceModel, tex: Node):
-        pr = _pr()
         if tex.type.name == "PixelTexture":
             img = tex["image"]
             if img.width == 0 or img.height == 0:
                 return None
-            rgba = img.to_rgba()
-        elif tex.type.name == "ImageTexture":
-            base = model.path.parent if model.path else None
-            path = resolve_url(tex["url"], base)
-            if path is None:
-                return None
-            rgba = _load_image(path)
-        else:
+            return _pyrender_texture(img.to_rgba())
+        if tex.type.name != "ImageTexture":
             return None
-        # Images are top row first here; pyrender (like glTF) puts t = 0 at the image's bottom
-        # for such images, which is VRML's convention too (a test checks the orientation).
-        return pr.Texture(source=np.ascontiguousarray(rgba), source_channels="RGBA")
+        base = model.path.parent if model.path else None
+        path = resolve_url(tex["url"], base)
+        if path is None:
+            return None
+        # one texture per image file: a head's appearances often share one (decoding it and
+        # building its mipmaps again for each would only cost time)
+        shared = self._image_textures.get(path)
+        if shared is None:
+            shared = self._image_textures[path] = _pyrender_texture(_load_image(path))
+        return shared
 
     def _place(self, layout: str) -> None:
         """Put the models side by side along x, centred, with a gap of 15 % of a head."""
@@ -380,14 +447,21 @@ class FaceRenderer:
             meshes = []
             for am in inst.meshes:
                 pts = pose.points.get(am.name)
-                if pts is not None:
+                if pts is None:
+                    continue
+                last = am.last
+                if last is None or not np.array_equal(last[0], pts):
                     positions = pts[am.template.coord_index]
                     normals = vertex_normals(positions, am.template.faces, am.incidence)
-                    meshes.append((am, positions, normals))
+                    last = am.last = (pts, positions, normals, _vertex_data(am, positions, normals))
+                meshes.append((am, *last[1:]))
             matrices = []
             for name, at in inst.transforms.items():
                 fields = pose.transforms.get(name)
-                if fields:
+                if not fields:
+                    continue
+                key = [(f, np.asarray(v).tobytes()) for f, v in sorted(fields.items())]
+                if at.last is None or at.last[0] != key:
                     v = at.vrml
                     m = compose_transform(
                         fields.get("translation", v["translation"]),
@@ -396,15 +470,16 @@ class FaceRenderer:
                         v["scaleOrientation"],
                         v["center"],
                     )
-                    matrices.append((at, m))
+                    at.last = (key, m)
+                matrices.append((at, at.last[1]))
             prepared.append((meshes, matrices))
         return prepared
 
     def apply(self, prepared: list) -> None:
         """Put a :meth:`prepare` d frame into the scene (vertex buffers, Transform matrices)."""
         for meshes, matrices in prepared:
-            for am, positions, normals in meshes:
-                if not _update_in_place(am, positions, normals):
+            for am, positions, normals, vertex_data in meshes:
+                if not _update_in_place(am, vertex_data):
                     self.scene.remove_node(am.node)
                     am.node = self.scene.add(
                         self._mesh(am.template, positions, normals, am.material),
@@ -441,19 +516,15 @@ class FaceRenderer:
 
     def render(self, params: np.ndarray | list[np.ndarray] | None = None) -> np.ndarray:
         """The frame ``(H, W, 3) uint8`` for the given parameters (None: as last posed)."""
-        pr = _pr()
         if params is not None:
             self.pose(params)
         if self._renderer is None:
             raise RenderError("this renderer is closed")
         ss = self.supersample
-        self._renderer.viewport_width = self.size[0] * ss
-        self._renderer.viewport_height = self.size[1] * ss
+        w, h = self.size[0] * ss, self.size[1] * ss
         if self.background_image is None:
-            color, _ = self._renderer.render(self.scene)
-            return _downsample(color, ss)
-        rgba, _ = self._renderer.render(self.scene, flags=pr.RenderFlags.RGBA)
-        rgba = _downsample(rgba, ss)
+            return _downsample(_drawing_pass().render(self.scene, w, h), ss)
+        rgba = _downsample(_drawing_pass().render(self.scene, w, h, rgba=True), ss)
         a = rgba[..., 3:4].astype(np.float32) / 255.0
         out = rgba[..., :3].astype(np.float32) * a + self.background_image * (1 - a)
         return np.round(out).astype(np.uint8)
@@ -469,7 +540,34 @@ class FaceRenderer:
         self.close()
 
 
-def _update_in_place(am: _AnimatedMesh, positions: np.ndarray, normals: np.ndarray) -> bool:
+def _constant_columns(mesh) -> np.ndarray | None:
+    """The columns of ``mesh``'s vertex buffer that animation leaves alone (see
+    :func:`_vertex_data`), or None when its layout is not the one :func:`_update_in_place`
+    writes (one primitive of positions, normals and optional texture coordinates and colors)."""
+    (prim,) = mesh.primitives
+    if prim.normals is None or prim.tangents is not None:
+        return None
+    cols = [c for c in (prim.texcoord_0, prim.texcoord_1, prim.color_0) if c is not None]
+    n = prim.positions.shape[0]
+    if not cols:
+        return np.zeros((n, 0), dtype=np.float32)
+    return np.ascontiguousarray(np.hstack(cols), dtype=np.float32)
+
+
+def _vertex_data(am: _AnimatedMesh, positions: np.ndarray, normals: np.ndarray):
+    """The interleaved vertex buffer pyrender would upload for these positions and normals,
+    ``(n, 6 + k) float32``, or None when it cannot be updated in place."""
+    const = am.constant_columns
+    if const is None or const.shape[0] != positions.shape[0]:
+        return None
+    data = np.empty((positions.shape[0], 6 + const.shape[1]), dtype=np.float32)
+    data[:, :3] = positions
+    data[:, 3:6] = normals
+    data[:, 6:] = const
+    return data
+
+
+def _update_in_place(am: _AnimatedMesh, vertex_data: np.ndarray | None) -> bool:
     """Overwrite the vertex buffer of an animated mesh that is already on the GPU.
 
     pyrender uploads a primitive once (one interleaved buffer: positions, normals, texture
@@ -479,22 +577,12 @@ def _update_in_place(am: _AnimatedMesh, positions: np.ndarray, normals: np.ndarr
     replaces the node. Returns whether the buffer was updated."""
     prim = am.node.mesh.primitives[0]
     buffers = getattr(prim, "_buffers", None)
-    if getattr(prim, "_vaid", None) is None or not buffers:
-        return False
-    cols = [positions, normals]
-    if prim.texcoord_0 is not None:
-        cols.append(prim.texcoord_0)
-    if prim.texcoord_1 is not None:
-        cols.append(prim.texcoord_1)
-    if prim.color_0 is not None:
-        cols.append(prim.color_0)
-    data = np.ascontiguousarray(np.hstack(cols), dtype=np.float32)
-    if prim.tangents is not None or data.shape[0] != prim.positions.shape[0]:
+    if getattr(prim, "_vaid", None) is None or not buffers or vertex_data is None:
         return False
     from OpenGL.GL import GL_ARRAY_BUFFER, glBindBuffer, glBufferSubData
 
     glBindBuffer(GL_ARRAY_BUFFER, buffers[0])
-    glBufferSubData(GL_ARRAY_BUFFER, 0, data.nbytes, data)
+    glBufferSubData(GL_ARRAY_BUFFER, 0, vertex_data.nbytes, vertex_data)
     glBindBuffer(GL_ARRAY_BUFFER, 0)
     return True
 
@@ -523,6 +611,20 @@ def _offscreen():
         except Exception as e:  # pragma: no cover - depends on the machine
             raise RenderError(f"cannot create an offscreen OpenGL context (EGL): {e}") from None
     return _OFFSCREEN
+
+
+_DRAWING_PASS = None
+
+
+def _drawing_pass():
+    """The :class:`~vtts.render.deferred.DeferredPass` on the process's offscreen context: draws
+    the scene as pyrender does, pixel for pixel, in a fraction of the time."""
+    global _DRAWING_PASS
+    if _DRAWING_PASS is None:
+        from vtts.render.deferred import DeferredPass
+
+        _DRAWING_PASS = DeferredPass(_offscreen())
+    return _DRAWING_PASS
 
 
 def _rot_xy(ax: float, ay: float) -> np.ndarray:
@@ -557,6 +659,13 @@ def _primitive(geom: Node):
         mesh.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))
         return mesh
     return None
+
+
+def _pyrender_texture(rgba: np.ndarray):
+    """A pyrender texture of an ``(h, w, 4) uint8`` image, top row first."""
+    # pyrender (like glTF) puts t = 0 at the bottom of such images, which is VRML's convention
+    # too (a test checks the orientation)
+    return _pr().Texture(source=np.ascontiguousarray(rgba), source_channels="RGBA")
 
 
 def _load_image(path: Path) -> np.ndarray:

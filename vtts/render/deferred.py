@@ -1,0 +1,328 @@
+"""Deferred shading of pyrender scenes: pyrender's pixels for half of the rasterizer's work.
+
+Mesa's software rasterizer runs the fragment shader on 4×4 pixel blocks, the whole block for
+every triangle that touches it. A head of 16,000 triangles covering 18,000 pixels therefore runs
+pyrender's physically based shader (two lights, five ``pow`` per fragment) on ten times more
+fragments than there are pixels, and that was most of a frame's time.
+
+:class:`DeferredPass` draws the opaque geometry once with a cheap shader that only stores what
+pyrender's ``mesh.frag`` would read for the fragment — position, normal, texture sample,
+per-vertex color and which material — in float textures (the G-buffer), with pyrender's own
+vertex shader, drawing order and depth test. A second pass then runs pyrender's own fragment
+shader code (its ``mesh.frag``, with its inputs turned into globals loaded from the G-buffer) once
+per covered pixel. Same inputs, same code: the same pixels (``tests/render`` compares the two
+pixel for pixel). Transparent primitives are drawn afterwards as pyrender draws them, over the
+resolved colors and the G-buffer's depth.
+
+Scenes outside what the G-buffer holds (materials with textures other than a base color, point
+primitives, more than :attr:`DeferredPass.MAX_MATERIALS` opaque materials) are drawn by the
+:class:`~vtts.render.forward.ForwardPass`.
+"""
+
+from __future__ import annotations
+
+import os
+import weakref
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from OpenGL import GL
+from OpenGL.GL import shaders
+
+from vtts.render.forward import ForwardPass, _cull_back, _read_color
+
+SHADER_DIR = Path(__file__).resolve().parent / "shaders"
+
+#: The G-buffer's float targets, in attachment order, as the resolve shader samples them; the
+#: last one (per-vertex colors) is drawn only for scenes that have such colors.
+G_TARGETS = ("g_position", "g_normal", "g_texel", "g_color")
+
+#: pyrender's mesh.frag, from its inputs to plain globals (each must occur exactly once).
+_RESOLVE_EDITS = (
+    ("in vec3 frag_position;", "vec3 frag_position;"),
+    ("in vec3 frag_normal;", "vec3 frag_normal;"),
+    ("in vec4 color_multiplier;", "vec4 color_multiplier;"),
+    ("uniform Material material;", "Material material;"),
+    ("void main()", "void pyrender_main()"),
+)
+
+
+@dataclass
+class _Targets:
+    """The framebuffers of one image size: the G-buffer and the color image, sharing a depth
+    buffer."""
+
+    size: tuple[int, int]
+    gbuffer: int
+    color_fb: int
+    textures: list[int]
+    renderbuffers: list[int]
+
+    def delete(self) -> None:
+        GL.glDeleteFramebuffers(2, [self.gbuffer, self.color_fb])
+        GL.glDeleteTextures(self.textures)
+        GL.glDeleteRenderbuffers(len(self.renderbuffers), self.renderbuffers)
+
+
+class DeferredPass(ForwardPass):
+    """Renders pyrender scenes with deferred shading (see the module's notes); same interface
+    as :class:`~vtts.render.forward.ForwardPass`."""
+
+    #: Opaque materials the resolve shader's tables hold.
+    MAX_MATERIALS = 32
+
+    def __init__(self, offscreen) -> None:
+        super().__init__(offscreen)
+        from pyrender.constants import GLTF, TexFlags
+
+        self._triangle_modes = {GLTF.TRIANGLES, GLTF.TRIANGLE_STRIP, GLTF.TRIANGLE_FAN}
+        self._base_color_only = TexFlags.BASE_COLOR
+        # (pyrender's defines, vertex colors?) -> G-buffer program; primitive -> the same
+        self._gbuffer_programs: dict[tuple[frozenset, bool], object] = {}
+        self._gbuffer_of: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+        # vertex colors? -> (resolve program, empty vertex array), or None if it cannot be made
+        self._resolve: dict[bool, tuple[int, int] | None] = {}
+        self._targets: _Targets | None = None
+
+    def deferrable(self, scene) -> bool:
+        """Whether the G-buffer holds everything pyrender's shader reads for ``scene``'s opaque
+        primitives."""
+        materials = set()
+        for mesh in scene.meshes:
+            if mesh.is_transparent:
+                continue
+            for p in mesh.primitives:
+                if p.mode not in self._triangle_modes:
+                    return False
+                if p.material.tex_flags & ~self._base_color_only:
+                    return False
+                materials.add(p.material)
+        return len(materials) <= self.MAX_MATERIALS
+
+    @staticmethod
+    def _vertex_colors(opaque) -> bool:
+        """Whether any of the ``(node, pose)`` has per-vertex colors (the G-buffer then keeps
+        them too)."""
+        return any(p.color_0 is not None for n, _ in opaque for p in n.mesh.primitives)
+
+    def render(self, scene, width: int, height: int, rgba: bool = False) -> np.ndarray:
+        if not (self.supports(scene) and self.deferrable(scene)):
+            return super().render(scene, width, height, rgba)
+        r = self._begin_frame(scene, width, height)
+        nodes = self._sorted_mesh_nodes(scene)
+        opaque = [(n, pose) for n, pose in nodes if not n.mesh.is_transparent]
+        transparent = [(n, pose) for n, pose in nodes if n.mesh.is_transparent]
+        colors = self._vertex_colors(opaque)
+        resolve = self._resolve_program(r, colors)
+        if resolve is None:
+            return super().render(scene, width, height, rgba)
+        targets = self._targets_for(width, height)
+
+        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, targets.gbuffer)
+        n_targets = len(G_TARGETS) if colors else len(G_TARGETS) - 1
+        GL.glDrawBuffers(n_targets, [GL.GL_COLOR_ATTACHMENT0 + i for i in range(n_targets)])
+        GL.glEnable(GL.GL_DEPTH_TEST)
+        GL.glDepthMask(GL.GL_TRUE)
+        GL.glDepthFunc(GL.GL_LESS)
+        GL.glDisable(GL.GL_BLEND)
+        GL.glClearDepth(1.0)  # the far plane, where the resolve pass's triangle lies
+        GL.glClear(GL.GL_DEPTH_BUFFER_BIT)
+        materials: dict[object, int] = {}
+        for node, pose in opaque:
+            for primitive in node.mesh.primitives:
+                self._draw_gbuffer(primitive, pose, r, materials, colors)
+
+        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, targets.color_fb)
+        GL.glClearColor(*scene.bg_color)
+        GL.glClear(GL.GL_COLOR_BUFFER_BIT)
+        self._draw_resolve(resolve, targets, list(materials), colors)
+
+        if transparent:
+            self._forward_state()
+            for node, pose in transparent:
+                for primitive in node.mesh.primitives:
+                    self._draw(primitive, pose, r)
+        self._end_frame()
+        return _read_color(targets.color_fb, width, height, rgba)
+
+    # ---- G-buffer pass -----------------------------------------------------------------------
+
+    def _draw_gbuffer(self, primitive, pose: np.ndarray, r, materials: dict, colors: bool) -> None:
+        """Store what pyrender's shader would read for ``primitive``'s fragments."""
+        pid = self._gbuffer_program(primitive, r, colors)._program_id
+        self._use(pid)
+        self._uniform(pid, "M", pose)
+        material = primitive.material
+        index = materials.setdefault(material, len(materials))
+        self._uniform(pid, "material_index", float(index))
+        texture = material.baseColorTexture
+        if texture is not None:
+            self._texture(pid, "base_color_texture", 0, texture.tex_type, texture._texid)
+        self._set(GL.GL_CULL_FACE, not material.doubleSided, _cull_back)
+        self._draw_call(primitive)
+
+    def _gbuffer_program(self, primitive, r, colors: bool):
+        """pyrender's mesh.vert with the G-buffer shader, under the defines pyrender uses for
+        ``primitive`` (so that the vertex stage is exactly pyrender's); ``colors``: with the
+        per-vertex color target."""
+        from pyrender.shader_program import ShaderProgram
+
+        known = self._gbuffer_of.get(primitive)
+        if known is not None and known[0] == colors and known[1]._program_id is not None:
+            return known[1]
+        defines = dict(self._program(primitive, r).defines)
+        key = (frozenset(defines.items()), colors)
+        program = self._gbuffer_programs.get(key)
+        if program is None or program._program_id is None:
+            if colors:
+                defines["VERTEX_COLORS"] = 1
+            program = ShaderProgram(
+                os.path.join(r._program_cache.shader_dir, "mesh.vert"),
+                str(SHADER_DIR / "gbuffer.frag"),
+                defines=defines,
+            )
+            program._add_to_context()
+            self._gbuffer_programs[key] = program
+            self._private.add(program._program_id)
+        self._gbuffer_of[primitive] = (colors, program)
+        return program
+
+    # ---- resolve pass ------------------------------------------------------------------------
+
+    def _draw_resolve(
+        self, resolve: tuple[int, int], targets: _Targets, materials: list, colors: bool
+    ) -> None:
+        """Shade every pixel the G-buffer covers, once, with pyrender's lighting."""
+        pid, vertex_array = resolve
+        GL.glDepthFunc(GL.GL_GREATER)  # the far-plane triangle passes where geometry was drawn
+        GL.glDepthMask(GL.GL_FALSE)
+        self._set(GL.GL_CULL_FACE, False, _cull_back)
+        self._use(pid)
+        n_targets = len(G_TARGETS) if colors else len(G_TARGETS) - 1
+        for unit in range(n_targets):
+            self._texture(pid, G_TARGETS[unit], unit, GL.GL_TEXTURE_2D, targets.textures[unit])
+        self._uniform_array(pid, "base_color_factors", [m.baseColorFactor for m in materials])
+        self._uniform_array(
+            pid,
+            "emissive_metallic_factors",
+            [np.r_[m.emissiveFactor, m.metallicFactor] for m in materials],
+        )
+        self._uniform_array(pid, "roughness_factors", [m.roughnessFactor for m in materials])
+        GL.glBindVertexArray(vertex_array)
+        GL.glDrawArrays(GL.GL_TRIANGLES, 0, 3)
+        GL.glDepthFunc(GL.GL_LESS)  # the depth state pyrender draws with, for whoever draws next
+        GL.glDepthMask(GL.GL_TRUE)
+
+    def _resolve_program(self, r, colors: bool) -> tuple[int, int] | None:
+        """The resolve program: pyrender's mesh.frag (as pyrender would compile it for an
+        untextured metallic-roughness material with normals, and with vertex colors if
+        ``colors``) with its inputs loaded from the G-buffer. None when this pyrender's shader
+        does not read as expected."""
+        if colors in self._resolve:
+            return self._resolve[colors]
+        from pyrender.shader_program import ShaderProgram
+
+        n_lights = self._max_lights
+        defines = {
+            "USE_METALLIC_MATERIAL": 1,
+            "NORMAL_LOC": 1,
+            "MAX_DIRECTIONAL_LIGHTS": n_lights,
+            "MAX_SPOT_LIGHTS": n_lights,
+            "MAX_POINT_LIGHTS": n_lights,
+        }
+        if colors:
+            defines["COLOR_0_LOC"] = 2
+        mesh_frag = os.path.join(r._program_cache.shader_dir, "mesh.frag")
+        source = ShaderProgram(None, mesh_frag, defines=defines)._load(mesh_frag)
+        for old, new in _RESOLVE_EDITS:
+            if source.count(old) != 1:
+                self._resolve[colors] = None
+                return None
+            source = source.replace(old, new)
+        main = (SHADER_DIR / "resolve_main.frag").read_text(encoding="utf-8")
+        main = main.replace("MAX_MATERIALS", str(self.MAX_MATERIALS))
+        source += ("\n#define VERTEX_COLORS 1\n" if colors else "\n") + main
+        vertex = (SHADER_DIR / "resolve.vert").read_text(encoding="utf-8")
+        vertex_array = GL.glGenVertexArrays(1)
+        GL.glBindVertexArray(vertex_array)  # core profile: validation needs a vertex array
+        pid = shaders.compileProgram(
+            shaders.compileShader(vertex, GL.GL_VERTEX_SHADER),
+            shaders.compileShader(source, GL.GL_FRAGMENT_SHADER),
+        )
+        GL.glBindVertexArray(0)
+        self._resolve[colors] = (int(pid), vertex_array)
+        self._private.add(int(pid))
+        return self._resolve[colors]
+
+    def _uniform_array(self, pid: int, name: str, values: list) -> None:
+        """Set the first ``len(values)`` elements of the float (vec) array uniform ``name``."""
+        if not values:
+            return
+        array = np.asarray(values, dtype=np.float32)
+        fingerprint = (array.shape, array.tobytes())
+        key = (pid, name)
+        if self._sent.get(key) == fingerprint:
+            return
+        self._sent[key] = fingerprint
+        loc = self._locations.get(key)
+        if loc is None:
+            loc = self._locations[key] = GL.glGetUniformLocation(pid, f"{name}[0]")
+        if loc == -1:
+            return
+        width = 1 if array.ndim == 1 else array.shape[1]
+        setter = {1: GL.glUniform1fv, 3: GL.glUniform3fv, 4: GL.glUniform4fv}[width]
+        setter(loc, array.shape[0], array)
+
+    # ---- framebuffers ------------------------------------------------------------------------
+
+    def _targets_for(self, width: int, height: int) -> _Targets:
+        """The G-buffer and color framebuffers for this size (made when the size changes)."""
+        if self._targets is not None and self._targets.size == (width, height):
+            return self._targets
+        if self._targets is not None:
+            self._targets.delete()
+        textures = [int(t) for t in np.atleast_1d(GL.glGenTextures(len(G_TARGETS)))]
+        for t in textures:
+            GL.glBindTexture(GL.GL_TEXTURE_2D, t)
+            GL.glTexImage2D(
+                GL.GL_TEXTURE_2D, 0, GL.GL_RGBA32F, width, height, 0, GL.GL_RGBA, GL.GL_FLOAT, None
+            )
+            GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_MIN_FILTER, GL.GL_NEAREST)
+            GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_MAG_FILTER, GL.GL_NEAREST)
+        GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
+        color, depth = (int(b) for b in GL.glGenRenderbuffers(2))
+        for rb, fmt in ((color, GL.GL_RGBA8), (depth, GL.GL_DEPTH_COMPONENT24)):
+            GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, rb)
+            GL.glRenderbufferStorage(GL.GL_RENDERBUFFER, fmt, width, height)
+        GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, 0)
+        gbuffer, color_fb = (int(f) for f in GL.glGenFramebuffers(2))
+        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, gbuffer)
+        for i, t in enumerate(textures):
+            GL.glFramebufferTexture2D(
+                GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0 + i, GL.GL_TEXTURE_2D, t, 0
+            )
+        GL.glFramebufferRenderbuffer(
+            GL.GL_FRAMEBUFFER, GL.GL_DEPTH_ATTACHMENT, GL.GL_RENDERBUFFER, depth
+        )
+        _check_complete("G-buffer", width, height)
+        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, color_fb)
+        GL.glFramebufferRenderbuffer(
+            GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0, GL.GL_RENDERBUFFER, color
+        )
+        GL.glFramebufferRenderbuffer(
+            GL.GL_FRAMEBUFFER, GL.GL_DEPTH_ATTACHMENT, GL.GL_RENDERBUFFER, depth
+        )
+        _check_complete("color", width, height)
+        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, 0)
+        # the state cache may hold a binding of a deleted texture name that GL reuses
+        self._state.clear()
+        self._targets = _Targets((width, height), gbuffer, color_fb, textures, [color, depth])
+        return self._targets
+
+
+def _check_complete(what: str, width: int, height: int) -> None:
+    from vtts.errors import RenderError
+
+    if GL.glCheckFramebufferStatus(GL.GL_FRAMEBUFFER) != GL.GL_FRAMEBUFFER_COMPLETE:
+        raise RenderError(f"cannot create a {width}x{height} {what} framebuffer")

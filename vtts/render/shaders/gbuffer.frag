@@ -1,0 +1,54 @@
+#version 330 core
+// vtts G-buffer pass: what pyrender's mesh.frag reads for a fragment, kept for the resolve pass.
+// Compiled with pyrender's own mesh.vert and the defines pyrender uses for the primitive, so the
+// inputs here are exactly what mesh.frag would have seen.
+
+uniform float material_index;
+uniform vec3 cam_pos;
+#ifdef HAS_BASE_COLOR_TEX
+uniform sampler2D base_color_texture;
+#endif
+
+in vec3 frag_position;
+#ifdef NORMAL_LOC
+in vec3 frag_normal;
+#endif
+#ifdef TEXCOORD_0_LOC
+in vec2 uv_0;
+#endif
+#ifdef VERTEX_COLORS
+#ifdef COLOR_0_LOC
+in vec4 color_multiplier;
+#endif
+#endif
+
+layout(location = 0) out vec4 g_position;  // frag_position, material index
+layout(location = 1) out vec4 g_normal;    // what mesh.frag's get_normal() returns, textured?
+layout(location = 2) out vec4 g_texel;     // the base color texture's sample
+#ifdef VERTEX_COLORS
+layout(location = 3) out vec4 g_color;     // the per-vertex color (1 without)
+#endif
+
+void main()
+{
+    g_position = vec4(frag_position, material_index);
+#ifdef NORMAL_LOC
+    vec3 normal = frag_normal;
+#else
+    vec3 normal = normalize(cam_pos - frag_position);
+#endif
+#ifdef HAS_BASE_COLOR_TEX
+    g_normal = vec4(normal, 1.0);
+    g_texel = texture(base_color_texture, uv_0);
+#else
+    g_normal = vec4(normal, 0.0);
+    g_texel = vec4(1.0);
+#endif
+#ifdef VERTEX_COLORS
+#ifdef COLOR_0_LOC
+    g_color = color_multiplier;
+#else
+    g_color = vec4(1.0);
+#endif
+#endif
+}

@@ -1,0 +1,37 @@
+// vtts resolve pass: appended to pyrender's mesh.frag, whose inputs and material became plain
+// globals and whose main() became pyrender_main(). Loads one pixel of the G-buffer into them and
+// runs pyrender's own lighting code once for the pixel.
+
+uniform sampler2D g_position;
+uniform sampler2D g_normal;
+uniform sampler2D g_texel;
+#ifdef VERTEX_COLORS
+uniform sampler2D g_color;
+#endif
+uniform vec4 base_color_factors[MAX_MATERIALS];
+uniform vec4 emissive_metallic_factors[MAX_MATERIALS];
+uniform float roughness_factors[MAX_MATERIALS];
+
+void main()
+{
+    ivec2 pixel = ivec2(gl_FragCoord.xy);
+    vec4 position = texelFetch(g_position, pixel, 0);
+    vec4 normal = texelFetch(g_normal, pixel, 0);
+    // lanes outside the G-buffer's coverage are masked off but still index the tables
+    int m = clamp(int(position.w), 0, MAX_MATERIALS - 1);
+    frag_position = position.xyz;
+    frag_normal = normal.xyz;
+#ifdef VERTEX_COLORS
+    color_multiplier = texelFetch(g_color, pixel, 0);
+#endif
+    vec4 base_color = base_color_factors[m];
+    if (normal.w > 0.5) {
+        // as mesh.frag does with HAS_BASE_COLOR_TEX
+        base_color = base_color * srgb_to_linear(texelFetch(g_texel, pixel, 0));
+    }
+    material.base_color_factor = base_color;
+    material.emissive_factor = emissive_metallic_factors[m].xyz;
+    material.metallic_factor = emissive_metallic_factors[m].w;
+    material.roughness_factor = roughness_factors[m];
+    pyrender_main();
+}
