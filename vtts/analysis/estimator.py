@@ -32,7 +32,7 @@ from scipy.ndimage import binary_erosion, gaussian_filter
 from vtts.analysis.geometry import HeadGeometry
 from vtts.analysis.raster import TriangleIndexBuffer, ray_barycentrics
 from vtts.analysis.result import TRANSLATION, Analysis, FrameEstimate
-from vtts.analysis.unknowns import DEFAULT_UNKNOWNS, TABLE1_FAPS  # noqa: F401
+from vtts.analysis.unknowns import DEFAULT_UNKNOWNS, ESTIMABLE, TABLE1_FAPS  # noqa: F401
 from vtts.errors import VttsError
 from vtts.face import N_PARAMS, FaceModel
 from vtts.render.camera import Camera
@@ -351,8 +351,10 @@ def _check_unknowns(unknowns: Sequence[int | str]) -> tuple[int | str, ...]:
         if isinstance(u, str):
             if u not in TRANSLATION:
                 raise VttsError(f"unknown {u!r}: the non-FAP unknowns are tx, ty and tz")
-        elif not (isinstance(u, int | np.integer) and 3 <= int(u) <= 68):
-            raise VttsError(f"FAP {u!r} cannot be estimated: FAPs 3–68 can")
+        elif not (isinstance(u, int | np.integer) and int(u) in ESTIMABLE):
+            raise VttsError(
+                f"FAP {u!r} cannot be estimated: FAPs {ESTIMABLE[0]}–{ESTIMABLE[-1]} can"
+            )
         else:
             u = int(u)
         if u in out:

@@ -61,44 +61,23 @@ class HeadGeometry:
         faces, culled = [], []
         count = 0
 
-        def walk(node: Node, chain: list[Node], depth: int) -> None:
-            nonlocal count
-            node = node.expand()
-            t = node.type.name
-            if depth > 128:
-                return
-            if t == "Transform":
-                for c in node["children"]:
-                    walk(c, [*chain, node], depth + 1)
-            elif t in ("Group", "Anchor", "Billboard", "Collision"):
-                for c in node["children"]:
-                    walk(c, chain, depth + 1)
-            elif t == "Switch":
-                k = node["whichChoice"]
-                if 0 <= k < len(node["choice"]):
-                    walk(node["choice"][k], chain, depth + 1)
-            elif t == "LOD":
-                if node["level"]:
-                    walk(node["level"][0], chain, depth + 1)
-            elif t == "Shape":
-                geom = node["geometry"]
-                if geom is None:
-                    return
-                geom = geom.expand()
-                if geom.type.name != "IndexedFaceSet":
-                    return
-                tm = triangulate(geom)
-                if tm.faces.size == 0:
-                    return
-                name = geom.name if geom.name in animated else None
-                solid = bool(geom.get("solid", True))
-                self.shapes.append(_Shape(chain, tm, name, solid, count))
-                faces.append(tm.faces + count)
-                culled.append(np.full(len(tm.faces), solid))
-                count += tm.positions.shape[0]
-
-        for r in model.scene.roots:
-            walk(r, [], 0)
+        for shape, _, path in model.scene.shapes():
+            geom = shape["geometry"]
+            if geom is None:
+                continue
+            geom = geom.expand()
+            if geom.type.name != "IndexedFaceSet":
+                continue
+            tm = triangulate(geom)
+            if tm.faces.size == 0:
+                continue
+            chain = [n for n in path if n.type.name == "Transform"]
+            name = geom.name if geom.name in animated else None
+            solid = bool(geom.get("solid", True))
+            self.shapes.append(_Shape(chain, tm, name, solid, count))
+            faces.append(tm.faces + count)
+            culled.append(np.full(len(tm.faces), solid))
+            count += tm.positions.shape[0]
         self.faces = np.concatenate(faces).astype(np.int64)
         self.culled = np.concatenate(culled)
         self.n_vertices = count

@@ -31,19 +31,14 @@ void main() { index = uint(gl_PrimitiveID + first + 1); }
 
 
 def projection(camera: Camera, size: tuple[int, int]) -> np.ndarray:
-    """The ``(4, 4)`` OpenGL projection of ``camera`` for an image of ``size`` (W, H): the same
-    matrix as pyrender's IntrinsicsCamera, so that both passes rasterize alike."""
-    w, h = size
-    n, f = camera.znear, camera.zfar
-    p = np.zeros((4, 4))
-    p[0, 0] = 2.0 * camera.fx / w
-    p[1, 1] = 2.0 * camera.fy / h
-    p[0, 2] = 1.0 - 2.0 * camera.cx / w
-    p[1, 2] = 2.0 * camera.cy / h - 1.0
-    p[3, 2] = -1.0
-    p[2, 2] = (f + n) / (n - f)
-    p[2, 3] = 2 * f * n / (n - f)
-    return p
+    """The ``(4, 4)`` OpenGL projection of ``camera`` for an image of ``size`` (W, H): pyrender's
+    own, so that both passes rasterize alike."""
+    from vtts.render.renderer import _pr
+
+    cam = _pr().IntrinsicsCamera(
+        camera.fx, camera.fy, camera.cx, camera.cy, znear=camera.znear, zfar=camera.zfar
+    )
+    return cam.get_projection_matrix(*size)
 
 
 class TriangleIndexBuffer:

@@ -6,7 +6,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from vtts.face import N_PARAMS
 from vtts.fap.stream import FapStream
 from vtts.fap.table import N_FAPS
 from vtts.render.camera import Camera
@@ -81,9 +80,3 @@ class Analysis:
                 mask[i, f - 1] = True
         return FapStream(self.fps, name, values, mask)
 
-
-def params_from_stream(stream: FapStream, frame: int) -> np.ndarray:
-    """The ``(N_PARAMS,)`` parameter vector of the low-level FAPs of one frame of a stream."""
-    p = np.zeros(N_PARAMS)
-    p[:N_FAPS] = np.where(stream.mask[frame], stream.values[frame], 0.0)
-    return p
