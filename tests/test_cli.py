@@ -87,6 +87,23 @@ def test_info_bad_file(tmp_path, capsys):
     assert f"{f}:2:1: error: unknown node type 'Foo'" in capsys.readouterr().err
 
 
+def test_the_command_flushes_its_output_before_leaving(tmp_path):
+    """``vtts`` leaves through ``os._exit`` (no interpreter teardown): everything it printed
+    through a pipe still arrives, and the exit code is main()'s."""
+    good = sorted((DATA / "vrml97" / "good").glob("*.wrl"))
+    r = run("check", *map(str, good))
+    assert r.returncode == 0
+    assert r.stdout.count("\n") == len(good) > 10
+    with_main = subprocess.run(
+        [sys.executable, "-c", "import sys; from vtts.cli import main; "
+         f"sys.exit(main(['check', *{[str(g) for g in good]!r}]))"],
+        capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert r.stdout == with_main.stdout
+    bad = run("check", str(tmp_path / "missing.wrl"))
+    assert bad.returncode == 1 and "missing.wrl" in bad.stderr and "Traceback" not in bad.stderr
+
+
 def test_usage_errors_exit_two():
     r = run("check")
     assert r.returncode == 2 and "usage: vtts check" in r.stderr

@@ -43,7 +43,7 @@ def test_wheel_contains_grammars_models_and_both_packages(wheel):
     assert "adt_tools/__init__.py" in names
     entry_points = next(n for n in names if n.endswith("entry_points.txt"))
     text = zipfile.ZipFile(wheel).read(entry_points).decode()
-    assert "vtts = vtts.cli:main" in text and "adi = adt_tools.cli:main" in text
+    assert "vtts = vtts.cli:run" in text and "adi = adt_tools.cli:main" in text
 
 
 def test_installed_wheel_parses_without_the_checkout(wheel, tmp_path):
