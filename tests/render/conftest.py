@@ -21,6 +21,13 @@ def psnr(a: np.ndarray, b: np.ndarray) -> float:
 
 
 @pytest.fixture
+def image_psnr():
+    """:func:`psnr` for tests (``from conftest import psnr`` finds whichever conftest module was
+    imported first when several test folders run together)."""
+    return psnr
+
+
+@pytest.fixture
 def head_path() -> Path:
     return DATA / "models" / "head.wrl"
 

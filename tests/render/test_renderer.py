@@ -158,15 +158,60 @@ def test_frame_bounds_fits_the_box():
     assert 0.45 * 200 < bottom[1] - top[1] < 0.6 * 200
 
 
-def test_supersampled_stills_are_the_same_picture_smoother(head):
-    from conftest import psnr
-
+def test_supersampled_stills_are_the_same_picture_smoother(head, image_psnr):
     with FaceRenderer(head) as r:
         plain = r.render(head.params({}))
     with FaceRenderer(head, supersample=2) as r:
         smooth = r.render(head.params({}))
     assert smooth.shape == plain.shape
     assert not np.array_equal(smooth, plain)
-    assert psnr(smooth, plain) > 25
+    assert image_psnr(smooth, plain) > 25
     with pytest.raises(RenderError, match="supersample must be 1 to 4"):
         FaceRenderer(head, supersample=8)
+
+
+def test_views_of_one_renderer_are_windows_and_scaled_copies(head):
+    """``set_view``: a shifted principal point renders a window of the image pixel for pixel, a
+    scaled camera with supersampling renders what a renderer of that size renders, and going
+    back restores the first view."""
+    p = head.params({3: 300, 48: 4000})
+    with FaceRenderer(head) as r:
+        first = r.camera
+        full = r.render(p)
+        c = first
+        r.set_view(Camera(c.fx, c.fy, c.cx - 96, c.cy - 64, c.pose, znear=c.znear, zfar=c.zfar),
+                   (48, 32), 1)  # fmt: skip
+        window = r.render(p)
+        assert window.shape == (32, 48, 3)
+        assert np.array_equal(window, full[64:96, 96:144])
+        half = Camera(c.fx / 2, c.fy / 2, c.cx / 2, c.cy / 2, c.pose, znear=c.znear, zfar=c.zfar)
+        r.set_view(half, (176, 144), 2)
+        small = r.render(p)
+        with FaceRenderer(head, size=(176, 144), camera=half, supersample=2) as other:
+            assert np.array_equal(small, other.render(p))
+        r.set_view(first, (352, 288), 1)
+        assert np.array_equal(r.render(p), full)
+
+
+def test_bad_views_are_clear_errors(head):
+    with FaceRenderer(head) as r:
+        c = r.camera
+        with pytest.raises(RenderError, match="placed camera"):
+            r.set_view(Camera(c.fx, c.fy, c.cx, c.cy, placed=False))
+        with pytest.raises(RenderError, match="16–8192"):
+            r.set_view(c, (8, 8))
+        with pytest.raises(RenderError, match="supersample"):
+            r.set_view(c, supersample=5)
+    bg = np.zeros((288, 352, 3), np.uint8)
+    with FaceRenderer(head, background=bg) as r, pytest.raises(RenderError, match="keeps its"):
+        r.set_view(r.camera, (176, 144))
+
+
+def test_a_pose_computed_by_the_caller_renders_the_same(head):
+    p = head.params({3: 300, 19: 700})
+    with FaceRenderer(head) as r:
+        expected = r.render(p)
+        r.render(head.params({}))
+        assert np.array_equal(r.render(p, poses=[head.engine.deform(p)]), expected)
+        with pytest.raises(RenderError, match="1 models but 2 poses"):
+            r.render(p, poses=[head.engine.deform(p)] * 2)

@@ -17,7 +17,10 @@ each solve the model is rendered again with the new parameters.
 
 Beyond the paper, the camera frame is modelled as ``gain · synthetic + offset`` per color channel,
 with gain and offset estimated along with the FAPs, so that a change of light does not read as
-motion.
+motion. And the eyelids (:data:`~vtts.analysis.unknowns.EYELIDS`), whose thin edges change the
+rendered image in whole pixels where the optical-flow model expects a smooth change, are refined
+at the end on the rendered image itself: a search over integer FAP values for the best match
+around the eye.
 """
 
 from __future__ import annotations
@@ -32,7 +35,12 @@ from scipy.ndimage import binary_erosion, gaussian_filter
 from vtts.analysis.geometry import HeadGeometry
 from vtts.analysis.raster import TriangleIndexBuffer, ray_barycentrics
 from vtts.analysis.result import TRANSLATION, Analysis, FrameEstimate
-from vtts.analysis.unknowns import DEFAULT_UNKNOWNS, ESTIMABLE, TABLE1_FAPS  # noqa: F401
+from vtts.analysis.unknowns import (  # noqa: F401
+    DEFAULT_UNKNOWNS,
+    ESTIMABLE,
+    EYELIDS,
+    TABLE1_FAPS,
+)
 from vtts.errors import VttsError
 from vtts.face import N_PARAMS, FaceModel
 from vtts.render.camera import Camera
@@ -46,6 +54,12 @@ TRUNCATE = 10.0
 
 #: Rec. 601 luminance weights (Equation 18 is on luminance).
 LUMA = np.array([0.299, 0.587, 0.114])
+
+#: Steps (FAP units) of the search that refines FAPs on the rendered image, largest first.
+REFINE_STEPS = (8, 4, 2, 1)
+
+#: Pixels around the image of what a refined FAP moves that its match is measured over.
+REFINE_MARGIN = 4
 
 
 @dataclass
@@ -77,7 +91,9 @@ class Estimator:
     ``camera`` is the camera of the video (default: the framing ``vtts render`` uses for this
     model and size). ``unknowns`` are FAP numbers and ``"tx"``, ``"ty"``, ``"tz"``.
     ``illumination`` estimates a gain and offset per color channel. ``sigma`` is the Gaussian
-    filter (pixels of each level) applied to both images before the gradients.
+    filter (pixels of each level) applied to both images before the gradients. ``refine``: the
+    FAPs that, when they are unknowns, are refined after the pyramid by a search over integer
+    values on the rendered image (:meth:`_refine`).
     """
 
     def __init__(
@@ -91,8 +107,11 @@ class Estimator:
         illumination: bool = True,
         sigma: float = 0.6,
         tolerance: float = 0.05,
+        refine: Iterable[int] = EYELIDS,
     ) -> None:
         self.unknowns = _check_unknowns(unknowns)
+        wanted = set(refine)
+        self.refined = tuple(u for u in self.unknowns if u in wanted)
         self.model = model
         self.size = (int(size[0]), int(size[1]))
         self.pyramid = tuple(pyramid)
@@ -100,25 +119,25 @@ class Estimator:
         self.sigma = sigma
         self.tolerance = tolerance
         w, h = self.size
-        top = FaceRenderer(model, size=self.size, camera=camera)
-        self.camera = top.camera
-        self._renderers: dict[int, tuple[FaceRenderer, Camera, tuple[int, int]]] = {}
+        # one renderer for every view (pyramid levels, refinement windows): the GL context holds
+        # one scene at a time, and changing scenes uploads every mesh and texture again
+        self._renderer = FaceRenderer(model, size=self.size, camera=camera)
+        self.camera = self._renderer.camera
+        # pyramid factor -> (camera, image size, supersampling)
+        self._views: dict[int, tuple[Camera, tuple[int, int], int]] = {
+            1: (self.camera, self.size, 1)
+        }
         for lv in self.pyramid:
             f = lv.factor
-            if f in self._renderers:
+            if f in self._views:
                 continue
-            if f == 1:
-                self._renderers[1] = (top, self.camera, self.size)
-                continue
-            cam = _scaled(self.camera, f)
             lsize = (w // f, h // f)
             if min(lsize) < 16:
                 raise VttsError(f"a {w}x{h} video is too small for a pyramid level of 1/{f}")
             # supersampled by the level's factor, the synthetic image is subsampled exactly as
             # the camera frame is (a moving average over the same full-size pixels)
-            renderer = FaceRenderer(model, size=lsize, camera=cam, supersample=min(f, 4))
-            self._renderers[f] = (renderer, cam, lsize)
-        self._root = top.scene.get_pose(top.instances[0].root)
+            self._views[f] = (_scaled(self.camera, f), lsize, min(f, 4))
+        self._root = self._renderer.scene.get_pose(self._renderer.instances[0].root)
         self.geometry = HeadGeometry(model, self.unknowns, self._root)
         self._ids = TriangleIndexBuffer(
             self.geometry.faces, self.geometry.culled, self.geometry.n_vertices
@@ -134,14 +153,21 @@ class Estimator:
     def render(self, factor: int = 1) -> tuple[np.ndarray, np.ndarray]:
         """The model at the current estimate at pyramid ``factor``: the image ``(h, w, 3)
         float32`` (0–255, before gain and offset) and triangle indices ``(h, w)`` (−1: none)."""
-        renderer, cam, lsize = self._renderers[factor]
-        inst = renderer.instances[0]
-        root = self._root.copy()
-        root[:3, 3] += self.translation
-        renderer.scene.set_pose(inst.root, root)
-        image = renderer.render(self.params).astype(np.float32)
+        cam, lsize, ss = self._views[factor]
+        image = self._synthesize(cam, lsize, ss)
         ids = self._ids.draw(self.geometry.positions(self.params, self.translation), cam, lsize)
         return image, ids
+
+    def _synthesize(self, camera: Camera, size: tuple[int, int], supersample: int) -> np.ndarray:
+        """The image ``(h, w, 3) float32`` of the model at the current estimate through
+        ``camera`` at ``size``, rendered ``supersample`` times larger and averaged down."""
+        renderer = self._renderer
+        renderer.set_view(camera, size, supersample)
+        root = self._root.copy()
+        root[:3, 3] += self.translation
+        renderer.scene.set_pose(renderer.instances[0].root, root)
+        pose = self.geometry.pose(self.params)
+        return renderer.render(self.params, poses=[pose]).astype(np.float32)
 
     def reconstruct(self) -> np.ndarray:
         """The synthetic frame ``(H, W, 3) uint8`` at full size with gain and offset applied."""
@@ -176,9 +202,13 @@ class Estimator:
                 params[u - 1] = np.round(params[u - 1]) + 0.0  # no negative zeros
         kept, self.params = self.params, params
         try:
+            for fap in self.refined:
+                self._refine(full, fap)
             image, ids = self.render(1)
         finally:
-            self.params = kept
+            for fap in self.refined:
+                kept[fap - 1] = self.params[fap - 1]
+            params, self.params = self.params, kept
         synth = np.clip(np.round(image * self.gain + self.offset), 0, 255)
         mask = ids >= 0
         return FrameEstimate(
@@ -196,10 +226,10 @@ class Estimator:
     def _solve(self, camera_image: np.ndarray, lv: Level) -> float:
         """One Gauss–Newton step at one level; returns the largest parameter change relative
         to each unknown's scale (FAPU: 1, translation: 1e-4 model units)."""
-        _, cam, _ = self._renderers[lv.factor]
+        cam = self._views[lv.factor][0]
         image, ids = self.render(lv.factor)
         raw = _smooth(image, self.sigma)
-        synth = raw * self.gain + self.offset
+        synth = raw * self.gain.astype(np.float32) + self.offset.astype(np.float32)
         # pixels within the model's outline: at the outline the synthetic background (which a
         # camera never shows) and antialiasing would read as motion
         rows, cols = np.nonzero(binary_erosion(ids >= 0, iterations=EDGE))
@@ -208,26 +238,25 @@ class Estimator:
                 f"the model covers only {rows.size} pixels at 1/{lv.factor} size: it is out of "
                 "view (check --camera and the first frame)"
             )
-        r = camera_image - synth
+        r_p = camera_image[rows, cols] - synth[rows, cols]  # (n, 3)
         # a step that made the match worse is taken back by half (at most three times in a row)
         # before the next linear solve: the linear model can be wrong where shading or
         # occlusion, not texture motion, dominates what an unknown does to the image
-        energy = float(np.mean(np.minimum((r[rows, cols] @ LUMA) ** 2, TRUNCATE**2)))
+        energy = float(np.mean(np.minimum((r_p @ LUMA) ** 2, TRUNCATE**2)))
         last = self._last_step
         if last is not None and energy > last.energy and last.halvings < 3:
             half = last.delta / 2
             self._apply(-half)
             self._last_step = _Step(last.energy, half, last.halvings + 1)
             return self._step_size(half)
-        avg = 0.5 * (camera_image + synth)
-        gy, gx = _gradients(avg)
-        gx_p, gy_p, r_p, s_p = gx[rows, cols], gy[rows, cols], r[rows, cols], raw[rows, cols]
+        gy_p, gx_p = _gradients_at(camera_image, synth, rows, cols)
         # Equation 17 on luminance: drop pixels whose displacement estimate exceeds G
         ry, gxy, gyy = r_p @ LUMA, gx_p @ LUMA, gy_p @ LUMA
         d = np.abs(ry) / np.sqrt(gxy * gxy + gyy * gyy + 1e-6)
         keep = d <= lv.g
         rows, cols = rows[keep], cols[keep]
-        gx_p, gy_p, r_p, s_p = gx_p[keep], gy_p[keep], r_p[keep], s_p[keep]
+        gx_p, gy_p, r_p = gx_p[keep], gy_p[keep], r_p[keep]
+        s_p = raw[rows, cols]
         tri = ids[rows, cols]
         pix = np.stack([cols + 0.5, rows + 0.5], axis=1)
         positions = self.geometry.positions(self.params, self.translation)
@@ -236,12 +265,15 @@ class Estimator:
         uniq, inverse = np.unique(verts, return_inverse=True)
         jac = self.geometry.jacobian(self.params, self.translation, uniq)  # (U, 3, K) world
         jac = np.einsum("ab,ubk->uak", np.linalg.inv(cam.pose)[:3, :3], jac)  # camera axes
+        # single precision from here on: the image terms carry no more than that
+        jac = jac.astype(np.float32)
+        lam = lam.astype(np.float32)
         tc = np.einsum("nm,nmak->nak", lam, jac[inverse.reshape(verts.shape)])  # (N, 3, K)
-        depth = -pc[:, 2:3]  # distance along the view axis, > 0
-        x_rel = pix[:, 0:1] - cam.cx
-        y_rel = cam.cy - pix[:, 1:2]
-        du = (cam.fx * tc[:, 0] + x_rel * tc[:, 2]) / depth  # (N, K) pixels per unit
-        dv = -(cam.fy * tc[:, 1] + y_rel * tc[:, 2]) / depth
+        depth = (-pc[:, 2:3]).astype(np.float32)  # distance along the view axis, > 0
+        x_rel = (pix[:, 0:1] - cam.cx).astype(np.float32)
+        y_rel = (cam.cy - pix[:, 1:2]).astype(np.float32)
+        du = (np.float32(cam.fx) * tc[:, 0] + x_rel * tc[:, 2]) / depth  # (N, K) px per unit
+        dv = -(np.float32(cam.fy) * tc[:, 1] + y_rel * tc[:, 2]) / depth
         n, k = du.shape
         # an unknown whose motion covers too few pixels at this level is held
         speed = np.hypot(du, dv)
@@ -250,7 +282,7 @@ class Estimator:
         du[:, held] = 0.0
         dv[:, held] = 0.0
         extra = 6 if self.illumination else 0
-        a = np.zeros((n, 3, k + extra))
+        a = np.zeros((n, 3, k + extra), dtype=np.float32)
         a[:, :, :k] = -(gx_p[:, :, None] * du[:, None, :] + gy_p[:, :, None] * dv[:, None, :])
         if self.illumination:
             for c in range(3):
@@ -267,6 +299,71 @@ class Estimator:
         self._apply(delta)
         self._last_step = _Step(energy, delta, 0)
         return self._step_size(delta)
+
+    def _refine(self, frame: np.ndarray, fap: int) -> None:
+        """Refine the (integer) value of ``fap`` on the rendered image: a pattern search with
+        the steps of :data:`REFINE_STEPS`, each taken while it improves the luminance match
+        (sum of squared differences after gain and offset) with the camera ``frame`` ``(H, W, 3)
+        float32`` over the pixels where the FAP's motion shows.
+
+        The Gauss–Newton steps converge slowly on the eyelids and can stop tens of units off:
+        the rendered edge of an eyelid moves in whole pixels, which the optical-flow model
+        (smooth image, sub-pixel motion) does not describe. The rendered image does."""
+        window = self._window(fap)
+        if window is None:
+            return
+        ys, xs = window
+        c = self.camera
+        view = (
+            Camera(c.fx, c.fy, c.cx - xs.start, c.cy - ys.start, c.pose, znear=c.znear,
+                   zfar=c.zfar),
+            (xs.stop - xs.start, ys.stop - ys.start),
+            1,
+        )  # fmt: skip
+        target = frame[ys, xs]
+
+        def mismatch() -> float:
+            synth = self._synthesize(*view) * self.gain + self.offset
+            return float(np.sum(((synth - target) @ LUMA) ** 2))
+
+        best = mismatch()
+        i = fap - 1
+        for step in REFINE_STEPS:
+            moved = True
+            while moved:
+                moved = False
+                for change in (step, -step):
+                    self.params[i] += change
+                    value = mismatch()
+                    if value < best:
+                        best, moved = value, True
+                        break
+                    self.params[i] -= change
+
+    def _window(self, fap: int) -> tuple[slice, slice] | None:
+        """The rows and columns of the full-size image where ``fap``'s motion shows: the box
+        around the vertices it moves (at the current estimate, opened and closed by 100 units),
+        widened by :data:`REFINE_MARGIN`. None when it moves nothing in view."""
+        probe = self.params.copy()
+        probe[fap - 1] -= 100.0
+        lo = self.geometry.positions(probe, self.translation)
+        probe[fap - 1] += 200.0
+        hi = self.geometry.positions(probe, self.translation)
+        moved = np.any(np.abs(hi - lo) > 0, axis=1)
+        if not moved.any():
+            return None
+        w, h = self.size
+        xy = self.camera.project(np.concatenate([lo[moved], hi[moved]]))
+        x0, y0 = np.floor(xy.min(axis=0)).astype(int) - REFINE_MARGIN
+        x1, y1 = np.ceil(xy.max(axis=0)).astype(int) + REFINE_MARGIN
+        x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, w), min(y1, h)
+        if x1 <= x0 or y1 <= y0:
+            return None
+        # whole blocks of 16 pixels (the renderer's smallest image), so that a few renderers
+        # serve every window of a sequence
+        cols = _blocks(x0, x1, w)
+        rows = _blocks(y0, y1, h)
+        return slice(*rows), slice(*cols)
 
     def _apply(self, delta: np.ndarray) -> None:
         """Add a change of the unknowns (then gains and offsets, if estimated)."""
@@ -378,6 +475,14 @@ def _scaled(camera: Camera, factor: int) -> Camera:
     )
 
 
+def _blocks(lo: int, hi: int, n: int, block: int = 16) -> tuple[int, int]:
+    """``[lo, hi)`` widened to a multiple of ``block`` (at most ``n``) that stays within
+    ``[0, n)``."""
+    size = min(n, -(-(hi - lo) // block) * block)
+    start = min(max(0, lo - (size - (hi - lo)) // 2), n - size)
+    return start, start + size
+
+
 def _subsample(image: np.ndarray, factor: int) -> np.ndarray:
     """Moving-average subsampling of ``(H, W, C)`` by ``factor`` (edges that do not fill a
     block are dropped)."""
@@ -394,14 +499,27 @@ def _smooth(image: np.ndarray, sigma: float) -> np.ndarray:
     return gaussian_filter(image, sigma=(sigma, sigma, 0), mode="nearest", truncate=2.0)
 
 
-def _gradients(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Central differences ``(d/dY, d/dX)`` of ``(H, W, C)`` (one-sided at the border)."""
-    return np.gradient(image, axis=(0, 1))
+def _gradients_at(
+    a: np.ndarray, b: np.ndarray, rows: np.ndarray, cols: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Central differences ``(d/dY, d/dX)``, each ``(n, C)``, of the mean of the ``(H, W, C)``
+    images ``a`` and ``b`` at the pixels ``rows``, ``cols`` (one-sided at the border), as
+    ``np.gradient`` computes them over the whole image."""
+    h, w = a.shape[:2]
+    up, down = np.maximum(rows - 1, 0), np.minimum(rows + 1, h - 1)
+    left, right = np.maximum(cols - 1, 0), np.minimum(cols + 1, w - 1)
+    dy = (a[down, cols] + b[down, cols]) - (a[up, cols] + b[up, cols])
+    dx = (a[rows, right] + b[rows, right]) - (a[rows, left] + b[rows, left])
+    sy = (0.5 / (down - up)).astype(a.dtype)[:, None]
+    sx = (0.5 / (right - left)).astype(a.dtype)[:, None]
+    return dy * sy, dx * sx
 
 
 def _least_squares(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Solve ``a x ≈ b`` through the normal equations with column scaling and a whisper of
     damping, so that unknowns the pixels say nothing about stay put."""
+    a = a.astype(np.float64, copy=False)
+    b = b.astype(np.float64, copy=False)
     ata = a.T @ a
     atb = a.T @ b
     d = np.sqrt(np.diag(ata))

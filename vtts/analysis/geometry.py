@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vtts.face import FaceModel
-from vtts.face.deform import _transform_value
+from vtts.face.deform import Pose, _transform_value
 from vtts.vrml import Node, transform_matrix, triangulate
 from vtts.vrml.geometry import TriangleMesh
 from vtts.vrml.transform import compose_transform
@@ -57,6 +57,7 @@ class HeadGeometry:
         animated = set(model.tables.mesh_nodes())
         self._static_cache: dict[int, np.ndarray] = {}
         self._last = None
+        self._pose: tuple[bytes, Pose] | None = None
         self._columns: dict[tuple[str, int], np.ndarray] = {}
         faces, culled = [], []
         count = 0
@@ -171,9 +172,17 @@ class HeadGeometry:
             self._static_cache[key] = transform_matrix(node)
         return self._static_cache[key]
 
+    def pose(self, params: np.ndarray) -> Pose:
+        """The model's :class:`~vtts.face.deform.Pose` for ``params`` (the last one is kept: the
+        renderer draws the same pose that the geometry is computed from)."""
+        key = np.asarray(params, np.float64).tobytes()
+        if self._pose is None or self._pose[0] != key:
+            self._pose = (key, self.engine.deform(params))
+        return self._pose[1]
+
     def local_points(self, params: np.ndarray) -> list[np.ndarray]:
         """Each shape's vertex positions ``(n_s, 3)`` in its own coordinates."""
-        pose = self.engine.deform(params)
+        pose = self.pose(params)
         out = []
         for s in self.shapes:
             if s.name is not None and s.name in pose.points:

@@ -28,6 +28,12 @@ DEFAULT_UNKNOWNS: tuple[int | str, ...] = (
 #: raised, eyelids, outer eyebrows and the three head rotations.
 TABLE1_FAPS: tuple[int, ...] = (3, 12, 13, 19, 20, 35, 36, 48, 49, 50)
 
+#: The eyelids (top and bottom, left and right): thin edges a few pixels tall that move by less
+#: than a pixel for tens of FAP units, so that the rendered image changes in whole pixels where
+#: the optical-flow model expects a smooth change. An estimator refines them on the rendered
+#: image itself (:class:`vtts.analysis.Estimator`'s ``refine``).
+EYELIDS: tuple[int, ...] = (19, 20, 21, 22)
+
 #: Named sets for ``--faps``.
 UNKNOWN_SETS: dict[str, tuple[int | str, ...]] = {
     "paper17": DEFAULT_UNKNOWNS,

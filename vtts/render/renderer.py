@@ -243,6 +243,42 @@ class FaceRenderer:
         )
         self._renderer = _offscreen()
 
+    def set_view(
+        self,
+        camera: Camera,
+        size: tuple[int, int] | None = None,
+        supersample: int | None = None,
+    ) -> None:
+        """Look through ``camera`` (a placed camera: intrinsics in pixels of the output image,
+        and a pose) from now on, into images of ``size`` (W, H) rendered ``supersample`` times
+        larger (None: as before).
+
+        The scene stays as it is, lights included (they were put for the first camera), so one
+        renderer serves several views of the same models: a camera with the first one's pose
+        and a shifted principal point renders a window of the first image, pixel for pixel, and
+        scaled intrinsics render a smaller copy. Switching views is free; switching between
+        renderers is not (the GL context holds one scene's meshes and textures at a time)."""
+        if not camera.placed:
+            raise RenderError("a view needs a placed camera (one with a pose)")
+        if size is not None:
+            w, h = int(size[0]), int(size[1])
+            if not (16 <= w <= 8192 and 16 <= h <= 8192):
+                raise RenderError(f"image size must be within 16–8192 pixels, got {w}x{h}")
+            if self.background_image is not None and (w, h) != self.size:
+                raise RenderError("a renderer with a background image keeps its image size")
+            self.size = (w, h)
+        if supersample is not None:
+            if supersample not in (1, 2, 3, 4):
+                raise RenderError(f"supersample must be 1 to 4, got {supersample}")
+            self.supersample = supersample
+        ss = self.supersample
+        intrinsics = self._cam_node.camera
+        intrinsics.fx, intrinsics.fy = camera.fx * ss, camera.fy * ss
+        intrinsics.cx, intrinsics.cy = camera.cx * ss, camera.cy * ss
+        intrinsics.znear, intrinsics.zfar = camera.znear, camera.zfar
+        self.scene.set_pose(self._cam_node, camera.pose)
+        self.camera = camera
+
     # ---- building ----------------------------------------------------------------------------
 
     def _add_model(self, model: FaceModel) -> _ModelInstance:
@@ -429,21 +465,24 @@ class FaceRenderer:
 
     # ---- per frame -----------------------------------------------------------------------------
 
-    def prepare(self, params: np.ndarray | list[np.ndarray]) -> list:
+    def prepare(self, params: np.ndarray | list[np.ndarray], poses: list | None = None) -> list:
         """Compute a frame's geometry without touching OpenGL (safe in a worker thread).
 
         ``params`` is one ``(N_PARAMS,)`` vector for all models or a list with one per model.
-        Returns what :meth:`apply` puts on the GPU."""
+        ``poses``: each model's :class:`~vtts.face.deform.Pose` for its ``params``, when the
+        caller has deformed the model already. Returns what :meth:`apply` puts on the GPU."""
         if isinstance(params, np.ndarray) and params.ndim == 1:
             params = [params] * len(self.instances)
         if len(params) != len(self.instances):
             raise RenderError(f"{len(self.instances)} models but {len(params)} parameter vectors")
+        if poses is not None and len(poses) != len(self.instances):
+            raise RenderError(f"{len(self.instances)} models but {len(poses)} poses")
         prepared = []
-        for inst, p in zip(self.instances, params, strict=True):
+        for i, (inst, p) in enumerate(zip(self.instances, params, strict=True)):
             p = np.asarray(p, dtype=np.float64)
             if p.shape != (N_PARAMS,):
                 raise RenderError(f"a parameter vector has shape ({N_PARAMS},), got {p.shape}")
-            pose = inst.model.engine.deform(p)
+            pose = inst.model.engine.deform(p) if poses is None else poses[i]
             meshes = []
             for am in inst.meshes:
                 pts = pose.points.get(am.name)
@@ -489,9 +528,9 @@ class FaceRenderer:
                 for pn in at.nodes:
                     self.scene.set_pose(pn, m)
 
-    def pose(self, params: np.ndarray | list[np.ndarray]) -> None:
+    def pose(self, params: np.ndarray | list[np.ndarray], poses: list | None = None) -> None:
         """Pose every model (see :meth:`prepare`)."""
-        self.apply(self.prepare(params))
+        self.apply(self.prepare(params, poses))
 
     def frames(self, params: Iterable) -> Iterator[np.ndarray]:
         """Render a sequence: one frame ``(H, W, 3) uint8`` per item of ``params`` (each item as
@@ -514,10 +553,13 @@ class FaceRenderer:
                 self.apply(prepared)
                 yield self.render()
 
-    def render(self, params: np.ndarray | list[np.ndarray] | None = None) -> np.ndarray:
-        """The frame ``(H, W, 3) uint8`` for the given parameters (None: as last posed)."""
+    def render(
+        self, params: np.ndarray | list[np.ndarray] | None = None, poses: list | None = None
+    ) -> np.ndarray:
+        """The frame ``(H, W, 3) uint8`` for the given parameters (None: as last posed; ``poses``
+        as :meth:`prepare` takes them)."""
         if params is not None:
-            self.pose(params)
+            self.pose(params, poses)
         if self._renderer is None:
             raise RenderError("this renderer is closed")
         ss = self.supersample
