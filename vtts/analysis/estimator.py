@@ -294,7 +294,7 @@ class Estimator:
         # the linearization holds for small motion: no unknown may move any of its pixels
         # further than the level's step limit in one solve
         if k:
-            reach = np.hypot(du * delta[:k], dv * delta[:k]).max(axis=0)
+            reach = speed.max(axis=0, initial=0.0) * np.abs(delta[:k])  # held columns: delta 0
             delta[:k] *= np.minimum(1.0, lv.limit / np.maximum(reach, 1e-12))
         self._apply(delta)
         self._last_step = _Step(energy, delta, 0)
