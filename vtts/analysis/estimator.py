@@ -55,8 +55,10 @@ TRUNCATE = 10.0
 #: Rec. 601 luminance weights (Equation 18 is on luminance).
 LUMA = np.array([0.299, 0.587, 0.114])
 
-#: Steps (FAP units) of the search that refines FAPs on the rendered image, largest first.
+#: Steps (FAP units) of the search that refines FAPs on the rendered image, largest first, and
+#: how many times in a row each may be taken (so the search stays within ±60 units).
 REFINE_STEPS = (8, 4, 2, 1)
+REFINE_MOVES = 4
 
 #: Pixels around the image of what a refined FAP moves that its match is measured over.
 REFINE_MARGIN = 4
@@ -302,8 +304,9 @@ class Estimator:
 
     def _refine(self, frame: np.ndarray, fap: int) -> None:
         """Refine the (integer) value of ``fap`` on the rendered image: a pattern search with
-        the steps of :data:`REFINE_STEPS`, each taken while it improves the luminance match
-        (sum of squared differences after gain and offset) with the camera ``frame`` ``(H, W, 3)
+        the steps of :data:`REFINE_STEPS`, each taken (up or down, at most
+        :data:`REFINE_MOVES` times in a row) while it improves the luminance match (sum of
+        squared differences after gain and offset) with the camera ``frame`` ``(H, W, 3)
         float32`` over the pixels where the FAP's motion shows.
 
         The Gauss–Newton steps converge slowly on the eyelids and can stop tens of units off:
@@ -329,16 +332,16 @@ class Estimator:
         best = mismatch()
         i = fap - 1
         for step in REFINE_STEPS:
-            moved = True
-            while moved:
-                moved = False
+            for _ in range(REFINE_MOVES):
                 for change in (step, -step):
                     self.params[i] += change
                     value = mismatch()
                     if value < best:
-                        best, moved = value, True
+                        best = value
                         break
                     self.params[i] -= change
+                else:
+                    break  # neither way is better: the next, smaller step
 
     def _window(self, fap: int) -> tuple[slice, slice] | None:
         """The rows and columns of the full-size image where ``fap``'s motion shows: the box
@@ -359,8 +362,7 @@ class Estimator:
         x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, w), min(y1, h)
         if x1 <= x0 or y1 <= y0:
             return None
-        # whole blocks of 16 pixels (the renderer's smallest image), so that a few renderers
-        # serve every window of a sequence
+        # whole blocks of 16 pixels: never smaller than the renderer's smallest image
         cols = _blocks(x0, x1, w)
         rows = _blocks(y0, y1, h)
         return slice(*rows), slice(*cols)
