@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.ndimage import binary_erosion, gaussian_filter
@@ -318,11 +318,10 @@ class Estimator:
         ys, xs = window
         c = self.camera
         view = (
-            Camera(c.fx, c.fy, c.cx - xs.start, c.cy - ys.start, c.pose, znear=c.znear,
-                   zfar=c.zfar),
+            replace(c, cx=c.cx - xs.start, cy=c.cy - ys.start),
             (xs.stop - xs.start, ys.stop - ys.start),
             1,
-        )  # fmt: skip
+        )
         target = frame[ys, xs]
 
         def mismatch() -> float:
@@ -466,14 +465,12 @@ def _check_unknowns(unknowns: Sequence[int | str]) -> tuple[int | str, ...]:
 
 def _scaled(camera: Camera, factor: int) -> Camera:
     """The camera of an image subsampled by ``factor`` (pixel edges at integers)."""
-    return Camera(
-        camera.fx / factor,
-        camera.fy / factor,
-        camera.cx / factor,
-        camera.cy / factor,
-        camera.pose,
-        znear=camera.znear,
-        zfar=camera.zfar,
+    return replace(
+        camera,
+        fx=camera.fx / factor,
+        fy=camera.fy / factor,
+        cx=camera.cx / factor,
+        cy=camera.cy / factor,
     )
 
 

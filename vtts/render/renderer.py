@@ -189,15 +189,11 @@ class FaceRenderer:
             models = [models]
         if not models:
             raise RenderError("nothing to render: no model given")
-        w, h = size
-        if not (16 <= w <= 8192 and 16 <= h <= 8192):
-            raise RenderError(f"image size must be within 16–8192 pixels, got {w}x{h}")
+        w, h = _check_size(size)
         if layout not in ("row", "room"):
             raise RenderError(f"layout must be 'row' or 'room', got {layout!r}")
-        if supersample not in (1, 2, 3, 4):
-            raise RenderError(f"supersample must be 1 to 4, got {supersample}")
-        self.size = (int(w), int(h))
-        self.supersample = supersample
+        self.size = (w, h)
+        self.supersample = _check_supersample(supersample)
         self.models = list(models)
         self.background_image = None
         bg = (0.0, 0.0, 0.0)
@@ -219,20 +215,8 @@ class FaceRenderer:
         self._place(layout)
         if camera is None or not camera.placed:
             camera = frame_bounds(self._lo, self._hi, self.size, intrinsics=camera)
-        self.camera = camera
-        self._cam_node = self.scene.add(
-            # intrinsics are in pixels of the rendered (supersampled) image; pixel edges lie at
-            # integer coordinates (pixel i spans [i, i + 1]), so every coordinate scales alike
-            pr.IntrinsicsCamera(
-                self.camera.fx * supersample,
-                self.camera.fy * supersample,
-                self.camera.cx * supersample,
-                self.camera.cy * supersample,
-                znear=self.camera.znear,
-                zfar=self.camera.zfar,
-            ),
-            pose=self.camera.pose,
-        )
+        self._cam_node = self.scene.add(pr.IntrinsicsCamera(1.0, 1.0, 0.0, 0.0), pose=np.eye(4))
+        self.set_view(camera)
         key = np.array(self.camera.pose, copy=True)
         # key light from above left of the camera, a fill light from the right
         self.scene.add(
@@ -261,16 +245,14 @@ class FaceRenderer:
         if not camera.placed:
             raise RenderError("a view needs a placed camera (one with a pose)")
         if size is not None:
-            w, h = int(size[0]), int(size[1])
-            if not (16 <= w <= 8192 and 16 <= h <= 8192):
-                raise RenderError(f"image size must be within 16–8192 pixels, got {w}x{h}")
-            if self.background_image is not None and (w, h) != self.size:
+            size = _check_size(size)
+            if self.background_image is not None and size != self.size:
                 raise RenderError("a renderer with a background image keeps its image size")
-            self.size = (w, h)
+            self.size = size
         if supersample is not None:
-            if supersample not in (1, 2, 3, 4):
-                raise RenderError(f"supersample must be 1 to 4, got {supersample}")
-            self.supersample = supersample
+            self.supersample = _check_supersample(supersample)
+        # intrinsics are in pixels of the rendered (supersampled) image; pixel edges lie at
+        # integer coordinates (pixel i spans [i, i + 1]), so every coordinate scales alike
         ss = self.supersample
         intrinsics = self._cam_node.camera
         intrinsics.fx, intrinsics.fy = camera.fx * ss, camera.fy * ss
@@ -580,6 +562,19 @@ class FaceRenderer:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _check_size(size: tuple[int, int]) -> tuple[int, int]:
+    w, h = int(size[0]), int(size[1])
+    if not (16 <= w <= 8192 and 16 <= h <= 8192):
+        raise RenderError(f"image size must be within 16–8192 pixels, got {w}x{h}")
+    return w, h
+
+
+def _check_supersample(supersample: int) -> int:
+    if supersample not in (1, 2, 3, 4):
+        raise RenderError(f"supersample must be 1 to 4, got {supersample}")
+    return supersample
 
 
 def _constant_columns(mesh) -> np.ndarray | None:
