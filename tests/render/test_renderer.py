@@ -215,3 +215,33 @@ def test_a_pose_computed_by_the_caller_renders_the_same(head):
         assert np.array_equal(r.render(p, poses=[head.engine.deform(p)]), expected)
         with pytest.raises(RenderError, match="1 models but 2 poses"):
             r.render(p, poses=[head.engine.deform(p)] * 2)
+
+
+def test_triangle_numbers_come_from_the_same_rasterization(head):
+    """Every pixel the head covers, and only those, names a triangle of one of the drawn
+    IndexedFaceSets; the image is the plain render's. (That the triangle contains the pixel's
+    centre is checked through the estimator's geometry in tests/analysis.)"""
+    from vtts.vrml import triangulate
+
+    p = head.params({3: 300, 48: 20000, 19: 700})
+    with FaceRenderer(head) as r:
+        image, numbers = r.render(p, triangles=True)
+        assert np.array_equal(image, r.render(p))
+        assert numbers.shape == image.shape[:2] and numbers.dtype == np.int64
+        assert np.array_equal(numbers >= 0, foreground(image))
+        total = sum(count for _, _, count in r.triangle_sets)
+        assert numbers.min() == -1 and numbers.max() < total
+        firsts = [first for _, first, _ in r.triangle_sets]
+        assert firsts == sorted(firsts) and firsts[0] == 0
+        for node, _, count in r.triangle_sets:
+            assert len(triangulate(node).faces) == count
+        rows, cols = np.nonzero(numbers >= 0)
+        assert len(np.unique(numbers[rows, cols])) > total // 2  # the front of the head
+
+
+def test_triangle_numbers_need_a_plain_renderer(head):
+    with FaceRenderer(head, supersample=2) as r, pytest.raises(RenderError, match="triangle"):
+        r.render(head.params({}), triangles=True)
+    bg = np.zeros((288, 352, 3), np.uint8)
+    with FaceRenderer(head, background=bg) as r, pytest.raises(RenderError, match="triangle"):
+        r.render(head.params({}), triangles=True)

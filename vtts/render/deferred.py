@@ -38,6 +38,9 @@ SHADER_DIR = Path(__file__).resolve().parent / "shaders"
 #: last one (per-vertex colors) is drawn only for scenes that have such colors.
 G_TARGETS = ("g_position", "g_normal", "g_texel", "g_color")
 
+#: The G-buffer's attachment for triangle numbers (drawn only when asked for).
+TRIANGLE_ATTACHMENT = len(G_TARGETS)
+
 #: pyrender's mesh.frag, from its inputs to plain globals (each must occur exactly once).
 _RESOLVE_EDITS = (
     ("in vec3 frag_position;", "vec3 frag_position;"),
@@ -78,7 +81,8 @@ class DeferredPass(ForwardPass):
 
         self._triangle_modes = {GLTF.TRIANGLES, GLTF.TRIANGLE_STRIP, GLTF.TRIANGLE_FAN}
         self._base_color_only = TexFlags.BASE_COLOR
-        # (pyrender's defines, vertex colors?) -> G-buffer program; primitive -> the same
+        # (pyrender's defines, (vertex colors?, triangle numbers?)) -> G-buffer program;
+        # primitive -> the same
         self._gbuffer_programs: dict[tuple[frozenset, bool], object] = {}
         self._gbuffer_of: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
         # vertex colors? -> (resolve program, empty vertex array), or None if it cannot be made
@@ -106,8 +110,16 @@ class DeferredPass(ForwardPass):
         them too)."""
         return any(p.color_0 is not None for n, _ in opaque for p in n.mesh.primitives)
 
-    def render(self, scene, width: int, height: int, rgba: bool = False) -> np.ndarray:
+    def render(self, scene, width: int, height: int, rgba: bool = False, triangles=None):
+        """Draw ``scene`` as :meth:`ForwardPass.render` does.
+
+        ``triangles``: ``{primitive: number of its first triangle}`` for the opaque triangle
+        primitives to number. Then also returns, after the image, the number of the triangle
+        each pixel shows ``(H, W) int64`` (a primitive's first triangle plus the triangle's
+        index in its ``indices``; −1: background, an unnumbered primitive)."""
         if not (self.supports(scene) and self.deferrable(scene)):
+            if triangles is not None:
+                raise _render_error("triangle numbers need a scene the G-buffer holds")
             return super().render(scene, width, height, rgba)
         r = self._begin_frame(scene, width, height)
         nodes = self._sorted_mesh_nodes(scene)
@@ -116,22 +128,33 @@ class DeferredPass(ForwardPass):
         colors = self._vertex_colors(opaque)
         resolve = self._resolve_program(r, colors)
         if resolve is None:
+            if triangles is not None:
+                raise _render_error("triangle numbers need pyrender's shader as vtts knows it")
             return super().render(scene, width, height, rgba)
         targets = self._targets_for(width, height)
 
         GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, targets.gbuffer)
-        n_targets = len(G_TARGETS) if colors else len(G_TARGETS) - 1
-        GL.glDrawBuffers(n_targets, [GL.GL_COLOR_ATTACHMENT0 + i for i in range(n_targets)])
+        buffers = [GL.GL_COLOR_ATTACHMENT0 + i for i in range(len(G_TARGETS))]
+        if not colors:
+            buffers[-1] = GL.GL_NONE
+        if triangles is not None:
+            buffers.append(GL.GL_COLOR_ATTACHMENT0 + TRIANGLE_ATTACHMENT)
+        while buffers[-1] == GL.GL_NONE:
+            buffers.pop()
+        GL.glDrawBuffers(len(buffers), buffers)
         GL.glEnable(GL.GL_DEPTH_TEST)
         GL.glDepthMask(GL.GL_TRUE)
         GL.glDepthFunc(GL.GL_LESS)
         GL.glDisable(GL.GL_BLEND)
         GL.glClearDepth(1.0)  # the far plane, where the resolve pass's triangle lies
         GL.glClear(GL.GL_DEPTH_BUFFER_BIT)
+        if triangles is not None:
+            GL.glColorMask(GL.GL_TRUE, GL.GL_TRUE, GL.GL_TRUE, GL.GL_TRUE)
+            GL.glClearBufferfv(GL.GL_COLOR, TRIANGLE_ATTACHMENT, np.zeros(4, np.float32))
         materials: dict[object, int] = {}
         for node, pose in opaque:
             for primitive in node.mesh.primitives:
-                self._draw_gbuffer(primitive, pose, r, materials, colors)
+                self._draw_gbuffer(primitive, pose, r, materials, colors, triangles)
 
         GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, targets.color_fb)
         GL.glClearColor(*scene.bg_color)
@@ -144,39 +167,52 @@ class DeferredPass(ForwardPass):
                 for primitive in node.mesh.primitives:
                     self._draw(primitive, pose, r)
         self._end_frame()
-        return _read_color(targets.color_fb, width, height, rgba)
+        image = _read_color(targets.color_fb, width, height, rgba)
+        if triangles is None:
+            return image
+        return image, _read_triangles(targets.gbuffer, width, height)
 
     # ---- G-buffer pass -----------------------------------------------------------------------
 
-    def _draw_gbuffer(self, primitive, pose: np.ndarray, r, materials: dict, colors: bool) -> None:
-        """Store what pyrender's shader would read for ``primitive``'s fragments."""
-        pid = self._gbuffer_program(primitive, r, colors)._program_id
+    def _draw_gbuffer(
+        self, primitive, pose: np.ndarray, r, materials: dict, colors: bool, triangles=None
+    ) -> None:
+        """Store what pyrender's shader would read for ``primitive``'s fragments (and, with
+        ``triangles``, the numbers of its triangles)."""
+        pid = self._gbuffer_program(primitive, r, colors, triangles is not None)._program_id
         self._use(pid)
         self._uniform(pid, "M", pose)
         material = primitive.material
         index = materials.setdefault(material, len(materials))
         self._uniform(pid, "material_index", float(index))
+        if triangles is not None:
+            first = triangles.get(primitive)
+            # stored plus one (0: none); floats hold integers exactly up to 2**24
+            self._uniform(pid, "first_triangle", -1.0 if first is None else float(first + 1))
         texture = material.baseColorTexture
         if texture is not None:
             self._texture(pid, "base_color_texture", 0, texture.tex_type, texture._texid)
         self._set(GL.GL_CULL_FACE, not material.doubleSided, _cull_back)
         self._draw_call(primitive)
 
-    def _gbuffer_program(self, primitive, r, colors: bool):
+    def _gbuffer_program(self, primitive, r, colors: bool, triangles: bool = False):
         """pyrender's mesh.vert with the G-buffer shader, under the defines pyrender uses for
         ``primitive`` (so that the vertex stage is exactly pyrender's); ``colors``: with the
-        per-vertex color target."""
+        per-vertex color target; ``triangles``: with the triangle-number target."""
         from pyrender.shader_program import ShaderProgram
 
+        variant = (colors, triangles)
         known = self._gbuffer_of.get(primitive)
-        if known is not None and known[0] == colors and known[1]._program_id is not None:
+        if known is not None and known[0] == variant and known[1]._program_id is not None:
             return known[1]
         defines = dict(self._program(primitive, r).defines)
-        key = (frozenset(defines.items()), colors)
+        key = (frozenset(defines.items()), variant)
         program = self._gbuffer_programs.get(key)
         if program is None or program._program_id is None:
             if colors:
                 defines["VERTEX_COLORS"] = 1
+            if triangles:
+                defines["TRIANGLE_NUMBERS"] = 1
             program = ShaderProgram(
                 os.path.join(r._program_cache.shader_dir, "mesh.vert"),
                 str(SHADER_DIR / "gbuffer.frag"),
@@ -185,7 +221,7 @@ class DeferredPass(ForwardPass):
             program._add_to_context()
             self._gbuffer_programs[key] = program
             self._private.add(program._program_id)
-        self._gbuffer_of[primitive] = (colors, program)
+        self._gbuffer_of[primitive] = (variant, program)
         return program
 
     # ---- resolve pass ------------------------------------------------------------------------
@@ -282,12 +318,13 @@ class DeferredPass(ForwardPass):
             return self._targets
         if self._targets is not None:
             self._targets.delete()
-        textures = [int(t) for t in np.atleast_1d(GL.glGenTextures(len(G_TARGETS)))]
-        for t in textures:
-            GL.glBindTexture(GL.GL_TEXTURE_2D, t)
-            GL.glTexImage2D(
-                GL.GL_TEXTURE_2D, 0, GL.GL_RGBA32F, width, height, 0, GL.GL_RGBA, GL.GL_FLOAT, None
+        textures = [int(t) for t in np.atleast_1d(GL.glGenTextures(len(G_TARGETS) + 1))]
+        for i, t in enumerate(textures):
+            fmt, channels = (
+                (GL.GL_R32F, GL.GL_RED) if i == TRIANGLE_ATTACHMENT else (GL.GL_RGBA32F, GL.GL_RGBA)
             )
+            GL.glBindTexture(GL.GL_TEXTURE_2D, t)
+            GL.glTexImage2D(GL.GL_TEXTURE_2D, 0, fmt, width, height, 0, channels, GL.GL_FLOAT, None)
             GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_MIN_FILTER, GL.GL_NEAREST)
             GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_MAG_FILTER, GL.GL_NEAREST)
         GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
@@ -321,8 +358,23 @@ class DeferredPass(ForwardPass):
         return self._targets
 
 
-def _check_complete(what: str, width: int, height: int) -> None:
+def _read_triangles(gbuffer: int, width: int, height: int) -> np.ndarray:
+    """The triangle numbers of the G-buffer ``(H, W) int64``, top row first (−1: none)."""
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, gbuffer)
+    GL.glReadBuffer(GL.GL_COLOR_ATTACHMENT0 + TRIANGLE_ATTACHMENT)
+    buf = GL.glReadPixels(0, 0, width, height, GL.GL_RED, GL.GL_FLOAT)
+    GL.glReadBuffer(GL.GL_COLOR_ATTACHMENT0)
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, 0)
+    stored = np.frombuffer(buf, dtype=np.float32).reshape(height, width)[::-1]
+    return stored.astype(np.int64) - 1
+
+
+def _render_error(message: str):
     from vtts.errors import RenderError
 
+    return RenderError(message)
+
+
+def _check_complete(what: str, width: int, height: int) -> None:
     if GL.glCheckFramebufferStatus(GL.GL_FRAMEBUFFER) != GL.GL_FRAMEBUFFER_COMPLETE:
-        raise RenderError(f"cannot create a {width}x{height} {what} framebuffer")
+        raise _render_error(f"cannot create a {width}x{height} {what} framebuffer")

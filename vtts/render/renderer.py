@@ -16,6 +16,7 @@ import importlib.util
 import os
 import sys
 import types
+import weakref
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -117,6 +118,7 @@ class _AnimatedMesh:
     # the last Coordinate points prepared and what came of them (positions, normals, vertex
     # buffer): parts of a face that a frame leaves as they were cost nothing
     last: tuple | None = None
+    first_triangle: int = 0  # the number of its first triangle (see FaceRenderer.triangle_sets)
 
 
 @dataclass
@@ -172,6 +174,10 @@ class FaceRenderer:
     framing all heads); ``background`` an RGB color (0–1) or an ``(H, W, 3) uint8`` image;
     ``layout`` ``"row"`` (side by side) or ``"room"`` (side by side in front of a back wall on a
     floor).
+
+    ``triangle_sets`` lists every IndexedFaceSet drawn (of every model, in scene order) as
+    ``(node, first, count)``: triangle ``i`` of ``vtts.vrml.triangulate(node)`` has number
+    ``first + i`` in the triangle numbers :meth:`render` gives.
     """
 
     def __init__(
@@ -211,6 +217,9 @@ class FaceRenderer:
             ambient_light=[0.35, 0.35, 0.35],
         )
         self._image_textures: dict[Path, object] = {}  # image file -> its pyrender texture
+        # every IndexedFaceSet drawn, with the number of its first triangle (in model order)
+        self.triangle_sets: list[tuple[Node, int, int]] = []
+        self._triangle_numbers: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
         self.instances = [self._add_model(m) for m in self.models]
         self._place(layout)
         if camera is None or not camera.placed:
@@ -316,14 +325,24 @@ class FaceRenderer:
             tm = triangulate(geom)
             if tm.faces.size == 0:
                 return
-            mesh = self._mesh(tm, tm.positions, tm.normals, material)
+            _, last, count = self.triangle_sets[-1] if self.triangle_sets else (None, 0, 0)
+            first = last + count
+            self.triangle_sets.append((geom, first, len(tm.faces)))
+            mesh = self._mesh(tm, tm.positions, tm.normals, material, first)
             node = self.scene.add(mesh, parent_node=parent)
             pts = tm.positions
             if geom.name in animated:
                 inc = _incidence(tm.faces, tm.positions.shape[0])
                 inst.meshes.append(
                     _AnimatedMesh(
-                        geom.name, tm, parent, node, material, inc, _constant_columns(mesh)
+                        geom.name,
+                        tm,
+                        parent,
+                        node,
+                        material,
+                        inc,
+                        _constant_columns(mesh),
+                        first_triangle=first,
                     )
                 )
         else:
@@ -337,7 +356,7 @@ class FaceRenderer:
         inst.lo = np.minimum(inst.lo, world_pts.min(axis=0))
         inst.hi = np.maximum(inst.hi, world_pts.max(axis=0))
 
-    def _mesh(self, tm: TriangleMesh, positions, normals, material):
+    def _mesh(self, tm: TriangleMesh, positions, normals, material, first_triangle: int):
         pr = _pr()
         colors = None if tm.colors is None else np.c_[tm.colors, np.ones(len(tm.colors))]
         prim = pr.Primitive(
@@ -348,6 +367,7 @@ class FaceRenderer:
             indices=tm.faces.astype(np.uint32),
             material=material,
         )
+        self._triangle_numbers[prim] = first_triangle
         return pr.Mesh([prim])
 
     def _material(self, model: FaceModel, appearance: Node | None, double_sided: bool):
@@ -503,7 +523,7 @@ class FaceRenderer:
                 if not _update_in_place(am, vertex_data):
                     self.scene.remove_node(am.node)
                     am.node = self.scene.add(
-                        self._mesh(am.template, positions, normals, am.material),
+                        self._mesh(am.template, positions, normals, am.material, am.first_triangle),
                         parent_node=am.parent,
                     )
             for at, m in matrices:
@@ -536,16 +556,31 @@ class FaceRenderer:
                 yield self.render()
 
     def render(
-        self, params: np.ndarray | list[np.ndarray] | None = None, poses: list | None = None
-    ) -> np.ndarray:
+        self,
+        params: np.ndarray | list[np.ndarray] | None = None,
+        poses: list | None = None,
+        *,
+        triangles: bool = False,
+    ):
         """The frame ``(H, W, 3) uint8`` for the given parameters (None: as last posed; ``poses``
-        as :meth:`prepare` takes them)."""
+        as :meth:`prepare` takes them).
+
+        With ``triangles``, returns ``(frame, numbers)``: also the number of the triangle each
+        pixel shows ``(H, W) int64`` from the same rasterization (−1: none, or a VRML primitive
+        such as a Sphere); see :attr:`triangle_sets`. Needs ``supersample`` 1 and no
+        background image."""
         if params is not None:
             self.pose(params, poses)
         if self._renderer is None:
             raise RenderError("this renderer is closed")
         ss = self.supersample
         w, h = self.size[0] * ss, self.size[1] * ss
+        if triangles:
+            if ss != 1 or self.background_image is not None:
+                raise RenderError(
+                    "triangle numbers need a renderer without supersampling or background image"
+                )
+            return _drawing_pass().render(self.scene, w, h, triangles=self._triangle_numbers)
         if self.background_image is None:
             return _downsample(_drawing_pass().render(self.scene, w, h), ss)
         rgba = _downsample(_drawing_pass().render(self.scene, w, h, rgba=True), ss)

@@ -28,6 +28,10 @@ layout(location = 2) out vec4 g_texel;     // the base color texture's sample
 #ifdef VERTEX_COLORS
 layout(location = 3) out vec4 g_color;     // the per-vertex color (1 without)
 #endif
+#ifdef TRIANGLE_NUMBERS
+uniform float first_triangle;              // the primitive's first triangle number + 1; < 0: none
+layout(location = 4) out float g_triangle; // the triangle's number + 1 (0: none)
+#endif
 
 void main()
 {
@@ -50,5 +54,8 @@ void main()
 #else
     g_color = vec4(1.0);
 #endif
+#endif
+#ifdef TRIANGLE_NUMBERS
+    g_triangle = first_triangle > 0.0 ? first_triangle + float(gl_PrimitiveID) : 0.0;
 #endif
 }
