@@ -166,6 +166,32 @@ def test_gradients_at_pixels_are_numpys_gradient_of_the_mean():
     rows, cols = np.nonzero(np.ones((20, 30), bool))  # borders included
     dy, dx = _gradients_at(a, b, rows, cols)
     assert np.allclose(dy, gy[rows, cols], atol=1e-3) and np.allclose(dx, gx[rows, cols], atol=1e-3)
+    gain = np.array([0.9, 1.1, 1.3], np.float32)
+    gy, gx = np.gradient(0.5 * (a + (b * gain + 7)), axis=(0, 1))
+    dy, dx = _gradients_at(a, b, rows, cols, gain)
+    assert np.allclose(dy, gy[rows, cols], atol=1e-3) and np.allclose(dx, gx[rows, cols], atol=1e-3)
+
+
+def test_normal_equations_are_those_of_the_per_channel_equations():
+    """AᵀA and Aᵀb without forming A equal those of the 3N × (K + 6) matrix written out."""
+    from vtts.analysis.estimator import _normal_equations
+
+    rng = np.random.default_rng(2)
+    n, k = 50, 4
+    du, dv = rng.normal(size=(2, n, k)).astype(np.float32)
+    gx, gy, r = rng.normal(size=(3, n, 3)).astype(np.float32)
+    s = rng.uniform(0, 255, (n, 3)).astype(np.float32)
+    a = np.zeros((n, 3, k + 6))
+    x, y, u, v = (np.float64(q) for q in (gx, gy, du, dv))
+    a[:, :, :k] = -(x[:, :, None] * u[:, None, :] + y[:, :, None] * v[:, None, :])
+    for c in range(3):
+        a[:, c, k + c] = s[:, c]
+        a[:, c, k + 3 + c] = 1.0
+    a = a.reshape(3 * n, k + 6)
+    ata, atb = _normal_equations(du, dv, gx, gy, r, s)
+    assert np.allclose(ata, a.T @ a, rtol=1e-9) and np.allclose(atb, a.T @ r.reshape(-1))
+    ata, atb = _normal_equations(du, dv, gx, gy, r, None)  # no light model: the K columns
+    assert np.allclose(ata, (a.T @ a)[:k, :k]) and np.allclose(atb, (a.T @ r.reshape(-1))[:k])
 
 
 def test_a_change_of_light_is_not_read_as_motion(cybatt):

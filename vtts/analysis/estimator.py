@@ -33,7 +33,7 @@ import numpy as np
 from scipy.ndimage import binary_erosion, gaussian_filter
 
 from vtts.analysis.geometry import HeadGeometry
-from vtts.analysis.raster import TriangleIndexBuffer, ray_barycentrics
+from vtts.analysis.raster import ray_barycentrics
 from vtts.analysis.result import TRANSLATION, Analysis, FrameEstimate
 from vtts.analysis.unknowns import (  # noqa: F401
     DEFAULT_UNKNOWNS,
@@ -59,6 +59,10 @@ LUMA = np.array([0.299, 0.587, 0.114])
 #: how many times in a row each may be taken (so the search stays within ±60 units).
 REFINE_STEPS = (8, 4, 2, 1)
 REFINE_MOVES = 4
+
+#: A level's solves stop when no unknown moved its image by more than this many pixels (of that
+#: level) in the last one.
+TOLERANCE = 0.005
 
 #: Pixels around the image of what a refined FAP moves that its match is measured over.
 REFINE_MARGIN = 4
@@ -93,9 +97,11 @@ class Estimator:
     ``camera`` is the camera of the video (default: the framing ``vtts render`` uses for this
     model and size). ``unknowns`` are FAP numbers and ``"tx"``, ``"ty"``, ``"tz"``.
     ``illumination`` estimates a gain and offset per color channel. ``sigma`` is the Gaussian
-    filter (pixels of each level) applied to both images before the gradients. ``refine``: the
-    FAPs that, when they are unknowns, are refined after the pyramid by a search over integer
-    values on the rendered image (:meth:`_refine`).
+    filter (pixels of each level) applied to both images before the gradients. A level's solves
+    stop when the last one moved no unknown's image by more than ``tolerance`` pixels of that
+    level. ``refine``: the FAPs that, when they are unknowns, are refined after the pyramid by
+    a search over integer values on the rendered image (:meth:`_refine`). ``predict``: start
+    each frame from the motion of the last two estimates (:meth:`_extrapolate`).
     """
 
     def __init__(
@@ -108,8 +114,9 @@ class Estimator:
         pyramid: Sequence[Level] = PYRAMID,
         illumination: bool = True,
         sigma: float = 0.6,
-        tolerance: float = 0.05,
+        tolerance: float = TOLERANCE,
         refine: Iterable[int] = EYELIDS,
+        predict: bool = True,
     ) -> None:
         self.unknowns = _check_unknowns(unknowns)
         wanted = set(refine)
@@ -120,30 +127,27 @@ class Estimator:
         self.illumination = illumination
         self.sigma = sigma
         self.tolerance = tolerance
+        self.predict = predict
+        # (frame index, parameters, translation) of the last two estimates
+        self._history: list[tuple[int, np.ndarray, np.ndarray]] = []
         w, h = self.size
         # one renderer for every view (pyramid levels, refinement windows): the GL context holds
         # one scene at a time, and changing scenes uploads every mesh and texture again
         self._renderer = FaceRenderer(model, size=self.size, camera=camera)
         self.camera = self._renderer.camera
-        # pyramid factor -> (camera, image size, supersampling)
-        self._views: dict[int, tuple[Camera, tuple[int, int], int]] = {
-            1: (self.camera, self.size, 1)
-        }
+        # pyramid factor -> (camera, image size) of that level
+        self._levels: dict[int, tuple[Camera, tuple[int, int]]] = {1: (self.camera, self.size)}
         for lv in self.pyramid:
             f = lv.factor
-            if f in self._views:
+            if f in self._levels:
                 continue
             lsize = (w // f, h // f)
             if min(lsize) < 16:
                 raise VttsError(f"a {w}x{h} video is too small for a pyramid level of 1/{f}")
-            # supersampled by the level's factor, the synthetic image is subsampled exactly as
-            # the camera frame is (a moving average over the same full-size pixels)
-            self._views[f] = (_scaled(self.camera, f), lsize, min(f, 4))
+            self._levels[f] = (_scaled(self.camera, f), lsize)
         self._root = self._renderer.scene.get_pose(self._renderer.instances[0].root)
         self.geometry = HeadGeometry(model, self.unknowns, self._root)
-        self._ids = TriangleIndexBuffer(
-            self.geometry.faces, self.geometry.culled, self.geometry.n_vertices
-        )
+        self._faces = _face_numbers(self._renderer, self.geometry)
         self._last_step: _Step | None = None
         self.params = np.zeros(N_PARAMS)
         self.translation = np.zeros(3)
@@ -154,22 +158,39 @@ class Estimator:
 
     def render(self, factor: int = 1) -> tuple[np.ndarray, np.ndarray]:
         """The model at the current estimate at pyramid ``factor``: the image ``(h, w, 3)
-        float32`` (0–255, before gain and offset) and triangle indices ``(h, w)`` (−1: none)."""
-        cam, lsize, ss = self._views[factor]
-        image = self._synthesize(cam, lsize, ss)
-        ids = self._ids.draw(self.geometry.positions(self.params, self.translation), cam, lsize)
-        return image, ids
+        float32`` (0–255, before gain and offset) and the index into ``geometry.faces`` of the
+        triangle each pixel shows ``(h, w)`` (−1: none).
+
+        Both come from one rendering at full size: the image is subsampled exactly as the camera
+        frame is (a moving average over the same full-size pixels), and each pixel of a smaller
+        level takes the triangle of the full-size pixel at its centre."""
+        renderer = self._renderer
+        renderer.set_view(self.camera, self.size, 1)
+        self._place()
+        image, numbers = renderer.render(
+            self.params, poses=[self.geometry.pose(self.params)], triangles=True
+        )
+        faces = np.where(numbers >= 0, self._faces[numbers], -1)
+        if factor == 1:
+            return image.astype(np.float32), faces
+        h, w = self._levels[factor][1][::-1]
+        c = factor // 2
+        return _subsample(image, factor), faces[c::factor, c::factor][:h, :w]
 
     def _synthesize(self, camera: Camera, size: tuple[int, int], supersample: int) -> np.ndarray:
         """The image ``(h, w, 3) float32`` of the model at the current estimate through
         ``camera`` at ``size``, rendered ``supersample`` times larger and averaged down."""
         renderer = self._renderer
         renderer.set_view(camera, size, supersample)
-        root = self._root.copy()
-        root[:3, 3] += self.translation
-        renderer.scene.set_pose(renderer.instances[0].root, root)
+        self._place()
         pose = self.geometry.pose(self.params)
         return renderer.render(self.params, poses=[pose]).astype(np.float32)
+
+    def _place(self) -> None:
+        """Move the model by the estimated head translation."""
+        root = self._root.copy()
+        root[:3, 3] += self.translation
+        self._renderer.scene.set_pose(self._renderer.instances[0].root, root)
 
     def reconstruct(self) -> np.ndarray:
         """The synthetic frame ``(H, W, 3) uint8`` at full size with gain and offset applied."""
@@ -185,6 +206,8 @@ class Estimator:
         if frame.shape != (h, w, 3):
             raise VttsError(f"frame {index} is {frame.shape}, expected ({h}, {w}, 3)")
         full = frame.astype(np.float32)
+        if self.predict:
+            self._extrapolate(index)
         pyramid: dict[int, np.ndarray] = {}
         solves = 0
         for lv in self.pyramid:
@@ -204,13 +227,13 @@ class Estimator:
                 params[u - 1] = np.round(params[u - 1]) + 0.0  # no negative zeros
         kept, self.params = self.params, params
         try:
-            for fap in self.refined:
-                self._refine(full, fap)
+            self._refine(full)
             image, ids = self.render(1)
         finally:
             for fap in self.refined:
                 kept[fap - 1] = self.params[fap - 1]
             params, self.params = self.params, kept
+        self._history = [*self._history[-1:], (index, self.params.copy(), self.translation.copy())]
         synth = np.clip(np.round(image * self.gain + self.offset), 0, 255)
         mask = ids >= 0
         return FrameEstimate(
@@ -225,13 +248,29 @@ class Estimator:
             iterations=solves,
         )
 
+    def _extrapolate(self, index: int) -> None:
+        """Start frame ``index`` from the motion of the last two estimates (constant velocity
+        per frame), added to the unknowns: the pyramid then has less way to go."""
+        if len(self._history) < 2:
+            return
+        (i0, p0, t0), (i1, p1, t1) = self._history
+        if not i0 < i1 < index:
+            return
+        ratio = (index - i1) / (i1 - i0)
+        for u in self.unknowns:
+            if isinstance(u, str):
+                axis = TRANSLATION.index(u)
+                self.translation[axis] += ratio * (t1[axis] - t0[axis])
+            else:
+                self.params[u - 1] += ratio * (p1[u - 1] - p0[u - 1])
+
     def _solve(self, camera_image: np.ndarray, lv: Level) -> float:
-        """One Gauss–Newton step at one level; returns the largest parameter change relative
-        to each unknown's scale (FAPU: 1, translation: 1e-4 model units)."""
-        cam = self._views[lv.factor][0]
+        """One Gauss–Newton step at one level; returns how far (pixels of that level) the step
+        moved the image of the unknown that moved most."""
+        cam = self._levels[lv.factor][0]
         image, ids = self.render(lv.factor)
         raw = _smooth(image, self.sigma)
-        synth = raw * self.gain.astype(np.float32) + self.offset.astype(np.float32)
+        gain, offset = self.gain.astype(np.float32), self.offset.astype(np.float32)
         # pixels within the model's outline: at the outline the synthetic background (which a
         # camera never shows) and antialiasing would read as motion
         rows, cols = np.nonzero(binary_erosion(ids >= 0, iterations=EDGE))
@@ -240,7 +279,8 @@ class Estimator:
                 f"the model covers only {rows.size} pixels at 1/{lv.factor} size: it is out of "
                 "view (check --camera and the first frame)"
             )
-        r_p = camera_image[rows, cols] - synth[rows, cols]  # (n, 3)
+        s_p = raw[rows, cols]
+        r_p = camera_image[rows, cols] - (s_p * gain + offset)  # (n, 3)
         # a step that made the match worse is taken back by half (at most three times in a row)
         # before the next linear solve: the linear model can be wrong where shading or
         # occlusion, not texture motion, dominates what an unknown does to the image
@@ -249,16 +289,16 @@ class Estimator:
         if last is not None and energy > last.energy and last.halvings < 3:
             half = last.delta / 2
             self._apply(-half)
-            self._last_step = _Step(last.energy, half, last.halvings + 1)
-            return self._step_size(half)
-        gy_p, gx_p = _gradients_at(camera_image, synth, rows, cols)
+            self._last_step = _Step(last.energy, half, last.halvings + 1, last.reach / 2)
+            return last.reach / 2
+        # gradients of the camera frame and of gain · synthetic + offset
+        gy_p, gx_p = _gradients_at(camera_image, raw, rows, cols, gain)
         # Equation 17 on luminance: drop pixels whose displacement estimate exceeds G
         ry, gxy, gyy = r_p @ LUMA, gx_p @ LUMA, gy_p @ LUMA
         d = np.abs(ry) / np.sqrt(gxy * gxy + gyy * gyy + 1e-6)
         keep = d <= lv.g
         rows, cols = rows[keep], cols[keep]
-        gx_p, gy_p, r_p = gx_p[keep], gy_p[keep], r_p[keep]
-        s_p = raw[rows, cols]
+        gx_p, gy_p, r_p, s_p = gx_p[keep], gy_p[keep], r_p[keep], s_p[keep]
         tri = ids[rows, cols]
         pix = np.stack([cols + 0.5, rows + 0.5], axis=1)
         positions = self.geometry.positions(self.params, self.translation)
@@ -276,71 +316,100 @@ class Estimator:
         y_rel = (cam.cy - pix[:, 1:2]).astype(np.float32)
         du = (np.float32(cam.fx) * tc[:, 0] + x_rel * tc[:, 2]) / depth  # (N, K) px per unit
         dv = -(np.float32(cam.fy) * tc[:, 1] + y_rel * tc[:, 2]) / depth
-        n, k = du.shape
+        k = du.shape[1]
         # an unknown whose motion covers too few pixels at this level is held
         speed = np.hypot(du, dv)
         support = (speed > 0.2 * speed.max(axis=0, initial=0.0)).sum(axis=0)
         held = support < lv.support
         du[:, held] = 0.0
         dv[:, held] = 0.0
-        extra = 6 if self.illumination else 0
-        a = np.zeros((n, 3, k + extra), dtype=np.float32)
-        a[:, :, :k] = -(gx_p[:, :, None] * du[:, None, :] + gy_p[:, :, None] * dv[:, None, :])
-        if self.illumination:
-            for c in range(3):
-                a[:, c, k + c] = s_p[:, c]  # d/dgain of gain·S + offset
-                a[:, c, k + 3 + c] = 1.0
-        a = a.reshape(3 * n, k + extra)
-        b = r_p.reshape(-1)
-        delta = _least_squares(a, b)
+        ata, atb = _normal_equations(du, dv, gx_p, gy_p, r_p, s_p if self.illumination else None)
+        delta = _least_squares(ata, atb)
         # the linearization holds for small motion: no unknown may move any of its pixels
         # further than the level's step limit in one solve
-        if k:
-            reach = speed.max(axis=0, initial=0.0) * np.abs(delta[:k])  # held columns: delta 0
-            delta[:k] *= np.minimum(1.0, lv.limit / np.maximum(reach, 1e-12))
+        reach = speed.max(axis=0, initial=0.0) * np.abs(delta[:k])  # held columns: delta 0
+        delta[:k] *= np.minimum(1.0, lv.limit / np.maximum(reach, 1e-12))
+        moved = float(np.minimum(reach, lv.limit).max(initial=0.0))
         self._apply(delta)
-        self._last_step = _Step(energy, delta, 0)
-        return self._step_size(delta)
+        self._last_step = _Step(energy, delta, 0, moved)
+        return moved
 
-    def _refine(self, frame: np.ndarray, fap: int) -> None:
-        """Refine the (integer) value of ``fap`` on the rendered image: a pattern search with
-        the steps of :data:`REFINE_STEPS`, each taken (up or down, at most
+    def _refine(self, frame: np.ndarray) -> None:
+        """Refine the (integer) values of the FAPs :attr:`refined` on the rendered image: a
+        pattern search with the steps of :data:`REFINE_STEPS`, each taken (up or down, at most
         :data:`REFINE_MOVES` times in a row) while it improves the luminance match (sum of
         squared differences after gain and offset) with the camera ``frame`` ``(H, W, 3)
-        float32`` over the pixels where the FAP's motion shows.
+        float32`` over the pixels where the FAP's motion shows (:meth:`_window`).
 
         The Gauss–Newton steps converge slowly on the eyelids and can stop tens of units off:
         the rendered edge of an eyelid moves in whole pixels, which the optical-flow model
-        (smooth image, sub-pixel motion) does not describe. The rendered image does."""
-        window = self._window(fap)
-        if window is None:
-            return
-        ys, xs = window
+        (smooth image, sub-pixel motion) does not describe. The rendered image does.
+
+        FAPs whose windows do not overlap (the left and the right eyelid) are searched side by
+        side: each rendering tries a move of each of them, and each keeps its own move by the
+        match in its own window, exactly as if it were searched alone."""
+        windows = {fap: self._window(fap) for fap in self.refined}
+        groups: list[list[int]] = []
+        for fap, win in windows.items():
+            if win is None:
+                continue
+            for group in groups:
+                if not any(_overlap(win, windows[other]) for other in group):
+                    group.append(fap)
+                    break
+            else:
+                groups.append([fap])
+        for group in groups:
+            self._search(frame, {fap: windows[fap] for fap in group})
+
+    def _search(self, frame: np.ndarray, windows: dict[int, tuple[slice, slice]]) -> None:
+        """The pattern search of :meth:`_refine` for FAPs whose ``windows`` do not overlap, all
+        in one rendering of the box around them."""
+        boxes = list(windows.values())
+        ys, xs = (
+            slice(min(b[i].start for b in boxes), max(b[i].stop for b in boxes)) for i in (0, 1)
+        )
         c = self.camera
         view = (
             replace(c, cx=c.cx - xs.start, cy=c.cy - ys.start),
             (xs.stop - xs.start, ys.stop - ys.start),
             1,
         )
-        target = frame[ys, xs]
+        luma = (frame[ys, xs] @ LUMA).astype(np.float32)
+        # each FAP's own window within the box
+        local = {
+            fap: (
+                slice(wy.start - ys.start, wy.stop - ys.start),
+                slice(wx.start - xs.start, wx.stop - xs.start),
+            )
+            for fap, (wy, wx) in windows.items()
+        }
 
-        def mismatch() -> float:
-            synth = self._synthesize(*view) * self.gain + self.offset
-            return float(np.sum(((synth - target) @ LUMA) ** 2))
+        def mismatch() -> dict[int, float]:
+            synth = (self._synthesize(*view) * self.gain + self.offset) @ LUMA - luma
+            return {fap: float(np.sum(synth[win] ** 2)) for fap, win in local.items()}
 
         best = mismatch()
-        i = fap - 1
         for step in REFINE_STEPS:
-            for _ in range(REFINE_MOVES):
-                for change in (step, -step):
-                    self.params[i] += change
-                    value = mismatch()
-                    if value < best:
-                        best = value
-                        break
-                    self.params[i] -= change
-                else:
-                    break  # neither way is better: the next, smaller step
+            # FAP -> moves left at this step (0: neither way improves any more)
+            left = dict.fromkeys(windows, REFINE_MOVES)
+            direction = dict.fromkeys(windows, 0)  # 0: try up, then down
+            while any(left.values()):
+                trying = {f: step if direction[f] >= 0 else -step for f in windows if left[f]}
+                for fap, change in trying.items():
+                    self.params[fap - 1] += change
+                value = mismatch()
+                for fap, change in trying.items():
+                    if value[fap] < best[fap]:
+                        best[fap] = value[fap]
+                        left[fap] -= 1
+                        direction[fap] = 1 if change > 0 else -1  # keep going this way
+                        continue
+                    self.params[fap - 1] -= change
+                    if direction[fap] == 0:
+                        direction[fap] = -1  # up did not help: try down next
+                    else:
+                        left[fap] = 0  # the last way taken (or both) no longer improves
 
     def _window(self, fap: int) -> tuple[slice, slice] | None:
         """The rows and columns of the full-size image where ``fap``'s motion shows: the box
@@ -378,22 +447,17 @@ class Estimator:
             self.gain += delta[k : k + 3]
             self.offset += delta[k + 3 : k + 6]
 
-    def _step_size(self, delta: np.ndarray) -> float:
-        """The largest change of an unknown relative to its scale (FAPU: 1, translation: 1e-4
-        model units)."""
-        k = len(self.unknowns)
-        scale = np.array([1e-4 if isinstance(u, str) else 1.0 for u in self.unknowns])
-        return float(np.max(np.abs(delta[:k]) / scale))
-
 
 @dataclass
 class _Step:
-    """The last change made at a level: the match before it (``energy``), the change, and how
-    often it has been halved."""
+    """The last change made at a level: the match before it (``energy``), the change, how
+    often it has been halved, and how far (pixels) it moved the image of the unknown that moved
+    most."""
 
     energy: float
     delta: np.ndarray
     halvings: int
+    reach: float
 
 
 def analyze(
@@ -463,6 +527,25 @@ def _check_unknowns(unknowns: Sequence[int | str]) -> tuple[int | str, ...]:
     return tuple(out)
 
 
+def _face_numbers(renderer: FaceRenderer, geometry: HeadGeometry) -> np.ndarray:
+    """Renderer triangle number -> index into ``geometry.faces`` (−1: not in the geometry):
+    both triangulate the same IndexedFaceSets, each listing them in its own order."""
+    firsts: dict[int, list[int]] = {}
+    total = 0
+    for node, first, count in renderer.triangle_sets:
+        firsts.setdefault(id(node), []).append(first)
+        total = max(total, first + count)
+    out = np.full(total, -1, dtype=np.int64)
+    for s in geometry.shapes:
+        queue = firsts.get(id(s.node))
+        if not queue:
+            raise VttsError(f"{geometry.model.name}: the renderer does not draw every face set")
+        first = queue.pop(0)
+        start = s.first_face
+        out[first : first + len(s.mesh.faces)] = np.arange(start, start + len(s.mesh.faces))
+    return out
+
+
 def _scaled(camera: Camera, factor: int) -> Camera:
     """The camera of an image subsampled by ``factor`` (pixel edges at integers)."""
     return replace(
@@ -474,6 +557,11 @@ def _scaled(camera: Camera, factor: int) -> Camera:
     )
 
 
+def _overlap(a: tuple[slice, slice], b: tuple[slice, slice]) -> bool:
+    """Whether two (rows, columns) windows share a pixel."""
+    return all(p.start < q.stop and q.start < p.stop for p, q in zip(a, b, strict=True))
+
+
 def _blocks(lo: int, hi: int, n: int, block: int = 16) -> tuple[int, int]:
     """``[lo, hi)`` widened to a multiple of ``block`` (at most ``n``) that stays within
     ``[0, n)``."""
@@ -483,13 +571,15 @@ def _blocks(lo: int, hi: int, n: int, block: int = 16) -> tuple[int, int]:
 
 
 def _subsample(image: np.ndarray, factor: int) -> np.ndarray:
-    """Moving-average subsampling of ``(H, W, C)`` by ``factor`` (edges that do not fill a
-    block are dropped)."""
+    """Moving-average subsampling of ``(H, W, C)`` by ``factor`` to ``float32`` (edges that do
+    not fill a block are dropped)."""
     if factor == 1:
-        return image
-    h, w, c = image.shape[0] // factor, image.shape[1] // factor, image.shape[2]
-    blocks = image[: h * factor, : w * factor].reshape(h, factor, w, factor, c)
-    return blocks.mean(axis=(1, 3), dtype=np.float32)
+        return image.astype(np.float32, copy=False)
+    h, w = image.shape[0] // factor, image.shape[1] // factor
+    x = image[: h * factor, : w * factor].astype(np.float32)
+    x = x.reshape(h, factor, w * factor, -1).sum(axis=1)  # rows of each block
+    x = x.reshape(h, w, factor, -1).sum(axis=2)  # then columns
+    return x * np.float32(1.0 / (factor * factor))
 
 
 def _smooth(image: np.ndarray, sigma: float) -> np.ndarray:
@@ -499,32 +589,83 @@ def _smooth(image: np.ndarray, sigma: float) -> np.ndarray:
 
 
 def _gradients_at(
-    a: np.ndarray, b: np.ndarray, rows: np.ndarray, cols: np.ndarray
+    a: np.ndarray,
+    b: np.ndarray,
+    rows: np.ndarray,
+    cols: np.ndarray,
+    gain: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Central differences ``(d/dY, d/dX)``, each ``(n, C)``, of the mean of the ``(H, W, C)``
-    images ``a`` and ``b`` at the pixels ``rows``, ``cols`` (one-sided at the border), as
+    images ``a`` and ``gain · b`` (``gain`` ``(C,)``, default 1; an offset added to ``b`` would
+    not change them) at the pixels ``rows``, ``cols`` (one-sided at the border), as
     ``np.gradient`` computes them over the whole image."""
     h, w = a.shape[:2]
     up, down = np.maximum(rows - 1, 0), np.minimum(rows + 1, h - 1)
     left, right = np.maximum(cols - 1, 0), np.minimum(cols + 1, w - 1)
-    dy = (a[down, cols] + b[down, cols]) - (a[up, cols] + b[up, cols])
-    dx = (a[rows, right] + b[rows, right]) - (a[rows, left] + b[rows, left])
+    if gain is None:
+        dy = (a[down, cols] + b[down, cols]) - (a[up, cols] + b[up, cols])
+        dx = (a[rows, right] + b[rows, right]) - (a[rows, left] + b[rows, left])
+    else:
+        dy = (a[down, cols] - a[up, cols]) + (b[down, cols] - b[up, cols]) * gain
+        dx = (a[rows, right] - a[rows, left]) + (b[rows, right] - b[rows, left]) * gain
     sy = (0.5 / (down - up)).astype(a.dtype)[:, None]
     sx = (0.5 / (right - left)).astype(a.dtype)[:, None]
     return dy * sy, dx * sx
 
 
-def _least_squares(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Solve ``a x ≈ b`` through the normal equations with column scaling and a whisper of
+def _normal_equations(
+    du: np.ndarray,
+    dv: np.ndarray,
+    gx: np.ndarray,
+    gy: np.ndarray,
+    r: np.ndarray,
+    s: np.ndarray | None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The normal equations ``(AᵀA, Aᵀb)`` (float64) of the per-pixel, per-channel equations
+    ``−(gx_c·du + gy_c·dv)·Δ + s_c·Δgain_c + Δoffset_c = r_c`` (Equation 10 with the image
+    motion of Equations 14–16, and the light model when ``s`` is given).
+
+    ``du``, ``dv`` ``(N, K)``: image motion (pixels per unit) of each unknown at each pixel;
+    ``gx``, ``gy``, ``r``, ``s`` ``(N, 3)``: gradients, residual and synthetic color per
+    channel. Unknowns: the K, then the gains and offsets of the 3 channels. A is never formed:
+    its 3N rows reduce per pixel to the 2×2 matrix of the gradients summed over the channels,
+    so every product is an (N × K)ᵀ(N × K) one."""
+    du = du.astype(np.float64)
+    dv = dv.astype(np.float64)
+    gx = gx.astype(np.float64)
+    gy = gy.astype(np.float64)
+    r = r.astype(np.float64)
+    k = du.shape[1]
+    m = k + (6 if s is not None else 0)
+    ata = np.zeros((m, m))
+    atb = np.zeros(m)
+    gxx, gxy, gyy = (gx * gx).sum(1), (gx * gy).sum(1), (gy * gy).sum(1)
+    cross = (du * gxy[:, None]).T @ dv
+    ata[:k, :k] = (du * gxx[:, None]).T @ du + cross + cross.T + (dv * gyy[:, None]).T @ dv
+    atb[:k] = -(du.T @ (gx * r).sum(1) + dv.T @ (gy * r).sum(1))
+    if s is not None:
+        s = s.astype(np.float64)
+        for c in range(3):
+            g, o = k + c, k + 3 + c  # the channel's gain and offset
+            ata[:k, g] = -(du.T @ (gx[:, c] * s[:, c]) + dv.T @ (gy[:, c] * s[:, c]))
+            ata[:k, o] = -(du.T @ gx[:, c] + dv.T @ gy[:, c])
+            ata[g, g] = s[:, c] @ s[:, c]
+            ata[g, o] = s[:, c].sum()
+            ata[o, o] = len(s)
+            atb[g] = s[:, c] @ r[:, c]
+            atb[o] = r[:, c].sum()
+        upper = np.triu_indices(m, 1)
+        ata[upper[::-1]] = ata[upper]
+    return ata, atb
+
+
+def _least_squares(ata: np.ndarray, atb: np.ndarray) -> np.ndarray:
+    """Solve the normal equations ``ata x = atb`` with column scaling and a whisper of
     damping, so that unknowns the pixels say nothing about stay put."""
-    a = a.astype(np.float64, copy=False)
-    b = b.astype(np.float64, copy=False)
-    ata = a.T @ a
-    atb = a.T @ b
     d = np.sqrt(np.diag(ata))
     big = d.max() if d.size else 1.0
     ok = d > 1e-9 * big
-    x = np.zeros(a.shape[1])
+    x = np.zeros(ata.shape[0])
     if not ok.any():
         return x
     s = 1.0 / d[ok]

@@ -33,10 +33,11 @@ _H = 1.0
 @dataclass
 class _Shape:
     chain: list[Node]  # the Transforms above the shape, outermost first
+    node: Node  # the IndexedFaceSet
     mesh: TriangleMesh
     name: str | None  # DEF name of the IndexedFaceSet when the tables deform it
-    solid: bool
     first_vertex: int
+    first_face: int  # index of its first triangle in HeadGeometry.faces
 
 
 class HeadGeometry:
@@ -44,8 +45,7 @@ class HeadGeometry:
     model's placement in the renderer's world).
 
     ``unknowns`` are FAP numbers and ``"tx"``, ``"ty"``, ``"tz"``.
-    Attributes: ``faces`` ``(m, 3)`` global vertex indices, ``culled`` ``(m,)`` whether back
-    faces are culled, ``n_vertices``.
+    Attributes: ``faces`` ``(m, 3)`` global vertex indices, ``n_vertices``.
     """
 
     def __init__(self, model: FaceModel, unknowns, root: np.ndarray) -> None:
@@ -57,10 +57,11 @@ class HeadGeometry:
         animated = set(model.tables.mesh_nodes())
         self._static_cache: dict[int, np.ndarray] = {}
         self._last = None
+        self._local: tuple[bytes, dict[int, np.ndarray]] | None = None
         self._pose: tuple[bytes, Pose] | None = None
         self._columns: dict[tuple[str, int], np.ndarray] = {}
-        faces, culled = [], []
-        count = 0
+        faces = []
+        count = n_faces = 0
 
         for shape, _, path in model.scene.shapes():
             geom = shape["geometry"]
@@ -74,13 +75,11 @@ class HeadGeometry:
                 continue
             chain = [n for n in path if n.type.name == "Transform"]
             name = geom.name if geom.name in animated else None
-            solid = bool(geom.get("solid", True))
-            self.shapes.append(_Shape(chain, tm, name, solid, count))
+            self.shapes.append(_Shape(chain, geom, tm, name, count, n_faces))
+            n_faces += len(tm.faces)
             faces.append(tm.faces + count)
-            culled.append(np.full(len(tm.faces), solid))
             count += tm.positions.shape[0]
         self.faces = np.concatenate(faces).astype(np.int64)
-        self.culled = np.concatenate(culled)
         self.n_vertices = count
         self.shape_of_vertex = np.repeat(
             np.arange(len(self.shapes)), [s.mesh.positions.shape[0] for s in self.shapes]
@@ -88,10 +87,13 @@ class HeadGeometry:
 
     # ---- posing --------------------------------------------------------------------------------
 
-    def _transforms(self, params: np.ndarray) -> dict[str, dict[str, np.ndarray]]:
+    def _transforms(self, params: np.ndarray, names=None) -> dict[str, dict[str, np.ndarray]]:
+        """The posed fields of the Transforms the tables drive (only those in ``names``, if
+        given): ``{node name: {field: value}}``."""
         out: dict[str, dict[str, np.ndarray]] = {}
         for (node, fld), t in self.engine.transforms.items():
-            out.setdefault(node, {})[fld] = _transform_value(t, fld, params)
+            if names is None or node in names:
+                out.setdefault(node, {})[fld] = _transform_value(t, fld, params)
         return out
 
     def _node_matrix(self, node: Node, posed: dict[str, dict[str, np.ndarray]]) -> np.ndarray:
@@ -112,17 +114,28 @@ class HeadGeometry:
         top[:3, 3] += translation
         return top
 
+    def _locals(self, params: np.ndarray) -> dict[int, np.ndarray]:
+        """The local matrix ``(4, 4)`` of every Transform above a shape, by ``id`` of its node,
+        posed by ``params`` (the last ones are kept)."""
+        key = np.asarray(params, np.float64).tobytes()
+        if self._local is None or self._local[0] != key:
+            posed = self._transforms(params)
+            local: dict[int, np.ndarray] = {}
+            for s in self.shapes:
+                for node in s.chain:
+                    if id(node) not in local:
+                        local[id(node)] = self._node_matrix(node, posed)
+            self._local = (key, local)
+        return self._local[1]
+
     def _matrices(self, params: np.ndarray, translation: np.ndarray) -> list[np.ndarray]:
         """World matrix ``(4, 4)`` of each shape."""
-        posed = self._transforms(params)
+        local = self._locals(params)
         top = self._top(translation)
-        local: dict[int, np.ndarray] = {}
         out = []
         for s in self.shapes:
             m = top
             for node in s.chain:
-                if id(node) not in local:
-                    local[id(node)] = self._node_matrix(node, posed)
                 m = m @ local[id(node)]
             out.append(m)
         return out
@@ -135,13 +148,12 @@ class HeadGeometry:
         derivative by central differences of its posed fields (exact for the tables' linear
         angles)."""
         names = {node for (node, _), t in self.engine.transforms.items() if pi in t.param}
-        posed = self._transforms(params)
+        local = self._locals(params)
         up, down = params.copy(), params.copy()
         up[pi] += _H
         down[pi] -= _H
-        posed_up, posed_down = self._transforms(up), self._transforms(down)
+        posed_up, posed_down = self._transforms(up, names), self._transforms(down, names)
         top = self._top(translation)
-        local: dict[int, np.ndarray] = {}
         slope: dict[int, np.ndarray] = {}
         out: list[np.ndarray | None] = []
         for s in self.shapes:
@@ -149,8 +161,6 @@ class HeadGeometry:
                 out.append(None)
                 continue
             for n in s.chain:
-                if id(n) not in local:
-                    local[id(n)] = self._node_matrix(n, posed)
                 if n.name in names and id(n) not in slope:
                     slope[id(n)] = (
                         self._node_matrix(n, posed_up) - self._node_matrix(n, posed_down)
