@@ -18,9 +18,9 @@ change of light (brightness rising by 25 % over the sequence), the camera turned
 of the face, and the second personality (lotta) rendered but analyzed with cybatt, where the
 head translation is estimated too (the two heads are framed differently).
 
-Speed: estimated frames per second on the Table 1 sequence (20 estimates, each from the previous
-one, the full pyramid), on this machine's 2 cores. Target ≥ 25 frames/s; the paper: 3.03 s per
-frame on a 175 MHz SGI O2.
+Speed: estimated frames per second on the Table 1 sequence (20 estimates, each starting from the
+previous ones, the full pyramid), on this machine's 2 cores. Target ≥ 25 frames/s; the paper:
+3.03 s per frame on a 175 MHz SGI O2.
 """
 
 from __future__ import annotations
