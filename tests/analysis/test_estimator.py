@@ -136,13 +136,54 @@ def test_the_eyelids_are_refined_on_the_rendered_image(cybatt):
     for index in (50, 65):
         frame = FaceRenderer(cybatt, size=SIZE).render(truth[index])
         found = {}
-        for refine in ((), (19, 20)):
+        for refine in ((), (19, 20), (20,)):
             est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, refine=refine)
             assert est.refined == refine
             est.params[:] = truth[index - 5]
             found[refine] = est.estimate(frame).params[19]
         error = {k: abs(v - truth[index, 19]) for k, v in found.items()}
         assert error[(19, 20)] <= 3 and error[()] >= 2 * error[(19, 20)] + 4, found
+        # the two eyes' searches share renderings but not their moves: the right eyelid ends
+        # where a search of it alone ends
+        assert found[(19, 20)] == found[(20,)]
+
+
+def _estimate_from(est, frame, index):
+    """``est.estimate(frame, index)`` and the parameters its first solve started from."""
+    starts = []
+    solve = est._solve
+    est._solve = lambda image, lv: starts.append(est.params.copy()) or solve(image, lv)
+    try:
+        return est.estimate(frame, index), starts[0]
+    finally:
+        del est._solve
+
+
+def test_each_frame_starts_from_the_motion_of_the_last_two(cybatt):
+    """A jaw opening at a steady speed: with prediction the third estimate starts where the
+    motion leads and needs fewer solves; both end at the truth."""
+    truth = [_params({3: 60 * i, 49: 400 * i}) for i in range(3)]
+    frames = [FaceRenderer(cybatt, size=SIZE).render(t) for t in truth]
+    solves = {}
+    for predict in (True, False):
+        est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, predict=predict)
+        ends = [est.estimate(frame, index=5 * i).params for i, frame in enumerate(frames[:2])]
+        fe, start = _estimate_from(est, frames[2], 10)
+        assert abs(fe.params[2] - truth[2][2]) <= 2 and abs(fe.params[48] - truth[2][48]) <= 20
+        solves[predict] = fe.iterations
+        ahead = 2 * ends[1] - ends[0] if predict else ends[1]
+        # (the estimates are rounded to whole units: 2 · 0.5 + 0.5 at most)
+        assert np.allclose(start[[2, 48]], ahead[[2, 48]], atol=1.5), (start, ahead)
+    assert solves[True] < solves[False], solves
+
+
+def test_windows_overlap_when_they_share_a_pixel():
+    from vtts.analysis.estimator import _overlap
+
+    a = (slice(10, 20), slice(30, 40))
+    assert _overlap(a, (slice(19, 25), slice(39, 50)))
+    assert not _overlap(a, (slice(20, 25), slice(30, 40)))  # the rows only touch
+    assert not _overlap(a, (slice(10, 20), slice(0, 30)))
 
 
 def test_refinement_windows_are_whole_blocks_inside_the_image():
