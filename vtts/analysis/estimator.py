@@ -164,33 +164,24 @@ class Estimator:
         Both come from one rendering at full size: the image is subsampled exactly as the camera
         frame is (a moving average over the same full-size pixels), and each pixel of a smaller
         level takes the triangle of the full-size pixel at its centre."""
-        renderer = self._renderer
-        renderer.set_view(self.camera, self.size, 1)
-        self._place()
-        image, numbers = renderer.render(
-            self.params, poses=[self.geometry.pose(self.params)], triangles=True
-        )
+        image, numbers = self._synthesize(self.camera, self.size, triangles=True)
         faces = np.where(numbers >= 0, self._faces[numbers], -1)
-        if factor == 1:
-            return image.astype(np.float32), faces
-        h, w = self._levels[factor][1][::-1]
-        c = factor // 2
-        return _subsample(image, factor), faces[c::factor, c::factor][:h, :w]
+        if factor > 1:
+            w, h = self._levels[factor][1]
+            c = factor // 2
+            faces = faces[c::factor, c::factor][:h, :w]
+        return _subsample(image, factor), faces
 
-    def _synthesize(self, camera: Camera, size: tuple[int, int], supersample: int) -> np.ndarray:
-        """The image ``(h, w, 3) float32`` of the model at the current estimate through
-        ``camera`` at ``size``, rendered ``supersample`` times larger and averaged down."""
+    def _synthesize(self, camera: Camera, size: tuple[int, int], triangles: bool = False):
+        """The model at the current estimate through ``camera`` at ``size``: the image ``(h, w,
+        3) uint8`` and, with ``triangles``, the renderer's triangle numbers ``(h, w)``."""
         renderer = self._renderer
-        renderer.set_view(camera, size, supersample)
-        self._place()
-        pose = self.geometry.pose(self.params)
-        return renderer.render(self.params, poses=[pose]).astype(np.float32)
-
-    def _place(self) -> None:
-        """Move the model by the estimated head translation."""
+        renderer.set_view(camera, size, 1)
         root = self._root.copy()
-        root[:3, 3] += self.translation
-        self._renderer.scene.set_pose(self._renderer.instances[0].root, root)
+        root[:3, 3] += self.translation  # the estimated head translation
+        renderer.scene.set_pose(renderer.instances[0].root, root)
+        pose = self.geometry.pose(self.params)
+        return renderer.render(self.params, poses=[pose], triangles=triangles)
 
     def reconstruct(self) -> np.ndarray:
         """The synthetic frame ``(H, W, 3) uint8`` at full size with gain and offset applied."""
@@ -373,7 +364,6 @@ class Estimator:
         view = (
             replace(c, cx=c.cx - xs.start, cy=c.cy - ys.start),
             (xs.stop - xs.start, ys.stop - ys.start),
-            1,
         )
         luma = (frame[ys, xs] @ LUMA).astype(np.float32)
         # each FAP's own window within the box
@@ -386,7 +376,8 @@ class Estimator:
         }
 
         def mismatch() -> dict[int, float]:
-            synth = (self._synthesize(*view) * self.gain + self.offset) @ LUMA - luma
+            synth = (self._synthesize(*view).astype(np.float32) * self.gain + self.offset) @ LUMA
+            synth -= luma
             return {fap: float(np.sum(synth[win] ** 2)) for fap, win in local.items()}
 
         best = mismatch()
