@@ -248,7 +248,8 @@ class FaceRenderer:
 
         The scene stays as it is, lights included (they were put for the first camera), so one
         renderer serves several views of the same models: a camera with the first one's pose
-        and a shifted principal point renders a window of the first image, pixel for pixel, and
+        and a shifted principal point renders a window of the first image (the same pixels, up
+        to one gray level at a few textured ones where the rasterizer rounds differently), and
         scaled intrinsics render a smaller copy. Switching views is free; switching between
         renderers is not (the GL context holds one scene's meshes and textures at a time)."""
         if not camera.placed:
