@@ -39,6 +39,7 @@ from vtts.analysis.unknowns import (  # noqa: F401
     DEFAULT_UNKNOWNS,
     ESTIMABLE,
     EYELIDS,
+    HEAD_MOTION,
     TABLE1_FAPS,
 )
 from vtts.errors import VttsError
@@ -62,7 +63,7 @@ REFINE_MOVES = 4
 
 #: A level's solves stop when no unknown moved its image by more than this many pixels (of that
 #: level) in the last one.
-TOLERANCE = 0.005
+TOLERANCE = 0.003
 
 #: Pixels around the image of what a refined FAP moves that its match is measured over.
 REFINE_MARGIN = 4
@@ -100,8 +101,9 @@ class Estimator:
     filter (pixels of each level) applied to both images before the gradients. A level's solves
     stop when the last one moved no unknown's image by more than ``tolerance`` pixels of that
     level. ``refine``: the FAPs that, when they are unknowns, are refined after the pyramid by
-    a search over integer values on the rendered image (:meth:`_refine`). ``predict``: start
-    each frame from the motion of the last two estimates (:meth:`_extrapolate`).
+    a search over integer values on the rendered image (:meth:`_refine`). ``predict``: the
+    unknowns that start each frame where their motion between the last two estimates leads
+    (:meth:`_extrapolate`; default the head's rotation and translation).
     """
 
     def __init__(
@@ -116,7 +118,7 @@ class Estimator:
         sigma: float = 0.6,
         tolerance: float = TOLERANCE,
         refine: Iterable[int] = EYELIDS,
-        predict: bool = True,
+        predict: Iterable[int | str] = HEAD_MOTION,
     ) -> None:
         self.unknowns = _check_unknowns(unknowns)
         wanted = set(refine)
@@ -127,7 +129,8 @@ class Estimator:
         self.illumination = illumination
         self.sigma = sigma
         self.tolerance = tolerance
-        self.predict = predict
+        carried = set(predict)
+        self.predicted = tuple(u for u in self.unknowns if u in carried)
         # (frame index, parameters, translation) of the last two estimates
         self._history: list[tuple[int, np.ndarray, np.ndarray]] = []
         w, h = self.size
@@ -197,7 +200,7 @@ class Estimator:
         if frame.shape != (h, w, 3):
             raise VttsError(f"frame {index} is {frame.shape}, expected ({h}, {w}, 3)")
         full = frame.astype(np.float32)
-        if self.predict:
+        if self.predicted:
             self._extrapolate(index)
         pyramid: dict[int, np.ndarray] = {}
         solves = 0
@@ -240,15 +243,16 @@ class Estimator:
         )
 
     def _extrapolate(self, index: int) -> None:
-        """Start frame ``index`` from the motion of the last two estimates (constant velocity
-        per frame), added to the unknowns: the pyramid then has less way to go."""
+        """Start frame ``index`` with the unknowns :attr:`predicted` carried on at the speed
+        (per frame) they had between the last two estimates: the pyramid then has less way to
+        go."""
         if len(self._history) < 2:
             return
         (i0, p0, t0), (i1, p1, t1) = self._history
         if not i0 < i1 < index:
             return
         ratio = (index - i1) / (i1 - i0)
-        for u in self.unknowns:
+        for u in self.predicted:
             if isinstance(u, str):
                 axis = TRANSLATION.index(u)
                 self.translation[axis] += ratio * (t1[axis] - t0[axis])

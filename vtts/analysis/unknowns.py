@@ -24,6 +24,11 @@ DEFAULT_UNKNOWNS: tuple[int | str, ...] = (
     48, 49, 50, "tx", "ty", "tz", 31, 32, 35, 36, 3, 4, 5, 6, 7, 12, 13,
 )  # fmt: skip
 
+#: The head's rigid motion: rotation (FAPs 48–50) and translation. A head has inertia, so its
+#: motion is what an estimator carries on from the last two frames (:class:`vtts.analysis.
+#: Estimator`'s ``predict``); the face's own FAPs change too abruptly with speech for that.
+HEAD_MOTION: tuple[int | str, ...] = (48, 49, 50, "tx", "ty", "tz")
+
 #: The FAPs of the paper's Table 1 (estimation accuracy on synthetic sequences): jaw, lip corners
 #: raised, eyelids, outer eyebrows and the three head rotations.
 TABLE1_FAPS: tuple[int, ...] = (3, 12, 13, 19, 20, 35, 36, 48, 49, 50)
