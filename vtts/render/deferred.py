@@ -30,6 +30,7 @@ import numpy as np
 from OpenGL import GL
 from OpenGL.GL import shaders
 
+from vtts.errors import RenderError
 from vtts.render.forward import ForwardPass, _cull_back, _read_color
 
 SHADER_DIR = Path(__file__).resolve().parent / "shaders"
@@ -119,7 +120,7 @@ class DeferredPass(ForwardPass):
         index in its ``indices``; −1: background, an unnumbered primitive)."""
         if not (self.supports(scene) and self.deferrable(scene)):
             if triangles is not None:
-                raise _render_error("triangle numbers need a scene the G-buffer holds")
+                raise RenderError("triangle numbers need a scene the G-buffer holds")
             return super().render(scene, width, height, rgba)
         r = self._begin_frame(scene, width, height)
         nodes = self._sorted_mesh_nodes(scene)
@@ -129,7 +130,7 @@ class DeferredPass(ForwardPass):
         resolve = self._resolve_program(r, colors)
         if resolve is None:
             if triangles is not None:
-                raise _render_error("triangle numbers need pyrender's shader as vtts knows it")
+                raise RenderError("triangle numbers need pyrender's shader as vtts knows it")
             return super().render(scene, width, height, rgba)
         targets = self._targets_for(width, height)
 
@@ -369,12 +370,6 @@ def _read_triangles(gbuffer: int, width: int, height: int) -> np.ndarray:
     return stored.astype(np.int64) - 1
 
 
-def _render_error(message: str):
-    from vtts.errors import RenderError
-
-    return RenderError(message)
-
-
 def _check_complete(what: str, width: int, height: int) -> None:
     if GL.glCheckFramebufferStatus(GL.GL_FRAMEBUFFER) != GL.GL_FRAMEBUFFER_COMPLETE:
-        raise _render_error(f"cannot create a {width}x{height} {what} framebuffer")
+        raise RenderError(f"cannot create a {width}x{height} {what} framebuffer")
