@@ -136,3 +136,8 @@ class CodingError(FapError):
         super().__init__(f"byte {offset}: {message}" if offset is not None else message, file=file)
         self.reason = message
         self.offset = offset
+
+
+class FitError(VttsError):
+    """Fitting a head to a photograph failed, or its input (image, landmarks) is invalid, such as
+    an image that is not an ``(H, W, 3) uint8`` RGB array."""

@@ -1,0 +1,1 @@
+"""Fitting a personalized head to a photograph (adi fit)."""
