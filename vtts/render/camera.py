@@ -7,6 +7,11 @@ Equation 3 maps a point (x, y, z) in camera coordinates to pixel coordinates
 with the camera looking along +z, y up and x to the left, X to the right and Y down the image.
 That is the standard pinhole model with intrinsics (fx, fy, cx = X0, cy = Y0) measured in pixels
 from the top-left corner, which is how pyrender's IntrinsicsCamera takes them.
+
+A VRML97 ``Viewpoint`` is such a camera too (:meth:`Camera.from_viewpoint`, and the inverse
+:func:`viewpoint_fields`): placed at ``position``, turned by ``orientation`` from the default view
+along −z with +y up, with ``fieldOfView`` the angle spanned by the smaller of the image's width and
+height and the principal point in the middle of the image.
 """
 
 from __future__ import annotations
@@ -17,6 +22,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from vtts.errors import RenderError
+from vtts.vrml import Node, Scene, rotation_matrix
+
+#: VRML97's default Viewpoint ``fieldOfView`` (radians, π/4).
+DEFAULT_FIELD_OF_VIEW = 0.785398
 
 
 @dataclass
@@ -61,6 +70,41 @@ class Camera:
         if len(values) != 4:
             raise RenderError(f"--camera takes four numbers fx,fy,X0,Y0, got {text!r}")
         return cls.eisert_girod(*values, placed=False)
+
+    @classmethod
+    def from_viewpoint(
+        cls,
+        node: Node,
+        size: tuple[int, int],
+        world_matrix: np.ndarray | None = None,
+        *,
+        znear: float = 0.01,
+        zfar: float = 100.0,
+    ) -> Camera:
+        """The camera of a VRML97 ``Viewpoint`` node for images of ``size`` (W, H) pixels.
+
+        ``world_matrix`` ``(4, 4)`` is the transform of the Viewpoint's coordinate system (the
+        Transforms above it, e.g. from :func:`find_viewpoint`; default identity). Its scale
+        moves the position, as it moves everything, but does not scale the camera (a pinhole
+        has none). The focal length is ``f = (min(W, H) / 2) / tan(fieldOfView / 2)`` pixels
+        for both axes (VRML97: the field of view spans the smaller side of the image) and the
+        principal point ``(W / 2, H / 2)``. ``znear``/``zfar`` bound the depth range (world
+        units)."""
+        node = node.expand()
+        if node.type.name != "Viewpoint":
+            raise RenderError(f"a camera comes from a Viewpoint node, got a {node.type.name}")
+        w, h = (int(v) for v in size)
+        fov = float(node["fieldOfView"])
+        if not (math.isfinite(fov) and 0 < fov < math.pi):
+            label = f"Viewpoint {node.name}" if node.name else "a Viewpoint's"
+            raise RenderError(f"{label} fieldOfView must lie between 0 and π radians, got {fov}")
+        f = (min(w, h) / 2) / math.tan(fov / 2)
+        local = np.eye(4)
+        local[:3, :3] = rotation_matrix(node["orientation"])
+        local[:3, 3] = node["position"]
+        if world_matrix is not None:
+            local = np.asarray(world_matrix, dtype=np.float64).reshape(4, 4) @ local
+        return cls(f, f, w / 2, h / 2, _rigid(local), znear=znear, zfar=zfar)
 
     def project(self, points: np.ndarray) -> np.ndarray:
         """Pixel coordinates ``(n, 2)`` (X right, Y down) of world points ``(n, 3)``."""
@@ -109,3 +153,78 @@ def frame_bounds(
     dist = max(dist_h, dist_w) + extent[2] / 2
     eye = centre + np.array([0.0, 0.0, dist])
     return Camera(fx, fy, cx, cy, look_at(eye, centre), znear=dist / 50, zfar=dist * 10)
+
+
+def _rigid(matrix: np.ndarray) -> np.ndarray:
+    """The rotation and translation of an affine ``(4, 4)`` matrix, without its scale (the
+    nearest rotation to its linear part, by polar decomposition)."""
+    m = np.asarray(matrix, dtype=np.float64).reshape(4, 4)
+    u, _, vt = np.linalg.svd(m[:3, :3])
+    r = u @ vt
+    if np.linalg.det(r) < 0:  # a mirroring transform: keep a right-handed camera
+        r = u @ np.diag([1.0, 1.0, -1.0]) @ vt
+    out = np.eye(4)
+    out[:3, :3], out[:3, 3] = r, m[:3, 3]
+    return out
+
+
+def viewpoints(scene: Scene) -> list[tuple[Node, np.ndarray]]:
+    """Every ``Viewpoint`` the scene graph reaches, in file order, with the ``(4, 4)`` transform
+    of its coordinate system (the Transforms above it)."""
+    return [(n, m) for n, m, _ in scene.traverse() if n.type.name == "Viewpoint"]
+
+
+def find_viewpoint(scene: Scene, name: str) -> tuple[Node, np.ndarray]:
+    """The ``Viewpoint`` DEFed as ``name`` and the ``(4, 4)`` world transform of its coordinate
+    system (its first instance when it is USEd several times). A RenderError lists the named
+    Viewpoints the scene has when none is called ``name``."""
+    found = viewpoints(scene)
+    for node, matrix in found:
+        if node.name == name:
+            return node, matrix
+    names = list(dict.fromkeys(n.name for n, _ in found if n.name))
+    where = f" of {scene.path.name}" if scene.path is not None else ""
+    if names:
+        have = f"its Viewpoints are {', '.join(names)}"
+    elif found:
+        have = f"its {len(found)} Viewpoint{'s' if len(found) > 1 else ''} have no DEF name"
+    else:
+        have = "it has no Viewpoint"
+    raise RenderError(f"no Viewpoint named {name!r} in the scene{where}: {have}")
+
+
+def viewpoint_fields(camera: Camera, size: tuple[int, int]) -> dict[str, object]:
+    """The VRML97 ``Viewpoint`` fields that :meth:`Camera.from_viewpoint` turns back into
+    ``camera`` for images of ``size`` (W, H) pixels: ``{"position": (3,) float64,
+    "orientation": (4,) float64 axis-angle (radians), "fieldOfView": float (radians)}``.
+
+    A Viewpoint has one focal length and its principal point in the middle of the image, so
+    ``camera`` must have ``fx == fy`` and ``(cx, cy) == (W / 2, H / 2)`` (relative tolerance
+    1e-9); its ``pose`` is camera-to-world in the OpenGL convention, as :class:`Camera` keeps it.
+    """
+    from scipy.spatial.transform import Rotation
+
+    w, h = (int(v) for v in size)
+    if not math.isclose(camera.fx, camera.fy, rel_tol=1e-9):
+        raise RenderError(
+            f"a Viewpoint has one focal length: the camera's fx {camera.fx} and fy "
+            f"{camera.fy} differ"
+        )
+    if not (
+        math.isclose(camera.cx, w / 2, rel_tol=1e-9)
+        and math.isclose(camera.cy, h / 2, rel_tol=1e-9)
+    ):
+        raise RenderError(
+            f"a Viewpoint looks through the middle of the image: the camera's principal point "
+            f"({camera.cx}, {camera.cy}) is not ({w / 2}, {h / 2}) of a {w}x{h} image"
+        )
+    fov = 2 * math.atan((min(w, h) / 2) / camera.fx)
+    pose = _rigid(camera.pose)
+    rotvec = Rotation.from_matrix(pose[:3, :3]).as_rotvec()
+    angle = float(np.linalg.norm(rotvec))
+    axis = rotvec / angle if angle > 0 else np.array([0.0, 0.0, 1.0])
+    return {
+        "position": pose[:3, 3].copy(),
+        "orientation": np.array([*axis, angle]),
+        "fieldOfView": fov,
+    }

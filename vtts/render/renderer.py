@@ -26,7 +26,8 @@ import scipy.sparse as sp
 
 from vtts.errors import RenderError
 from vtts.face import N_PARAMS, FaceModel
-from vtts.render.camera import Camera, frame_bounds
+from vtts.render.camera import Camera, find_viewpoint, frame_bounds
+from vtts.render.color import TRANSPARENT, parse_background
 from vtts.vrml import Node, resolve_url, transform_matrix, triangulate
 from vtts.vrml.geometry import TriangleMesh
 from vtts.vrml.transform import compose_transform
@@ -171,9 +172,14 @@ class FaceRenderer:
     """Renders one or more models, each posed by its own parameter vector.
 
     ``size`` is (width, height) in pixels; ``camera`` an explicit :class:`Camera` (default:
-    framing all heads); ``background`` an RGB color (0–1) or an ``(H, W, 3) uint8`` image;
-    ``layout`` ``"row"`` (side by side) or ``"room"`` (side by side in front of a back wall on a
-    floor).
+    framing all heads), or ``viewpoint`` the DEF name of a VRML ``Viewpoint`` in the first
+    model's scene to look through (:meth:`Camera.from_viewpoint`, placed where the renderer puts
+    that model: see :meth:`model_matrix`); ``background`` an RGB color (0–1), a color as
+    :func:`~vtts.render.color.parse_background` reads it (``"white"``, ``"#00ff00"``), an
+    ``(H, W, 3) uint8`` image, or ``"transparent"``: then frames are ``(H, W, 4) uint8`` RGBA
+    whose alpha is the heads' coverage (255 where they cover a pixel, 0 around them; colors
+    where they cover it are those of an opaque render); ``layout`` ``"row"`` (side by side) or
+    ``"room"`` (side by side in front of a back wall on a floor).
 
     ``triangle_sets`` lists every IndexedFaceSet drawn (of every model, in scene order) as
     ``(node, first, count)``: triangle ``i`` of ``vtts.vrml.triangulate(node)`` has number
@@ -186,7 +192,8 @@ class FaceRenderer:
         *,
         size: tuple[int, int] = (352, 288),
         camera: Camera | None = None,
-        background: tuple[float, float, float] | np.ndarray = (0.32, 0.36, 0.42),
+        viewpoint: str | None = None,
+        background: tuple[float, float, float] | np.ndarray | str = (0.32, 0.36, 0.42),
         layout: str = "row",
         supersample: int = 1,
     ) -> None:
@@ -201,9 +208,17 @@ class FaceRenderer:
         self.size = (w, h)
         self.supersample = _check_supersample(supersample)
         self.models = list(models)
+        if camera is not None and viewpoint is not None:
+            raise RenderError("give a camera or a viewpoint to look through, not both")
         self.background_image = None
         bg = (0.0, 0.0, 0.0)
-        if isinstance(background, np.ndarray) and background.ndim == 3:
+        if isinstance(background, str):
+            background = parse_background(background)
+        #: whether frames are RGBA with the heads' coverage as alpha (``background="transparent"``)
+        self.transparent = isinstance(background, str) and background == TRANSPARENT
+        if self.transparent:
+            pass  # cleared to (0, 0, 0, 0): the alpha channel becomes the heads' coverage
+        elif isinstance(background, np.ndarray) and background.ndim == 3:
             if background.shape[:2] != (h, w):
                 raise RenderError(
                     f"background image is {background.shape[1]}x{background.shape[0]}, the "
@@ -213,7 +228,7 @@ class FaceRenderer:
         else:
             bg = tuple(float(c) for c in background)
         self.scene = pr.Scene(
-            bg_color=[*bg, 0.0 if self.background_image is not None else 1.0],
+            bg_color=[*bg, 0.0 if self.background_image is not None or self.transparent else 1.0],
             ambient_light=[0.35, 0.35, 0.35],
         )
         self._image_textures: dict[Path, object] = {}  # image file -> its pyrender texture
@@ -222,7 +237,9 @@ class FaceRenderer:
         self._triangle_numbers: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
         self.instances = [self._add_model(m) for m in self.models]
         self._place(layout)
-        if camera is None or not camera.placed:
+        if viewpoint is not None:
+            camera = self._viewpoint_camera(viewpoint)
+        elif camera is None or not camera.placed:
             camera = frame_bounds(self._lo, self._hi, self.size, intrinsics=camera)
         self._cam_node = self.scene.add(pr.IntrinsicsCamera(1.0, 1.0, 0.0, 0.0), pose=np.eye(4))
         self.set_view(camera)
@@ -270,6 +287,27 @@ class FaceRenderer:
         intrinsics.znear, intrinsics.zfar = camera.znear, camera.zfar
         self.scene.set_pose(self._cam_node, camera.pose)
         self.camera = camera
+
+    def model_matrix(self, index: int = 0) -> np.ndarray:
+        """The ``(4, 4)`` matrix that places model ``index`` (its file's coordinates) in the
+        renderer's world: the layout moves each head beside the others, centred."""
+        if not 0 <= index < len(self.instances):
+            raise RenderError(f"no model {index}: the renderer has {len(self.instances)}")
+        return np.array(self.scene.get_pose(self.instances[index].root), dtype=np.float64)
+
+    def _viewpoint_camera(self, name: str) -> Camera:
+        """The camera of the first model's Viewpoint ``name``, in the renderer's world, with a
+        depth range around the heads (as automatic framing chooses it)."""
+        node, matrix = find_viewpoint(self.models[0].scene, name)
+        camera = Camera.from_viewpoint(node, self.size, self.model_matrix(0) @ matrix)
+        centre = (self._lo + self._hi) / 2
+        radius = float(np.linalg.norm(self._hi - self._lo)) / 2
+        dist = float(np.linalg.norm(camera.pose[:3, 3] - centre))
+        # automatic framing's range (dist/50 to 10·dist) when the heads lie beyond the near
+        # plane; from within them, a near plane close to the eye
+        camera.znear = dist / 50 if dist - radius > dist / 50 else (dist + radius) / 1000
+        camera.zfar = max(10 * dist, 2 * (dist + radius))
+        return camera
 
     # ---- building ----------------------------------------------------------------------------
 
@@ -536,7 +574,8 @@ class FaceRenderer:
         self.apply(self.prepare(params, poses))
 
     def frames(self, params: Iterable) -> Iterator[np.ndarray]:
-        """Render a sequence: one frame ``(H, W, 3) uint8`` per item of ``params`` (each item as
+        """Render a sequence: one frame ``(H, W, 3) uint8`` (``(H, W, 4)`` when transparent) per
+        item of ``params`` (each item as
         :meth:`prepare` takes it). The next frame's geometry is computed in a worker thread while
         the current one rasterizes, which hides most of the deformation's cost."""
         from concurrent.futures import ThreadPoolExecutor
@@ -564,7 +603,7 @@ class FaceRenderer:
         triangles: bool = False,
     ):
         """The frame ``(H, W, 3) uint8`` for the given parameters (None: as last posed; ``poses``
-        as :meth:`prepare` takes them).
+        as :meth:`prepare` takes them); ``(H, W, 4)`` RGBA for a transparent background.
 
         With ``triangles``, returns ``(frame, numbers)``: also the number of the triangle each
         pixel shows ``(H, W) int64`` from the same rasterization (−1: none, or a VRML primitive
@@ -581,7 +620,11 @@ class FaceRenderer:
                 raise RenderError(
                     "triangle numbers need a renderer without supersampling or background image"
                 )
-            return _drawing_pass().render(self.scene, w, h, triangles=self._triangle_numbers)
+            return _drawing_pass().render(
+                self.scene, w, h, rgba=self.transparent, triangles=self._triangle_numbers
+            )
+        if self.transparent:
+            return _downsample_coverage(_drawing_pass().render(self.scene, w, h, rgba=True), ss)
         if self.background_image is None:
             return _downsample(_drawing_pass().render(self.scene, w, h), ss)
         rgba = _downsample(_drawing_pass().render(self.scene, w, h, rgba=True), ss)
@@ -667,6 +710,25 @@ def _downsample(img: np.ndarray, k: int) -> np.ndarray:
     h, w, c = img.shape[0] // k, img.shape[1] // k, img.shape[2]
     blocks = img.reshape(h, k, w, k, c).astype(np.float32)
     return np.round(blocks.mean(axis=(1, 3))).astype(np.uint8)
+
+
+def _downsample_coverage(rgba: np.ndarray, k: int) -> np.ndarray:
+    """Box-filter an ``(k·H, k·W, 4) uint8`` RGBA image rendered on a transparent black
+    background down to ``(H, W, 4)``: alpha is the mean coverage, color the mean over the
+    covered samples (straight alpha, as PNG keeps it), so fully covered pixels are exactly
+    those of :func:`_downsample` of an opaque render."""
+    if k == 1:
+        return rgba
+    h, w = rgba.shape[0] // k, rgba.shape[1] // k
+    blocks = rgba.reshape(h, k, w, k, 4).astype(np.float32)
+    mean = blocks.mean(axis=(1, 3))
+    alpha = mean[..., 3:4]
+    # the background is (0, 0, 0, 0): a block's color sum is its covered samples' sum
+    color = np.divide(mean[..., :3] * 255, alpha, out=np.zeros_like(mean[..., :3]), where=alpha > 0)
+    full = alpha >= 255
+    color = np.where(full, mean[..., :3], color)
+    out = np.concatenate([color, alpha], axis=2)
+    return np.clip(np.round(out), 0, 255).astype(np.uint8)
 
 
 _OFFSCREEN = None
