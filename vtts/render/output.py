@@ -1,6 +1,7 @@
 """Output writers of the renderer: MP4 (H.264 + AAC), PNG sequences, single PNGs and WAV files.
 
-Frames are ``(H, W, 3) uint8`` RGB arrays, top row first, as the renderer returns them.
+Frames are ``(H, W, 3) uint8`` RGB arrays, top row first, as the renderer returns them; PNGs also
+take ``(H, W, 4)`` RGBA frames (a renderer with a transparent background), video does not.
 
 Video goes through the ffmpeg binary that the ``imageio-ffmpeg`` wheel carries (it has libx264 and
 the native AAC encoder), so no system package is needed. Raw ``rgb24`` frames are piped to its
@@ -74,18 +75,26 @@ def ffmpeg_exe() -> str:
         raise RenderError(f"no ffmpeg binary found: {exc}") from exc
 
 
-def _check_frame(frame: Any, shape: tuple[int, int, int] | None) -> np.ndarray:
-    """Return ``frame`` as a C-contiguous ``(H, W, 3) uint8`` array or raise RenderError.
+def _check_frame(frame: Any, shape: tuple[int, int, int] | None, rgba: bool = False) -> np.ndarray:
+    """Return ``frame`` as a C-contiguous ``(H, W, 3) uint8`` array (or ``(H, W, 4)`` RGBA where
+    ``rgba`` allows it) or raise RenderError.
 
-    ``shape`` is the expected ``(H, W, 3)``; None accepts any height and width.
+    ``shape`` is the expected ``(H, W, C)``; None accepts any height and width.
     """
     arr = np.asarray(frame)
-    ok = arr.dtype == np.uint8 and arr.ndim == 3 and arr.shape[2] == 3
+    channels = (3, 4) if rgba else (3,)
+    ok = arr.dtype == np.uint8 and arr.ndim == 3 and arr.shape[2] in channels
     if ok and shape is not None:
         ok = arr.shape == shape
     if not ok:
-        want = f"{shape}" if shape is not None else "(H, W, 3)"
-        raise RenderError(f"frame must be a {want} uint8 RGB array, got {arr.shape} {arr.dtype}")
+        if shape is not None:
+            want = f"a {shape} uint8 array"
+        elif rgba:
+            want = "an (H, W, 3) uint8 RGB or (H, W, 4) RGBA array"
+        else:
+            want = "an (H, W, 3) uint8 RGB array"
+        why = " (video has no alpha)" if not rgba and arr.shape[-1:] == (4,) else ""
+        raise RenderError(f"frame must be {want}, got {arr.shape} {arr.dtype}{why}")
     return np.ascontiguousarray(arr)
 
 
@@ -338,7 +347,6 @@ class VideoWriter:
     __exit__ = _finish_or_abort
 
 
-
 class _Aborted(Exception):
     """Internal signal thrown into :func:`atomic_path` so that it removes its temporary file."""
 
@@ -352,7 +360,8 @@ class PngSequenceWriter:
     replaced at the end by two renames (old folder aside, new folder in), so that ``DIR`` is
     either the old or the new sequence, never a mixture.
 
-    Every frame must be ``(H, W, 3) uint8`` with the size of the first one. ``compress_level``
+    Every frame must be ``(H, W, 3) uint8`` RGB (or ``(H, W, 4)`` RGBA, written with its alpha)
+    with the size and channels of the first one. ``compress_level``
     is zlib's level (1 is fast, 9 small; PNG is lossless at every level).
     """
 
@@ -395,12 +404,12 @@ class PngSequenceWriter:
         return self.directory / FRAME_NAME.format(self.frames_written)
 
     def write(self, frame: np.ndarray) -> None:
-        """Append one ``(H, W, 3) uint8`` RGB frame as the next PNG."""
+        """Append one ``(H, W, 3) uint8`` RGB or ``(H, W, 4)`` RGBA frame as the next PNG."""
         from PIL import Image
 
         if self._tmp is None:
             raise RenderError(f"{self.directory}: write() on a PNG writer that is not open")
-        arr = _check_frame(frame, self._shape)
+        arr = _check_frame(frame, self._shape, rgba=True)
         self._shape = arr.shape  # type: ignore[assignment]
         name = self._tmp / FRAME_NAME.format(self.frames_written)
         Image.fromarray(arr).save(name, format="PNG", compress_level=self.compress_level)
@@ -444,12 +453,12 @@ class PngSequenceWriter:
     __exit__ = _finish_or_abort
 
 
-
 def write_png(path: str | os.PathLike[str], frame: np.ndarray, compress_level: int = 6) -> None:
-    """Write one ``(H, W, 3) uint8`` RGB frame to ``path`` as a PNG (lossless, atomic)."""
+    """Write one ``(H, W, 3) uint8`` RGB or ``(H, W, 4)`` RGBA frame to ``path`` as a PNG
+    (lossless, atomic)."""
     from PIL import Image
 
-    arr = _check_frame(frame, None)
+    arr = _check_frame(frame, None, rgba=True)
     with atomic_path(path) as tmp:
         Image.fromarray(arr).save(tmp, format="PNG", compress_level=compress_level)
 
