@@ -40,6 +40,8 @@ def test_wheel_contains_grammars_models_and_both_packages(wheel):
     assert any(n.startswith("vtts/_data/models/") for n in names)
     assert "vtts/vrml/standard_nodes.txt" in names
     assert "vtts/render/shaders/gbuffer.frag" in names
+    assert "vtts/data/landmarks/face_detection_short_range.tflite" in names
+    assert "vtts/data/landmarks/face_landmark.tflite" in names
     assert "adt_tools/__init__.py" in names
     entry_points = next(n for n in names if n.endswith("entry_points.txt"))
     text = zipfile.ZipFile(wheel).read(entry_points).decode()
