@@ -33,6 +33,16 @@ def vtts(*args: str) -> subprocess.CompletedProcess:
         (["say", "--file", "{tmp}/none.txt", "--model", HEAD, "-o", "{tmp}/x.mp4"],
          "cannot read the text"),
         (["pose", "--model", HEAD, "--fap", "3=1", "-o", "{tmp}/file.txt/x.wrl"], "error:"),
+        (["render", "--model", HEAD, "--background", "mauve", "-o", "{tmp}/x.png"],
+         "not a background: 'mauve'; write a name (black, white"),
+        (["render", "--model", HEAD, "--viewpoint", "TOP", "-o", "{tmp}/x.png"],
+         "no Viewpoint named 'TOP' in the scene of head.wrl: it has no Viewpoint"),
+        (["render", "--model", HEAD, "--viewpoint", "TOP", "--camera", "400,400,176,144", "-o",
+          "{tmp}/x.png"], "--camera and --viewpoint both choose the camera"),
+        (["play", JOY, "--model", HEAD, "--background", "transparent", "-o", "{tmp}/x.mp4",
+          "--png-dir", "{tmp}/frames"], "an MP4 (H.264) has no alpha channel"),
+        (["say", "Hi", "--model", HEAD, "--background", "transparent", "-o", "{tmp}/x.mp4"],
+         "an MP4 (H.264) has no alpha channel"),
     ],
 )
 def test_bad_input_is_a_clear_error(tmp_path, args, fragment):

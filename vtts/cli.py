@@ -302,16 +302,39 @@ def _size(text: str) -> tuple[int, int]:
     return int(w), int(h)
 
 
-def _renderer(args: argparse.Namespace, models, supersample: int = 1):
+def _background(args: argparse.Namespace, video: bool):
+    """The ``--background`` of a command as the renderer takes it, checked against its outputs:
+    ``video`` is whether an MP4 is written (H.264 has no alpha, so no ``transparent``)."""
+    from vtts.errors import RenderError
+    from vtts.render.color import TRANSPARENT, parse_background
+
+    if args.background is None:
+        return None
+    background = parse_background(args.background)
+    if background == TRANSPARENT and video:
+        raise RenderError(
+            "--background transparent needs PNG output: an MP4 (H.264) has no alpha channel; "
+            "write the frames with --png-dir alone"
+        )
+    return background
+
+
+def _renderer(args: argparse.Namespace, models, supersample: int = 1, video: bool = False):
+    from vtts.errors import RenderError
     from vtts.render import Camera, FaceRenderer
 
-    camera = Camera.parse(args.camera) if getattr(args, "camera", None) else None
+    if args.camera and args.viewpoint:
+        raise RenderError("--camera and --viewpoint both choose the camera: give one of them")
+    camera = Camera.parse(args.camera) if args.camera else None
+    background = _background(args, video)
     return FaceRenderer(
         models,
         size=_size(args.size),
         camera=camera,
-        layout=getattr(args, "layout", "row"),
+        viewpoint=args.viewpoint,
+        layout=args.layout,
         supersample=supersample,
+        **({} if background is None else {"background": background}),
     )
 
 
@@ -320,6 +343,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     from vtts.face import load_model
     from vtts.render import write_png
 
+    _background(args, video=False)  # a bad color fails before the models load
     request = _pose_request(args)
     models = [load_model(m) for m in args.model]
     params = [_posed_params(m, request) for m in models]
@@ -343,6 +367,7 @@ def cmd_play(args: argparse.Namespace) -> int:
         raise RenderError("nothing to write: give -o OUT.mp4 and/or --png-dir DIR")
     if not 0 < args.fps <= 240:
         raise RenderError(f"--fps must be within 0–240, got {args.fps:g}")
+    _background(args, video=bool(args.output))
     stream = read_stream(args.stream)
     models = [load_model(m) for m in args.model]
     tracks = []
@@ -352,7 +377,7 @@ def cmd_play(args: argparse.Namespace) -> int:
         tracks.append(sp.params)
     n = tracks[0].shape[0]
     with contextlib.ExitStack() as stack:
-        renderer = stack.enter_context(_renderer(args, models))
+        renderer = stack.enter_context(_renderer(args, models, video=bool(args.output)))
         sinks = []
         if args.output:
             sinks.append(
@@ -389,6 +414,7 @@ def cmd_say(args: argparse.Namespace) -> int:
         raise RenderError("nothing to write: give -o OUT.mp4, --png-dir, --fap-out or --wav-out")
     if not 0 < args.fps <= 240:
         raise RenderError(f"--fps must be within 0–240, got {args.fps:g}")
+    _background(args, video=bool(args.output))
     text = args.text
     if args.file:
         try:
@@ -415,7 +441,7 @@ def cmd_say(args: argparse.Namespace) -> int:
         renderer = None
         if args.output or args.png_dir:
             try:
-                renderer = _renderer(args, models)
+                renderer = _renderer(args, models, video=bool(args.output))
             except VttsError:
                 speaking.result()  # a problem with the text is reported first, as it comes first
                 raise
@@ -797,6 +823,17 @@ def _view_flags(p: argparse.ArgumentParser) -> None:
         "--camera",
         metavar="FX,FY,X0,Y0",
         help="pinhole camera of Eisert-Girod Eq. 3 in pixels (default: frame the heads)",
+    )
+    p.add_argument(
+        "--viewpoint",
+        metavar="NAME",
+        help="look through the Viewpoint DEFed as NAME in the (first) model's scene",
+    )
+    p.add_argument(
+        "--background",
+        metavar="COLOR",
+        help="a color name (black, white, gray, green, blue, ...), #rrggbb or r,g,b in 0-1; "
+        "or transparent: RGBA PNGs whose alpha is the heads' coverage",
     )
     p.add_argument(
         "--layout",
