@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -210,3 +212,9 @@ def test_sampling_puts_pixel_centres_at_half(angle):
     expected = np.zeros((3, 3, 3), np.uint8)
     expected[1, 1] = 255
     np.testing.assert_array_equal(window, expected)
+
+
+def test_building_a_detector_prints_nothing():
+    code = "from vtts.fit.landmarks import MediaPipeDetector; MediaPipeDetector()"
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0 and r.stderr == "" and r.stdout == ""

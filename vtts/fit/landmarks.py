@@ -16,6 +16,11 @@ corner, 133 inner corner) appears on the image's left in an unmirrored photo.
 from __future__ import annotations
 
 import math
+import os
+import sys
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -282,15 +287,16 @@ class MediaPipeDetector:
 
         self.min_score = float(min_score)
         self.min_presence = float(min_presence)
-        self._detector = Interpreter(
-            model_path=str(package_data("landmarks/face_detection_short_range.tflite")),
-            num_threads=threads,
-        )
-        self._mesh = Interpreter(
-            model_path=str(package_data("landmarks/face_landmark.tflite")), num_threads=threads
-        )
-        self._detector_io = self._io(self._detector, (16, 1))
-        self._mesh_io = self._io(self._mesh, (1404, 1))
+        with _without_litert_banner():
+            self._detector = Interpreter(
+                model_path=str(package_data("landmarks/face_detection_short_range.tflite")),
+                num_threads=threads,
+            )
+            self._mesh = Interpreter(
+                model_path=str(package_data("landmarks/face_landmark.tflite")), num_threads=threads
+            )
+            self._detector_io = self._io(self._detector, (16, 1))
+            self._mesh_io = self._io(self._mesh, (1404, 1))
 
     @staticmethod
     def _io(interpreter, last_dims: tuple[int, int]) -> tuple[int, int, int]:
@@ -418,6 +424,34 @@ def _warp(picture: Image.Image, crop: _Crop, out: int) -> Image.Image:
         resample=Image.Resampling.NEAREST,
         fillcolor=(0, 0, 0),
     ).reduce(2)
+
+
+_BANNER = "INFO: Created TensorFlow Lite XNNPACK delegate for CPU."
+
+
+@contextmanager
+def _without_litert_banner() -> Iterator[None]:
+    """LiteRT's C++ library prints an INFO line on the process's stderr when it builds its first
+    interpreter, past Python's ``sys.stderr``; the CLI's output should carry only vtts's own
+    lines. Everything else written there meanwhile is passed on."""
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError):  # no usable stderr: nothing to hide
+        yield
+        return
+    with tempfile.TemporaryFile() as capture:
+        os.dup2(capture.fileno(), 2)
+        try:
+            yield
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            capture.seek(0)
+            lines = capture.read().decode(errors="replace").splitlines(keepends=True)
+            rest = "".join(line for line in lines if not line.startswith(_BANNER))
+            if rest:
+                sys.stderr.write(rest)
 
 
 _default: MediaPipeDetector | None = None
