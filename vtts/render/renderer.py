@@ -575,9 +575,9 @@ class FaceRenderer:
 
     def frames(self, params: Iterable) -> Iterator[np.ndarray]:
         """Render a sequence: one frame ``(H, W, 3) uint8`` (``(H, W, 4)`` when transparent) per
-        item of ``params`` (each item as
-        :meth:`prepare` takes it). The next frame's geometry is computed in a worker thread while
-        the current one rasterizes, which hides most of the deformation's cost."""
+        item of ``params`` (each item as :meth:`prepare` takes it). The next frame's geometry is
+        computed in a worker thread while the current one rasterizes, which hides most of the
+        deformation's cost."""
         from concurrent.futures import ThreadPoolExecutor
 
         it = iter(params)
