@@ -28,7 +28,15 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from candide import Candide, boundary_loops, compact, face_triangles, subdivision_matrix
+from candide import (
+    LEVELS,
+    SUBDIVISION_CORNERS,
+    Candide,
+    boundary_loops,
+    compact,
+    face_triangles,
+    subdivision_matrix,
+)
 from skin import SKIN_FAPS, skin_field
 from texture import (
     EAR_TILE,
@@ -51,8 +59,6 @@ UPPER_LID = ((21, 97, 105), (54, 98, 106))
 LOWER_LID = ((22, 99, 107), (55, 100, 108))
 EYE_CORNERS = ((20, 23), (53, 56))  # outer, inner
 MOUTH_CORNERS = (88, 89)
-SUBDIVISION_CORNERS = {*MOUTH_CORNERS, 20, 23, 53, 56}
-LEVELS = 3
 
 #: MPEG-4 feature points on Candide's vertices (the FAPU points and those of the FAPs).
 FEATURE_VERTICES = {
@@ -209,7 +215,7 @@ class Head:
                 c[mirror(v)] += np.asarray(d) * [-1, 1, 1]
         self.control = c
         tris = face_triangles(candide)
-        s, f = subdivision_matrix(tris, len(c), LEVELS, SUBDIVISION_CORNERS)
+        s, f = subdivision_matrix(tris, len(c), LEVELS, set(SUBDIVISION_CORNERS))
         self.S, self.face_faces, keep = compact(s, f)
         self.candide_index = {int(k): i for i, k in enumerate(keep) if k < len(c)}
         self.parts: dict[str, Part] = {}

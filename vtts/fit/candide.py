@@ -10,16 +10,26 @@ smooth displacement of the refined face through the same matrix ``S``.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cache
 from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
 
-HERE = Path(__file__).resolve().parent
-WFM = HERE / "candide3.wfm"
+from vtts.resources import models_dir
 
 #: Candide's eyeball and pupil vertices: the bundled heads have real eyeballs instead.
 EYE_SURFACE_VERTICES = frozenset(range(67, 75))
+#: Levels of Loop subdivision from Candide to the bundled heads' ``FACE``.
+LEVELS = 3
+#: Candide vertices that subdivision keeps in place: the mouth and eye corners (so the lips stay
+#: separate and the mouth can open).
+SUBDIVISION_CORNERS = frozenset({88, 89, 20, 23, 53, 56})
+
+
+def wfm_path() -> Path:
+    """``candide3.wfm`` as shipped with vtts (``models/src/``)."""
+    return models_dir() / "src" / "candide3.wfm"
 
 
 @dataclass
@@ -66,8 +76,10 @@ class Candide:
         raise KeyError(prefix)
 
 
-def read_wfm(path: Path = WFM) -> Candide:
-    """Parse a Candide ``.wfm`` file (Latin-1 text; layout in ``shared/data/README.md``)."""
+def read_wfm(path: Path | None = None) -> Candide:
+    """Parse a Candide ``.wfm`` file (Latin-1 text; layout in ``models/src/README.md``); the
+    shipped ``candide3.wfm`` by default."""
+    path = wfm_path() if path is None else path
     lines = [ln.rstrip() for ln in path.read_text(encoding="latin-1").splitlines()]
     k = 0
 
@@ -286,3 +298,30 @@ def compact(s: sp.csr_matrix, faces: np.ndarray) -> tuple[sp.csr_matrix, np.ndar
     renumber = np.full(s.shape[0], -1, dtype=np.int64)
     renumber[keep] = np.arange(len(keep))
     return s[keep], renumber[faces], keep
+
+
+@dataclass(frozen=True)
+class RefinedFace:
+    """The bundled heads' ``FACE`` as a fixed linear map of Candide's vertices.
+
+    S         ``(p, 113)`` sparse: ``face = S @ candide`` (p = 5150 refined vertices)
+    faces     ``(m, 3)`` the refined triangles, front facing +z, in ``FACE``'s vertex numbering
+    candide_index  Candide vertex → its own refined vertex (old vertices keep a row of their own)
+    """
+
+    S: sp.csr_matrix
+    faces: np.ndarray
+    candide_index: dict[int, int]
+
+
+@cache
+def refined_face() -> RefinedFace:
+    """Candide-3 refined by :data:`LEVELS` of Loop subdivision, as the bundled heads' ``FACE``
+    (the same matrix for every head: vertex i means the same point of every face)."""
+    candide = read_wfm()
+    tris = face_triangles(candide)
+    n = len(candide.vertices)
+    s, f = subdivision_matrix(tris, n, LEVELS, set(SUBDIVISION_CORNERS))
+    s, f, keep = compact(s, f)
+    index = {int(k): i for i, k in enumerate(keep) if k < n}
+    return RefinedFace(s, f, index)
