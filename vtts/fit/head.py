@@ -1,0 +1,161 @@
+"""The whole fitted head: every part of the generic head moved with the fitted face, and the
+generic head's Animation Definition Tables carried over.
+
+``FACE`` is the fitted control points through the subdivision matrix. The other parts (back of
+the head, neck, ears, teeth, tongue, mouth cavity, eye sockets) follow a smooth space warp: a
+thin-plate spline through the displacements of the face (``scipy.interpolate.RBFInterpolator``),
+so a wider face makes a wider skull and the teeth stay behind the lips. Points that coincide with
+``FACE`` points (the back of the head starts on the face's border) take the face's own new
+positions, so the seams stay closed. Eyeballs move rigidly with their centres (they stay
+spheres, and their Transforms' centres move with them).
+
+Tables transfer through the shared topology: vertex i of a table is vertex i of the fitted part.
+A low-level FAP's displacement scales with its FAPU (MPEG-4's very idea: one unit is a fixed
+fraction of a distance of the neutral face), so each of its tables is multiplied by the fitted
+FAPU over the generic one; visemes take the mouth's FAPUs (MW across, MNS up and down and in
+depth), expressions the eyes' and nose's (ES across, ENS up and down and in depth). Rotations
+(AU) stay as they are.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import RBFInterpolator
+from scipy.spatial import cKDTree
+
+from vtts.face import FaceModel
+from vtts.face.adt import Adt, AnimationTables, MeshTable, TransformTable
+from vtts.fap import Fapu, fap
+from vtts.fit.generic import GenericHead
+from vtts.vrml import Scene, standard_node_types
+
+#: FACE points the warp passes through (every k-th): plenty for a smooth field, fast to solve.
+WARP_STRIDE = 7
+#: Points closer than this to a FACE point (model units) are that point (seams).
+SEAM_TOLERANCE = 1e-5
+#: The eye Transforms whose ``center`` is the eyeball's centre.
+EYE_TRANSFORMS = {"L_EYEBALL": ("L_EYE_YAW", "L_EYE_PITCH"),
+                  "R_EYEBALL": ("R_EYE_YAW", "R_EYE_PITCH")}  # fmt: skip
+
+
+@dataclass
+class FittedGeometry:
+    """Neutral points of every IndexedFaceSet ``{DEF name: (p, 3)}`` and Transform centres
+    ``{DEF name: (3,)}`` of the fitted head (model units)."""
+
+    points: dict[str, np.ndarray]
+    centres: dict[str, np.ndarray]
+
+
+def mesh_names(model: FaceModel) -> list[str]:
+    """DEF names of the model's IndexedFaceSets, in scene order."""
+    out = []
+    for shape, _, _ in model.scene.shapes():
+        geom = shape["geometry"]
+        if geom is None:
+            continue
+        geom = geom.expand()
+        if geom.type.name == "IndexedFaceSet" and geom.name and geom.name not in out:
+            out.append(geom.name)
+    return out
+
+
+def fitted_geometry(head: GenericHead, control: np.ndarray) -> FittedGeometry:
+    """Every part of ``head`` moved for the fitted control points ``(c, 3)``."""
+    model = head.model
+    face0 = head.face
+    face = head.face_points(control)
+    moved = face - face0
+    anchors = np.arange(0, len(face0), WARP_STRIDE)
+    warp = RBFInterpolator(face0[anchors], moved[anchors], kernel="thin_plate_spline",
+                           smoothing=1e-6)  # fmt: skip
+    tree = cKDTree(face0)
+    points = {"FACE": face}
+    centres: dict[str, np.ndarray] = {}
+    for name in mesh_names(model):
+        if name == "FACE":
+            continue
+        p0 = model.neutral_points(name)
+        if name in EYE_TRANSFORMS:
+            centre = np.asarray(model.scene.node(EYE_TRANSFORMS[name][0]).expand()["center"])
+            shift = warp(centre[None])[0]
+            points[name] = p0 + shift
+            for t in EYE_TRANSFORMS[name]:
+                centres[t] = centre + shift
+            continue
+        p = p0 + warp(p0)
+        # seams: points on FACE's points take their new positions exactly
+        dist, nearest = tree.query(p0)
+        near = dist < SEAM_TOLERANCE
+        p[near] = face[nearest[near]]
+        points[name] = p
+    for name in ("HEAD_YAW", "HEAD_PITCH", "HEAD_ROLL"):
+        try:
+            c = np.asarray(model.scene.node(name).expand()["center"], dtype=np.float64)
+        except KeyError:
+            continue
+        centres[name] = c + warp(c[None])[0]
+    return FittedGeometry(points, centres)
+
+
+def fitted_scene(model: FaceModel, geometry: FittedGeometry, texture_url: str,
+                 title: str) -> Scene:  # fmt: skip
+    """A copy of ``model``'s neutral scene with the fitted geometry, the texture at
+    ``texture_url`` and ``title`` as the first WorldInfo's title."""
+    memo = {id(t): t for t in standard_node_types().values()}
+    scene = copy.deepcopy(model.scene, memo)
+    for name, pts in geometry.points.items():
+        coord = scene.node(name).expand()["coord"].expand()
+        coord.fields["point"] = np.round(pts, 6) + 0.0
+    for name, c in geometry.centres.items():
+        scene.node(name).expand().fields["center"] = np.round(c, 6) + 0.0
+    for node in scene.find("ImageTexture"):
+        node.fields["url"] = [texture_url]
+    infos = scene.find("WorldInfo")
+    if infos:
+        infos[0].fields["title"] = title
+    return scene
+
+
+def transfer_tables(generic: AnimationTables, fapu0: Fapu, fapu: Fapu) -> AnimationTables:
+    """The generic head's tables for the fitted head (see the module docstring): mesh
+    displacements scaled by the FAPU ratios, Transform tables as they are (their neutral values
+    are the same fields of the same nodes)."""
+    ratio = {k: getattr(fapu, k) / getattr(fapu0, k) for k in ("irisd", "es", "ens", "mns", "mw")}
+    out = AnimationTables(temporal=generic.temporal, feature_points=dict(generic.feature_points))
+    for miap, adt in generic.adts.items():
+        scale = _scale(miap, ratio)
+        meshes = [
+            MeshTable(m.node, m.borders.copy(), m.vertices.copy(), m.displacements * scale)
+            for m in adt.meshes
+        ]
+        transforms = []
+        for t in adt.transforms:
+            unit = t.unit
+            if t.field == "translation":
+                unit = t.unit * scale
+            transforms.append(TransformTable(t.node, t.field, t.neutral.copy(), np.array(unit)))
+        out.add(Adt(miap, meshes, transforms))
+    return out
+
+
+def fitted_fapu(tables: AnimationTables, points: dict[str, np.ndarray]) -> Fapu:
+    """The FAPUs of the fitted head, from the tables' feature points on the fitted points."""
+    return Fapu.from_feature_points(
+        {k: points[node][v] for k, (node, v) in tables.feature_points.items()}
+    )
+
+
+def _scale(miap, ratio: dict[str, float]) -> np.ndarray:
+    """``(3,)`` per-axis scale of a MIAP's displacements."""
+    if miap.kind == "fap":
+        unit = fap(miap.number).fapu
+        if unit is None or unit == "AU":
+            return np.ones(3)
+        return np.full(3, ratio[unit.lower()])
+    if miap.kind == "viseme":
+        return np.array([ratio["mw"], ratio["mns"], ratio["mns"]])
+    return np.array([ratio["es"], ratio["ens"], ratio["ens"]])
