@@ -1,0 +1,302 @@
+"""``adi fit``: a personalized head from one photograph.
+
+    photo ─► landmarks (:mod:`vtts.fit.landmarks`) ─► pose, camera and shape (:mod:`.shape`)
+          ─► the whole head and its tables (:mod:`.head`) ─► the skin texture (:mod:`.texture`)
+          ─► OUT.wrl + OUT.adt + OUT-face.png, with ``DEF photo Viewpoint`` (the photo's camera)
+
+>>> from vtts.fit import fit_photo
+>>> head = fit_photo(image)                       # (H, W, 3) uint8 RGB
+>>> head.write("me.wrl")                          # me.wrl, me.adt, me-face.png
+"""
+
+from __future__ import annotations
+
+import contextlib
+import tempfile
+import time
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from vtts.atomic import atomic_path
+from vtts.errors import FitError, VttsWarning
+from vtts.face import FaceModel
+from vtts.face.adt import AnimationTables, format_adt
+from vtts.fit.generic import GenericHead, generic_head, landmark_map
+from vtts.fit.head import fitted_fapu, fitted_geometry, fitted_scene, transfer_tables
+from vtts.fit.landmarks import (
+    LEFT_EYE,
+    RIGHT_EYE,
+    Face,
+    LandmarkDetector,
+    check_image,
+    detect_faces,
+)
+from vtts.fit.shape import ShapeFit, fit_shape, focal_length
+from vtts.fit.texture import (
+    ATLAS_SIZE,
+    EAR_TILE,
+    PROBE_GREY,
+    SKIN_PARTS,
+    depth_map,
+    eye_colours,
+    paint_skin,
+    project_skin,
+    skin_texels,
+    srgb_to_linear,
+    tint_eye,
+    tint_tile,
+    upscale,
+)
+from vtts.render.camera import viewpoint_fields
+from vtts.resources import models_dir
+from vtts.vrml import Scene, dumps, parse
+
+#: The Viewpoint that holds the photo's camera.
+PHOTO_VIEWPOINT = "photo"
+#: Smallest photo side (pixels) worth fitting: the detector needs a face of about 40 pixels.
+MIN_SIZE = 64
+#: Painting passes: the second aims at what the first one's rendering missed.
+TEXTURE_PASSES = 3
+#: Largest photo side; bigger photos are fitted at this size (the camera scales with them).
+MAX_SIZE = 4096
+
+
+@dataclass
+class FittedHead:
+    """A head fitted to a photo, ready to write.
+
+    scene      the neutral VRML scene (fitted points, ``DEF photo Viewpoint``)
+    tables     its Animation Definition Tables (the generic head's, carried over)
+    texture    ``(S, S, 3) uint8`` the atlas
+    shape      the :class:`~vtts.fit.shape.ShapeFit` (pose, camera, control points)
+    face       the detected :class:`~vtts.fit.landmarks.Face` it was fitted to
+    faces      how many faces the photo showed
+    seen       the fraction of skin texels the photo saw
+    timings    seconds per step
+    """
+
+    scene: Scene
+    tables: AnimationTables
+    texture: np.ndarray
+    shape: ShapeFit
+    face: Face
+    faces: int
+    seen: float
+    personality: str
+    timings: dict[str, float] = field(default_factory=dict)
+
+    def write(self, path: str | Path) -> list[Path]:
+        """Write ``PATH.wrl`` (the scene), ``PATH.adt`` (its tables) and ``PATH-face.png`` (its
+        texture) beside each other, each renamed into place only when all are written. Returns
+        the paths."""
+        wrl = Path(path)
+        if wrl.suffix.lower() != ".wrl":
+            raise FitError(f"the output must be a .wrl file, got {str(path)!r}")
+        adt = wrl.with_suffix(".adt")
+        png = wrl.with_name(texture_name(wrl))
+        set_texture_url(self.scene, png.name)
+        text = dumps(self.scene)
+        with contextlib.ExitStack() as stack:
+            tmp = [stack.enter_context(atomic_path(p)) for p in (wrl, adt, png)]
+            tmp[0].write_text(text, encoding="utf-8")
+            tmp[1].write_text(format_adt(self.tables), encoding="utf-8")
+            Image.fromarray(self.texture).save(tmp[2], format="PNG", optimize=False)
+        return [wrl, adt, png]
+
+    def model(self, folder: Path, name: str = "fitted") -> FaceModel:
+        """The head as a :class:`~vtts.face.FaceModel` whose texture is written into
+        ``folder``."""
+        png = folder / f"{name}-face.png"
+        Image.fromarray(self.texture).save(png)
+        set_texture_url(self.scene, png.name)
+        return FaceModel(self.scene, self.tables, folder / f"{name}.wrl")
+
+
+def texture_name(wrl: Path) -> str:
+    return f"{wrl.stem}-face.png"
+
+
+def set_texture_url(scene: Scene, url: str) -> None:
+    for node in scene.find("ImageTexture"):
+        node.fields["url"] = [url]
+
+
+def load_photo(path: str | Path) -> tuple[np.ndarray, float | None]:
+    """The photo as ``(H, W, 3) uint8`` RGB (EXIF orientation applied) and its 35 mm-equivalent
+    focal length from EXIF, or None."""
+    p = Path(path)
+    try:
+        with Image.open(p) as im:
+            im.load()
+            exif = im.getexif()
+            from PIL import ImageOps
+
+            im = ImageOps.exif_transpose(im)
+            rgb = np.asarray(im.convert("RGB"))
+    except FileNotFoundError:
+        raise FitError(f"{p}: no such file") from None
+    except IsADirectoryError:
+        raise FitError(f"{p}: is a folder, not a photo") from None
+    except (OSError, SyntaxError, ValueError, Image.DecompressionBombError) as e:
+        raise FitError(f"{p}: not a readable image ({e})") from None
+    focal = None
+    try:
+        sub = exif.get_ifd(0x8769)  # the Exif IFD
+        f35 = sub.get(0xA405)  # FocalLengthIn35mmFilm
+        if f35:
+            focal = float(f35)
+    except Exception:  # noqa: BLE001 - a broken EXIF block only loses the hint
+        focal = None
+    return rgb, focal
+
+
+def fit_photo(
+    image: np.ndarray,
+    *,
+    personality: str = "cybatt",
+    face: int | None = None,
+    focal_35mm: float | None = None,
+    name: str = "fitted",
+    detector: LandmarkDetector | None = None,
+) -> FittedHead:
+    """Fit the generic head of ``personality`` to the face in ``image (H, W, 3) uint8`` RGB.
+
+    ``face`` chooses among several faces (1 = the largest; default: the largest, with a
+    warning); ``focal_35mm`` is the lens as a 35 mm-equivalent focal length (mm; default
+    :data:`~vtts.fit.shape.DEFAULT_FOCAL_35MM`). Raises :class:`~vtts.errors.FitError` when no
+    face is found."""
+    t0 = time.perf_counter()
+    timings: dict[str, float] = {}
+    image = check_image(image)
+    h, w = image.shape[:2]
+    if min(h, w) < MIN_SIZE:
+        raise FitError(f"the photo is {w}x{h} pixels: too small to fit (at least {MIN_SIZE})")
+    if max(h, w) > MAX_SIZE:
+        raise FitError(f"the photo is {w}x{h} pixels: larger than {MAX_SIZE}; scale it down")
+    faces = detect_faces(image, detector)
+    timings["landmarks"] = time.perf_counter() - t0
+    if not faces:
+        raise FitError("no face found in the photo")
+    if face is not None and not 1 <= face <= len(faces):
+        raise FitError(f"--face {face}: the photo shows {len(faces)} face(s), numbered 1–"
+                       f"{len(faces)} from the largest")  # fmt: skip
+    if face is None and len(faces) > 1:
+        warnings.warn(
+            VttsWarning(
+                f"the photo shows {len(faces)} faces: fitting the largest "
+                "(choose another with --face N, 1 = largest)"
+            ),
+            stacklevel=2,
+        )
+    chosen = faces[(face or 1) - 1]
+    g = generic_head(personality)
+    t = time.perf_counter()
+    focal = focal_length((w, h), focal_35mm)
+    shape = fit_shape(g, landmark_map(), chosen.landmarks, (w, h), focal)
+    timings["shape"] = time.perf_counter() - t
+    t = time.perf_counter()
+    geometry = fitted_geometry(g, shape.control)
+    fapu = fitted_fapu(g.model.tables, geometry.points)
+    tables = transfer_tables(g.model.tables, g.model.fapu, fapu)
+    title = f"{name}: fitted to a photo (adi fit, personality {personality})"
+    scene = fitted_scene(g.model, geometry, f"{name}-face.png", title)
+    add_viewpoint(scene, shape)
+    timings["head"] = time.perf_counter() - t
+    t = time.perf_counter()
+    atlas, seen = _texture(g, scene, tables, shape, image, chosen)
+    timings["texture"] = time.perf_counter() - t
+    timings["total"] = time.perf_counter() - t0
+    return FittedHead(scene, tables, atlas, shape, chosen, len(faces), seen, personality,
+                      timings)  # fmt: skip
+
+
+def add_viewpoint(scene: Scene, shape: ShapeFit) -> None:
+    """Put ``DEF photo Viewpoint`` (the photo's camera) into ``scene`` after its WorldInfos, so
+    that VRML browsers open at the photo's view."""
+    f = viewpoint_fields(shape.camera, shape.size)
+    pos = " ".join(f"{v:.6f}" for v in f["position"])
+    ori = " ".join(f"{v:.9f}" for v in f["orientation"])
+    w, h = shape.size
+    text = (
+        f"#VRML V2.0 utf8\nDEF {PHOTO_VIEWPOINT} Viewpoint {{\n  position {pos}\n"
+        f"  orientation {ori}\n  fieldOfView {f['fieldOfView']:.9f}\n"
+        f'  description "the photo ({w}x{h}): vtts render --viewpoint {PHOTO_VIEWPOINT} '
+        f'--size {w}x{h}"\n}}\n'
+    )
+    node = parse(text).roots[0]
+    at = 0
+    while at < len(scene.statements) and getattr(scene.statements[at], "type_name", "") == (
+        "WorldInfo"
+    ):
+        at += 1
+    scene.statements.insert(at, node)
+    scene.defs[PHOTO_VIEWPOINT] = node
+
+
+def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.ndarray,
+             face: Face):  # fmt: skip
+    """The atlas: the generic tiles (upscaled), the ear tinted, the skin painted from the
+    photo."""
+    from vtts.render import FaceRenderer
+
+    generic_png = models_dir() / f"{g.model.name}-face.png"
+    with Image.open(generic_png) as im:
+        atlas = upscale(im, ATLAS_SIZE)
+    h, w = image.shape[:2]
+    probes = {}
+    with tempfile.TemporaryDirectory(prefix="vtts-fit-") as tmp:  # noqa: SIM117
+        folder = Path(tmp)
+        model = FaceModel(scene, tables, folder / "probe.wrl")
+        for label, value in (("grey", PROBE_GREY), ("black", 0.0)):
+            png = folder / f"{label}.png"
+            Image.new("RGB", (16, 16), (round(value * 255),) * 3).save(png)
+            set_texture_url(model.scene, png.name)
+            with FaceRenderer(model, size=(w, h), viewpoint=PHOTO_VIEWPOINT) as r:
+                if label == "grey":
+                    frame, numbers = r.render(model.params(), triangles=True)
+                    depth = depth_map(numbers, r.triangle_sets, r.camera, r.model_matrix(0))
+                else:
+                    frame = r.render(model.params())
+            probes[label] = (frame[..., :3] / 255.0) ** 2.2
+        offset = probes["black"]
+        gain = (probes["grey"] - offset) / srgb_to_linear(PROBE_GREY)
+        parts = {n: model.scene.node(n).expand() for n in SKIN_PARTS}
+        texels = skin_texels(parts, ATLAS_SIZE)
+        proj = project_skin(texels, shape.camera, (w, h), depth, gain, offset)
+        photo = ((image / 255.0) ** 2.2).astype(np.float32)
+        target = photo
+        generic_atlas = atlas
+        for k in range(TEXTURE_PASSES):
+            last = k == TEXTURE_PASSES - 1
+            atlas, seen = paint_skin(generic_atlas.copy(), proj, target)
+            if last:
+                break
+            # render what the texture gives and aim the next pass at what it missed: the
+            # renderer's texture filtering blurs, the correction sharpens it back
+            png = folder / f"pass{k}.png"
+            Image.fromarray((np.clip(atlas, 0, 1) * 255 + 0.5).astype(np.uint8)).save(
+                png, compress_level=1
+            )
+            set_texture_url(model.scene, png.name)
+            with FaceRenderer(model, size=(w, h), viewpoint=PHOTO_VIEWPOINT) as r:
+                rendered = (r.render(model.params())[..., :3] / 255.0) ** 2.2
+            covered = np.isfinite(depth)[..., None]
+            target = np.where(covered, np.clip(target + photo - rendered, 0.0, 1.5), target)
+        eyes = [
+            eye_colours(photo, gain, offset, face.landmarks[list(contour), :2])
+            for contour in (RIGHT_EYE, LEFT_EYE)
+        ]
+        eyes = [c for c in eyes if c is not None]
+        if eyes:
+            tint_eye(atlas, *np.mean(np.array(eyes), axis=0))
+    # the ears keep the generic tile, in the photo's skin colour
+    rows = slice(0, int(ATLAS_SIZE * 0.75))
+    ratio = atlas[rows].reshape(-1, 3).mean(axis=0) / np.maximum(
+        generic_atlas[rows].reshape(-1, 3).mean(axis=0), 1e-6
+    )
+    tint_tile(atlas, EAR_TILE, ratio)
+    return (np.clip(atlas, 0, 1) * 255 + 0.5).astype(np.uint8), seen

@@ -1,0 +1,360 @@
+"""The fitted head's texture: the photo projected onto the skin, the rest filled.
+
+The bundled heads' atlas (``models/src/texture.py``) keeps the skin of face, back of the head and
+neck in one chart (its top three quarters, unwrapped around the skull's vertical axis: mirror
+images of each other across ``u = 0.5``) and eye, teeth, tongue and ear tiles below. The fitted
+head keeps those texture coordinates and a copy of the generic tiles (the ear tinted to the
+photo's skin); only the skin chart is painted anew, at :data:`ATLAS_SIZE` texels:
+
+1. Every skin texel finds the surface point it colours (the triangles rasterized in texture
+   space), and that point's pixel in the photo.
+2. The renderer shades what it draws (pyrender's lights, in linear light, then a 1/2.2 power): the
+   fitted head rendered over the photo once with a mid-grey and once with a black skin gives, per
+   pixel, the gain ``A`` and offset ``B`` with which a skin colour ``T`` (linear) becomes the
+   pixel: ``pixel^2.2 = A·T + B``. The texel takes ``T = (photo^2.2 − B) / A``: the head then
+   renders the photo back at the photo's view, and the photo's own light is not lit twice.
+3. A texel counts as seen when its point is the one the photo's pixel shows (depth test against
+   the rendered triangle numbers) and faces the camera; its weight falls to zero towards grazing
+   views. Unseen texels take the mirrored texel (the other side of the face), and what neither
+   side shows (the back of the head, under the chin) is filled by pull-push interpolation from
+   what was seen: skin from the cheeks and neck, hair from the top of the head — no seams, since
+   the weights blend smoothly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from PIL import Image
+
+from vtts.analysis.raster import ray_barycentrics
+from vtts.render.camera import Camera
+from vtts.vrml import triangulate
+
+#: Texels of the fitted head's atlas (square); the bundled heads' is 512.
+ATLAS_SIZE = 1024
+#: The parts that use the skin chart.
+SKIN_PARTS = ("FACE", "HAIR", "NECK")
+#: The skin parts the photo paints.
+PHOTO_PARTS = ("FACE", "HAIR")
+#: The atlas tiles (u0, v0, u1, v1) of the bundled heads (models/src/texture.py).
+SKIN_TILE = (0.0, 0.25, 1.0, 1.0)
+EAR_TILE = (0.75, 0.0, 1.0, 0.25)
+EYE_TILE = (0.0, 0.0, 0.25, 0.25)
+#: A texel's weight grows from 0 to 1 as the cosine between its normal and the view grows
+#: between these.
+GRAZING = (0.2, 0.5)
+#: How far behind the surface the photo's pixel shows may be for the texel to be seen (model
+#: units; the face is about 1.2 wide).
+DEPTH_TOLERANCE = 0.01
+#: The grey (sRGB) the shading is measured with: bright enough to be above the 8-bit floor
+#: everywhere, dark enough never to saturate.
+PROBE_GREY = 0.5
+
+
+@dataclass
+class SkinTexels:
+    """Every texel of the skin chart covered by a skin triangle.
+
+    rows, cols  ``(N,)`` texel (row, column) in the atlas (row 0 at the top: v = 1)
+    points      ``(N, 3)`` the surface point each texel colours (model units)
+    normals     ``(N, 3)`` unit normals there
+    photo       ``(N,)`` bool: the texel may take the photo's colour (its part is in
+                :data:`PHOTO_PARTS`; the neck is filled, since below the chin photos show
+                collars and shadow more often than neck)
+    """
+
+    rows: np.ndarray
+    cols: np.ndarray
+    points: np.ndarray
+    normals: np.ndarray
+    photo: np.ndarray
+
+
+def skin_texels(parts: dict[str, object], size: int = ATLAS_SIZE) -> SkinTexels:
+    """Rasterize the skin parts (IndexedFaceSet nodes by DEF name, already fitted) in texture
+    space: texel centres inside a triangle's texture coordinates."""
+    rows, cols, pts, nrm, photo = [], [], [], [], []
+    for name in SKIN_PARTS:
+        tm = triangulate(parts[name])
+        uv = tm.texcoords
+        x = uv[:, 0] * size - 0.5
+        y = (1.0 - uv[:, 1]) * size - 0.5
+        tri = tm.faces
+        tx, ty = x[tri], y[tri]  # (m, 3)
+        x0 = np.ceil(tx.min(axis=1)).astype(np.int64)
+        x1 = np.floor(tx.max(axis=1)).astype(np.int64)
+        y0 = np.ceil(ty.min(axis=1)).astype(np.int64)
+        y1 = np.floor(ty.max(axis=1)).astype(np.int64)
+        wbox = np.maximum(x1 - x0 + 1, 0)
+        count = wbox * np.maximum(y1 - y0 + 1, 0)
+        t = np.repeat(np.arange(len(tri)), count)
+        k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+        px = x0[t] + k % wbox[t]
+        py = y0[t] + k // wbox[t]
+        # barycentric coordinates of the texel centre in its triangle's texture coordinates
+        ax, ay = tx[t, 0], ty[t, 0]
+        e1x, e1y = tx[t, 1] - ax, ty[t, 1] - ay
+        e2x, e2y = tx[t, 2] - ax, ty[t, 2] - ay
+        det = e1x * e2y - e1y * e2x
+        ok = np.abs(det) > 1e-12
+        det = np.where(ok, det, 1.0)
+        qx, qy = px - ax, py - ay
+        b1 = (qx * e2y - qy * e2x) / det
+        b2 = (e1x * qy - e1y * qx) / det
+        b0 = 1 - b1 - b2
+        inside = ok & (b0 >= -1e-9) & (b1 >= -1e-9) & (b2 >= -1e-9)
+        lam = np.stack([b0, b1, b2], axis=1)[inside]
+        t = t[inside]
+        corners = tri[t]
+        p = np.einsum("ij,ijk->ik", lam, tm.positions[corners])
+        n = np.einsum("ij,ijk->ik", lam, tm.normals[corners])
+        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+        rows.append(py[inside])
+        cols.append(px[inside] % size)  # the chart repeats across the back seam
+        pts.append(p)
+        nrm.append(n)
+        photo.append(np.full(len(p), name in PHOTO_PARTS))
+    return SkinTexels(*(np.concatenate(a) for a in (rows, cols, pts, nrm, photo)))
+
+
+def depth_map(numbers: np.ndarray, sets, camera: Camera, world: np.ndarray) -> np.ndarray:
+    """Distance from the camera ``(H, W)`` (model units, inf where nothing is drawn) of the
+    surface each pixel shows, from the renderer's triangle numbers. ``sets`` is the renderer's
+    ``triangle_sets``; ``world`` places the model in the renderer's world."""
+    h, w = numbers.shape
+    out = np.full((h, w), np.inf)
+    rows, cols = np.nonzero(numbers >= 0)
+    num = numbers[rows, cols]
+    pixels = np.stack([cols + 0.5, rows + 0.5], axis=1)
+    for node, first, count in sets:
+        sel = (num >= first) & (num < first + count)
+        if not sel.any():
+            continue
+        tm = triangulate(node)
+        corners = tm.positions[tm.faces[num[sel] - first]]
+        corners = corners @ world[:3, :3].T + world[:3, 3]
+        _, cam_pts = ray_barycentrics(pixels[sel], camera, corners)
+        out[rows[sel], cols[sel]] = np.linalg.norm(cam_pts, axis=1)
+    return out
+
+
+def srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    """The sRGB curve pyrender applies to textures."""
+    c = np.asarray(c, dtype=np.float64)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def linear_to_srgb(c: np.ndarray) -> np.ndarray:
+    c = np.clip(np.asarray(c, dtype=np.float64), 0.0, 1.0)
+    return np.where(c <= 0.0031308, c * 12.92, 1.055 * c ** (1 / 2.4) - 0.055)
+
+
+def sample(image: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """Bilinear samples ``(N, C)`` of ``image (H, W, C)`` at pixel coordinates ``xy (N, 2)``
+    (pixel centres at +0.5), clamped to the border."""
+    h, w = image.shape[:2]
+    x = np.clip(xy[:, 0] - 0.5, 0, w - 1)
+    y = np.clip(xy[:, 1] - 0.5, 0, h - 1)
+    x0 = np.minimum(x.astype(np.int64), w - 2 if w > 1 else 0)
+    y0 = np.minimum(y.astype(np.int64), h - 2 if h > 1 else 0)
+    fx, fy = (x - x0)[:, None].astype(np.float32), (y - y0)[:, None].astype(np.float32)
+    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
+    img = image.astype(np.float32, copy=False)
+    return (
+        img[y0, x0] * (1 - fx) * (1 - fy)
+        + img[y0, x1] * fx * (1 - fy)
+        + img[y1, x0] * (1 - fx) * fy
+        + img[y1, x1] * fx * fy
+    )
+
+
+def pull_push(color: np.ndarray, weight: np.ndarray) -> np.ndarray:
+    """Fill ``color (H, W, C)`` where ``weight (H, W)`` (0–1) is low by pull-push: weighted
+    averages down a pyramid, then back up, each level filling what the finer one lacks."""
+    color, weight = color.astype(np.float32), weight.astype(np.float32)
+    levels = [(color * weight[..., None], weight)]
+    while min(levels[-1][1].shape) > 1:
+        c, w = levels[-1]
+        h2, w2 = (c.shape[0] + 1) // 2, (c.shape[1] + 1) // 2
+        cp = np.zeros((h2 * 2, w2 * 2, c.shape[2]), np.float32)
+        wp = np.zeros((h2 * 2, w2 * 2), np.float32)
+        cp[: c.shape[0], : c.shape[1]] = c
+        wp[: w.shape[0], : w.shape[1]] = w
+        cs = cp.reshape(h2, 2, w2, 2, -1).sum(axis=(1, 3))
+        ws = wp.reshape(h2, 2, w2, 2).sum(axis=(1, 3))
+        # a coarse texel is as sure as its surest child (clipped sum), its colour their mean
+        scale = np.minimum(ws, 1.0) / np.maximum(ws, 1e-12)
+        levels.append((cs * scale[..., None], np.minimum(ws, 1.0)))
+    c, w = levels[-1]
+    filled = c / np.maximum(w, 1e-12)[..., None]
+    for c, w in reversed(levels[:-1]):
+        # bilinear, not blocky: the fill is as smooth as the pyramid allows
+        up = _upsample2(_upsample2(filled, 0), 1)
+        filled = c + (1 - w)[..., None] * up[: c.shape[0], : c.shape[1]]
+    return filled
+
+
+def _upsample2(a: np.ndarray, axis: int) -> np.ndarray:
+    """``a`` twice as long along ``axis``, bilinear with pixel edges aligned (each new sample
+    is 3/4 of its parent and 1/4 of the parent's neighbour on its side; the ends clamp)."""
+    a = np.moveaxis(a, axis, 0)
+    prev = np.concatenate([a[:1], a[:-1]])
+    nxt = np.concatenate([a[1:], a[-1:]])
+    out = np.empty((2 * a.shape[0], *a.shape[1:]), a.dtype)
+    out[0::2] = 0.75 * a + 0.25 * prev
+    out[1::2] = 0.75 * a + 0.25 * nxt
+    return np.moveaxis(out, 0, axis)
+
+
+def grazing_weight(cosine: np.ndarray) -> np.ndarray:
+    lo, hi = GRAZING
+    t = np.clip((cosine - lo) / (hi - lo), 0, 1)
+    return t * t * (3 - 2 * t)
+
+
+@dataclass
+class Projection:
+    """Where the photo sees the skin: the texels it sees, their photo pixels and weights, and
+    the renderer's shading there (see :func:`project_skin`).
+
+    texels  the :class:`SkinTexels`
+    index   ``(K,)`` the texels the photo sees
+    xy      ``(K, 2)`` their photo pixels
+    weight  ``(K,)`` how much each trusts the photo (0–1, falling towards grazing views)
+    gain, offset  ``(K, 3)`` the renderer's shading there (pixel^2.2 = gain · T + offset)
+    """
+
+    texels: SkinTexels
+    index: np.ndarray
+    xy: np.ndarray
+    weight: np.ndarray
+    gain: np.ndarray
+    offset: np.ndarray
+
+
+def project_skin(
+    texels: SkinTexels,
+    camera: Camera,
+    size: tuple[int, int],
+    depth: np.ndarray,
+    gain: np.ndarray,
+    offset: np.ndarray,
+) -> Projection:
+    """Which skin texels a photo of ``size`` (W, H) taken by ``camera`` (in the model's frame)
+    sees: in the picture, facing the camera, and what the pixel shows (``depth``: the distance
+    of what each pixel shows, :func:`depth_map`). ``gain`` and ``offset`` ``(H, W, 3)`` are the
+    renderer's shading at the photo's view (see the module docstring)."""
+    w, h = size
+    xy = camera.project(texels.points)
+    inside = (xy[:, 0] >= 0) & (xy[:, 0] < w) & (xy[:, 1] >= 0) & (xy[:, 1] < h)
+    ray = texels.points - camera.pose[:3, 3]
+    dist = np.linalg.norm(ray, axis=1)
+    cosine = -np.einsum("ij,ij->i", texels.normals, ray) / dist
+    col = np.clip(xy[:, 0].astype(np.int64), 0, w - 1)
+    row = np.clip(xy[:, 1].astype(np.int64), 0, h - 1)
+    seen = inside & texels.photo & (cosine > 0) & (dist <= depth[row, col] + DEPTH_TOLERANCE)
+    idx = np.flatnonzero(seen)
+    a = sample(gain, xy[idx])
+    weight = np.where(a.min(axis=1) > 0.02, grazing_weight(cosine[idx]), 0.0)
+    keep = weight > 0
+    idx, a = idx[keep], a[keep]
+    return Projection(texels, idx, xy[idx], weight[keep], a, sample(offset, xy[idx]))
+
+
+def paint_skin(
+    atlas: np.ndarray, proj: Projection, target: np.ndarray, *, fill: bool = True
+) -> tuple[np.ndarray, float]:
+    """Paint the skin chart of ``atlas`` (``(S, S, 3)`` float 0–1, changed in place) so that the
+    head rendered at the photo's view shows ``target (H, W, 3)`` (linear light: the photo's
+    pixels ** 2.2). With ``fill``, what the photo does not see is filled (mirror, then pull-push);
+    without, it keeps the atlas's colours. Returns the atlas and the fraction of skin texels the
+    photo saw."""
+    size = atlas.shape[0]
+    tx = proj.texels
+    rows, cols = tx.rows[proj.index], tx.cols[proj.index]
+    lin = (sample(target, proj.xy) - proj.offset) / np.maximum(proj.gain, 1e-6)
+    colour = linear_to_srgb(lin)
+    covered = np.zeros((size, size), bool)
+    covered[tx.rows, tx.cols] = True
+    seen_fraction = float(len(proj.index) / max(covered.sum(), 1))
+    if not fill:
+        atlas[rows, cols] = colour
+        return atlas, seen_fraction
+    skin = np.zeros((size, size, 3), np.float32)
+    wmap = np.zeros((size, size), np.float32)
+    skin[rows, cols] = colour
+    wmap[rows, cols] = proj.weight
+    # the other side of the face where this side was not seen
+    mirror_skin, mirror_w = skin[:, ::-1], wmap[:, ::-1]
+    total = wmap + (1 - wmap) * mirror_w
+    colour = (skin * wmap[..., None] + mirror_skin * ((1 - wmap) * mirror_w)[..., None]) / (
+        np.maximum(total, 1e-12)[..., None]
+    )
+    r0, r1 = int(round((1 - SKIN_TILE[3]) * size)), int(round((1 - SKIN_TILE[1]) * size))
+    atlas[r0:r1] = pull_push(colour[r0:r1], total[r0:r1])
+    return atlas, seen_fraction
+
+
+def eye_colours(
+    photo: np.ndarray, gain: np.ndarray, offset: np.ndarray, contour: np.ndarray
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The texture colours (sRGB 0–1, ``(3,)`` each) of the iris and the white inside an eye's
+    ``contour (k, 2)`` (photo pixels): the medians of the darker half and of the brightest
+    quarter of the pixels within it, unshaded as the skin is (``photo`` linear, ``gain`` and
+    ``offset`` the renderer's shading). None when the eye is too small or closed."""
+    from PIL import ImageDraw
+
+    h, w = photo.shape[:2]
+    mask_img = Image.new("L", (w, h), 0)
+    ImageDraw.Draw(mask_img).polygon([tuple(p) for p in contour - 0.5], fill=1)
+    rows, cols = np.nonzero(np.asarray(mask_img))
+    if len(rows) < 6:
+        return None
+    lin = (photo[rows, cols] - offset[rows, cols]) / np.maximum(gain[rows, cols], 1e-3)
+    lum = lin @ np.array([0.2126, 0.7152, 0.0722])
+    dark = lin[lum <= np.median(lum)]
+    bright = lin[lum >= np.percentile(lum, 75)]
+    return linear_to_srgb(np.median(dark, axis=0)), linear_to_srgb(np.median(bright, axis=0))
+
+
+def tint_eye(atlas: np.ndarray, iris_colour: np.ndarray, white: np.ndarray) -> None:
+    """Recolour the eye tile of ``atlas (S, S, 3)`` (the bundled heads' eye: a saturated iris
+    between a dark pupil and the white): the iris to ``iris_colour (3,)``, keeping its pattern's
+    light and dark, and the white to ``white (3,)`` on average."""
+    size = atlas.shape[0]
+    u0, v0, u1, v1 = EYE_TILE
+    r0, r1 = int(round((1 - v1) * size)), int(round((1 - v0) * size))
+    c0, c1 = int(round(u0 * size)), int(round(u1 * size))
+    tile = atlas[r0:r1, c0:c1]
+    n = tile.shape[0]
+    yy, xx = np.mgrid[0:n, 0:n]
+    near = np.hypot(yy - (n - 1) / 2, xx - (n - 1) / 2) < 0.2 * n
+    mx, mn = tile.max(axis=2), tile.min(axis=2)
+    iris = near & (mx > 0.12) & ((mx - mn) / np.maximum(mx, 1e-6) > 0.2)
+    lum = tile @ np.array([0.2126, 0.7152, 0.0722])
+    if iris.any():
+        rel = lum[iris] / max(float(lum[iris].mean()), 1e-6)
+        tile[iris] = np.clip(iris_colour[None, :] * rel[:, None], 0, 1)
+    sclera = ~near & (mn > 0.5)
+    if sclera.any():
+        ratio = white / np.maximum(tile[sclera].mean(axis=0), 1e-6)
+        tile[~near] = np.clip(tile[~near] * ratio, 0, 1)
+
+
+def tint_tile(atlas: np.ndarray, tile, gain: np.ndarray) -> None:
+    """Multiply the texels of ``tile`` (u0, v0, u1, v1) of ``atlas (S, S, 3)`` by ``gain (3,)``."""
+    size = atlas.shape[0]
+    u0, v0, u1, v1 = tile
+    r0, r1 = int(round((1 - v1) * size)), int(round((1 - v0) * size))
+    c0, c1 = int(round(u0 * size)), int(round(u1 * size))
+    atlas[r0:r1, c0:c1] = np.clip(atlas[r0:r1, c0:c1] * gain, 0, 1)
+
+
+def upscale(image: Image.Image, size: int = ATLAS_SIZE) -> np.ndarray:
+    """``image`` as ``(size, size, 3)`` float 0–1 (Lanczos)."""
+    img = image.convert("RGB")
+    if img.size != (size, size):
+        img = img.resize((size, size), Image.Resampling.LANCZOS)
+    return np.asarray(img, dtype=np.float64) / 255.0
