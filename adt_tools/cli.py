@@ -2,6 +2,7 @@
 
 ``adi build NEUTRAL.wrl DEFORMED... -o OUT`` compares deformed exports with the neutral model and
 writes the tables (a ``.adt`` file, or with ``--embed`` the neutral scene with FaceDefTables);
+``adi fit PHOTO -o OUT.wrl`` makes a personalized head from one photograph;
 ``adi show FILE`` summarizes the tables of a ``.adt`` or a model ``.wrl``. Input errors are printed
 as ``FILE:LINE:COL: error: MESSAGE`` with exit status 1, never a traceback. See ``docs/adi.md``.
 """
@@ -12,6 +13,8 @@ import argparse
 import os
 import sys
 from pathlib import Path
+
+import numpy as np
 
 from vtts import __version__
 from vtts.cli import _print_error, _reported_warnings
@@ -27,8 +30,11 @@ def cmd_build(args: argparse.Namespace) -> int:
     out = Path(args.output)
     suffix = out.suffix.lower()
     if args.embed and suffix != ".wrl":
-        print(f"{out}: error: --embed writes a .wrl (the neutral scene with FaceDefTables), "
-              f"not a '{out.suffix}'", file=sys.stderr)
+        print(
+            f"{out}: error: --embed writes a .wrl (the neutral scene with FaceDefTables), "
+            f"not a '{out.suffix}'",
+            file=sys.stderr,
+        )
         return 1
     if not args.embed and suffix != ".adt":
         hint = "; pass --embed to write the tables into a .wrl" if suffix == ".wrl" else ""
@@ -42,12 +48,18 @@ def cmd_build(args: argparse.Namespace) -> int:
             args.neutral, args.deformed, tolerance=args.tolerance, node=args.node
         )
         if args.embed:
-            write(embed_tables(neutral, tables), out,
-                  comment=f"animation tables built by adi {__version__}")
+            write(
+                embed_tables(neutral, tables),
+                out,
+                comment=f"animation tables built by adi {__version__}",
+            )
             if out.with_suffix(".adt").is_file():
-                print(f"{out}: warning: {out.with_suffix('.adt').name} lies beside it; a model's "
-                      "tables must come from one place, so loading it will fail until one is "
-                      "removed", file=sys.stderr)
+                print(
+                    f"{out}: warning: {out.with_suffix('.adt').name} lies beside it; a model's "
+                    "tables must come from one place, so loading it will fail until one is "
+                    "removed",
+                    file=sys.stderr,
+                )
         else:
             write_adt(tables, out)
     print(f"wrote {out}: {summary(tables)}")
@@ -61,6 +73,62 @@ def cmd_show(args: argparse.Namespace) -> int:
     with _reported_warnings():
         lines = show(args.file)
     print("\n".join(lines))
+    return 0
+
+
+def cmd_fit(args: argparse.Namespace) -> int:
+    """Fit a personalized head to a photograph and write it (with a report on request)."""
+    import time
+
+    from vtts.errors import FitError
+    from vtts.face import load_model
+    from vtts.fit import fit_photo, load_photo
+    from vtts.fit.report import write_report
+
+    t0 = time.perf_counter()
+    out = Path(args.output)
+    if out.suffix.lower() != ".wrl":
+        print(f"{out}: error: the output is a .wrl file (its .adt and texture go beside it)",
+              file=sys.stderr)  # fmt: skip
+        return 1
+    if out.is_dir():
+        print(f"{out}: error: is a folder; name the .wrl to write", file=sys.stderr)
+        return 1
+    if not out.parent.is_dir():
+        print(f"{out.parent}: error: no such folder for the output", file=sys.stderr)
+        return 1
+    if args.report and Path(args.report).exists() and not Path(args.report).is_dir():
+        print(f"{args.report}: error: --report names a folder, and this is a file",
+              file=sys.stderr)  # fmt: skip
+        return 1
+    if args.focal is not None and not 0 < args.focal < 10000:
+        print(f"error: --focal is a 35 mm-equivalent focal length in mm, got {args.focal:g}",
+              file=sys.stderr)  # fmt: skip
+        return 1
+    name = args.name or out.stem
+    with _reported_warnings():
+        try:
+            image, exif_focal = load_photo(args.photo)
+            head = fit_photo(image, personality=args.personality, face=args.face,
+                             focal_35mm=args.focal or exif_focal, name=name)  # fmt: skip
+        except FitError as e:
+            if not e.file and not str(e.message).startswith(str(args.photo)):
+                e.file = str(args.photo)
+            raise
+        files = head.write(out)
+    total = time.perf_counter() - t0
+    shape = head.shape
+    print(f"wrote {', '.join(str(p) for p in files)}: {name} fitted to {len(shape.used)} "
+          f"landmarks (median error {np.median(shape.residual):.2f} px), personality "
+          f"{args.personality}, in {total:.1f} s")  # fmt: skip
+    if args.report:
+        model = load_model(out)
+        figs = write_report(args.report, model, head, image, files)
+        psnr = figs["psnr_db"]
+        print(f"report in {args.report}: face PSNR {psnr['face']:.1f} dB (skin "
+              f"{psnr['skin']:.1f} dB), landmark error "
+              f"{figs['reprojection_percent_of_eye_distance']['median']:.1f} % of the eye "
+              "distance (median)")  # fmt: skip
     return 0
 
 
@@ -86,17 +154,66 @@ def build_parser() -> argparse.ArgumentParser:
     )
     b.add_argument("neutral", metavar="NEUTRAL.wrl", help="the neutral model")
     b.add_argument("deformed", nargs="+", metavar="DEFORMED", help="deformed exports")
-    b.add_argument("-o", "--output", required=True, metavar="OUT",
-                   help="the .adt to write (a .wrl with --embed)")
-    b.add_argument("--embed", action="store_true",
-                   help="write the neutral scene with the tables as FaceDefTables nodes")
-    b.add_argument("--tolerance", type=float, default=1e-6, metavar="T",
-                   help="vertices moving less than T (model units) are left out "
-                   "(default: %(default)g)")
-    b.add_argument("--node", metavar="NAME",
-                   help="the IndexedFaceSet (DEF name) that OBJ/PLY/glTF meshes map onto "
-                   "(default: the only one with the same number of points)")
+    b.add_argument(
+        "-o",
+        "--output",
+        required=True,
+        metavar="OUT",
+        help="the .adt to write (a .wrl with --embed)",
+    )
+    b.add_argument(
+        "--embed",
+        action="store_true",
+        help="write the neutral scene with the tables as FaceDefTables nodes",
+    )
+    b.add_argument(
+        "--tolerance",
+        type=float,
+        default=1e-6,
+        metavar="T",
+        help="vertices moving less than T (model units) are left out (default: %(default)g)",
+    )
+    b.add_argument(
+        "--node",
+        metavar="NAME",
+        help="the IndexedFaceSet (DEF name) that OBJ/PLY/glTF meshes map onto "
+        "(default: the only one with the same number of points)",
+    )
     b.set_defaults(func=cmd_build)
+
+    f = sub.add_parser(
+        "fit",
+        help="a personalized head from one photograph",
+        description="Fit the generic head to the face in a photo: landmarks, pose, camera and "
+        "shape, the photo as its texture, and the animation tables carried over. Writes "
+        "OUT.wrl (with the photo's camera as DEF photo Viewpoint), OUT.adt and OUT-face.png; "
+        "vtts render --model OUT.wrl --viewpoint photo --size WxH renders it over the photo.",
+    )
+    f.add_argument("photo", metavar="PHOTO", help="a photo (PNG, JPEG, ...) showing a face")
+    f.add_argument("-o", "--output", required=True, metavar="OUT.wrl", help="the model to write")
+    f.add_argument("--name", help="the model's name (default: OUT's file name)")
+    f.add_argument(
+        "--personality",
+        choices=("cybatt", "lotta"),
+        default="cybatt",
+        help="whose generic head, animation tables and temporal habits to start from "
+        "(default: %(default)s)",
+    )
+    f.add_argument(
+        "--face", type=int, metavar="N", help="fit face N of several (1 = the largest, the default)"
+    )
+    f.add_argument(
+        "--focal",
+        type=float,
+        metavar="MM",
+        help="the lens as a 35 mm-equivalent focal length (default: from EXIF, else 50)",
+    )
+    f.add_argument(
+        "--report",
+        metavar="DIR",
+        help="write landmarks, overlay and turned views and the figures here",
+    )
+    f.set_defaults(func=cmd_fit)
 
     s = sub.add_parser("show", help="summarize the tables of a .adt or a model .wrl")
     s.add_argument("file", metavar="FILE")

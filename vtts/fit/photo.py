@@ -39,13 +39,15 @@ from vtts.fit.shape import ShapeFit, fit_shape, focal_length
 from vtts.fit.texture import (
     ATLAS_SIZE,
     EAR_TILE,
+    EYE_TILES,
+    PAINTED_PARTS,
     PROBE_GREY,
-    SKIN_PARTS,
     depth_map,
-    eye_colours,
+    iris_colour,
     paint_skin,
     project_skin,
     skin_texels,
+    split_eye_tiles,
     srgb_to_linear,
     tint_eye,
     tint_tile,
@@ -239,16 +241,17 @@ def add_viewpoint(scene: Scene, shape: ShapeFit) -> None:
 
 def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.ndarray,
              face: Face):  # fmt: skip
-    """The atlas: the generic tiles (upscaled), the ear tinted, the skin painted from the
-    photo."""
+    """The atlas: the generic tiles (upscaled; one eye tile per eye, in the photo's eye
+    colours; the ear in its skin colour), painted from the photo where it sees the head."""
     from vtts.render import FaceRenderer
 
-    generic_png = models_dir() / f"{g.model.name}-face.png"
-    with Image.open(generic_png) as im:
-        atlas = upscale(im, ATLAS_SIZE)
+    with Image.open(models_dir() / f"{g.model.name}-face.png") as im:
+        generic_atlas = upscale(im, ATLAS_SIZE)
+    split_eye_tiles(generic_atlas, scene)
     h, w = image.shape[:2]
+    photo = ((image / 255.0) ** 2.2).astype(np.float32)
     probes = {}
-    with tempfile.TemporaryDirectory(prefix="vtts-fit-") as tmp:  # noqa: SIM117
+    with tempfile.TemporaryDirectory(prefix="vtts-fit-") as tmp:
         folder = Path(tmp)
         model = FaceModel(scene, tables, folder / "probe.wrl")
         for label, value in (("grey", PROBE_GREY), ("black", 0.0)):
@@ -264,16 +267,21 @@ def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.nd
             probes[label] = (frame[..., :3] / 255.0) ** 2.2
         offset = probes["black"]
         gain = (probes["grey"] - offset) / srgb_to_linear(PROBE_GREY)
-        parts = {n: model.scene.node(n).expand() for n in SKIN_PARTS}
+        irises = [
+            iris_colour(photo, gain, offset, face.landmarks[list(contour), :2])
+            for contour in (RIGHT_EYE, LEFT_EYE)
+        ]
+        irises = [c for c in irises if c is not None]
+        if irises:
+            for tile in EYE_TILES.values():
+                tint_eye(generic_atlas, np.mean(irises, axis=0), tile)
+        parts = {n: model.scene.node(n).expand() for n in PAINTED_PARTS if n in model.scene.defs}
         texels = skin_texels(parts, ATLAS_SIZE)
         proj = project_skin(texels, shape.camera, (w, h), depth, gain, offset)
-        photo = ((image / 255.0) ** 2.2).astype(np.float32)
         target = photo
-        generic_atlas = atlas
         for k in range(TEXTURE_PASSES):
-            last = k == TEXTURE_PASSES - 1
             atlas, seen = paint_skin(generic_atlas.copy(), proj, target)
-            if last:
+            if k == TEXTURE_PASSES - 1:
                 break
             # render what the texture gives and aim the next pass at what it missed: the
             # renderer's texture filtering blurs, the correction sharpens it back
@@ -286,13 +294,6 @@ def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.nd
                 rendered = (r.render(model.params())[..., :3] / 255.0) ** 2.2
             covered = np.isfinite(depth)[..., None]
             target = np.where(covered, np.clip(target + photo - rendered, 0.0, 1.5), target)
-        eyes = [
-            eye_colours(photo, gain, offset, face.landmarks[list(contour), :2])
-            for contour in (RIGHT_EYE, LEFT_EYE)
-        ]
-        eyes = [c for c in eyes if c is not None]
-        if eyes:
-            tint_eye(atlas, *np.mean(np.array(eyes), axis=0))
     # the ears keep the generic tile, in the photo's skin colour
     rows = slice(0, int(ATLAS_SIZE * 0.75))
     ratio = atlas[rows].reshape(-1, 3).mean(axis=0) / np.maximum(

@@ -36,8 +36,16 @@ from vtts.vrml import triangulate
 ATLAS_SIZE = 1024
 #: The parts that use the skin chart.
 SKIN_PARTS = ("FACE", "HAIR", "NECK")
-#: The skin parts the photo paints.
-PHOTO_PARTS = ("FACE", "HAIR")
+#: Parts with a tile of their own that the photo paints where it sees them (over the generic
+#: tile): the eyeballs (each with its own tile, see :func:`split_eye_tiles`), teeth and tongue.
+TILE_PARTS = ("L_EYEBALL", "R_EYEBALL", "UPPER_TEETH", "LOWER_TEETH", "TONGUE")
+#: Every textured part the painter rasterizes.
+PAINTED_PARTS = SKIN_PARTS + TILE_PARTS
+#: The parts the photo paints.
+PHOTO_PARTS = ("FACE", "HAIR", *TILE_PARTS)
+#: The fitted head's own eye tiles: the generic eye tile's upper half, split in two (the photo
+#: shows each eye's iris where that eye looks).
+EYE_TILES = {"L_EYEBALL": (0.0, 0.125, 0.125, 0.25), "R_EYEBALL": (0.125, 0.125, 0.25, 0.25)}
 #: The atlas tiles (u0, v0, u1, v1) of the bundled heads (models/src/texture.py).
 SKIN_TILE = (0.0, 0.25, 1.0, 1.0)
 EAR_TILE = (0.75, 0.0, 1.0, 0.25)
@@ -73,10 +81,13 @@ class SkinTexels:
 
 
 def skin_texels(parts: dict[str, object], size: int = ATLAS_SIZE) -> SkinTexels:
-    """Rasterize the skin parts (IndexedFaceSet nodes by DEF name, already fitted) in texture
-    space: texel centres inside a triangle's texture coordinates."""
+    """Rasterize the painted parts (IndexedFaceSet nodes by DEF name, already fitted; those of
+    :data:`PAINTED_PARTS` that are there) in texture space: texel centres inside a triangle's
+    texture coordinates."""
     rows, cols, pts, nrm, photo = [], [], [], [], []
-    for name in SKIN_PARTS:
+    for name in PAINTED_PARTS:
+        if name not in parts:
+            continue
         tm = triangulate(parts[name])
         uv = tm.texcoords
         x = uv[:, 0] * size - 0.5
@@ -276,34 +287,39 @@ def paint_skin(
     rows, cols = tx.rows[proj.index], tx.cols[proj.index]
     lin = (sample(target, proj.xy) - proj.offset) / np.maximum(proj.gain, 1e-6)
     colour = linear_to_srgb(lin)
-    covered = np.zeros((size, size), bool)
-    covered[tx.rows, tx.cols] = True
-    seen_fraction = float(len(proj.index) / max(covered.sum(), 1))
+    skin_rows = tx.rows[tx.photo & (tx.rows < int(round((1 - SKIN_TILE[1]) * size)))]
+    seen_rows = rows[rows < int(round((1 - SKIN_TILE[1]) * size))]
+    seen_fraction = float(len(seen_rows) / max(len(skin_rows), 1))
+    r0, r1 = int(round((1 - SKIN_TILE[3]) * size)), int(round((1 - SKIN_TILE[1]) * size))
+    # tiles (eyes, teeth, tongue): the photo over the generic tile, as far as it is trusted
+    tile = rows >= r1
+    wt = proj.weight[tile][:, None]
+    atlas[rows[tile], cols[tile]] = wt * colour[tile] + (1 - wt) * atlas[rows[tile], cols[tile]]
+    rows, cols, colour, weight = rows[~tile], cols[~tile], colour[~tile], proj.weight[~tile]
     if not fill:
         atlas[rows, cols] = colour
         return atlas, seen_fraction
     skin = np.zeros((size, size, 3), np.float32)
     wmap = np.zeros((size, size), np.float32)
     skin[rows, cols] = colour
-    wmap[rows, cols] = proj.weight
+    wmap[rows, cols] = weight
     # the other side of the face where this side was not seen
     mirror_skin, mirror_w = skin[:, ::-1], wmap[:, ::-1]
     total = wmap + (1 - wmap) * mirror_w
     colour = (skin * wmap[..., None] + mirror_skin * ((1 - wmap) * mirror_w)[..., None]) / (
         np.maximum(total, 1e-12)[..., None]
     )
-    r0, r1 = int(round((1 - SKIN_TILE[3]) * size)), int(round((1 - SKIN_TILE[1]) * size))
     atlas[r0:r1] = pull_push(colour[r0:r1], total[r0:r1])
     return atlas, seen_fraction
 
 
-def eye_colours(
+def iris_colour(
     photo: np.ndarray, gain: np.ndarray, offset: np.ndarray, contour: np.ndarray
-) -> tuple[np.ndarray, np.ndarray] | None:
-    """The texture colours (sRGB 0–1, ``(3,)`` each) of the iris and the white inside an eye's
-    ``contour (k, 2)`` (photo pixels): the medians of the darker half and of the brightest
-    quarter of the pixels within it, unshaded as the skin is (``photo`` linear, ``gain`` and
-    ``offset`` the renderer's shading). None when the eye is too small or closed."""
+) -> np.ndarray | None:
+    """The texture colour (sRGB 0–1, ``(3,)``) of the iris inside an eye's ``contour (k, 2)``
+    (photo pixels): the median of the darker half of the pixels within it, unshaded as the skin
+    is (``photo`` linear, ``gain`` and ``offset`` the renderer's shading). None when the eye is
+    too small or closed."""
     from PIL import ImageDraw
 
     h, w = photo.shape[:2]
@@ -315,16 +331,15 @@ def eye_colours(
     lin = (photo[rows, cols] - offset[rows, cols]) / np.maximum(gain[rows, cols], 1e-3)
     lum = lin @ np.array([0.2126, 0.7152, 0.0722])
     dark = lin[lum <= np.median(lum)]
-    bright = lin[lum >= np.percentile(lum, 75)]
-    return linear_to_srgb(np.median(dark, axis=0)), linear_to_srgb(np.median(bright, axis=0))
+    return linear_to_srgb(np.median(dark, axis=0))
 
 
-def tint_eye(atlas: np.ndarray, iris_colour: np.ndarray, white: np.ndarray) -> None:
-    """Recolour the eye tile of ``atlas (S, S, 3)`` (the bundled heads' eye: a saturated iris
-    between a dark pupil and the white): the iris to ``iris_colour (3,)``, keeping its pattern's
-    light and dark, and the white to ``white (3,)`` on average."""
+def tint_eye(atlas: np.ndarray, iris_colour: np.ndarray, tile) -> None:
+    """Recolour the iris of an eye tile ``tile`` (u0, v0, u1, v1) of ``atlas (S, S, 3)`` (the
+    bundled heads' eye: a saturated ring between a dark pupil and the white) to ``iris_colour
+    (3,)``, keeping its pattern's light and dark."""
     size = atlas.shape[0]
-    u0, v0, u1, v1 = EYE_TILE
+    u0, v0, u1, v1 = tile
     r0, r1 = int(round((1 - v1) * size)), int(round((1 - v0) * size))
     c0, c1 = int(round(u0 * size)), int(round(u1 * size))
     tile = atlas[r0:r1, c0:c1]
@@ -337,10 +352,32 @@ def tint_eye(atlas: np.ndarray, iris_colour: np.ndarray, white: np.ndarray) -> N
     if iris.any():
         rel = lum[iris] / max(float(lum[iris].mean()), 1e-6)
         tile[iris] = np.clip(iris_colour[None, :] * rel[:, None], 0, 1)
-    sclera = ~near & (mn > 0.5)
-    if sclera.any():
-        ratio = white / np.maximum(tile[sclera].mean(axis=0), 1e-6)
-        tile[~near] = np.clip(tile[~near] * ratio, 0, 1)
+    # the white keeps the generic colour: in a photo the lids' skin and shadow crowd it
+
+
+def split_eye_tiles(atlas: np.ndarray, scene) -> None:
+    """Give each eyeball a tile of its own (:data:`EYE_TILES`): the generic eye tile, halved,
+    copied into both, and the eyeballs' texture coordinates moved there (in ``scene``)."""
+    size = atlas.shape[0]
+    u0, v0, u1, v1 = EYE_TILE
+    r0, r1 = int(round((1 - v1) * size)), int(round((1 - v0) * size))
+    c0, c1 = int(round(u0 * size)), int(round(u1 * size))
+    eye = Image.fromarray((np.clip(atlas[r0:r1, c0:c1], 0, 1) * 255).astype(np.uint8))
+    half = (
+        np.asarray(
+            eye.resize(((c1 - c0) // 2, (r1 - r0) // 2), Image.Resampling.LANCZOS), np.float64
+        )
+        / 255.0
+    )
+    for name, (a0, b0, a1, b1) in EYE_TILES.items():
+        rr0, cc0 = int(round((1 - b1) * size)), int(round(a0 * size))
+        atlas[rr0 : rr0 + half.shape[0], cc0 : cc0 + half.shape[1]] = half
+        coord = scene.node(name).expand()["texCoord"].expand()
+        uv = np.asarray(coord["point"], dtype=np.float64)
+        coord.fields["point"] = np.c_[
+            a0 + (uv[:, 0] - u0) / (u1 - u0) * (a1 - a0),
+            b0 + (uv[:, 1] - v0) / (v1 - v0) * (b1 - b0),
+        ]
 
 
 def tint_tile(atlas: np.ndarray, tile, gain: np.ndarray) -> None:
