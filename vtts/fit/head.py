@@ -3,7 +3,7 @@ generic head's Animation Definition Tables carried over.
 
 ``FACE`` is the fitted control points through the subdivision matrix. The other parts (back of
 the head, neck, ears, teeth, tongue, mouth cavity, eye sockets) follow a smooth space warp: a
-thin-plate spline through the displacements of the face (``scipy.interpolate.RBFInterpolator``),
+thin-plate spline through the displacements of the face (:class:`ThinPlateWarp`),
 so a wider face makes a wider skull and the teeth stay behind the lips. Points that coincide with
 ``FACE`` points (the back of the head starts on the face's border) take the face's own new
 positions, so the seams stay closed. Eyeballs move rigidly with their centres (they stay
@@ -23,12 +23,12 @@ import copy
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import RBFInterpolator
 from scipy.spatial import cKDTree
 
 from vtts.face import FaceModel
 from vtts.face.adt import Adt, AnimationTables, MeshTable, TransformTable
 from vtts.fap import Fapu, fap
+from vtts.fit.candide import refined_face
 from vtts.fit.generic import GenericHead
 from vtts.vrml import Scene, standard_node_types
 
@@ -36,6 +36,8 @@ from vtts.vrml import Scene, standard_node_types
 WARP_STRIDE = 7
 #: Points closer than this to a FACE point (model units) are that point (seams).
 SEAM_TOLERANCE = 1e-5
+#: The fitted eyes' specular colour (the generic eyes': 0.6).
+EYE_SPECULAR = 0.15
 #: The eye Transforms whose ``center`` is the eyeball's centre.
 EYE_TRANSFORMS = {"L_EYEBALL": ("L_EYE_YAW", "L_EYE_PITCH"),
                   "R_EYEBALL": ("R_EYE_YAW", "R_EYE_PITCH")}  # fmt: skip
@@ -63,6 +65,50 @@ def mesh_names(model: FaceModel) -> list[str]:
     return out
 
 
+class ThinPlateWarp:
+    """A smooth 3-D displacement field through ``anchors (k, 3)`` with ``displacements
+    (k, 3)``: the biharmonic (thin-plate) spline of 3-D space, kernel ``|x − a|`` plus an affine
+    part, so that a uniform scaling or shift of the face is carried over exactly and everything
+    else falls off smoothly. ``warp(points (n, 3)) -> (n, 3)``."""
+
+    def __init__(self, anchors: np.ndarray, displacements: np.ndarray, smoothing: float = 1e-6):
+        k = len(anchors)
+        kernel = np.linalg.norm(anchors[:, None, :] - anchors[None, :, :], axis=2)
+        poly = np.c_[np.ones(k), anchors]
+        system = np.zeros((k + 4, k + 4))
+        system[:k, :k] = kernel + smoothing * np.eye(k)
+        system[:k, k:] = poly
+        system[k:, :k] = poly.T
+        rhs = np.zeros((k + 4, 3))
+        rhs[:k] = displacements
+        coef = np.linalg.solve(system, rhs)
+        self.anchors, self.weights, self.affine = anchors, coef[:k], coef[k:]
+
+    def __call__(self, points: np.ndarray) -> np.ndarray:
+        points = np.atleast_2d(points)
+        d2 = (
+            (points**2).sum(axis=1)[:, None]
+            + (self.anchors**2).sum(axis=1)[None, :]
+            - 2 * points @ self.anchors.T
+        )
+        kernel = np.sqrt(np.maximum(d2, 0.0))
+        return kernel @ self.weights + np.c_[np.ones(len(points)), points] @ self.affine
+
+
+#: Candide vertices of each eye opening: (outer corner, inner corner, upper lid, lower lid) at
+#: the middle (models/src/modeler.py builds the eyeballs from the same vertices).
+EYE_OPENINGS = {"L_EYEBALL": (20, 23, 21, 22), "R_EYEBALL": (53, 56, 54, 55)}
+
+
+def eye_opening(face: np.ndarray, eyeball: str) -> np.ndarray:
+    """``(3,)`` the middle of an eye's opening on ``face (p, 3)``: between the corners across,
+    between the lids' middles up and down, the lids' depth."""
+    index = refined_face().candide_index
+    outer, inner, upper, lower = (face[index[v]] for v in EYE_OPENINGS[eyeball])
+    return np.array([(outer[0] + inner[0]) / 2, (upper[1] + lower[1]) / 2,
+                     (upper[2] + lower[2]) / 2])  # fmt: skip
+
+
 def fitted_geometry(head: GenericHead, control: np.ndarray) -> FittedGeometry:
     """Every part of ``head`` moved for the fitted control points ``(c, 3)``."""
     model = head.model
@@ -70,8 +116,7 @@ def fitted_geometry(head: GenericHead, control: np.ndarray) -> FittedGeometry:
     face = head.face_points(control)
     moved = face - face0
     anchors = np.arange(0, len(face0), WARP_STRIDE)
-    warp = RBFInterpolator(face0[anchors], moved[anchors], kernel="thin_plate_spline",
-                           smoothing=1e-6)  # fmt: skip
+    warp = ThinPlateWarp(face0[anchors], moved[anchors])
     tree = cKDTree(face0)
     points = {"FACE": face}
     centres: dict[str, np.ndarray] = {}
@@ -82,6 +127,10 @@ def fitted_geometry(head: GenericHead, control: np.ndarray) -> FittedGeometry:
         if name in EYE_TRANSFORMS:
             centre = np.asarray(model.scene.node(EYE_TRANSFORMS[name][0]).expand()["center"])
             shift = warp(centre[None])[0]
+            # the pupil stays where it was in the eye opening: across and up, the eyeball follows
+            # the fitted lids and corners, not the smooth warp
+            opening0, opening = eye_opening(face0, name), eye_opening(face, name)
+            shift[:2] = (opening - opening0)[:2]
             points[name] = p0 + shift
             for t in EYE_TRANSFORMS[name]:
                 centres[t] = centre + shift
@@ -114,6 +163,12 @@ def fitted_scene(model: FaceModel, geometry: FittedGeometry, texture_url: str,
         scene.node(name).expand().fields["center"] = np.round(c, 6) + 0.0
     for node in scene.find("ImageTexture"):
         node.fields["url"] = [texture_url]
+    # the photo's eyes carry their own catch lights: the generic eyes' strong highlight on top
+    # would be two (and it hides the photo's colours under it)
+    if "EYE" in scene.defs:
+        material = scene.node("EYE").expand()["material"]
+        if material is not None:
+            material.expand().fields["specularColor"] = np.full(3, EYE_SPECULAR)
     infos = scene.find("WorldInfo")
     if infos:
         infos[0].fields["title"] = title
@@ -129,7 +184,9 @@ def transfer_tables(generic: AnimationTables, fapu0: Fapu, fapu: Fapu) -> Animat
     for miap, adt in generic.adts.items():
         scale = _scale(miap, ratio)
         meshes = [
-            MeshTable(m.node, m.borders.copy(), m.vertices.copy(), m.displacements * scale)
+            MeshTable(
+                m.node, m.borders.copy(), m.vertices.copy(), _scaled(m.displacements, scale)
+            )  # fmt: skip
             for m in adt.meshes
         ]
         transforms = []
@@ -140,6 +197,19 @@ def transfer_tables(generic: AnimationTables, fapu0: Fapu, fapu: Fapu) -> Animat
             transforms.append(TransformTable(t.node, t.field, t.neutral.copy(), np.array(unit)))
         out.add(Adt(miap, meshes, transforms))
     return out
+
+
+def _scaled(a: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """Displacements ``a`` times ``scale``, to 7 significant digits (far below a pixel; the
+    tables are written as text, and a scaled 1.234e-4 would otherwise take 17 digits); a scale
+    of 1 leaves them as they are."""
+    if np.all(scale == 1):
+        return a.copy()
+    out = a * scale
+    nz = out != 0
+    digits = 6 - np.floor(np.log10(np.abs(out[nz])))
+    out[nz] = np.round(out[nz] * 10.0**digits) / 10.0**digits
+    return out + 0.0
 
 
 def fitted_fapu(tables: AnimationTables, points: dict[str, np.ndarray]) -> Fapu:

@@ -264,7 +264,7 @@ def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.nd
                     depth = depth_map(numbers, r.triangle_sets, r.camera, r.model_matrix(0))
                 else:
                     frame = r.render(model.params())
-            probes[label] = (frame[..., :3] / 255.0) ** 2.2
+            probes[label] = ((frame[..., :3] / 255.0) ** 2.2).astype(np.float32)
         offset = probes["black"]
         gain = (probes["grey"] - offset) / srgb_to_linear(PROBE_GREY)
         irises = [
@@ -285,13 +285,11 @@ def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.nd
                 break
             # render what the texture gives and aim the next pass at what it missed: the
             # renderer's texture filtering blurs, the correction sharpens it back
-            png = folder / f"pass{k}.png"
-            Image.fromarray((np.clip(atlas, 0, 1) * 255 + 0.5).astype(np.uint8)).save(
-                png, compress_level=1
-            )
+            png = folder / f"pass{k}.bmp"  # read back at once: no time for compression
+            Image.fromarray((np.clip(atlas, 0, 1) * 255 + 0.5).astype(np.uint8)).save(png)
             set_texture_url(model.scene, png.name)
             with FaceRenderer(model, size=(w, h), viewpoint=PHOTO_VIEWPOINT) as r:
-                rendered = (r.render(model.params())[..., :3] / 255.0) ** 2.2
+                rendered = ((r.render(model.params())[..., :3] / 255.0) ** 2.2).astype(np.float32)
             covered = np.isfinite(depth)[..., None]
             target = np.where(covered, np.clip(target + photo - rendered, 0.0, 1.5), target)
     # the ears keep the generic tile, in the photo's skin colour

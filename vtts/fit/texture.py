@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from PIL import Image
+from scipy import ndimage
 
 from vtts.analysis.raster import ray_barycentrics
 from vtts.render.camera import Camera
@@ -39,10 +40,11 @@ SKIN_PARTS = ("FACE", "HAIR", "NECK")
 #: Parts with a tile of their own that the photo paints where it sees them (over the generic
 #: tile): the eyeballs (each with its own tile, see :func:`split_eye_tiles`), teeth and tongue.
 TILE_PARTS = ("L_EYEBALL", "R_EYEBALL", "UPPER_TEETH", "LOWER_TEETH", "TONGUE")
-#: Every textured part the painter rasterizes.
-PAINTED_PARTS = SKIN_PARTS + TILE_PARTS
-#: The parts the photo paints.
+#: The parts the photo paints (the neck is filled: below the chin photos show collars and
+#: shadow more often than neck).
 PHOTO_PARTS = ("FACE", "HAIR", *TILE_PARTS)
+#: Every textured part the painter rasterizes.
+PAINTED_PARTS = PHOTO_PARTS
 #: The fitted head's own eye tiles: the generic eye tile's upper half, split in two (the photo
 #: shows each eye's iris where that eye looks).
 EYE_TILES = {"L_EYEBALL": (0.0, 0.125, 0.125, 0.25), "R_EYEBALL": (0.125, 0.125, 0.25, 0.25)}
@@ -50,6 +52,8 @@ EYE_TILES = {"L_EYEBALL": (0.0, 0.125, 0.125, 0.25), "R_EYEBALL": (0.125, 0.125,
 SKIN_TILE = (0.0, 0.25, 1.0, 1.0)
 EAR_TILE = (0.75, 0.0, 1.0, 0.25)
 EYE_TILE = (0.0, 0.0, 0.25, 0.25)
+#: How far (texels) the photo's colours reach beyond what it saw in the eye and teeth tiles.
+TILE_REACH = 6.0
 #: A texel's weight grows from 0 to 1 as the cosine between its normal and the view grows
 #: between these.
 GRAZING = (0.2, 0.5)
@@ -69,8 +73,7 @@ class SkinTexels:
     points      ``(N, 3)`` the surface point each texel colours (model units)
     normals     ``(N, 3)`` unit normals there
     photo       ``(N,)`` bool: the texel may take the photo's colour (its part is in
-                :data:`PHOTO_PARTS`; the neck is filled, since below the chin photos show
-                collars and shadow more often than neck)
+                :data:`PHOTO_PARTS`)
     """
 
     rows: np.ndarray
@@ -90,18 +93,18 @@ def skin_texels(parts: dict[str, object], size: int = ATLAS_SIZE) -> SkinTexels:
             continue
         tm = triangulate(parts[name])
         uv = tm.texcoords
-        x = uv[:, 0] * size - 0.5
-        y = (1.0 - uv[:, 1]) * size - 0.5
+        x = (uv[:, 0] * size - 0.5).astype(np.float32)
+        y = ((1.0 - uv[:, 1]) * size - 0.5).astype(np.float32)
         tri = tm.faces
         tx, ty = x[tri], y[tri]  # (m, 3)
-        x0 = np.ceil(tx.min(axis=1)).astype(np.int64)
-        x1 = np.floor(tx.max(axis=1)).astype(np.int64)
-        y0 = np.ceil(ty.min(axis=1)).astype(np.int64)
-        y1 = np.floor(ty.max(axis=1)).astype(np.int64)
+        x0 = np.ceil(tx.min(axis=1)).astype(np.int32)
+        x1 = np.floor(tx.max(axis=1)).astype(np.int32)
+        y0 = np.ceil(ty.min(axis=1)).astype(np.int32)
+        y1 = np.floor(ty.max(axis=1)).astype(np.int32)
         wbox = np.maximum(x1 - x0 + 1, 0)
         count = wbox * np.maximum(y1 - y0 + 1, 0)
-        t = np.repeat(np.arange(len(tri)), count)
-        k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+        t = np.repeat(np.arange(len(tri), dtype=np.int32), count)
+        k = np.arange(count.sum(), dtype=np.int32) - np.repeat(np.cumsum(count) - count, count)
         px = x0[t] + k % wbox[t]
         py = y0[t] + k // wbox[t]
         # barycentric coordinates of the texel centre in its triangle's texture coordinates
@@ -109,14 +112,14 @@ def skin_texels(parts: dict[str, object], size: int = ATLAS_SIZE) -> SkinTexels:
         e1x, e1y = tx[t, 1] - ax, ty[t, 1] - ay
         e2x, e2y = tx[t, 2] - ax, ty[t, 2] - ay
         det = e1x * e2y - e1y * e2x
-        ok = np.abs(det) > 1e-12
-        det = np.where(ok, det, 1.0)
+        ok = np.abs(det) > 1e-9
+        det = np.where(ok, det, np.float32(1.0))
         qx, qy = px - ax, py - ay
         b1 = (qx * e2y - qy * e2x) / det
         b2 = (e1x * qy - e1y * qx) / det
         b0 = 1 - b1 - b2
-        inside = ok & (b0 >= -1e-9) & (b1 >= -1e-9) & (b2 >= -1e-9)
-        lam = np.stack([b0, b1, b2], axis=1)[inside]
+        inside = ok & (b0 >= -1e-6) & (b1 >= -1e-6) & (b2 >= -1e-6)
+        lam = np.stack([b0, b1, b2], axis=1)[inside].astype(np.float64)
         t = t[inside]
         corners = tri[t]
         p = np.einsum("ij,ijk->ik", lam, tm.positions[corners])
@@ -258,6 +261,7 @@ def project_skin(
     of what each pixel shows, :func:`depth_map`). ``gain`` and ``offset`` ``(H, W, 3)`` are the
     renderer's shading at the photo's view (see the module docstring)."""
     w, h = size
+    texels = _select(texels, texels.photo)
     xy = camera.project(texels.points)
     inside = (xy[:, 0] >= 0) & (xy[:, 0] < w) & (xy[:, 1] >= 0) & (xy[:, 1] < h)
     ray = texels.points - camera.pose[:3, 3]
@@ -274,6 +278,10 @@ def project_skin(
     return Projection(texels, idx, xy[idx], weight[keep], a, sample(offset, xy[idx]))
 
 
+def _select(texels: SkinTexels, keep: np.ndarray) -> SkinTexels:
+    return SkinTexels(*(getattr(texels, f)[keep] for f in texels.__dataclass_fields__))
+
+
 def paint_skin(
     atlas: np.ndarray, proj: Projection, target: np.ndarray, *, fill: bool = True
 ) -> tuple[np.ndarray, float]:
@@ -287,14 +295,24 @@ def paint_skin(
     rows, cols = tx.rows[proj.index], tx.cols[proj.index]
     lin = (sample(target, proj.xy) - proj.offset) / np.maximum(proj.gain, 1e-6)
     colour = linear_to_srgb(lin)
-    skin_rows = tx.rows[tx.photo & (tx.rows < int(round((1 - SKIN_TILE[1]) * size)))]
+    skin_rows = tx.rows[tx.rows < int(round((1 - SKIN_TILE[1]) * size))]
     seen_rows = rows[rows < int(round((1 - SKIN_TILE[1]) * size))]
     seen_fraction = float(len(seen_rows) / max(len(skin_rows), 1))
     r0, r1 = int(round((1 - SKIN_TILE[3]) * size)), int(round((1 - SKIN_TILE[1]) * size))
-    # tiles (eyes, teeth, tongue): the photo over the generic tile, as far as it is trusted
+    # tiles (eyes, teeth, tongue): the photo over the generic tile, as far as it is trusted,
+    # and carried a few texels beyond what it saw: the renderer's texture filtering reaches
+    # that far, and the generic white around a small painted eye would brighten it
     tile = rows >= r1
-    wt = proj.weight[tile][:, None]
-    atlas[rows[tile], cols[tile]] = wt * colour[tile] + (1 - wt) * atlas[rows[tile], cols[tile]]
+    if tile.any():
+        band = slice(r1, size)
+        paint = np.zeros((size - r1, size, 3), np.float32)
+        trust = np.zeros((size - r1, size), np.float32)
+        paint[rows[tile] - r1, cols[tile]] = colour[tile]
+        trust[rows[tile] - r1, cols[tile]] = proj.weight[tile]
+        reach = np.clip(1 - ndimage.distance_transform_edt(trust == 0) / TILE_REACH, 0, 1)
+        near = reach * (trust == 0) + trust
+        filled = pull_push(paint, trust)
+        atlas[band] = near[..., None] * filled + (1 - near[..., None]) * atlas[band]
     rows, cols, colour, weight = rows[~tile], cols[~tile], colour[~tile], proj.weight[~tile]
     if not fill:
         atlas[rows, cols] = colour

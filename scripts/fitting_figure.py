@@ -1,0 +1,79 @@
+"""The before/after picture of docs/fitting.md: each test photo, the head ``adi fit`` makes of it
+rendered at ``--viewpoint photo``, turned 30° each way, and speaking (viseme 10, "A:") while
+smiling.
+
+usage: .venv/bin/python scripts/fitting_figure.py [OUT.png]   (default docs/fitting.png)
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import tempfile
+import warnings
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+import vtts
+from vtts.fit import fit_photo, load_photo
+from vtts.render import FaceRenderer
+
+ROOT = Path(__file__).resolve().parents[1]
+PHOTOS = ("akiyo_frame0", "astronaut")
+CELL = 240
+
+
+def cell(image: np.ndarray) -> Image.Image:
+    im = Image.fromarray(image[..., :3])
+    return im.resize((CELL, round(CELL * im.height / im.width)), Image.Resampling.LANCZOS)
+
+
+def crop_to_face(image: np.ndarray, box, margin: float = 0.45) -> np.ndarray:
+    """A square crop around a face box, ``margin`` of its size on each side."""
+    x0, y0, x1, y1 = box
+    cx, cy, s = (x0 + x1) / 2, (y0 + y1) / 2, max(x1 - x0, y1 - y0) * (1 + 2 * margin)
+    h, w = image.shape[:2]
+    a, b = int(max(cx - s / 2, 0)), int(max(cy - s / 2, 0))
+    return image[b : int(min(b + s, h)), a : int(min(a + s, w))]
+
+
+def row(name: str, folder: Path) -> list[Image.Image]:
+    image, focal = load_photo(ROOT / "tests" / "data" / "photos" / f"{name}.png")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        head = fit_photo(image, focal_35mm=focal, name=name)
+    head.write(folder / f"{name}.wrl")
+    model = vtts.load_model(folder / f"{name}.wrl")
+    h, w = image.shape[:2]
+    with FaceRenderer(model, size=(w, h), viewpoint="photo", background=image) as r:
+        over = r.render(model.params())
+    box = head.face.box
+    cells = [cell(crop_to_face(image, box)), cell(crop_to_face(over, box))]
+    au = math.radians(30) / 1e-5
+    with FaceRenderer(model, size=(CELL, CELL), supersample=2) as r:
+        for params in (
+            model.params({49: -au}),
+            model.params({49: au}),
+            model.params(visemes={10: 1.0}, expressions={"joy": 1.0}),
+        ):
+            cells.append(cell(r.render(params)))
+    return cells
+
+
+def main(argv: list[str]) -> int:
+    out = Path(argv[0]) if argv else ROOT / "docs" / "fitting.png"
+    with tempfile.TemporaryDirectory() as tmp:
+        rows = [row(name, Path(tmp)) for name in PHOTOS]
+    sheet = Image.new("RGB", (CELL * len(rows[0]), CELL * len(rows)), (255, 255, 255))
+    for i, cells in enumerate(rows):
+        for j, c in enumerate(cells):
+            sheet.paste(c, (j * CELL, i * CELL + (CELL - c.height) // 2))
+    sheet.save(out, optimize=True)
+    print(f"wrote {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
