@@ -52,13 +52,6 @@ OVAL = frozenset(FACE_OVAL)
 VIEWS = [(y, p) for p in (-10, 0, 10) for y in (-15, 0, 15)]
 
 
-def in_renderer(renderer: FaceRenderer, camera: Camera) -> Camera:
-    """``camera`` (posed in the model's own frame) in the renderer's world, where the model's
-    root node may have been moved (centred)."""
-    root = renderer.scene.get_pose(renderer.instances[0].root)
-    return dataclasses.replace(camera, pose=root @ camera.pose)
-
-
 def views_of(name: str, detector) -> list[tuple[int, int, np.ndarray, np.ndarray]]:
     """For each view: (yaw, pitch, FACE vertex ids (468, 3) or -1, barycentrics (468, 3))."""
     model = load_model(name)
@@ -76,7 +69,8 @@ def views_of(name: str, detector) -> list[tuple[int, int, np.ndarray, np.ndarray
                                         math.cos(a) * math.cos(b)])  # fmt: skip
         cam = Camera(f, f, SIZE / 2, SIZE / 2, look_at(eye, target), znear=0.5, zfar=20)
         with FaceRenderer(model, size=(SIZE, SIZE), camera=cam) as r:
-            r.set_view(in_renderer(r, cam))
+            # the renderer centres the model in its world: look through cam from there
+            r.set_view(dataclasses.replace(cam, pose=r.model_matrix(0) @ cam.pose))
             img, numbers = r.render(model.params(), triangles=True)
             sets = r.triangle_sets
         faces = detector.detect(img)

@@ -303,3 +303,14 @@ def test_several_faces_take_the_largest_and_say_so(tmp_path):
         fit_photo(image, face=3)
     second = fit_photo(image, face=2)
     assert second.face.box[0] > 352
+
+
+def test_landmark_table_is_what_the_script_makes(tmp_path):
+    """The shipped table is a rebuild of models/src/landmark_map.py (deterministic)."""
+    root = Path(__file__).parents[2]
+    out = tmp_path / "face_landmarks.tsv"
+    r = subprocess.run([sys.executable, str(root / "models/src/landmark_map.py"), "--out", str(out)],
+                       capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    shipped = root / "vtts" / "data" / "fit" / "face_landmarks.tsv"
+    assert out.read_text() == shipped.read_text()
