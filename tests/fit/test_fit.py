@@ -309,7 +309,8 @@ def test_landmark_table_is_what_the_script_makes(tmp_path):
     """The shipped table is a rebuild of models/src/landmark_map.py (deterministic)."""
     root = Path(__file__).parents[2]
     out = tmp_path / "face_landmarks.tsv"
-    r = subprocess.run([sys.executable, str(root / "models/src/landmark_map.py"), "--out", str(out)],
+    script = root / "models" / "src" / "landmark_map.py"
+    r = subprocess.run([sys.executable, str(script), "--out", str(out)],
                        capture_output=True, text=True, timeout=300)  # fmt: skip
     assert r.returncode == 0, r.stderr
     shipped = root / "vtts" / "data" / "fit" / "face_landmarks.tsv"
