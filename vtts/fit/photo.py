@@ -46,6 +46,7 @@ from vtts.fit.texture import (
     iris_colour,
     paint_skin,
     project_skin,
+    rechart_skin,
     skin_texels,
     split_eye_tiles,
     srgb_to_linear,
@@ -63,6 +64,8 @@ PHOTO_VIEWPOINT = "photo"
 MIN_SIZE = 64
 #: Painting passes: the second aims at what the first one's rendering missed.
 TEXTURE_PASSES = 3
+#: How far (linear light) a pass may aim beyond the photo to undo the renderer's blur.
+MAX_AIM = 0.15
 #: Largest photo side; bigger photos are fitted at this size (the camera scales with them).
 MAX_SIZE = 4096
 
@@ -248,6 +251,7 @@ def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.nd
     with Image.open(models_dir() / f"{g.model.name}-face.png") as im:
         generic_atlas = upscale(im, ATLAS_SIZE)
     split_eye_tiles(generic_atlas, scene)
+    rechart_skin(scene)
     h, w = image.shape[:2]
     photo = ((image / 255.0) ** 2.2).astype(np.float32)
     probes = {}
@@ -291,7 +295,10 @@ def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.nd
             with FaceRenderer(model, size=(w, h), viewpoint=PHOTO_VIEWPOINT) as r:
                 rendered = ((r.render(model.params())[..., :3] / 255.0) ** 2.2).astype(np.float32)
             covered = np.isfinite(depth)[..., None]
-            target = np.where(covered, np.clip(target + photo - rendered, 0.0, 1.5), target)
+            # bounded: where no texture can give the photo (the model's silhouette over
+            # background, a mouth it draws shut) the aim would run away into specks
+            aim = np.clip(target + photo - rendered, photo - MAX_AIM, photo + MAX_AIM)
+            target = np.where(covered, np.clip(aim, 0.0, 1.0), target)
     # the ears keep the generic tile, in the photo's skin colour
     rows = slice(0, int(ATLAS_SIZE * 0.75))
     ratio = atlas[rows].reshape(-1, 3).mean(axis=0) / np.maximum(

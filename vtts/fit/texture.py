@@ -398,6 +398,36 @@ def split_eye_tiles(atlas: np.ndarray, scene) -> None:
         ]
 
 
+#: The bundled heads' skin chart (models/src/texture.py): u = 0.5 ± (|θ|/π)^GAMMA / 2 about the
+#: skull's axis, inside the tile's inset.
+GENERIC_GAMMA = 0.6
+GENERIC_INSET = 3 / 512
+
+
+def rechart_skin(scene) -> None:
+    """Give the skin parts (:data:`SKIN_PARTS` in ``scene``) a chart without the bundled
+    heads' infinitely steep middle: u = 0.5 ± s(|θ|/π) / 2 with s(t) = t (2 − t) (twice the
+    texels of an even unwrap at the front, none squeezed at the midline).
+
+    The bundled chart's slope at the midline is infinite (|θ|^0.6): fine for a smooth painted
+    skin, but the renderer's mip level follows the steepest direction, so a photo texture shows
+    a blurred streak down the middle of the face. Same v, same seams, same mirror symmetry."""
+    for name in SKIN_PARTS:
+        if name not in scene.defs:
+            continue
+        coord = scene.node(name).expand()["texCoord"]
+        if coord is None:
+            continue
+        coord = coord.expand()
+        uv = np.asarray(coord["point"], dtype=np.float64).copy()
+        wrap = np.floor(uv[:, 0])  # copies past the back seam carry u + 1
+        u = (uv[:, 0] - wrap - GENERIC_INSET) / (1 - 2 * GENERIC_INSET)
+        t = np.clip(np.abs(2 * u - 1), 0, 1) ** (1 / GENERIC_GAMMA)  # |θ| / π
+        new = 0.5 + 0.5 * np.sign(u - 0.5) * t * (2 - t)
+        uv[:, 0] = wrap + GENERIC_INSET + new * (1 - 2 * GENERIC_INSET)
+        coord.fields["point"] = uv
+
+
 def tint_tile(atlas: np.ndarray, tile, gain: np.ndarray) -> None:
     """Multiply the texels of ``tile`` (u0, v0, u1, v1) of ``atlas (S, S, 3)`` by ``gain (3,)``."""
     size = atlas.shape[0]
