@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from vtts import __version__
-from vtts.cli import _print_error, _reported_warnings
 from vtts.errors import VttsError
+from vtts.messages import print_error, reported_warnings
 
 
 def cmd_build(args: argparse.Namespace) -> int:
@@ -43,7 +43,7 @@ def cmd_build(args: argparse.Namespace) -> int:
     if args.tolerance < 0:
         print(f"error: --tolerance must not be negative, got {args.tolerance:g}", file=sys.stderr)
         return 1
-    with _reported_warnings():
+    with reported_warnings():
         neutral, tables = build(
             args.neutral, args.deformed, tolerance=args.tolerance, node=args.node
         )
@@ -70,7 +70,7 @@ def cmd_show(args: argparse.Namespace) -> int:
     """Summarize the tables of a ``.adt`` file or a model ``.wrl``."""
     from adt_tools.show import show
 
-    with _reported_warnings():
+    with reported_warnings():
         lines = show(args.file)
     print("\n".join(lines))
     return 0
@@ -106,7 +106,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
               file=sys.stderr)  # fmt: skip
         return 1
     name = args.name or out.stem
-    with _reported_warnings():
+    with reported_warnings():
         try:
             image, exif_focal = load_photo(args.photo)
             head = fit_photo(image, personality=args.personality, face=args.face,
@@ -226,7 +226,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return args.func(args)
     except VttsError as e:
-        _print_error(e)
+        print_error(e)
         return 1
     except BrokenPipeError:  # `adi show … | head`: not an error worth a traceback
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())

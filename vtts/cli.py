@@ -10,45 +10,15 @@ import argparse
 import contextlib
 import os
 import sys
-import warnings
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from pathlib import Path
 from typing import NoReturn
 
 import numpy as np
 
 from vtts import __version__
-from vtts.errors import VttsError, VttsWarning
-
-
-def _print_error(e: VttsError, default_file: str | None = None) -> None:
-    if default_file and not e.file:
-        e.file = default_file
-    loc = e.location()
-    head = f"{loc}: error: {e.message}" if loc else f"error: {e.message}"
-    print(head, file=sys.stderr)
-    if e.context:
-        print(e.context, file=sys.stderr)
-
-
-@contextmanager
-def _reported_warnings() -> Iterator[None]:
-    """Print library warnings as ``FILE:LINE:COL: warning: MESSAGE`` lines."""
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        try:
-            yield
-        finally:
-            for w in caught:
-                msg = w.message
-                if isinstance(msg, VttsWarning):
-                    parts = [str(p) for p in (msg.file, msg.line, msg.column) if p is not None]
-                    loc = ":".join(parts)
-                    print(f"{loc + ': ' if loc else ''}warning: {msg.message}", file=sys.stderr)
-                else:
-                    print(f"warning: {msg}", file=sys.stderr)
-
+from vtts.errors import VttsError
+from vtts.messages import print_error, reported_warnings
 
 # ---- check ---------------------------------------------------------------------------------------
 
@@ -127,10 +97,10 @@ def cmd_check(args: argparse.Namespace) -> int:
             failed += 1
             continue
         try:
-            with _reported_warnings():
+            with reported_warnings():
                 summary = checker(path, args)
         except VttsError as e:
-            _print_error(e, name)
+            print_error(e, name)
             failed += 1
             continue
         print(f"OK {name} ({summary})")
@@ -202,10 +172,10 @@ def cmd_info(args: argparse.Namespace) -> int:
 
     try:
         path = find_model(args.file)
-        with _reported_warnings():
+        with reported_warnings():
             model = load_model(path, lenient=args.lenient)
     except VttsError as e:
-        _print_error(e, args.file)
+        print_error(e, args.file)
         return 1
     scene = model.scene
     print(
@@ -846,10 +816,10 @@ def _view_flags(p: argparse.ArgumentParser) -> None:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        with _reported_warnings():
+        with reported_warnings():
             return args.func(args)
     except VttsError as e:
-        _print_error(e)
+        print_error(e)
         return 1
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)

@@ -65,7 +65,7 @@ MIN_SIZE = 64
 #: Painting passes: the second aims at what the first one's rendering missed.
 TEXTURE_PASSES = 3
 #: How far (linear light) a pass may aim beyond the photo to undo the renderer's blur.
-MAX_AIM = 0.15
+MAX_AIM = 0.3
 #: Largest photo side; bigger photos are fitted at this size (the camera scales with them).
 MAX_SIZE = 4096
 

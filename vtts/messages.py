@@ -1,0 +1,41 @@
+"""How the command-line tools (``vtts``, ``adi``) show the library's errors and warnings: one
+line each, ``FILE:LINE:COL: error: MESSAGE`` or ``… warning: …``, never a traceback."""
+
+from __future__ import annotations
+
+import sys
+import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+from vtts.errors import VttsError, VttsWarning
+
+
+def print_error(e: VttsError, default_file: str | None = None) -> None:
+    """Print ``e`` as ``FILE:LINE:COL: error: MESSAGE`` (and its context lines) on stderr;
+    ``default_file`` names the file when the error does not."""
+    if default_file and not e.file:
+        e.file = default_file
+    loc = e.location()
+    head = f"{loc}: error: {e.message}" if loc else f"error: {e.message}"
+    print(head, file=sys.stderr)
+    if e.context:
+        print(e.context, file=sys.stderr)
+
+
+@contextmanager
+def reported_warnings() -> Iterator[None]:
+    """Print library warnings as ``FILE:LINE:COL: warning: MESSAGE`` lines."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            yield
+        finally:
+            for w in caught:
+                msg = w.message
+                if isinstance(msg, VttsWarning):
+                    parts = [str(p) for p in (msg.file, msg.line, msg.column) if p is not None]
+                    loc = ":".join(parts)
+                    print(f"{loc + ': ' if loc else ''}warning: {msg.message}", file=sys.stderr)
+                else:
+                    print(f"warning: {msg}", file=sys.stderr)
