@@ -123,7 +123,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
           f"{args.personality}, in {total:.1f} s")  # fmt: skip
     if args.report:
         model = load_model(out)
-        figs = write_report(args.report, model, head, image, files)
+        figs = write_report(args.report, model, head, head.photo, files)
         psnr = figs["psnr_db"]
         print(f"report in {args.report}: face PSNR {psnr['face']:.1f} dB (skin "
               f"{psnr['skin']:.1f} dB), landmark error "

@@ -315,3 +315,18 @@ def test_landmark_table_is_what_the_script_makes(tmp_path):
     assert r.returncode == 0, r.stderr
     shipped = root / "vtts" / "data" / "fit" / "face_landmarks.tsv"
     assert out.read_text() == shipped.read_text()
+
+
+def test_large_photos_are_fitted_at_the_working_size():
+    from vtts.fit.photo import WORK_SIZE
+
+    big = Image.fromarray(photo("akiyo_frame0")).resize((1408, 1152), Image.Resampling.LANCZOS)
+    head = fit_photo(np.asarray(big))
+    assert head.photo.shape == (round(1152 * WORK_SIZE / 1408), WORK_SIZE, 3)
+    assert head.shape.size == (WORK_SIZE, head.photo.shape[0])
+    # the Viewpoint's field of view holds at any size: projecting at the photo's full size
+    node, matrix = find_viewpoint(head.scene, "photo")
+    full = Camera.from_viewpoint(node, (1408, 1152), matrix)
+    pts = generic_head("cybatt").face_points(head.shape.control)[::211]
+    scaled = head.shape.camera.project(pts) * (1408 / WORK_SIZE)
+    assert np.abs(full.project(pts) - scaled).max() < 0.25  # the working size is rounded

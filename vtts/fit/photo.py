@@ -66,8 +66,12 @@ MIN_SIZE = 64
 TEXTURE_PASSES = 3
 #: How far (linear light) a pass may aim beyond the photo to undo the renderer's blur.
 MAX_AIM = 0.3
-#: Largest photo side; bigger photos are fitted at this size (the camera scales with them).
-MAX_SIZE = 4096
+#: Photos with a longer side beyond this (pixels) are fitted at this size: the renderings and
+#: the texture take time with the pixels, and the texture has no use for more (the written
+#: Viewpoint's field of view holds at any size of the photo).
+WORK_SIZE = 1024
+#: Larger photos are refused (a 16k photo is 270 megapixels).
+MAX_SIZE = 16384
 
 
 @dataclass
@@ -79,6 +83,8 @@ class FittedHead:
     texture    ``(S, S, 3) uint8`` the atlas
     shape      the :class:`~vtts.fit.shape.ShapeFit` (pose, camera, control points)
     face       the detected :class:`~vtts.fit.landmarks.Face` it was fitted to
+    photo      ``(H, W, 3) uint8`` the photo as fitted (large photos are scaled down to
+               :data:`WORK_SIZE`)
     faces      how many faces the photo showed
     seen       the fraction of skin texels the photo saw
     timings    seconds per step
@@ -89,6 +95,7 @@ class FittedHead:
     texture: np.ndarray
     shape: ShapeFit
     face: Face
+    photo: np.ndarray
     faces: int
     seen: float
     personality: str
@@ -182,6 +189,11 @@ def fit_photo(
         raise FitError(f"the photo is {w}x{h} pixels: too small to fit (at least {MIN_SIZE})")
     if max(h, w) > MAX_SIZE:
         raise FitError(f"the photo is {w}x{h} pixels: larger than {MAX_SIZE}; scale it down")
+    if max(h, w) > WORK_SIZE:
+        scale = WORK_SIZE / max(h, w)
+        size = (max(round(w * scale), 1), max(round(h * scale), 1))
+        image = np.asarray(Image.fromarray(image).resize(size, Image.Resampling.LANCZOS))
+        h, w = image.shape[:2]
     faces = detect_faces(image, detector)
     timings["landmarks"] = time.perf_counter() - t0
     if not faces:
@@ -215,7 +227,7 @@ def fit_photo(
     atlas, seen = _texture(g, scene, tables, shape, image, chosen)
     timings["texture"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t0
-    return FittedHead(scene, tables, atlas, shape, chosen, len(faces), seen, personality,
+    return FittedHead(scene, tables, atlas, shape, chosen, image, len(faces), seen, personality,
                       timings)  # fmt: skip
 
 
