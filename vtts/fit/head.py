@@ -23,7 +23,6 @@ import copy
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from vtts.face import FaceModel
 from vtts.face.adt import Adt, AnimationTables, MeshTable, TransformTable
@@ -34,8 +33,6 @@ from vtts.vrml import Scene, standard_node_types
 
 #: FACE points the warp passes through (every k-th): plenty for a smooth field, fast to solve.
 WARP_STRIDE = 7
-#: Points closer than this to a FACE point (model units) are that point (seams).
-SEAM_TOLERANCE = 1e-5
 #: The fitted eyes' specular colour (the generic eyes': 0.6).
 EYE_SPECULAR = 0.15
 #: The eye Transforms whose ``center`` is the eyeball's centre.
@@ -117,7 +114,9 @@ def fitted_geometry(head: GenericHead, control: np.ndarray) -> FittedGeometry:
     moved = face - face0
     anchors = np.arange(0, len(face0), WARP_STRIDE)
     warp = ThinPlateWarp(face0[anchors], moved[anchors])
-    tree = cKDTree(face0)
+    # seams: a point that is a FACE point (the same numbers: the back of the head starts on the
+    # face's border) takes that point's new position
+    on_face = {row.tobytes(): i for i, row in enumerate(face0)}
     points = {"FACE": face}
     centres: dict[str, np.ndarray] = {}
     for name in mesh_names(model):
@@ -136,10 +135,10 @@ def fitted_geometry(head: GenericHead, control: np.ndarray) -> FittedGeometry:
                 centres[t] = centre + shift
             continue
         p = p0 + warp(p0)
-        # seams: points on FACE's points take their new positions exactly
-        dist, nearest = tree.query(p0)
-        near = dist < SEAM_TOLERANCE
-        p[near] = face[nearest[near]]
+        for k, row in enumerate(p0):
+            i = on_face.get(row.tobytes())
+            if i is not None:
+                p[k] = face[i]
         points[name] = p
     for name in ("HEAD_YAW", "HEAD_PITCH", "HEAD_ROLL"):
         try:

@@ -23,7 +23,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from vtts.fit.generic import GenericHead, LandmarkMap
 from vtts.render.camera import Camera
@@ -104,7 +103,23 @@ class ShapeFit:
     def yaw(self) -> float:
         """The head's turn about the vertical axis seen from the camera (radians, + = the
         head's left towards the camera)."""
-        return float(Rotation.from_matrix(self.rotation).as_euler("YXZ")[0])
+        return yaw_of(self.rotation)
+
+
+def rotvec_matrix(v: np.ndarray) -> np.ndarray:
+    """``(3, 3)`` rotation of the rotation vector ``v (3,)`` (axis × angle, radians; Rodrigues)."""
+    angle = float(np.linalg.norm(v))
+    if angle < 1e-12:
+        return np.eye(3)
+    k = np.asarray(v, dtype=np.float64) / angle
+    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + math.sin(angle) * kx + (1 - math.cos(angle)) * (kx @ kx)
+
+
+def yaw_of(rotation: np.ndarray) -> float:
+    """The turn about the vertical axis (radians) of ``rotation (3, 3)`` read as yaw, then pitch,
+    then roll (R = R_y · R_x · R_z)."""
+    return math.atan2(rotation[0, 2], rotation[2, 2])
 
 
 def project(points: np.ndarray, rotation: np.ndarray, t: np.ndarray, f: float, cx: float,
@@ -173,7 +188,7 @@ def fit_shape(
     def landmark_terms(rotvec, t, alpha, delta, wts):
         """Weighted reprojection residuals ``(2n,)`` and their derivatives by the model
         points' camera coordinates ``(n, 2, 3)``."""
-        rot = Rotation.from_rotvec(rotvec).as_matrix()
+        rot = rotvec_matrix(rotvec)
         c = (c0.ravel() + units @ alpha + delta).reshape(n_c, 3)
         p = (M @ c) @ rot.T + t
         z = -p[:, 2]
@@ -237,7 +252,7 @@ def fit_shape(
         stage = 3
     rotvec, t, alpha, delta = split(x, stage)
     c = (c0.ravel() + units @ alpha + delta).reshape(n_c, 3)
-    rot = Rotation.from_rotvec(rotvec).as_matrix()
+    rot = rotvec_matrix(rotvec)
     err = np.linalg.norm(project(M @ c, rot, t, focal, cx, cy) - target, axis=1)
     return ShapeFit(c, alpha, rot, t, focal, (w, h), err, wts > 0)
 
@@ -305,7 +320,7 @@ def _mirror_matrix(mirror: np.ndarray) -> np.ndarray:
 def _weights(weight, oval, target, rotvec) -> np.ndarray:
     """Landmark weights for a pose: the outline's far side drops out when the head turns."""
     wts = weight.copy()
-    yaw = Rotation.from_rotvec(rotvec).as_euler("YXZ")[0]
+    yaw = yaw_of(rotvec_matrix(rotvec))
     if abs(yaw) > OVAL_YAW_LIMIT:
         mid = np.median(target[:, 0])
         # a positive yaw turns the nose towards the image's right and the head's left side
