@@ -33,8 +33,8 @@ from vtts.vrml import Scene, standard_node_types
 
 #: FACE points the warp passes through (every k-th): plenty for a smooth field, fast to solve.
 WARP_STRIDE = 7
-#: The fitted eyes' specular colour (the generic eyes': 0.6).
-EYE_SPECULAR = 0.15
+#: The fitted eyes' shininess (the generic eyes': 0.75; the renderer turns it into roughness).
+EYE_SHININESS = 0.1
 #: The eye Transforms whose ``center`` is the eyeball's centre.
 EYE_TRANSFORMS = {"L_EYEBALL": ("L_EYE_YAW", "L_EYE_PITCH"),
                   "R_EYEBALL": ("R_EYE_YAW", "R_EYE_PITCH")}  # fmt: skip
@@ -167,7 +167,7 @@ def fitted_scene(model: FaceModel, geometry: FittedGeometry, texture_url: str,
     if "EYE" in scene.defs:
         material = scene.node("EYE").expand()["material"]
         if material is not None:
-            material.expand().fields["specularColor"] = np.full(3, EYE_SPECULAR)
+            material.expand().fields["shininess"] = EYE_SHININESS
     infos = scene.find("WorldInfo")
     if infos:
         infos[0].fields["title"] = title
