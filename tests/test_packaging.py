@@ -42,6 +42,9 @@ def test_wheel_contains_grammars_models_and_both_packages(wheel):
     assert "vtts/render/shaders/gbuffer.frag" in names
     assert "vtts/data/landmarks/face_detection_short_range.tflite" in names
     assert "vtts/data/landmarks/face_landmark.tflite" in names
+    # adi fit: where the landmarks lie on FACE, and Candide-3 for the subdivision matrix
+    assert "vtts/data/fit/face_landmarks.tsv" in names
+    assert "vtts/_data/models/src/candide3.wfm" in names
     assert "adt_tools/__init__.py" in names
     entry_points = next(n for n in names if n.endswith("entry_points.txt"))
     text = zipfile.ZipFile(wheel).read(entry_points).decode()
