@@ -330,3 +330,21 @@ def test_large_photos_are_fitted_at_the_working_size():
     pts = generic_head("cybatt").face_points(head.shape.control)[::211]
     scaled = head.shape.camera.project(pts) * (1408 / WORK_SIZE)
     assert np.abs(full.project(pts) - scaled).max() < 0.25  # the working size is rounded
+
+
+def test_outputs_never_replace_the_photo(tmp_path):
+    photo_path = tmp_path / "me-face.png"
+    photo_path.write_bytes((PHOTOS / "akiyo_frame0.png").read_bytes())
+    before = photo_path.read_bytes()
+    r = adi("fit", str(photo_path), "-o", str(tmp_path / "me.wrl"))
+    assert r.returncode == 1 and "over its photo" in r.stderr
+    assert photo_path.read_bytes() == before
+    assert not (tmp_path / "me.wrl").exists()
+
+
+def test_outputs_must_be_plain_files(tmp_path):
+    (tmp_path / "real.adt").write_text("keep")
+    (tmp_path / "me.adt").symlink_to(tmp_path / "real.adt")
+    r = adi("fit", str(PHOTOS / "akiyo_frame0.png"), "-o", str(tmp_path / "me.wrl"))
+    assert r.returncode == 1 and "plain file" in r.stderr
+    assert (tmp_path / "real.adt").read_text() == "keep"
