@@ -14,7 +14,9 @@ The fit minimizes, by Levenberg–Marquardt in three stages (pose; pose and shap
   + |L delta|² / σ_L² + |delta − mirror(delta)|² / σ_sym²           smooth and nearly symmetric
 
 One photo cannot tell depth: the priors keep the head's profile close to the generic head's
-(``σ_z`` is half of ``σ_xy``) while the landmarks move what the camera sees.
+(``σ_z`` is a tenth of ``σ_xy``, and the shape units that move the face in depth are held
+tight) while the landmarks move what the camera sees. The landmark residuals go through a
+soft-L1 loss, solved as iteratively reweighted least squares (:func:`levenberg_marquardt`).
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vtts.fit.generic import GenericHead, LandmarkMap
+from vtts.fit.landmarks import EYE_CORNERS as LANDMARK_EYE_CORNERS
 from vtts.render.camera import Camera
 
 #: Default focal length as a 35 mm-equivalent (mm) when the photo has no EXIF focal length: a
@@ -331,7 +334,10 @@ def _weights(weight, oval, target, rotvec) -> np.ndarray:
 
 
 #: MediaPipe face-mesh landmarks of the eye corners (outer, inner) of each eye.
-EYE_CORNERS = ((33, 133), (263, 362))
+EYE_CORNERS = (
+    (LANDMARK_EYE_CORNERS["right_outer"], LANDMARK_EYE_CORNERS["right_inner"]),
+    (LANDMARK_EYE_CORNERS["left_outer"], LANDMARK_EYE_CORNERS["left_inner"]),
+)
 
 
 def _eye_centres(points: np.ndarray, lmap: LandmarkMap) -> np.ndarray:
