@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 VTTS := $(VENV)/bin/vtts
 
-.PHONY: setup demo test bench lint models golden clean
+.PHONY: setup demo test bench lint lock models golden clean
 
 setup:
 	@bash scripts/setup.sh test
@@ -21,6 +21,11 @@ lint: setup
 bench:
 	@bash scripts/setup.sh test,bench
 	$(PY) bench/run.py
+
+# Re-resolve pyproject.toml's dependencies (with the test and bench extras) in a fresh venv and pin
+# them all in constraints.txt, which setup installs from; run `make test` and commit the lock.
+lock:
+	@bash scripts/lock.sh
 
 # Rebuild the bundled heads (models/*.wrl, *.adt, *-face.png) from models/src with the ADI.
 models: setup

@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Sets up everything vtts needs on a Debian machine: the Debian packages (installed when missing and
 # we are root, otherwise the exact apt-get line is printed) and a .venv with the project and its
-# extras. Re-running is cheap: pip runs again only when pyproject.toml changed.
+# extras, at the versions pinned in constraints.txt (the lock `make lock` writes), so that a fresh
+# machine gets what the tests passed with. Re-running is cheap: pip runs again only when
+# pyproject.toml or constraints.txt changed.
 #
 # usage: scripts/setup.sh [EXTRAS]     (EXTRAS defaults to "test"; e.g. "test,bench")
 set -euo pipefail
@@ -42,12 +44,18 @@ fi
 if [ ! -x .venv/bin/python ]; then
   "$python" -m venv .venv
 fi
+# The stamp holds a digest of what the install was made from: a changed pyproject.toml or lock
+# (an edit, a pull, a checkout) installs again, whatever the files' times say.
 stamp=".venv/.vtts-setup-$(echo "$extras" | tr ',' '-')"
-if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
-  echo "setup: installing vtts[$extras] into .venv"
-  .venv/bin/python -m pip install -q --upgrade pip
-  .venv/bin/python -m pip install -q -e ".[$extras]"
-  touch "$stamp"
+digest="$(cat pyproject.toml constraints.txt | sha256sum | cut -d' ' -f1)"
+if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$digest" ]; then
+  echo "setup: installing vtts[$extras] into .venv (versions from constraints.txt)"
+  .venv/bin/python -m pip install -q -c constraints.txt --upgrade pip
+  # every package, transitive ones and the build backend (hatchling) too, at its locked version;
+  # a dependency the lock lacks would come unpinned (tests/test_lock.py says so: `make lock`)
+  .venv/bin/python -m pip install -q -c constraints.txt --build-constraint constraints.txt \
+    -e ".[$extras]"
+  echo "$digest" >"$stamp"
 fi
 # Byte-compile vtts itself (an editable install is not compiled, and PYTHONDONTWRITEBYTECODE=1
 # would have every command compile it again at startup); up-to-date files are skipped.
