@@ -9,12 +9,12 @@ from vtts.errors import VttsError, VttsWarning
 __version__ = "0.1.0"
 
 
-def load_model(name_or_path, *, lenient: bool = False):
+def load_model(name_or_path, *, lenient: bool = False, url_root=None):
     """Load a personalized model by path or bundled short name (see
     :func:`vtts.face.load_model`)."""
     from vtts.face import load_model as _load
 
-    return _load(name_or_path, lenient=lenient)
+    return _load(name_or_path, lenient=lenient, url_root=url_root)
 
 
 __all__ = ["VttsError", "VttsWarning", "__version__", "load_model"]

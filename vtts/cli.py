@@ -633,8 +633,10 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument(
         "--lenient",
         action="store_true",
-        help="parse unknown VRML node types generically (with a warning)",
+        help="load VRML that other browsers accept (unknown nodes and fields, misplaced nodes, "
+        "X3D statements, urls out of the folder), each with a warning",
     )
+    _url_root_flag(c)
     c.set_defaults(func=cmd_check)
 
     i = sub.add_parser("info", help="describe a scene graph and what a model can do")
@@ -642,11 +644,14 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument(
         "--lenient",
         action="store_true",
-        help="parse unknown VRML node types generically (with a warning)",
+        help="load VRML that other browsers accept (unknown nodes and fields, misplaced nodes, "
+        "X3D statements, urls out of the folder), each with a warning",
     )
+    _url_root_flag(i)
     i.set_defaults(func=cmd_info)
     po = sub.add_parser("pose", help="write a model posed by FAPs, visemes and expressions")
     po.add_argument("--model", required=True, help="bundled model name or .wrl path")
+    _url_root_flag(po)
     _pose_flags(po)
     po.add_argument("-o", "--output", required=True, help="output .wrl")
     po.set_defaults(func=cmd_pose)
@@ -764,6 +769,38 @@ def _models_flag(p: argparse.ArgumentParser) -> None:
         required=True,
         help="bundled model name or .wrl path (repeat for several heads)",
     )
+    _url_root_flag(p)
+
+
+def _url_root_flag(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--url-root",
+        action="append",
+        metavar="DIR",
+        help="a folder (besides the model's own) whose files the model's urls may name, such as "
+        "a shared textures/ folder (repeat for several; adds to $VTTS_URL_ROOT)",
+    )
+
+
+@contextlib.contextmanager
+def _url_roots(args: argparse.Namespace):
+    """``--url-root`` as ``$VTTS_URL_ROOT`` while the command runs: every model load sees it."""
+    from vtts.vrml.parser import URL_ROOT_ENV, url_roots
+
+    given = getattr(args, "url_root", None)
+    if not given:
+        yield
+        return
+    before = os.environ.get(URL_ROOT_ENV)
+    roots = [str(r) for r in url_roots(given)] + ([before] if before else [])
+    os.environ[URL_ROOT_ENV] = os.pathsep.join(roots)
+    try:
+        yield
+    finally:
+        if before is None:
+            del os.environ[URL_ROOT_ENV]
+        else:
+            os.environ[URL_ROOT_ENV] = before
 
 
 def _pose_flags(p: argparse.ArgumentParser) -> None:
@@ -816,7 +853,7 @@ def _view_flags(p: argparse.ArgumentParser) -> None:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        with reported_warnings():
+        with reported_warnings(), _url_roots(args):
             return args.func(args)
     except VttsError as e:
         print_error(e)

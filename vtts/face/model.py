@@ -8,7 +8,7 @@ or in a sidecar ``NAME.adt`` beside it; both carry the same information and load
 from __future__ import annotations
 
 import copy
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from functools import cached_property
 from pathlib import Path
 
@@ -28,7 +28,7 @@ from vtts.face.miap import N_PARAMS, Miap, face_params
 from vtts.face.temporal import TemporalTables
 from vtts.fap import Fapu
 from vtts.resources import models_dir
-from vtts.vrml import Scene, read, standard_node_types
+from vtts.vrml import Scene, read, standard_node_types, url_roots
 
 
 def bundled_models() -> list[str]:
@@ -59,14 +59,21 @@ def find_model(name_or_path: str | Path) -> Path:
     )
 
 
-def load_model(name_or_path: str | Path, *, lenient: bool = False) -> FaceModel:
+def load_model(
+    name_or_path: str | Path,
+    *,
+    lenient: bool = False,
+    url_root: str | Path | Iterable[str | Path] | None = None,
+) -> FaceModel:
     """Load a personalized model by path or bundled short name.
 
     The tables come from FaceDefTables nodes in the ``.wrl`` or from a sidecar ``.adt`` beside it
-    (not both). Raises :class:`~vtts.errors.ModelError` (or a parse error) for bad input. Large
-    models come from :mod:`vtts.face.cache` after their first load.
+    (not both). ``lenient`` and ``url_root`` (None: ``$VTTS_URL_ROOT``) are as in
+    :func:`vtts.vrml.parse`. Raises :class:`~vtts.errors.ModelError` (or a parse error) for bad
+    input. Large models come from :mod:`vtts.face.cache` after their first load.
     """
     path = find_model(name_or_path)
+    roots = url_roots(url_root)
     sidecar = path.with_suffix(".adt")
     entry = None
     if not lenient:
@@ -74,15 +81,18 @@ def load_model(name_or_path: str | Path, *, lenient: bool = False) -> FaceModel:
         model = cache.load(entry) if entry is not None else None
         if model is not None:
             model.path = model.scene.path = path  # spelled as this call spells it
+            # an entry was parsed without url roots: with them it parses the same
+            model.scene.url_roots = roots
             return model
-    model = _parse_model(path, lenient)
-    if entry is not None:
+    model = _parse_model(path, lenient, roots)
+    if entry is not None and not roots:
+        # only what loads without url roots is kept: a url that needs one must fail without it
         cache.store(entry, model)
     return model
 
 
-def _parse_model(path: Path, lenient: bool) -> FaceModel:
-    scene = read(path, lenient=lenient)
+def _parse_model(path: Path, lenient: bool, roots: tuple[Path, ...] = ()) -> FaceModel:
+    scene = read(path, lenient=lenient, url_root=roots)
     embedded = tables_from_scene(scene, file=str(path))
     sidecar = path.with_suffix(".adt")
     if sidecar.is_file():

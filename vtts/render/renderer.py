@@ -455,7 +455,7 @@ class FaceRenderer:
         if tex.type.name != "ImageTexture":
             return None
         base = model.path.parent if model.path else None
-        path = resolve_url(tex["url"], base)
+        path = resolve_url(tex["url"], base, getattr(model.scene, "url_roots", ()))
         if path is None:
             return None
         # one texture per image file: a head's appearances often share one (decoding it and

@@ -9,7 +9,7 @@ array([0., 1., 0.])
 from vtts.vrml.fields import FIELD_TYPES, FieldType, SFImage
 from vtts.vrml.geometry import TriangleMesh, polygon_triangle_count, triangulate
 from vtts.vrml.nodes import FieldDecl, NodeType, standard_node_types
-from vtts.vrml.parser import parse, read, resolve_url, url_problem
+from vtts.vrml.parser import parse, read, resolve_url, url_problem, url_roots
 from vtts.vrml.scene import Node, Proto, Route, Scene, same_node
 from vtts.vrml.transform import compose_transform, rotation_matrix, transform_matrix
 from vtts.vrml.writer import dumps, write
@@ -37,5 +37,6 @@ __all__ = [
     "transform_matrix",
     "triangulate",
     "url_problem",
+    "url_roots",
     "write",
 ]

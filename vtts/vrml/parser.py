@@ -12,9 +12,12 @@ than a RecursionError or a hang.
 
 from __future__ import annotations
 
+import dataclasses
+import os
 import posixpath
 import re
 import warnings
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from functools import cache
 from pathlib import Path
@@ -68,6 +71,10 @@ URL_FIELDS: dict[str, tuple[str, ...]] = {
     "Background": ("backUrl", "bottomUrl", "frontUrl", "leftUrl", "rightUrl", "topUrl"),
 }
 _SCRIPT_SCHEMES = ("javascript", "vrmlscript", "ecmascript")
+
+#: The environment variable that names extra url roots (folders separated by os.pathsep) when a
+#: call gives none.
+URL_ROOT_ENV = "VTTS_URL_ROOT"
 _SCHEME = re.compile(r"^([A-Za-z][A-Za-z0-9+.\-]*):")
 
 _TERMINAL_NAMES = {
@@ -106,16 +113,24 @@ def parse(
     *,
     file: str | None = None,
     lenient: bool = False,
+    url_root: str | Path | Iterable[str | Path] | None = None,
     max_bytes: int = MAX_BYTES,
     max_depth: int = MAX_DEPTH,
 ) -> Scene:
     """Parse VRML97 text (``str`` or UTF-8 ``bytes``) into a :class:`Scene`.
 
     ``file`` names the source in error messages and is the folder url fields resolve against.
-    ``lenient`` parses unknown node types generically (with a :class:`VttsWarning`) instead of
-    rejecting them. Raises a :class:`~vtts.errors.VrmlError` subclass for any invalid input.
+    ``lenient`` loads what other browsers accept, each with a :class:`VttsWarning` at its place
+    instead of an error: unknown node types (parsed generically), unknown fields (skipped), nodes
+    of the wrong role in a field (dropped), IS naming a missing member (ignored), X3D statements
+    (skipped), a PROTO field default that USEs a DEF of the enclosing file (resolved, or dropped),
+    and urls that leave the allowed folders (kept as data, never loaded).
+    ``url_root``: folders besides the file's own that url fields may name files in (one or
+    several; None reads ``$VTTS_URL_ROOT``). Raises a :class:`~vtts.errors.VrmlError` subclass for
+    any invalid input.
     """
     where = file or "<text>"
+    roots = url_roots(url_root)
     if isinstance(text, bytes):
         if len(text) > max_bytes:
             raise VrmlLimitError(
@@ -144,15 +159,23 @@ def parse(
     builder = _Builder(
         file=where,
         base_dir=Path(file).resolve().parent if file else None,
+        roots=roots,
         lenient=lenient,
         max_depth=max_depth,
     )
     scene = builder.build(tree)
     scene.path = Path(file) if file else None
+    scene.url_roots = roots
     return scene
 
 
-def read(path: str | Path, *, lenient: bool = False, max_bytes: int = MAX_BYTES) -> Scene:
+def read(
+    path: str | Path,
+    *,
+    lenient: bool = False,
+    url_root: str | Path | Iterable[str | Path] | None = None,
+    max_bytes: int = MAX_BYTES,
+) -> Scene:
     """Read and parse a ``.wrl`` file (see :func:`parse`)."""
     p = Path(path)
     try:
@@ -164,7 +187,27 @@ def read(path: str | Path, *, lenient: bool = False, max_bytes: int = MAX_BYTES)
         data = p.read_bytes()
     except OSError as e:
         raise VrmlSyntaxError(f"cannot read file: {e.strerror}", file=str(p)) from None
-    return parse(data, file=str(p), lenient=lenient, max_bytes=max_bytes)
+    return parse(data, file=str(p), lenient=lenient, url_root=url_root, max_bytes=max_bytes)
+
+
+def url_roots(url_root: str | Path | Iterable[str | Path] | None = None) -> tuple[Path, ...]:
+    """The extra url roots, resolved: ``url_root`` (a folder or several), or when it is None the
+    folders in ``$VTTS_URL_ROOT`` (separated by ``os.pathsep``). Each must be an existing folder."""
+    if url_root is None:
+        env = os.environ.get(URL_ROOT_ENV, "")
+        given: list[str | Path] = [d for d in env.split(os.pathsep) if d]
+        origin = f"${URL_ROOT_ENV}"
+    elif isinstance(url_root, (str, Path)):
+        given, origin = [url_root], "url root"
+    else:
+        given, origin = list(url_root), "url root"
+    roots = []
+    for d in given:
+        p = Path(d).expanduser()
+        if not p.is_dir():
+            raise VrmlUrlError(f"{origin} '{d}' is not a folder")
+        roots.append(p.resolve())
+    return tuple(roots)
 
 
 def _check_header(text: str, where: str) -> None:
@@ -237,6 +280,11 @@ class _Scope:
     proto: Proto | None = None
     defs: dict[str, Node] = field(default_factory=dict)
     protos: dict[str, NodeType] = field(default_factory=dict)
+    #: for the scope of a PROTO field default: ``"PROTO P field 'f'"`` (lenient mode looks
+    #: outward for the DEFs its USEs name)
+    default_of: str | None = None
+    #: local names that X3D IMPORT statements would have made (lenient mode skips their ROUTEs)
+    imports: set[str] = field(default_factory=set)
 
     def lookup_proto(self, name: str) -> NodeType | None:
         s: _Scope | None = self
@@ -253,11 +301,27 @@ class _Scope:
 
 _NODE_TREES = ("node", "def_node", "use_node")
 
+#: What :meth:`_Builder.value` gives for an SFNode whose node is dropped in lenient mode.
+_DROPPED = object()
+
+
+class _DropDefault(Exception):
+    """Lenient mode: a USE in a PROTO field default names no DEF anywhere (the default goes)."""
+
 
 class _Builder:
-    def __init__(self, *, file: str, base_dir: Path | None, lenient: bool, max_depth: int):
+    def __init__(
+        self,
+        *,
+        file: str,
+        base_dir: Path | None,
+        roots: tuple[Path, ...] = (),
+        lenient: bool,
+        max_depth: int,
+    ):
         self.file = file
         self.base_dir = base_dir
+        self.roots = roots
         self.lenient = lenient
         self.max_depth = max_depth
         self.standard = standard_node_types()
@@ -286,6 +350,7 @@ class _Builder:
     def build(self, tree: Tree) -> Scene:
         scope = _Scope()
         statements = [self.statement(t, scope, 0) for t in tree.children]
+        statements = [s for s in statements if s is not None]
         return Scene(statements=statements, defs=scope.defs, node_count=self.node_count)
 
     def statement(self, t: Tree, scope: _Scope, depth: int) -> Any:
@@ -298,12 +363,31 @@ class _Builder:
             return self.externproto(t, scope)
         if kind == "route":
             return self.route(t, scope)
+        if kind == "x3d_stmt":
+            return self.x3d_statement(t, scope)
         raise AssertionError(kind)  # pragma: no cover
+
+    def x3d_statement(self, t: Tree, scope: _Scope) -> None:
+        """PROFILE, COMPONENT, META, UNIT, IMPORT, EXPORT: X3D, not VRML97 (skipped if lenient)."""
+        keyword = t.children[0]
+        if not self.lenient:
+            raise self.error(
+                f"{keyword} is an X3D statement, not VRML97: a '{HEADER}' file cannot hold it "
+                "(use --lenient to skip X3D statements)",
+                keyword,
+                VrmlSyntaxError,
+            )
+        if str(keyword) == "IMPORT":
+            names = [c for c in t.children[1:] if c.type == "ID"]
+            scope.imports.add(str(names[-1]))  # "AS name", or the exported name itself
+        self.warn(f"X3D statement {keyword} skipped (--lenient)", keyword)
 
     def node_stmt(self, t: Tree, scope: _Scope, depth: int) -> Node:
         if t.data == "use_node":
             name_tok = t.children[0]
             node = scope.defs.get(str(name_tok))
+            if node is None and self.lenient and scope.default_of is not None:
+                return self.outer_use(name_tok, scope)
             if node is None:
                 known = ", ".join(sorted(scope.defs)) or "none"
                 raise self.error(
@@ -316,6 +400,30 @@ class _Builder:
             name_tok, node_tree = t.children
             return self.node(node_tree, scope, depth, def_name=str(name_tok))
         return self.node(t, scope, depth)
+
+    def outer_use(self, name_tok: Token, scope: _Scope) -> Node:
+        """Lenient mode: a USE in a PROTO field default of a name DEFed outside it (browsers
+        look outward; VRML97 gives each default its own DEF scope)."""
+        outer = scope.parent
+        while outer is not None:
+            if str(name_tok) in outer.defs:
+                self.warn(
+                    f"USE {name_tok} in the default of {scope.default_of} names a DEF outside "
+                    "the default (a PROTO field default has its own DEF scope): resolved to "
+                    "a copy of that DEF (--lenient)",
+                    name_tok,
+                )
+                # a copy, DEFed in the default's own scope: the scene written back is VRML97
+                node = _copy_tree(outer.defs[str(name_tok)], {})
+                scope.defs[str(name_tok)] = node
+                return node
+            outer = outer.parent
+        self.warn(
+            f"USE {name_tok} in the default of {scope.default_of} names no DEF before it: the "
+            "default is dropped (--lenient)",
+            name_tok,
+        )
+        raise _DropDefault
 
     def node_type(self, tok: Token, scope: _Scope) -> NodeType:
         name = str(tok)
@@ -354,11 +462,11 @@ class _Builder:
         for el in t.children[1:]:
             kind = el.data
             if kind == "field_value":
-                self.field_value(node, el, scope, depth)
-                node.order.append(("field", str(el.children[0])))
+                if self.field_value(node, el, scope, depth):
+                    node.order.append(("field", str(el.children[0])))
             elif kind == "field_is":
-                self.field_is(node, el, scope)
-                node.order.append(("is", str(el.children[0])))
+                if self.field_is(node, el, scope):
+                    node.order.append(("is", str(el.children[0])))
             elif kind in ("route", "proto", "externproto"):
                 node.order.append(("extra", len(node.extras)))
                 node.extras.append(self.statement(el, scope, depth + 1))
@@ -370,7 +478,8 @@ class _Builder:
         self.check_urls(node)
         return node
 
-    def field_value(self, node: Node, el: Tree, scope: _Scope, depth: int) -> None:
+    def field_value(self, node: Node, el: Tree, scope: _Scope, depth: int) -> bool:
+        """Set a field from a field_value tree; False when lenient mode skipped it."""
         name_tok, value_tree = el.children
         name = str(name_tok)
         ntype = node.type
@@ -382,11 +491,23 @@ class _Builder:
         else:
             decl = ntype.field(name)
             if decl is None or (ntype.kind == "script" and _is_script_decl(node, name)):
-                raise self.unknown_member(ntype, name_tok)
+                problem = self.unknown_member(ntype, name_tok)
+                if not self.lenient:
+                    raise problem
+                what = (
+                    f"'{name}' is an event of {ntype.describe()}, not a field"
+                    if ntype.member(name)
+                    else f"{ntype.describe()} has no field '{name}'"
+                )
+                self.warn(f"{what}: skipped with its value (--lenient)", name_tok)
+                return False
             value = self.value(value_tree, decl, scope, depth, f"{name}' of {ntype.describe()}")
         if name in node.fields or name in node.is_maps:
             raise self.error(f"field '{name}' is given twice in one {ntype.describe()}", name_tok)
+        if value is _DROPPED:
+            return False
         node.fields[name] = value
+        return True
 
     def unknown_member(self, ntype: NodeType, name_tok: Token) -> Exception:
         name = str(name_tok)
@@ -401,7 +522,8 @@ class _Builder:
             f"{ntype.describe()} has no field '{name}' (its fields: {fields})", name_tok
         )
 
-    def field_is(self, node: Node, el: Tree, scope: _Scope) -> None:
+    def field_is(self, node: Node, el: Tree, scope: _Scope) -> bool:
+        """Bind a member with IS; False when lenient mode ignored the binding."""
         member_tok, iface_tok = el.children
         proto = scope.in_proto()
         if proto is None:
@@ -413,6 +535,13 @@ class _Builder:
         ntype = node.type
         iface = proto.decls.get(str(iface_tok))
         if iface is None:
+            if self.lenient:
+                self.warn(
+                    f"PROTO {proto.name} has no interface member '{iface_tok}': "
+                    f"'{member_tok} IS {iface_tok}' ignored (--lenient)",
+                    iface_tok,
+                )
+                return False
             raise self.error(f"PROTO {proto.name} has no interface member '{iface_tok}'", iface_tok)
         if ntype.kind == "generic":
             ntype.decls.setdefault(
@@ -427,6 +556,13 @@ class _Builder:
             member = ntype.event_out(str(member_tok))
             access = "eventOut" if member is not None else None
         if member is None:
+            if self.lenient:
+                self.warn(
+                    f"{ntype.describe()} has no member '{member_tok}': "
+                    f"'{member_tok} IS {iface_tok}' ignored (--lenient)",
+                    member_tok,
+                )
+                return False
             raise self.unknown_member(ntype, member_tok)
         if member.type is not iface.type:
             raise self.error(
@@ -446,6 +582,7 @@ class _Builder:
         if str(member_tok) in node.fields or str(member_tok) in node.is_maps:
             raise self.error(f"member '{member_tok}' is given twice", member_tok)
         node.is_maps[str(member_tok)] = str(iface_tok)
+        return True
 
     def script_decl(self, node: Node, el: Tree, scope: _Scope, depth: int) -> None:
         access_tok = el.children[0]
@@ -474,9 +611,11 @@ class _Builder:
             node.fields[decl.name] = value
 
     def declaration(
-        self, el: Tree, scope: _Scope, depth: int, *, in_script: bool
+        self, el: Tree, scope: _Scope, depth: int, *, in_script: bool, owner: str = "Script"
     ) -> tuple[FieldDecl, Any, Token | None]:
-        """(declaration, value or None, IS target or None) of an event_decl/field_decl tree."""
+        """(declaration, value or None, IS target or None) of an event_decl/field_decl tree.
+
+        ``owner`` names the PROTO in messages (``PROTO P``)."""
         access_tok, type_tok, name_tok = el.children[:3]
         ftype = FIELD_TYPES.get(str(type_tok))
         if ftype is None:
@@ -490,14 +629,23 @@ class _Builder:
         if rest and isinstance(rest[0], Token):
             is_name = rest[0]
         elif rest:
-            value_scope = scope if in_script else _Scope(parent=scope)
-            value = self.value(
-                rest[0],
-                FieldDecl(str(access_tok), ftype, str(name_tok)),
-                value_scope,
-                depth,
-                f"{name_tok}'",
+            value_scope = (
+                scope
+                if in_script
+                else _Scope(parent=scope, default_of=f"{owner} field '{name_tok}'")
             )
+            try:
+                value = self.value(
+                    rest[0],
+                    FieldDecl(str(access_tok), ftype, str(name_tok)),
+                    value_scope,
+                    depth,
+                    f"{name_tok}'",
+                )
+            except _DropDefault:  # lenient: the warning is given
+                value = [] if ftype.multi else None
+            if value is _DROPPED:
+                value = None
         decl = FieldDecl(str(access_tok), ftype, str(name_tok), None if in_script else value, None)
         return decl, value, is_name
 
@@ -517,7 +665,9 @@ class _Builder:
         body_trees = []
         for el in t.children[1:]:
             if el.data in ("event_decl", "field_decl"):
-                decl, _value, is_name = self.declaration(el, scope, depth, in_script=False)
+                decl, _value, is_name = self.declaration(
+                    el, scope, depth, in_script=False, owner=f"PROTO {proto.name}"
+                )
                 if is_name is not None:
                     raise self.error(
                         f"PROTO {proto.name}: IS is not allowed in a PROTO interface", is_name
@@ -530,7 +680,9 @@ class _Builder:
                 body_trees.append(el)
         body_scope = _Scope(parent=scope, proto=proto)
         for bt in body_trees:
-            proto.body.append(self.statement(bt, body_scope, depth + 1))
+            statement = self.statement(bt, body_scope, depth + 1)
+            if statement is not None:
+                proto.body.append(statement)
         first = proto.first_node()
         if first is None:
             raise self.error(
@@ -576,11 +728,18 @@ class _Builder:
         scope.protos[proto.name] = proto
         return proto
 
-    def route(self, t: Tree, scope: _Scope) -> Route:
+    def route(self, t: Tree, scope: _Scope) -> Route | None:
         from_tok, out_tok, to_tok, in_tok = t.children
         ends = []
         for node_tok in (from_tok, to_tok):
             node = scope.defs.get(str(node_tok))
+            if node is None and str(node_tok) in scope.imports:  # only lenient mode imports
+                self.warn(
+                    f"ROUTE names '{node_tok}', a node of a skipped X3D IMPORT: skipped "
+                    "(--lenient)",
+                    node_tok,
+                )
+                return None
             if node is None:
                 raise self.error(
                     f"ROUTE names '{node_tok}', which is not DEFed before this point in the "
@@ -667,9 +826,14 @@ class _Builder:
         if not all(isinstance(i, Tree) for i in items):
             raise self.wrong_kind(what, ftype, items, first_tok)
         nodes = [self.node_stmt(i, scope, depth + 1) for i in items]
-        for i, n in zip(items, nodes, strict=True):
-            self.check_role(n, decl, what, _first_token(i))
-        return nodes if ftype.multi else nodes[0]
+        nodes = [
+            n
+            for i, n in zip(items, nodes, strict=True)
+            if self.check_role(n, decl, what, _first_token(i))
+        ]
+        if ftype.multi:
+            return nodes
+        return nodes[0] if nodes else _DROPPED
 
     def wrong_kind(self, what: str, ftype: FieldType, items: list, tok: Token | None) -> Exception:
         got = _describe_items(items)
@@ -780,18 +944,20 @@ class _Builder:
             what,
         )
 
-    def check_role(self, node: Node, decl: FieldDecl, what: str, tok: Token | None) -> None:
+    def check_role(self, node: Node, decl: FieldDecl, what: str, tok: Token | None) -> bool:
+        """True if ``node`` may stand in the field; False (lenient mode: drop it) or an error."""
         if decl.roles is None:
-            return
+            return True
         roles = _roles_of(node)
         if roles & decl.roles:
-            return
+            return True
         want = " or ".join(sorted(decl.roles))
         have = " or ".join(sorted(roles)) or "no known role"
-        raise self.error(
-            f"field '{what} takes a {want} node; {node.type.describe()} is a {have} node",
-            tok,
-        )
+        msg = f"field '{what} takes a {want} node; {node.type.describe()} is a {have} node"
+        if self.lenient:
+            self.warn(f"{msg}: dropped (--lenient)", tok)
+            return False
+        raise self.error(msg, tok)
 
     # ---- urls ---------------------------------------------------------------------------------
 
@@ -805,18 +971,33 @@ class _Builder:
                 self.check_url(url, node, node_name=f"{node.type.name}.{fname}")
 
     def check_url(self, url: str, where: Any, node_name: str = "EXTERNPROTO") -> None:
-        problem = url_problem(url)
-        if problem:
-            tok = where if isinstance(where, Token) else None
-            line = getattr(where, "line", None)
-            col = getattr(where, "column", None)
-            raise VrmlUrlError(
-                f"{node_name} url {url!r} {problem}; urls may only name files inside the "
-                "folder of the file that refers to them",
-                file=self.file,
-                line=line if tok is None else tok.line,
-                column=col if tok is None else tok.column,
+        """Refuse (lenient mode: warn about) a url that names a file outside the allowed
+        folders; ``where`` (a token or a node) places the message."""
+        problem = url_problem(url, self.base_dir, self.roots)
+        if not problem:
+            return
+        line = getattr(where, "line", None)
+        col = getattr(where, "column", None)
+        if self.lenient:
+            warnings.warn(
+                VttsWarning(
+                    f"{node_name} url {url!r} {problem}: not loaded (--lenient; --url-root DIR "
+                    "allows files under DIR)",
+                    file=self.file,
+                    line=line,
+                    column=col,
+                ),
+                stacklevel=2,
             )
+            return
+        raise VrmlUrlError(
+            f"{node_name} url {url!r} {problem}; urls may only name files inside the folder "
+            "of the file that refers to them, or under a url root (--url-root DIR, "
+            f"${URL_ROOT_ENV})",
+            file=self.file,
+            line=line,
+            column=col,
+        )
 
 
 #: Which node-member accesses an interface member of each access may be bound to with IS
@@ -829,53 +1010,77 @@ _IS_ACCESS = {
 }
 
 
-def url_problem(url: str) -> str | None:
-    """Why a url must not be resolved against a file's folder, or None if it is safe.
+def url_problem(url: str, base_dir: Path | None = None, roots: Iterable[Path] = ()) -> str | None:
+    """Why a url must not be loaded from disk, or None if it may be.
 
-    Network and script urls are kept as data (vtts never fetches anything); local paths must be
-    relative and stay inside the folder.
+    Network and script urls are kept as data (vtts never fetches anything: None here, and
+    :func:`resolve_url` skips them). A local path must lie inside ``base_dir`` (the folder of the
+    file holding the url, which relative paths resolve against) or one of ``roots``; without
+    ``base_dir`` it must be relative and not climb out with ``..``. The check is on the text;
+    :func:`resolve_url` checks again after following symbolic links.
     """
-    path = url.split("#", 1)[0]
-    m = _SCHEME.match(path)
-    if m and len(m.group(1)) > 1:
-        scheme = m.group(1).lower()
-        if scheme != "file":
-            return None  # http, urn, javascript…: data only, never fetched
-        path = path[len("file:") :]
-        if path.startswith("//"):
-            return "is an absolute file: url"
-    elif m:  # a Windows drive letter
-        return "is an absolute path"
-    path = path.replace("\\", "/")
+    path = _local_path(url)
+    if path is None:
+        m = _SCHEME.match(url)
+        if m and len(m.group(1)) == 1:
+            return "is an absolute path (a drive letter)"
+        if url.lower().startswith("file:"):
+            return "is a file: url of another host"
+        return None  # http, urn, javascript…: data only, never fetched
+    allowed = [d for d in (base_dir, *roots) if d is not None]
     if path.startswith("/"):
-        return "is an absolute path"
+        if _inside(posixpath.normpath(path), allowed):
+            return None
+        return "is an absolute path outside the allowed folders"
     norm = posixpath.normpath(path) if path else path
     if norm == ".." or norm.startswith("../"):
+        if base_dir is not None and _inside(posixpath.join(base_dir.as_posix(), norm), allowed):
+            return None
         return "leaves the file's folder"
     return None
 
 
-def resolve_url(urls: list[str], base_dir: Path | None) -> Path | None:
-    """The first url of ``urls`` that names an existing local file inside ``base_dir``.
+def _local_path(url: str) -> str | None:
+    """The file path a url names (``file:`` removed, ``/`` separators, fragment dropped), or
+    None for a network or script url, a drive letter or a ``file:`` url of another host."""
+    path = url.split("#", 1)[0]
+    m = _SCHEME.match(path)
+    if m:
+        if len(m.group(1)) == 1 or m.group(1).lower() != "file":
+            return None
+        path = path[len("file:") :]
+        if path.startswith("//"):
+            path = path[2:]
+            if path.lower().startswith("localhost/"):
+                path = path[len("localhost") :]
+            elif not path.startswith("/"):
+                return None
+    return path.replace("\\", "/")
+
+
+def _inside(path: str, folders: Iterable[Path]) -> bool:
+    """Whether the normalized absolute ``path`` is inside (or is) one of ``folders``."""
+    p = Path(posixpath.normpath(path))
+    return any(p == d or d in p.parents for d in folders)
+
+
+def resolve_url(urls: list[str], base_dir: Path | None, roots: Iterable[Path] = ()) -> Path | None:
+    """The first url of ``urls`` that names an existing local file inside ``base_dir`` or one
+    of ``roots`` (relative urls resolve against ``base_dir``).
 
     Network urls are skipped (never fetched). Symbolic links are followed and the result is
-    checked again, so a link cannot lead outside the folder either.
+    checked again, so a link cannot lead outside the allowed folders either.
     """
     if base_dir is None:
         return None
-    root = base_dir.resolve()
+    base = base_dir.resolve()
+    allowed = [base, *(Path(r).resolve() for r in roots)]
     for url in urls:
-        if (
-            url_problem(url) is not None
-            or _SCHEME.match(url)
-            and not url.lower().startswith("file:")
-        ):
+        path = _local_path(url)
+        if path is None or url_problem(url, base, allowed[1:]) is not None:
             continue
-        rel = url.split("#", 1)[0]
-        if rel.lower().startswith("file:"):
-            rel = rel[5:]
-        p = (root / rel.replace("\\", "/")).resolve()
-        if p.is_file() and (p == root or root in p.parents):
+        p = (base / path).resolve()
+        if p.is_file() and any(p == d or d in p.parents for d in allowed):
             return p
     return None
 
@@ -903,6 +1108,31 @@ def _url_members(proto: Proto) -> set[str]:
         for v in n.fields.values():
             stack.extend(v if isinstance(v, list) else [v])
     return out
+
+
+def _copy_tree(node: Node, memo: dict[int, Node]) -> Node:
+    """A copy of ``node`` and the nodes in its fields (sharing inside it kept; types shared)."""
+    if id(node) in memo:
+        return memo[id(node)]
+    new = dataclasses.replace(
+        node,
+        fields={},
+        is_maps=dict(node.is_maps),
+        script_decls=list(node.script_decls),
+        extras=list(node.extras),
+        order=list(node.order),
+        _expansion=None,
+    )
+    memo[id(node)] = new
+    for k, v in node.fields.items():
+        if isinstance(v, Node):
+            v = _copy_tree(v, memo)
+        elif isinstance(v, list):
+            v = [_copy_tree(x, memo) if isinstance(x, Node) else x for x in v]
+        elif isinstance(v, np.ndarray):
+            v = v.copy()
+        new.fields[k] = v
+    return new
 
 
 def _is_script_decl(node: Node, name: str) -> bool:

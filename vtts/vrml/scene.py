@@ -186,12 +186,14 @@ class Scene:
     ``statements``: the top level in file order (:class:`Node`, :class:`Proto`, :class:`Route`).
     ``defs``: DEF name → node for the top-level namespace (the last DEF of a name wins, as USE
     sees it at the end of the file). ``path``: the file it came from (None for text).
+    ``url_roots``: folders besides the file's own that its urls may load files from.
     """
 
     statements: list[Any] = field(default_factory=list)
     defs: dict[str, Node] = field(default_factory=dict)
     path: Path | None = None
     node_count: int = 0
+    url_roots: tuple[Path, ...] = ()
 
     @property
     def roots(self) -> list[Node]:
