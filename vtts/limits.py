@@ -1,0 +1,85 @@
+"""Every limit on the size of an input, in one place (``docs/limits.md`` explains them).
+
+A hostile or mistaken input must fail with a clear message naming the value, the limit and the
+file, never drive the process out of memory or into a loop that does not end. Each constant below
+bounds one such size; the readers check them before they allocate, and read files with
+:func:`read_bytes_capped` (at most the limit plus one byte, so a device or a pipe without end is
+refused too).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from vtts.errors import VttsError
+
+# ---- files ---------------------------------------------------------------------------------------
+
+#: A VRML97 model or scene (the bundled heads are 0.65 MB).
+MAX_VRML_BYTES = 64 << 20
+#: An ``.adt`` table file (the bundled heads' are 4.5 MB).
+MAX_ADT_BYTES = 256 << 20
+#: A cache entry of a parsed model (the bundled heads' are 5 MB).
+MAX_CACHE_ENTRY_BYTES = 1 << 30
+#: A text file: ``say --file``, a phoneme table (``--phonemes``), a ``.fap`` file.
+MAX_TEXT_BYTES = 64 << 20
+#: A FAP bitstream (``.fbs``): an hour at 30 Hz with every FAP is well under this.
+MAX_FBS_BYTES = 64 << 20
+#: A glTF or GLB file (with its buffers).
+MAX_GLTF_BYTES = 512 << 20
+
+# ---- time ----------------------------------------------------------------------------------------
+
+#: The longest animation, in seconds (an utterance, a FAP file, a decoded stream).
+MAX_DURATION_S = 3600.0
+#: The most frames of one animation (an hour at 60 Hz).
+MAX_FRAMES = 216_000
+#: Frame rates a FAP file or stream may declare, in frames per second.
+MIN_FPS, MAX_FPS = 0.1, 1000.0
+
+# ---- images --------------------------------------------------------------------------------------
+
+#: The largest side of a rendered image, a video frame or a texture, in pixels.
+MAX_IMAGE_SIDE = 4096
+#: The most pixels of one image (a video frame, a photo, a texture): 16 megapixels.
+MAX_IMAGE_PIXELS = 16 << 20
+
+# ---- geometry ------------------------------------------------------------------------------------
+
+#: The most elements (vertices, indices) one glTF accessor may hold.
+MAX_ACCESSOR_COUNT = 50_000_000
+
+
+class LimitError(VttsError):
+    """An input exceeds one of the limits above."""
+
+
+def read_bytes_capped(path: str | os.PathLike[str], limit: int, *, what: str = "file") -> bytes:
+    """The bytes of ``path``, refusing more than ``limit`` of them.
+
+    Reads at most ``limit + 1`` bytes, so ``/dev/zero`` or an endless pipe fails as fast as a
+    large file. Raises :class:`LimitError` naming the file and the limit; ``OSError`` passes
+    through for the caller to word.
+    """
+    p = Path(path)
+    with open(p, "rb") as f:
+        data = f.read(limit + 1)
+    if len(data) > limit:
+        raise LimitError(
+            f"{what} is larger than the limit of {_size(limit)} (vtts.limits)", file=str(p)
+        )
+    return data
+
+
+def check_limit(value: float, limit: float, what: str, *, file: str | None = None) -> None:
+    """Raise :class:`LimitError` when ``value`` exceeds ``limit`` (or is not a number)."""
+    if not value <= limit:  # also catches nan
+        raise LimitError(f"{what} is {value:g}, more than the limit of {limit:g}", file=file)
+
+
+def _size(n: int) -> str:
+    for unit, shift in (("GiB", 30), ("MiB", 20), ("KiB", 10)):
+        if n >= 1 << shift and n % (1 << shift) == 0:
+            return f"{n >> shift} {unit}"
+    return f"{n} bytes"
