@@ -48,11 +48,16 @@ def _pr():
             # it and pyglet is a fifth of pyrender's import time: leave it out.
             sys.modules.setdefault("pyrender.viewer", _headless_viewer_module())
         _defer_package("trimesh")
+        _defer_package("networkx")
         try:
             import pyrender
             import pyrender.renderer as pr_renderer
+            import pyrender.scene as pr_scene
         except Exception as e:  # pragma: no cover - depends on the machine
             raise RenderError(f"cannot load pyrender/OpenGL (EGL): {e}") from None
+        # pyrender keeps its scene tree in a networkx graph, whose import (every algorithm
+        # networkx has) took 0.14 s of a 5 s `vtts say`; a tree needs none of them
+        pr_scene.nx = _SceneTrees
         # pyrender hard-codes 4x multisampling, which makes Mesa's software rasterizer 2.5 times
         # slower; vtts renders single-sampled and antialiases stills by supersampling instead.
         storage = pr_renderer.glRenderbufferStorageMultisample
@@ -89,6 +94,60 @@ class _DeferredPackage(types.ModuleType):
         self.__class__ = types.ModuleType
         self.__spec__.loader.exec_module(self)
         return getattr(self, attr)
+
+
+class _SceneTree:
+    """What pyrender's ``Scene`` asks of its ``networkx.DiGraph``: a tree whose edges go from each
+    node to its parent (``"world"`` at the top)."""
+
+    def __init__(self) -> None:
+        self._parent: dict = {}  # node -> its parent, or None
+        self._children: dict = {}  # node -> the nodes whose parent it is
+
+    def add_node(self, node) -> None:
+        if node not in self._parent:
+            self._parent[node] = None
+            self._children[node] = set()
+
+    def add_edge(self, node, parent) -> None:
+        self.add_node(node)
+        self.add_node(parent)
+        old = self._parent[node]
+        if old is not None:
+            self._children[old].discard(node)
+        self._parent[node] = parent
+        self._children[parent].add(node)
+
+    def neighbors(self, node) -> Iterator:
+        """The node's parent (a DiGraph's successors), if it has one."""
+        parent = self._parent[node]
+        return iter(() if parent is None else (parent,))
+
+    def remove_node(self, node) -> None:
+        """Remove ``node`` and its edges, as networkx does (its children lose their parent)."""
+        parent = self._parent.pop(node)
+        if parent is not None:
+            self._children[parent].discard(node)
+        for child in self._children.pop(node):
+            self._parent[child] = None
+
+
+class _SceneTrees:
+    """Stands in for ``networkx`` in ``pyrender.scene`` (see :func:`_pr`)."""
+
+    DiGraph = _SceneTree
+
+    @staticmethod
+    def shortest_path(graph, source, target) -> list:
+        """The path from ``source`` up to ``target`` (in a tree, the only one); ``graph`` a
+        :class:`_SceneTree` or a DiGraph made before pyrender's networkx was replaced."""
+        path = [source]
+        while path[-1] != target:
+            up = next(iter(graph.neighbors(path[-1])), None)
+            if up is None:
+                raise ValueError(f"no path from {source!r} to {target!r} in the scene")
+            path.append(up)
+        return path
 
 
 def _headless_viewer_module() -> types.ModuleType:
