@@ -475,7 +475,6 @@ class _Builder:
                 node.order.append(("decl", str(el.children[2])))
             else:  # pragma: no cover
                 raise AssertionError(kind)
-        self.check_urls(node)
         return node
 
     def field_value(self, node: Node, el: Tree, scope: _Scope, depth: int) -> bool:
@@ -506,6 +505,7 @@ class _Builder:
             raise self.error(f"field '{name}' is given twice in one {ntype.describe()}", name_tok)
         if value is _DROPPED:
             return False
+        self.check_field_urls(ntype, name, value_tree, value)
         node.fields[name] = value
         return True
 
@@ -961,18 +961,20 @@ class _Builder:
 
     # ---- urls ---------------------------------------------------------------------------------
 
-    def check_urls(self, node: Node) -> None:
-        fnames = URL_FIELDS.get(node.type.name, ())
-        if isinstance(node.type, Proto):
-            fnames = tuple(node.type.url_members)
-        for fname in fnames:
-            urls = node.fields.get(fname)
-            for url in urls or ():
-                self.check_url(url, node, node_name=f"{node.type.name}.{fname}")
+    def check_field_urls(self, ntype: NodeType, name: str, t: Tree, urls: Any) -> None:
+        """Check the urls of field ``name`` if it is one whose files are loaded; each url is
+        placed at its own string in the file."""
+        loading = ntype.url_members if isinstance(ntype, Proto) else URL_FIELDS.get(ntype.name)
+        if not loading or name not in loading:
+            return
+        if isinstance(urls, str):
+            urls = [urls]
+        for tok, url in zip(t.children, urls, strict=False):
+            self.check_url(url, tok, node_name=f"{ntype.name}.{name}")
 
-    def check_url(self, url: str, where: Any, node_name: str = "EXTERNPROTO") -> None:
+    def check_url(self, url: str, where: Any, node_name: str = "EXTERNPROTO url") -> None:
         """Refuse (lenient mode: warn about) a url that names a file outside the allowed
-        folders; ``where`` (a token or a node) places the message."""
+        folders; ``where`` (a token) places the message."""
         problem = url_problem(url, self.base_dir, self.roots)
         if not problem:
             return
@@ -981,7 +983,7 @@ class _Builder:
         if self.lenient:
             warnings.warn(
                 VttsWarning(
-                    f"{node_name} url {url!r} {problem}: not loaded (--lenient; --url-root DIR "
+                    f"{node_name} {url!r} {problem}: not loaded (--lenient; --url-root DIR "
                     "allows files under DIR)",
                     file=self.file,
                     line=line,
@@ -991,7 +993,7 @@ class _Builder:
             )
             return
         raise VrmlUrlError(
-            f"{node_name} url {url!r} {problem}; urls may only name files inside the folder "
+            f"{node_name} {url!r} {problem}; urls may only name files inside the folder "
             "of the file that refers to them, or under a url root (--url-root DIR, "
             f"${URL_ROOT_ENV})",
             file=self.file,
