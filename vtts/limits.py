@@ -18,8 +18,8 @@ from vtts.errors import VttsError
 
 #: A VRML97 model or scene (the bundled heads are 0.65 MB).
 MAX_VRML_BYTES = 64 << 20
-#: An ``.adt`` table file (the bundled heads' are 4.5 MB).
-MAX_ADT_BYTES = 256 << 20
+#: An ``.adt`` table file (the bundled heads' are 4.5 MB; parsing takes up to 30 bytes a byte).
+MAX_ADT_BYTES = 64 << 20
 #: A cache entry of a parsed model (the bundled heads' are 5 MB).
 MAX_CACHE_ENTRY_BYTES = 1 << 30
 #: A text file: ``say --file``, a phoneme table (``--phonemes``), a ``.fap`` file.
@@ -44,6 +44,8 @@ MIN_FPS, MAX_FPS = 0.1, 1000.0
 MAX_IMAGE_SIDE = 4096
 #: The most pixels of one image (a video frame, a photo, a texture): 16 megapixels.
 MAX_IMAGE_PIXELS = 16 << 20
+#: The most pixels of a rendered image (4K UHD): rendering takes about 400 bytes a pixel.
+MAX_RENDER_PIXELS = 3840 * 2160
 
 # ---- geometry ------------------------------------------------------------------------------------
 

@@ -26,6 +26,7 @@ import scipy.sparse as sp
 
 from vtts.errors import RenderError
 from vtts.face import N_PARAMS, FaceModel
+from vtts.limits import MAX_IMAGE_SIDE, MAX_RENDER_PIXELS
 from vtts.render.camera import Camera, find_viewpoint, frame_bounds
 from vtts.render.color import TRANSPARENT, parse_background
 from vtts.vrml import Node, resolve_url, transform_matrix, triangulate
@@ -704,8 +705,13 @@ class FaceRenderer:
 
 def _check_size(size: tuple[int, int]) -> tuple[int, int]:
     w, h = int(size[0]), int(size[1])
-    if not (16 <= w <= 8192 and 16 <= h <= 8192):
-        raise RenderError(f"image size must be within 16–8192 pixels, got {w}x{h}")
+    if not (16 <= w <= MAX_IMAGE_SIDE and 16 <= h <= MAX_IMAGE_SIDE):
+        raise RenderError(f"image size must be within 16–{MAX_IMAGE_SIDE} pixels, got {w}x{h}")
+    if w * h > MAX_RENDER_PIXELS:
+        raise RenderError(
+            f"image size {w}x{h} has {w * h} pixels, more than the limit of {MAX_RENDER_PIXELS} "
+            "(3840x2160; a rendered pixel takes about 400 bytes of buffers)"
+        )
     return w, h
 
 
