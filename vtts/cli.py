@@ -377,6 +377,7 @@ def cmd_say(args: argparse.Namespace) -> int:
     from vtts.errors import RenderError
     from vtts.face import load_model
     from vtts.fap import write_fap
+    from vtts.limits import MAX_TEXT_BYTES, read_bytes_capped
     from vtts.render import PngSequenceWriter, VideoWriter, progress, write_wav
     from vtts.speech.say import prepare_utterance
 
@@ -388,7 +389,7 @@ def cmd_say(args: argparse.Namespace) -> int:
     text = args.text
     if args.file:
         try:
-            text = Path(args.file).read_text(encoding="utf-8")
+            text = read_bytes_capped(args.file, MAX_TEXT_BYTES, what="text").decode("utf-8")
         except (OSError, UnicodeDecodeError) as e:
             reason = getattr(e, "strerror", None) or "not UTF-8 text"
             raise VttsError(f"cannot read the text: {reason}", file=args.file) from None

@@ -35,8 +35,9 @@ MAX_GLTF_BYTES = 512 << 20
 MAX_DURATION_S = 3600.0
 #: The most frames of one animation (an hour at 60 Hz).
 MAX_FRAMES = 216_000
-#: Frame rates a FAP file or stream may declare, in frames per second.
-MIN_FPS, MAX_FPS = 0.1, 1000.0
+#: Frame rates a FAP file or stream may declare, in frames per second (with the duration limit,
+#: a slow rate cannot make many frames at 30 Hz).
+MIN_FPS, MAX_FPS = 0.01, 1000.0
 
 # ---- images --------------------------------------------------------------------------------------
 

@@ -32,6 +32,7 @@ from vtts.errors import AdtError, FapError, VttsError
 from vtts.face.miap import Miap
 from vtts.face.temporal import TemporalTables
 from vtts.fap import AU
+from vtts.limits import MAX_ADT_BYTES, read_bytes_capped
 from vtts.resources import grammar_text
 from vtts.vrml.fields import NumberError, format_number, format_numbers, parse_floats
 
@@ -233,7 +234,7 @@ def read_adt(path: str | os.PathLike[str]) -> AnimationTables:
     """Read a ``.adt`` file."""
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        text = read_bytes_capped(p, MAX_ADT_BYTES, what=".adt file").decode("utf-8")
     except UnicodeDecodeError as e:
         raise AdtError(f"not UTF-8 text (byte {e.start})", file=str(p)) from None
     except OSError as e:

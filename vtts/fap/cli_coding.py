@@ -27,6 +27,7 @@ from vtts.fap.coding import (
     source_stream,
 )
 from vtts.fap.stream import FapStream, FapWarning, read_fap, write_fap
+from vtts.limits import MAX_FBS_BYTES, read_bytes_capped
 
 #: The suffix of FAP bitstreams.
 FBS_SUFFIX = ".fbs"
@@ -34,7 +35,7 @@ FBS_SUFFIX = ".fbs"
 
 def _read_bytes(path: str | os.PathLike[str]) -> bytes:
     try:
-        return Path(path).read_bytes()
+        return read_bytes_capped(path, MAX_FBS_BYTES, what="FAP bitstream")
     except OSError as e:
         raise FapError(
             f"cannot read FAP bitstream: {e.strerror or e}", file=os.fspath(path)

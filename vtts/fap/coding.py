@@ -62,6 +62,7 @@ from vtts.errors import CodingError, FapError
 from vtts.fap.stream import EXPRESSION_FIELDS, MAX_RESAMPLED_FRAMES, VISEME_FIELDS, FapStream
 from vtts.fap.table import FAPS, N_FAPS
 from vtts.fap.table import fap as fap_def
+from vtts.limits import MAX_DURATION_S, MAX_FPS, MIN_FPS
 
 MAGIC = b"VFBS"
 VERSION = 1
@@ -522,8 +523,16 @@ def read_header(data: bytes, *, file: str | None = None) -> FbsHeader:
         raise cur.error(f"unknown flags 0x{flags:02x} (only bit 0 is defined)", 6)
     if not (math.isfinite(fps) and fps > 0):
         raise cur.error(f"frame rate must be finite and > 0, got {fps!r}", 7)
+    if not MIN_FPS <= fps <= MAX_FPS:
+        raise cur.error(f"frame rate {fps:g} is outside the limits {MIN_FPS:g}–{MAX_FPS:g}", 7)
     if n_frames > MAX_FRAMES:
         raise cur.error(f"{n_frames} frames exceed the decoder's limit of {MAX_FRAMES}", 19)
+    if n_frames / fps > MAX_DURATION_S:
+        raise cur.error(
+            f"{n_frames} frames at {fps:g} Hz last {n_frames / fps:g} s, more than the limit of "
+            f"{MAX_DURATION_S:g} s",
+            19,
+        )
     bits = int.from_bytes(mask, "big")
     if bits & 0xF:
         raise cur.error("FAP mask sets bits past FAP 68", 31)

@@ -23,7 +23,6 @@ import os
 import re
 import warnings
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -31,6 +30,14 @@ import numpy as np
 from vtts.atomic import write_text
 from vtts.errors import FapError, VttsWarning
 from vtts.fap.table import N_FAPS, positive_number
+from vtts.limits import (
+    MAX_DURATION_S,
+    MAX_FPS,
+    MAX_FRAMES,
+    MAX_TEXT_BYTES,
+    MIN_FPS,
+    read_bytes_capped,
+)
 
 #: The versions of the format we read; we always write the last one.
 VERSIONS = ("2.0", "2.1")
@@ -54,8 +61,8 @@ EXPRESSION_FIELDS: tuple[tuple[str, int, int], ...] = (
     ("expression_def", 0, 1),
 )
 
-#: A resampled stream longer than this is a mistake (10^6 frames are 9 hours at 30 fps).
-MAX_RESAMPLED_FRAMES = 1_000_000
+#: A resampled stream longer than this is a mistake (an hour at 60 fps).
+MAX_RESAMPLED_FRAMES = MAX_FRAMES
 
 _N_VISEME = len(VISEME_FIELDS)
 _N_EXPRESSION = len(EXPRESSION_FIELDS)
@@ -124,6 +131,11 @@ class FapStream:
         if values.ndim != 2 or values.shape[1] != N_FAPS:
             raise FapError(f"values must have shape (n, {N_FAPS}), got {values.shape}")
         n = values.shape[0]
+        if n / self.fps > MAX_DURATION_S:
+            raise FapError(
+                f"{n} frames at {self.fps:g} fps last {n / self.fps:g} s, more than the limit of "
+                f"{MAX_DURATION_S:g} s (vtts.limits)"
+            )
         if not np.all(np.isfinite(values)):
             raise FapError("values must be finite")
         mask = _array("mask", self.mask, None)
@@ -293,7 +305,7 @@ def read_fap(path: str | os.PathLike[str]) -> FapStream:
     """Read a ``.fap`` file (UTF-8, or Latin-1 if it is not valid UTF-8). See :func:`parse_fap`."""
     file = os.fspath(path)
     try:
-        data = Path(file).read_bytes()
+        data = read_bytes_capped(file, MAX_TEXT_BYTES, what="FAP file")
     except OSError as e:
         raise FapError(f"cannot read FAP file: {e.strerror or e}", file=file) from None
     try:
@@ -382,6 +394,12 @@ class _Parser:
         if not (math.isfinite(fps) and fps > 0):
             raise self.error(
                 f"expected the frame rate FPS as a positive number, got {fps_token!r}",
+                line,
+                len(tokens) - 2,
+            )
+        if not MIN_FPS <= fps <= MAX_FPS:
+            raise self.error(
+                f"frame rate {fps_token} is outside the limits {MIN_FPS:g}–{MAX_FPS:g} fps",
                 line,
                 len(tokens) - 2,
             )
@@ -497,6 +515,12 @@ class _Parser:
                     k += 1
             values.append(frame)
             mask.append(row)
+        if n / fps > MAX_DURATION_S:
+            raise self.error(
+                f"{n} frames at {fps:g} fps last {n / fps:g} s, more than the limit of "
+                f"{MAX_DURATION_S:g} s",
+                lines[0],
+            )
         if nframes != n:
             warnings.warn(
                 FapWarning(
@@ -586,4 +610,7 @@ def write_fap(stream: FapStream, path: str | os.PathLike[str]) -> None:
 
 
 def _fps(fps: object) -> float:
-    return positive_number("fps", fps)
+    number = positive_number("fps", fps)
+    if not MIN_FPS <= number <= MAX_FPS:
+        raise FapError(f"fps {number:g} is outside the limits {MIN_FPS:g}–{MAX_FPS:g}")
+    return number

@@ -56,6 +56,7 @@ from functools import cache
 from pathlib import Path
 
 from vtts.errors import SpeechError
+from vtts.limits import MAX_DURATION_S, MAX_TEXT_BYTES, LimitError, read_bytes_capped
 from vtts.resources import package_data
 
 #: The viseme of p, b and m: the lips close.
@@ -252,7 +253,7 @@ def read_phoneme_file(
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8-sig")
+        text = read_bytes_capped(path, MAX_TEXT_BYTES, what="phoneme file").decode("utf-8-sig")
     except (OSError, UnicodeDecodeError) as e:
         raise SpeechError(f"cannot read the phoneme file: {e}", file=str(path)) from None
     lines = text.splitlines()
@@ -265,6 +266,12 @@ def read_phoneme_file(
         result = _read_table(lines, str(path), language)
     if not result.phones:
         raise SpeechError("the phoneme file has no phones", file=str(path))
+    last = max([p.end for p in result.phones] + [m.time for m in result.marks])
+    if last > MAX_DURATION_S:
+        raise LimitError(
+            f"the phonemes last until {last:g} s, more than the limit of {MAX_DURATION_S:g} s",
+            file=str(path),
+        )
     return result
 
 
@@ -282,6 +289,11 @@ def _read_polly(lines: list[str], file: str, duration: float | None) -> PhonemeF
             raise SpeechError(
                 f"not a JSON speech mark ({e.msg}): {_short(s)}", file=file, line=n
             ) from None
+        except (ValueError, RecursionError) as e:  # an integer of 5,000 digits, deep nesting
+            reason = "nested too deeply" if isinstance(e, RecursionError) else str(e).split(";")[0]
+            raise SpeechError(
+                f"not a JSON speech mark ({reason}): {_short(s)}", file=file, line=n
+            ) from None
         if not isinstance(entry, dict) or "type" not in entry or "time" not in entry:
             raise SpeechError(
                 f'expected {{"time": ms, "type": ..., "value": ...}}, got {_short(s)}',
@@ -289,8 +301,10 @@ def _read_polly(lines: list[str], file: str, duration: float | None) -> PhonemeF
                 line=n,
             )
         t = entry["time"]
-        if isinstance(t, bool) or not isinstance(t, int | float) or not math.isfinite(t) or t < 0:
-            raise SpeechError(f"time must be milliseconds >= 0, got {t!r}", file=file, line=n)
+        if isinstance(t, bool) or not isinstance(t, int | float) or not _finite(t) or t < 0:
+            raise SpeechError(
+                f"time must be milliseconds >= 0, got {_short(repr(t))}", file=file, line=n
+            )
         seconds = t / 1000.0
         kind, value = entry["type"], entry.get("value")
         if kind == "viseme":
@@ -371,6 +385,13 @@ def _read_table(lines: list[str], file: str, language: str) -> PhonemeFile:
         phones.append(Phone(start, end, symbol, vis))
     marks.sort(key=lambda m: m.time)
     return PhonemeFile(phones, marks, "table", alphabet or "espeak-en")
+
+
+def _finite(x: float) -> bool:
+    try:
+        return math.isfinite(x)
+    except OverflowError:  # an int too large for a float
+        return False
 
 
 def _number(s: str) -> float | None:
