@@ -86,3 +86,17 @@ def _size(n: int) -> str:
         if n >= 1 << shift and n % (1 << shift) == 0:
             return f"{n >> shift} {unit}"
     return f"{n} bytes"
+
+
+def check_image_size(
+    width: int, height: int, *, file: str | None = None, what: str = "image"
+) -> None:
+    """Raise :class:`LimitError` for an image beyond :data:`MAX_IMAGE_SIDE` on a side or
+    :data:`MAX_IMAGE_PIXELS` in all — before its pixels are decoded (a small PNG can inflate to
+    gigabytes)."""
+    if max(width, height) > MAX_IMAGE_SIDE or width * height > MAX_IMAGE_PIXELS:
+        raise LimitError(
+            f"the {what} is {width}x{height} pixels, more than the limit of {MAX_IMAGE_SIDE} "
+            f"pixels on a side and {MAX_IMAGE_PIXELS} in all",
+            file=file,
+        )

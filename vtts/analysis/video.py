@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from vtts.errors import AnalysisError, RenderError
+from vtts.limits import check_image_size
 
 #: Frame rate of a PNG folder when none is given (frames per second).
 DEFAULT_FOLDER_FPS = 25.0
@@ -122,6 +123,7 @@ def _png_size(path: Path) -> tuple[int, int]:
                 raise AnalysisError(
                     f"not a PNG file (Pillow reads it as {img.format})", file=str(path)
                 )
+            check_image_size(*img.size, file=str(path), what="frame")
             return img.size
     except (OSError, UnidentifiedImageError, ValueError) as e:
         raise AnalysisError(f"cannot read the PNG: {_reason(e)}", file=str(path)) from None
@@ -162,6 +164,7 @@ def load_png(path: str | os.PathLike[str], size: tuple[int, int] | None = None) 
 
     try:
         with Image.open(path) as img:
+            check_image_size(*img.size, file=str(path), what="frame")
             if size is not None and img.size != tuple(size):
                 raise AnalysisError(
                     f"the frame is {img.size[0]}x{img.size[1]} pixels, expected "
@@ -202,6 +205,7 @@ def _read_file(path: Path, fps: float | None) -> Video:
     if rate is None or not (math.isfinite(rate) and rate > 0):
         raise AnalysisError("the video states no frame rate: give one (--fps)", file=str(path))
     size = (info.width, info.height)
+    check_image_size(*size, file=str(path), what="video frame")
 
     def frames() -> Iterator[np.ndarray]:
         yield from _decode(path, size)

@@ -26,7 +26,7 @@ import scipy.sparse as sp
 
 from vtts.errors import RenderError
 from vtts.face import N_PARAMS, FaceModel
-from vtts.limits import MAX_IMAGE_SIDE, MAX_RENDER_PIXELS
+from vtts.limits import MAX_IMAGE_SIDE, MAX_RENDER_PIXELS, check_image_size
 from vtts.render.camera import Camera, find_viewpoint, frame_bounds
 from vtts.render.color import TRANSPARENT, parse_background
 from vtts.vrml import Node, resolve_url, transform_matrix, triangulate
@@ -873,6 +873,7 @@ def _load_image(path: Path) -> np.ndarray:
 
     try:
         with Image.open(path) as im:
+            check_image_size(*im.size, file=str(path), what="texture image")
             return np.asarray(im.convert("RGBA"))
-    except OSError as e:
+    except (OSError, Image.DecompressionBombError) as e:
         raise RenderError(f"cannot read texture image {path}: {e}") from None
