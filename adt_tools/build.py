@@ -36,6 +36,7 @@ from vtts.errors import AdtError, FapError, VttsError, VttsWarning
 from vtts.face import Adt, AnimationTables, MeshTable, Miap, TransformTable
 from vtts.face.adt import strip_tables, tables_from_scene
 from vtts.fap import AU
+from vtts.limits import MAX_ACCESSOR_COUNT, MAX_GLTF_BYTES, read_bytes_capped
 from vtts.vrml import Node, Scene, read, resolve_url
 from vtts.vrml.fields import format_number
 
@@ -467,6 +468,15 @@ class _GltfReader:
         self.path = path
         self.file = str(path)
         try:
+            size = path.stat().st_size
+        except OSError as e:
+            raise AdtError(f"cannot read file: {e.strerror}", file=self.file) from None
+        if size > MAX_GLTF_BYTES or not path.is_file():
+            raise AdtError(
+                f"not a glTF file of at most {MAX_GLTF_BYTES >> 20} MiB (vtts.limits)",
+                file=self.file,
+            )
+        try:
             self.doc = GLTF2.load(str(path))
         except Exception as e:  # pygltflib raises IOError, json and struct errors alike
             raise AdtError(f"not a readable glTF file: {e}", file=self.file) from None
@@ -503,7 +513,10 @@ class _GltfReader:
                 raise self.error(
                     f"buffer {index}: '{uri}' is not a file inside the glTF file's folder"
                 )
-            data = found.read_bytes()
+            try:
+                data = read_bytes_capped(found, MAX_GLTF_BYTES, what=f"buffer {index}")
+            except OSError as e:
+                raise self.error(f"buffer {index}: cannot read '{uri}': {e.strerror}") from None
         self.buffers[index] = data
         return data
 
@@ -514,7 +527,12 @@ class _GltfReader:
         except IndexError:
             raise self.error(f"bufferView {view_index} does not exist") from None
         data = self.buffer(view.buffer)
-        start = view.byteOffset or 0
+        start, length = view.byteOffset or 0, view.byteLength
+        if not all(isinstance(v, int) and v >= 0 for v in (start, length)):
+            raise self.error(
+                f"bufferView {view_index}: byteOffset and byteLength must be integers >= 0, "
+                f"got {start!r} and {length!r}"
+            )
         if start + view.byteLength > len(data):
             raise self.error(f"bufferView {view_index} reaches past the end of its buffer")
         return data, start, view.byteLength, view.byteStride
@@ -525,6 +543,13 @@ class _GltfReader:
         dtype = np.dtype(_COMPONENT_TYPES[ctype])
         data, start, length, stride = self.view_bytes(view_index)
         item = dtype.itemsize * ncomp
+        if stride is not None and not (isinstance(stride, int) and item <= stride <= 252):
+            raise self.error(
+                f"{what}: bufferView {view_index} has byteStride {stride!r}; it must be "
+                f"{item}–252 (the element size to the glTF maximum)"
+            )
+        if not (isinstance(offset, int) and offset >= 0):
+            raise self.error(f"{what}: byteOffset must be an integer >= 0, got {offset!r}")
         stride = stride or item
         end = offset + stride * (count - 1) + item if count else offset
         if end > length:
@@ -547,6 +572,13 @@ class _GltfReader:
                 f"{what}: accessor {index} has type {acc.type}/{acc.componentType}"
             )
         what = f"{what} (accessor {index})"
+        counts = (("count", acc.count), ("sparse count", getattr(acc.sparse, "count", 0)))
+        for name, count in counts:
+            if not (isinstance(count, int) and 0 <= count <= MAX_ACCESSOR_COUNT):
+                raise self.error(
+                    f"{what}: {name} {count!r} is not an integer within 0–{MAX_ACCESSOR_COUNT} "
+                    "(vtts.limits)"
+                )
         if acc.bufferView is None:
             values = np.zeros((acc.count, ncomp))
         else:

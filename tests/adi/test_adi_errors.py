@@ -254,6 +254,37 @@ def test_gltf_targets_need_names(model, neutral_wrl, tmp_path):
     assert e.file == str(path)
 
 
+def _hostile_gltf(model, tmp_path, change):
+    import pygltflib
+
+    base = face_points(model)
+    path = write_gltf(tmp_path / "x.glb", [("FACE_MESH", base, face_triangles(model),
+                                            {"joy@1": base * 0})])
+    doc = pygltflib.GLTF2.load(str(path))
+    blob = doc.binary_blob()
+    change(doc)
+    doc.set_binary_blob(blob)
+    doc.save_binary(str(path))
+    return path
+
+
+@pytest.mark.parametrize("change, message", [
+    # a count of 1e10 was allocated (5.2 GB) before anything checked it
+    (lambda d: setattr(d.accessors[0], "bufferView", None) or setattr(d.accessors[0], "count",
+                                                                       10**10),
+     "count 10000000000 is not an integer within 0–50000000"),
+    (lambda d: setattr(d.accessors[0], "count", -1), "count -1 is not an integer"),
+    (lambda d: setattr(d.bufferViews[d.accessors[0].bufferView], "byteStride", -12),
+     "byteStride -12; it must be 12–252"),
+    (lambda d: setattr(d.accessors[0], "byteOffset", -4), "byteOffset must be an integer >= 0"),
+])
+def test_hostile_gltf_accessors_are_clear_errors(model, neutral_wrl, tmp_path, change, message):
+    path = _hostile_gltf(model, tmp_path, change)
+    e = build_error(neutral_wrl, path)
+    assert message in e.message
+    assert e.file == str(path)
+
+
 @pytest.mark.parametrize("target, message", [
     ("close_t_l_eyelid", "names FAP MIAP 19 (close_t_l_eyelid) without an amplitude"),
     ("wink@1", "unknown MIAP 'wink' in morph target name 'wink@1' of mesh FACE_MESH"),
