@@ -149,6 +149,26 @@ CASES = {
 }  # fmt: skip
 
 
+def _polly(tmp: Path, time: str, value: str = '"p"') -> Path:
+    (tmp / "marks.json").write_text(f'{{"time": {time}, "type": "viseme", "value": {value}}}\n')
+    return tmp / "marks.json"
+
+
+POLLY = {
+    "nested 10,000 deep": (("0", "[" * 10_000 + "]" * 10_000), "nested too deeply"),
+    "an integer of 5,000 digits": (("9" * 5000,), "Exceeds the limit (4300 digits)"),
+    "1e400 ms": (("1e400",), "time must be milliseconds >= 0, got 'inf'"),
+    "1e300 ms": (("1e300",), "the phonemes last until 1e+297 s, more than the limit of 3600 s"),
+}
+for _name, (_polly_args, _message) in POLLY.items():
+    CASES[f"Polly speech marks: {_name}"] = (
+        lambda t, a=_polly_args: ["say", "Hi", "--model", HEAD, "--phonemes",
+                                  str(_polly(t, *a)), "--audio", str(_wav(t / "a.wav")),
+                                  "--wav-out", "x.wav"],
+        _message,
+    )  # fmt: skip
+
+
 @pytest.mark.parametrize("case", CASES)
 def test_a_hostile_size_is_a_clear_error(tmp_path, case):
     make_args, message = CASES[case]
