@@ -194,10 +194,26 @@ def cmd_info(args: argparse.Namespace) -> int:
 # ---- pose ----------------------------------------------------------------------------------------
 
 
-def parse_assignments(text: str, what: str, default: float | None = None) -> dict[str, float]:
+def _seed(text: str) -> int:
+    """A ``--seed``: a whole number 0 to 2**63 - 1 (numpy's generators take no negative seed)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if not 0 <= value < 2**63:
+        raise argparse.ArgumentTypeError(f"{value} must be within 0 to 2**63 - 1")
+    return value
+
+
+def parse_assignments(
+    text: str, what: str, default: float | None = None, *, bounds: tuple[float, float] | None = None
+) -> dict[str, float]:
     """``"19=512,open_jaw=300"`` → ``{"19": 512.0, "open_jaw": 300.0}``.
 
-    Without ``=VALUE`` an item takes ``default`` (an error when None)."""
+    Without ``=VALUE`` an item takes ``default`` (an error when None). Values must be finite and,
+    with ``bounds`` (lo, hi), within them."""
+    import math
+
     from vtts.errors import FapError
 
     out: dict[str, float] = {}
@@ -209,9 +225,15 @@ def parse_assignments(text: str, what: str, default: float | None = None) -> dic
             out[key.strip()] = default
             continue
         try:
-            out[key.strip()] = float(value)
+            number = float(value)
         except ValueError:
             raise FapError(f"{what} '{key.strip()}': {value!r} is not a number") from None
+        if not math.isfinite(number):
+            raise FapError(f"{what} '{key.strip()}': {value.strip()} is not a finite number")
+        if bounds is not None and not bounds[0] <= number <= bounds[1]:
+            lo, hi = bounds
+            raise FapError(f"{what} '{key.strip()}': {value.strip()} must be within {lo:g}–{hi:g}")
+        out[key.strip()] = number
     return out
 
 
@@ -220,12 +242,14 @@ def _pose_request(args: argparse.Namespace) -> tuple[dict, dict, dict]:
     faps: dict[str, float] = {}
     visemes: dict[str, float] = {}
     expressions: dict[str, float] = {}
+    from vtts.limits import MAX_FAP_VALUE
+
     for text in args.fap or []:
-        faps.update(parse_assignments(text, "FAP"))
+        faps.update(parse_assignments(text, "FAP", bounds=(-MAX_FAP_VALUE, MAX_FAP_VALUE)))
     for text in args.viseme or []:
-        visemes.update(parse_assignments(text, "viseme", default=1.0))
+        visemes.update(parse_assignments(text, "viseme", default=1.0, bounds=(0.0, 1.0)))
     for text in args.expression or []:
-        expressions.update(parse_assignments(text, "expression", default=1.0))
+        expressions.update(parse_assignments(text, "expression", default=1.0, bounds=(0.0, 1.0)))
     return faps, visemes, expressions
 
 
@@ -696,7 +720,7 @@ def build_parser() -> argparse.ArgumentParser:
         "'start end phoneme' table (needs --audio)",
     )
     sy.add_argument("--audio", help="the WAV that --phonemes describes")
-    sy.add_argument("--seed", type=int, default=0, help="seed of the autonomous behaviour")
+    sy.add_argument("--seed", type=_seed, default=0, help="seed of the autonomous behaviour")
     sy.add_argument(
         "--no-autonomous",
         action="store_true",

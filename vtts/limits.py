@@ -29,6 +29,12 @@ MAX_FBS_BYTES = 64 << 20
 #: A glTF or GLB file (with its buffers).
 MAX_GLTF_BYTES = 512 << 20
 
+# ---- values -------------------------------------------------------------------------------------
+
+#: The largest FAP value a command line or bookmark may give, in FAP units (FAPU or AU): a
+#: thousand of a face's own distances, or ten radians.
+MAX_FAP_VALUE = 1e6
+
 # ---- time ----------------------------------------------------------------------------------------
 
 #: The longest animation, in seconds (an utterance, a FAP file, a decoded stream).

@@ -77,7 +77,8 @@ class Miap:
         if isinstance(text, int):
             return cls("fap", fap(text).number) if text > 2 else cls._bad(str(text))
         t = text.strip().lower()
-        m = re.fullmatch(r"(viseme|expression)[\s_\-]*(\w+)", t)
+        # "viseme 3", "viseme_3", "viseme3", "viseme-3"; but "viseme -1" is viseme -1, not 1
+        m = re.fullmatch(r"(viseme|expression)(?:[\s_]+|-(?=\w))?(-?\w+)", t)
         if m:
             kind, key = m.groups()
             if kind == "viseme":

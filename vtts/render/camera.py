@@ -28,6 +28,11 @@ from vtts.vrml import Node, Scene, rotation_matrix
 DEFAULT_FIELD_OF_VIEW = 0.785398
 
 
+#: The largest focal length or principal-point offset a camera takes, in pixels (a focal length
+#: of a million pixels is a 0.03° field of view on a 512-pixel image).
+MAX_PIXELS = 1e6
+
+
 @dataclass
 class Camera:
     """Pinhole intrinsics (pixels) and the camera's pose in the world.
@@ -50,8 +55,17 @@ class Camera:
     def __post_init__(self) -> None:
         for name in ("fx", "fy"):
             v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise RenderError(f"camera {name} must be a positive number of pixels, got {v}")
+            if not (math.isfinite(v) and 0 < v <= MAX_PIXELS):
+                raise RenderError(
+                    f"camera {name} must be a positive number of pixels up to {MAX_PIXELS:g}, "
+                    f"got {v}"
+                )
+        for name in ("cx", "cy"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and abs(v) <= MAX_PIXELS):
+                raise RenderError(
+                    f"camera {name} must be a number of pixels within ±{MAX_PIXELS:g}, got {v}"
+                )
         self.pose = np.asarray(self.pose, dtype=np.float64).reshape(4, 4)
 
     @classmethod

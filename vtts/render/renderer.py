@@ -34,6 +34,9 @@ from vtts.vrml.geometry import TriangleMesh
 from vtts.vrml.transform import compose_transform
 
 _pyrender = None
+#: The largest scene extent (model units) the renderer frames; beyond it depth precision and the
+#: camera's placement break down (coordinates of 1e308 overflow).
+MAX_EXTENT = 1e9
 #: Multisampling of the main framebuffer (pyrender's own default is 4).
 MSAA_SAMPLES = 0
 
@@ -387,6 +390,8 @@ class FaceRenderer:
                 raise RenderError(f"{model.name}: scene graph nests deeper than 128 levels")
             if t == "Transform":
                 local = transform_matrix(node)
+                if not np.isfinite(local).all() or abs(np.linalg.det(local[:3, :3])) < 1e-30:
+                    return  # a scale of 0 (or overflowing fields) hides what is below
                 pn = pr.Node(matrix=local)
                 self.scene.add_node(pn, parent_node=parent)
                 if node.name in animated_transforms:
@@ -528,6 +533,17 @@ class FaceRenderer:
     def _place(self, layout: str) -> None:
         """Put the models side by side along x, centred, with a gap of 15 % of a head."""
         pr = _pr()
+        for inst in self.instances:
+            if np.isinf(inst.lo).all() and np.isinf(inst.hi).all():
+                # nothing visible (an empty scene, a scale of 0, a Switch choosing nothing):
+                # a unit box frames an empty picture
+                inst.lo, inst.hi = np.full(3, -0.5), np.full(3, 0.5)
+            extent = inst.hi - inst.lo
+            if not (np.isfinite(extent).all() and extent.max() <= MAX_EXTENT):
+                raise RenderError(
+                    f"{inst.model.name}: the scene spans {extent.max():.3g} units, more than the "
+                    f"{MAX_EXTENT:g} a picture can frame (coordinates too large?)"
+                )
         widths = [max(i.hi[0] - i.lo[0], 1e-6) for i in self.instances]
         gap = 0.15 * max(widths)
         total = sum(widths) + gap * (len(widths) - 1)

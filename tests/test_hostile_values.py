@@ -1,0 +1,95 @@
+"""Hostile and unusual values through the CLI and the renderer: non-finite and out-of-range
+numbers are clear errors; scenes with nothing to see render an empty picture (issue 21)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import vtts
+from vtts.errors import RenderError
+from vtts.render import FaceRenderer
+from vtts.render.camera import Camera
+
+DATA = Path(__file__).parent / "data"
+VTTS = Path(sys.executable).with_name("vtts")
+
+
+def vtts_cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([str(VTTS), *args], capture_output=True, text=True, timeout=120)
+
+
+SCENES = {
+    "empty": "",
+    "scale0": "Transform { scale 0 0 0 children Shape { geometry Box {} } }",
+    "switch": "Switch { whichChoice 5 choice [ Shape { geometry Box {} } ] }",
+}
+
+
+@pytest.mark.parametrize("name", sorted(SCENES))
+def test_nothing_to_see_renders_an_empty_picture(tmp_path, name):
+    path = tmp_path / f"{name}.wrl"
+    path.write_text("#VRML V2.0 utf8\n" + SCENES[name] + "\n")
+    model = vtts.load_model(path)
+    with FaceRenderer(model, size=(64, 48), background=(0, 0, 1)) as r:
+        frame = r.render(model.params())
+    assert frame.shape == (48, 64, 3)
+    assert (frame[..., 2] == 255).all() and (frame[..., :2] == 0).all()
+
+
+@pytest.mark.parametrize("path", sorted((DATA / "vrml97" / "good").glob("*.wrl")), ids=str)
+def test_every_good_conformance_file_renders(path):
+    model = vtts.load_model(path)
+    with FaceRenderer(model, size=(64, 48)) as r:
+        assert r.render(model.params()).shape == (48, 64, 3)
+
+
+def test_coordinates_too_large_to_frame(tmp_path):
+    path = tmp_path / "huge.wrl"
+    path.write_text(
+        "#VRML V2.0 utf8\nShape { geometry IndexedFaceSet { coord Coordinate { point "
+        "[0 0 0, 1e308 0 0, 0 1e308 0] } coordIndex [0 1 2 -1] } }\n"
+    )
+    with pytest.raises(RenderError, match="spans 1e\\+308 units"):
+        FaceRenderer(vtts.load_model(path), size=(64, 48))
+
+
+@pytest.mark.parametrize("fx", [1e308, float("inf"), 0.0, -5.0])
+def test_camera_focal_lengths_are_bounded(fx):
+    with pytest.raises(RenderError, match="camera fx"):
+        Camera(fx, 100.0, 32, 24)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--fap", "48=inf"], "inf is not a finite number"),
+        (["--fap", "3=1e32"], "must be within -1e+06–1e+06"),
+        (["--viseme", "7=nan"], "nan is not a finite number"),
+        (["--expression", "joy=5"], "must be within 0–1"),
+        (["--viseme", "-1"], "unknown viseme '-1'"),
+        (["--camera", "1e308,1e308,1,1"], "camera fx"),
+    ],
+)
+def test_render_refuses_bad_numbers(tmp_path, args, message):
+    out = tmp_path / "x.png"
+    r = vtts_cli("render", "--model", "cybatt", *args, "-o", str(out))
+    assert r.returncode == 1, r.stdout
+    assert message in r.stderr and "Traceback" not in r.stderr
+    assert not out.exists()
+
+
+def test_pose_refuses_nan_and_writes_nothing(tmp_path):
+    out = tmp_path / "posed.wrl"
+    r = vtts_cli("pose", "--model", "cybatt", "--fap", "3=nan", "-o", str(out))
+    assert r.returncode == 1 and "not a finite number" in r.stderr
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("seed", ["-1", "2e3", str(2**63)])
+def test_say_seed_must_be_a_whole_non_negative_number(tmp_path, seed):
+    r = vtts_cli("say", "hi", "--model", "cybatt", "--seed", seed, "-o", str(tmp_path / "x.mp4"))
+    assert r.returncode == 2 and "--seed" in r.stderr and "Traceback" not in r.stderr
