@@ -58,3 +58,43 @@ def write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
     """Write ``data`` to ``path`` atomically."""
     with atomic_path(path) as tmp:
         tmp.write_bytes(data)
+
+
+def check_outputs(
+    outputs: list[str | os.PathLike[str]], inputs: list[str | os.PathLike[str]]
+) -> None:
+    """Refuse, before anything is written, outputs that would destroy something: an output that
+    is one of the ``inputs`` (the same file by any name), two outputs that are the same file,
+    and an output that exists but is not a plain file (a link, a device, a FIFO, a folder: the
+    rename would replace it, and as root ``-o /dev/null`` would replace the system's). Raises
+    :class:`~vtts.errors.VttsError` naming the path."""
+    from vtts.errors import VttsError
+
+    def same(a: Path, b: Path) -> bool:
+        try:
+            return a.exists() and b.exists() and os.path.samefile(a, b)
+        except OSError:
+            return False
+
+    seen: list[Path] = []
+    for out in map(Path, outputs):
+        if out.is_symlink():
+            raise VttsError("an output must be a plain file, and this is a link", file=str(out))
+        if out.is_dir():
+            raise VttsError("cannot write here: it is a folder", file=str(out))
+        if out.exists() and not out.is_file():
+            raise VttsError(
+                "an output must be a plain file, and this is not a regular file (a device, a "
+                "pipe …)",
+                file=str(out),
+            )
+        for inp in map(Path, inputs):
+            if same(out, inp) or out.resolve() == inp.resolve():
+                raise VttsError(
+                    f"this output is also an input ({inp}): writing it would destroy it",
+                    file=str(out),
+                )
+        for other in seen:
+            if out.resolve() == other.resolve() or same(out, other):
+                raise VttsError(f"two outputs name the same file ({other})", file=str(out))
+        seen.append(out)

@@ -461,10 +461,6 @@ def cmd_say(args: argparse.Namespace) -> int:
         )
         for m in models
     ]
-    if args.fap_out:
-        write_fap(timeline_stream(timelines[0], models[0].name), args.fap_out)
-    if args.wav_out:
-        write_wav(args.wav_out, utt.audio, utt.rate)
     n = timelines[0].n_frames
     if args.output or args.png_dir:
         with contextlib.ExitStack() as stack:
@@ -487,6 +483,11 @@ def cmd_say(args: argparse.Namespace) -> int:
                 for sink in sinks:
                     sink.write(frame)
                 bar.advance()
+    # the stream and the speech last: a say that fails on the way leaves them as they were
+    if args.fap_out:
+        write_fap(timeline_stream(timelines[0], models[0].name), args.fap_out)
+    if args.wav_out:
+        write_wav(args.wav_out, utt.audio, utt.rate)
     if not args.quiet:
         outputs = [str(p) for p in (args.output, args.png_dir, args.fap_out, args.wav_out) if p]
         print(f"wrote {', '.join(outputs)}: {utt.duration:.2f} s, {n} frames at {args.fps:g} fps")
@@ -875,10 +876,62 @@ def _view_flags(p: argparse.ArgumentParser) -> None:
     )
 
 
+#: Options that name files a command writes, and files or folders it reads.
+_OUTPUT_OPTIONS = ("output", "fap_out", "wav_out")
+_INPUT_OPTIONS = ("stream", "video", "audio", "file", "phonemes", "input")
+
+
+def _model_files(name: str) -> list[Path]:
+    """A model's ``.wrl``, its sidecar ``.adt`` and the images its urls name beside it (what an
+    output must not overwrite); empty when the model is not found (loading reports that)."""
+    import re
+
+    from vtts.face import find_model
+
+    try:
+        wrl = find_model(name)
+    except VttsError:
+        return []
+    files = [wrl, wrl.with_suffix(".adt")]
+    with contextlib.suppress(OSError):
+        text = wrl.read_bytes()[: 64 << 20].decode("utf-8", "replace")
+        for url in set(re.findall(r'"([^"\n]{1,400}\.(?:png|jpe?g|gif|bmp))"', text, re.I)):
+            files.append(wrl.parent / url)
+    return files
+
+
+def _check_io(args: argparse.Namespace) -> None:
+    """Outputs that would replace an input, each other, a link or a device are refused before
+    the command starts (:func:`vtts.atomic.check_outputs`)."""
+    from vtts.atomic import check_outputs
+
+    outputs = [v for k in _OUTPUT_OPTIONS if (v := getattr(args, k, None))]
+    if not outputs:
+        return
+    inputs = [v for k in _INPUT_OPTIONS if (v := getattr(args, k, None))]
+    models = getattr(args, "model", None) or []
+    for m in [models] if isinstance(models, str) else models:
+        inputs += _model_files(m)
+    check_outputs(outputs, inputs)
+
+
+def _terminate_as_interrupt(signum, frame) -> None:
+    """SIGTERM and SIGHUP end a command as Ctrl-C does: temporary files are removed and no
+    output is left half-written."""
+    raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGTERM, signal.SIGHUP):
+            signal.signal(sig, _terminate_as_interrupt)
     try:
         with reported_warnings(), _url_roots(args):
+            _check_io(args)
             return args.func(args)
     except VttsError as e:
         print_error(e)
