@@ -43,6 +43,9 @@ def cmd_build(args: argparse.Namespace) -> int:
     if args.tolerance < 0:
         print(f"error: --tolerance must not be negative, got {args.tolerance:g}", file=sys.stderr)
         return 1
+    from vtts.atomic import check_outputs
+
+    check_outputs([out], [args.neutral, *args.deformed])
     with reported_warnings():
         neutral, tables = build(
             args.neutral, args.deformed, tolerance=args.tolerance, node=args.node

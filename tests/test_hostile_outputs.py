@@ -119,3 +119,14 @@ def test_sigterm_cleans_up_like_ctrl_c(tmp_path):
     assert "interrupted" in err and "Traceback" not in err
     assert list(out.iterdir()) == []
     assert not list(tmp_path.glob("vtts-say-*"))
+
+
+def test_adi_build_never_rewrites_its_neutral_model(tmp_path):
+    neutral = tmp_path / "n.wrl"
+    shutil.copy(DATA / "models" / "head.wrl", neutral)
+    before = neutral.read_bytes()
+    adi = Path(sys.executable).with_name("adi")
+    r = subprocess.run([str(adi), "build", str(neutral), str(neutral), "-o", str(neutral),
+                        "--embed"], capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert r.returncode == 1 and "also an input" in r.stderr
+    assert neutral.read_bytes() == before
