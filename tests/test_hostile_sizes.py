@@ -182,7 +182,7 @@ def test_a_hostile_size_is_a_clear_error(tmp_path, case):
 # content) within the same bounds.
 LOADS = {
     "a VRML string of 50 MB": (_long_string_wrl, 0, "OK"),
-    "an .adt of 30 MB of blank lines": (_blank_adt, 0, "OK"),
+    "an .adt of 30 MB of blank lines": (_blank_adt, 1, "no tables in it"),
 }
 
 

@@ -3,6 +3,8 @@ numbers are clear errors; scenes with nothing to see render an empty picture (is
 
 from __future__ import annotations
 
+import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -93,3 +95,61 @@ def test_pose_refuses_nan_and_writes_nothing(tmp_path):
 def test_say_seed_must_be_a_whole_non_negative_number(tmp_path, seed):
     r = vtts_cli("say", "hi", "--model", "cybatt", "--seed", seed, "-o", str(tmp_path / "x.mp4"))
     assert r.returncode == 2 and "--seed" in r.stderr and "Traceback" not in r.stderr
+
+
+# ---- messages ------------------------------------------------------------------------------------
+
+
+def test_control_characters_in_context_lines_are_escaped(tmp_path):
+    path = tmp_path / "esc.wrl"
+    path.write_bytes(b"#VRML V2.0 utf8\nShape { geometry Box { size 1 \x1b[31mRED 1 } }\n")
+    r = vtts_cli("check", str(path))
+    assert r.returncode == 1
+    assert "\x1b" not in r.stderr and "\\x1b[31mRED" in r.stderr
+
+
+def test_say_writes_videos_only(tmp_path):
+    r = vtts_cli("say", "hi", "--model", "cybatt", "-o", str(tmp_path / "x.png"))
+    assert r.returncode == 1 and "--png-dir" in r.stderr and "vtts render" in r.stderr
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_fap_bookmark_without_a_value_says_so(tmp_path):
+    text = tmp_path / "t.txt"
+    text.write_text("hello <fap 3> there")
+    r = vtts_cli("say", "--file", str(text), "--model", "cybatt", "-o", str(tmp_path / "x.mp4"))
+    assert r.returncode == 1 and "<fap 3=VALUE>" in r.stderr
+
+
+def test_an_empty_adt_is_not_ok(tmp_path):
+    shutil.copy(Path(__file__).parents[1] / "models" / "cybatt.wrl", tmp_path / "e.wrl")
+    (tmp_path / "e.adt").write_text("")
+    r = vtts_cli("check", str(tmp_path / "e.adt"))
+    assert r.returncode == 1 and "no tables in it" in r.stderr
+
+
+def test_a_pipe_is_not_a_video(tmp_path):
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    r = vtts_cli("analyze", str(fifo), "--model", "cybatt", "-o", str(tmp_path / "v.fap"))
+    assert r.returncode == 1 and "a pipe or a device" in r.stderr
+
+
+def test_analyze_output_and_report_must_differ(tmp_path):
+    same = tmp_path / "R"
+    r = vtts_cli("analyze", str(DATA / "video" / "akiyo_cif.mp4"), "--model", "cybatt",
+                 "-o", str(same), "--report", str(same))  # fmt: skip
+    assert r.returncode == 1 and "name the same path" in r.stderr
+
+
+def test_errors_name_the_output_not_its_temporary(tmp_path):
+    folder = tmp_path / "ro"
+    folder.mkdir()
+    out = folder / "x.png"
+    long_name = tmp_path / ("a" * 248 + ".png")
+    r = vtts_cli("render", "--model", "cybatt", "--size", "32x24", "-o", str(long_name))
+    assert r.returncode == 0, r.stderr  # a long name does not fail on its temporary's length
+    if os.geteuid() != 0:  # root writes anywhere
+        folder.chmod(0o500)
+        r = vtts_cli("render", "--model", "cybatt", "--size", "32x24", "-o", str(out))
+        assert r.returncode == 1 and f"{out}: error" in r.stderr and ".part" not in r.stderr

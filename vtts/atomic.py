@@ -25,8 +25,9 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     """
     dest = Path(path)
     dest.parent.mkdir(parents=True, exist_ok=True)
+    # a short temporary name: a 250-character output name must not fail on its temporary's
     fd, tmp_name = tempfile.mkstemp(
-        prefix=f".{dest.name}.", suffix=".part" + dest.suffix, dir=dest.parent
+        prefix=f".{dest.name[:40]}.", suffix=".part" + dest.suffix[:16], dir=dest.parent
     )
     os.close(fd)
     tmp = Path(tmp_name)
@@ -35,9 +36,12 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         # mkstemp makes the file private (0600); a finished output gets the usual permissions
         os.chmod(tmp, 0o666 & ~current_umask())
         os.replace(tmp, dest)
-    except BaseException:
+    except BaseException as e:
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
+        if isinstance(e, OSError) and e.filename in (str(tmp), tmp) and e.errno is not None:
+            # name the output the user gave, not its hidden temporary
+            raise OSError(e.errno, e.strerror, str(dest)) from None
         raise
 
 

@@ -46,6 +46,9 @@ def _check_adt(path: Path, args: argparse.Namespace) -> str:
             f"no {wrl.name} beside it: an .adt is checked against the scene it animates",
             file=str(path),
         )
+    if not tables:
+        raise AdtError("no tables in it (an .adt holds MIAP, temporal or feature-point tables)",
+                       file=str(path))  # fmt: skip
     check_tables(tables, read(wrl, lenient=args.lenient), file=str(path))
     nodes = len(tables.mesh_nodes()) + len(tables.transform_nodes())
     return f"{_plural(len(tables.adts), 'MIAP')} on {_plural(nodes, 'node')} of {wrl.name}"
@@ -519,6 +522,11 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     extra_fbs = out.with_suffix(".fbs") if args.fbs and not fbs else None
     if args.report and Path(args.report).exists() and not Path(args.report).is_dir():
         raise AnalysisError("the report folder is a file", file=args.report)
+    if args.report and Path(args.report).resolve() == out.resolve():
+        raise AnalysisError(
+            "-o and --report name the same path: the estimate is a file, the report a folder",
+            file=args.report,
+        )
     for path in (out, extra_fbs, args.report and Path(args.report) / "frames.csv"):
         if path:
             _check_writable(path)
@@ -915,6 +923,25 @@ def _check_io(args: argparse.Namespace) -> None:
     check_outputs(outputs, inputs)
 
 
+#: What ``-o`` of ``say`` and ``play`` may be: video containers ffmpeg writes with H.264 and AAC.
+VIDEO_SUFFIXES = (".mp4", ".m4v", ".mov", ".mkv")
+
+
+def _video_output(args: argparse.Namespace) -> None:
+    """``say``/``play -o`` must name a video (``say -o x.png`` wrote an MP4 named .png)."""
+    from vtts.errors import RenderError
+
+    out = getattr(args, "output", None)
+    if out and args.func in (cmd_say, cmd_play) and Path(out).suffix.lower() not in VIDEO_SUFFIXES:
+        given = Path(out).suffix or "a name without a suffix"
+        kinds = ", ".join(VIDEO_SUFFIXES)
+        raise RenderError(
+            f"-o writes a video ({kinds}), not {given}: for frames give --png-dir DIR, for a "
+            "still use vtts render",
+            file=str(out),
+        )
+
+
 def _terminate_as_interrupt(signum, frame) -> None:
     """SIGTERM and SIGHUP end a command as Ctrl-C does: temporary files are removed and no
     output is left half-written."""
@@ -932,6 +959,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with reported_warnings(), _url_roots(args):
             _check_io(args)
+            _video_output(args)
             return args.func(args)
     except VttsError as e:
         print_error(e)

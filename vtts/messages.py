@@ -18,9 +18,18 @@ def print_error(e: VttsError, default_file: str | None = None) -> None:
         e.file = default_file
     loc = e.location()
     head = f"{loc}: error: {e.message}" if loc else f"error: {e.message}"
-    print(head, file=sys.stderr)
+    print(printable(head), file=sys.stderr)
     if e.context:
-        print(e.context, file=sys.stderr)
+        print("\n".join(printable(line) for line in e.context.split("\n")), file=sys.stderr)
+
+
+def printable(text: str) -> str:
+    """``text`` with control characters escaped (``\\x1b``), so that an input's bytes quoted
+    in a message cannot drive the terminal."""
+    return "".join(
+        c if c.isprintable() or c == "\t" else c.encode("unicode_escape").decode("ascii")
+        for c in str(text)
+    )
 
 
 @contextmanager
@@ -36,6 +45,7 @@ def reported_warnings() -> Iterator[None]:
                 if isinstance(msg, VttsWarning):
                     parts = [str(p) for p in (msg.file, msg.line, msg.column) if p is not None]
                     loc = ":".join(parts)
-                    print(f"{loc + ': ' if loc else ''}warning: {msg.message}", file=sys.stderr)
+                    text = f"{loc + ': ' if loc else ''}warning: {msg.message}"
+                    print(printable(text), file=sys.stderr)
                 else:
-                    print(f"warning: {msg}", file=sys.stderr)
+                    print(printable(f"warning: {msg}"), file=sys.stderr)

@@ -84,6 +84,11 @@ def read_video(path: str | os.PathLike[str], *, fps: float | None = None) -> Vid
         return _read_folder(p, DEFAULT_FOLDER_FPS if fps is None else float(fps))
     if not p.exists():
         raise AnalysisError("no such video file or PNG folder", file=str(p))
+    if not p.is_file():
+        raise AnalysisError(
+            "not a video file nor a folder of PNGs (a pipe or a device cannot be analyzed)",
+            file=str(p),
+        )
     return _read_file(p, fps)
 
 

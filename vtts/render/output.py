@@ -383,7 +383,9 @@ class PngSequenceWriter:
         if d.exists() and not d.is_dir():
             raise RenderError(f"{d} exists and is not a folder")
         if d.is_dir() and any(d.iterdir()) and not self.overwrite:
-            raise RenderError(f"folder {d} exists and is not empty (use overwrite to replace it)")
+            raise RenderError(
+                f"folder {d} exists and is not empty: give a new or empty folder for the frames"
+            )
 
     def open(self) -> PngSequenceWriter:
         """Create the temporary folder (``__enter__`` calls it)."""

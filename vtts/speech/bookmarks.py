@@ -12,6 +12,7 @@ bookmark gets its time in the audio from the synthesizer's own mark event.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from functools import cache
 from xml.sax.saxutils import escape
@@ -21,6 +22,7 @@ from lark.exceptions import UnexpectedInput
 
 from vtts.errors import BookmarkError, FapError
 from vtts.face.miap import EXPRESSION_ALIASES, Miap
+from vtts.limits import MAX_FAP_VALUE
 from vtts.resources import grammar_text
 
 EXPRESSIONS = ("joy", "sadness", "anger", "fear", "disgust", "surprise")
@@ -188,6 +190,12 @@ def _bookmark(t: Tree, column: int, known: set[str] | None = None) -> Bookmark:
                     f"column {column}: <{written}> has two amplitudes", column=column
                 )
             amplitude = float(v)
+            if key == "fap" and not 0.0 <= amplitude <= 1.0:
+                raise BookmarkError(
+                    f"column {column}: <fap {v}> names FAP {v} without a value: write "
+                    f"<fap {v}=VALUE> (e.g. <fap {v}=400 1s>)",
+                    column=column,
+                )
             if not 0.0 <= amplitude <= 1.0:
                 raise BookmarkError(
                     f"column {column}: amplitude {v} of <{written}> must be within 0–1",
@@ -209,7 +217,14 @@ def _bookmark(t: Tree, column: int, known: set[str] | None = None) -> Bookmark:
                     f"column {column}: <fap> takes low-level FAPs 3–68, got '{fap_key}'",
                     column=column,
                 )
-            faps[miap.number] = float(value)
+            number = float(value)
+            if not (math.isfinite(number) and abs(number) <= MAX_FAP_VALUE):
+                raise BookmarkError(
+                    f"column {column}: FAP {fap_key}={value} must be a number within "
+                    f"±{MAX_FAP_VALUE:g}",
+                    column=column,
+                )
+            faps[miap.number] = number
     if key == "fap":
         if not faps:
             raise BookmarkError(
