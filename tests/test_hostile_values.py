@@ -20,8 +20,8 @@ DATA = Path(__file__).parent / "data"
 VTTS = Path(sys.executable).with_name("vtts")
 
 
-def vtts_cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([str(VTTS), *args], capture_output=True, text=True, timeout=120)
+def vtts_cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([str(VTTS), *args], capture_output=True, text=True, timeout=120, cwd=cwd)
 
 
 SCENES = {
@@ -153,3 +153,27 @@ def test_errors_name_the_output_not_its_temporary(tmp_path):
         folder.chmod(0o500)
         r = vtts_cli("render", "--model", "cybatt", "--size", "32x24", "-o", str(out))
         assert r.returncode == 1 and f"{out}: error" in r.stderr and ".part" not in r.stderr
+
+
+def test_check_refuses_what_render_refuses_and_names_the_file(tmp_path):
+    path = tmp_path / "oob.wrl"
+    path.write_text(
+        "#VRML V2.0 utf8\nShape { geometry IndexedFaceSet { coord Coordinate { point "
+        "[0 0 0, 1 0 0, 0 1 0] } coordIndex [0 1 7 -1] } }\n"
+    )
+    for args in (["check", str(path)], ["render", "--model", str(path), "-o", "x.png"]):
+        r = vtts_cli(*args, cwd=tmp_path)
+        assert r.returncode == 1, r.stdout
+        assert f"{path}:2:" in r.stderr and "out of range" in r.stderr
+
+
+def test_a_missing_texture_is_a_warning(tmp_path):
+    path = tmp_path / "notex.wrl"
+    path.write_text(
+        "#VRML V2.0 utf8\nShape { appearance Appearance { texture ImageTexture { url "
+        '"nothere.png" } } geometry Box {} }\n'
+    )
+    for args in (["check", str(path)], ["render", "--model", str(path), "-o", "x.png"]):
+        r = vtts_cli(*args, cwd=tmp_path)
+        assert r.returncode == 0, r.stderr
+        assert "texture 'nothere.png' not found" in r.stderr and f"{path}:2" in r.stderr

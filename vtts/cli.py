@@ -10,6 +10,7 @@ import argparse
 import contextlib
 import os
 import sys
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import NoReturn
@@ -24,10 +25,31 @@ from vtts.messages import print_error, reported_warnings
 
 
 def _check_wrl(path: Path, args: argparse.Namespace) -> str:
+    from vtts.errors import VttsWarning
     from vtts.face import load_model
+    from vtts.vrml import triangulate
 
     model = load_model(path, lenient=args.lenient)
     scene = model.scene
+    # what render would refuse, check refuses too (an out-of-range coordIndex)
+    for shape, _, _ in scene.shapes():
+        geom = shape["geometry"]
+        if geom is not None and geom.expand().type.name == "IndexedFaceSet":
+            try:
+                triangulate(geom)
+            except VttsError as e:
+                e.file = e.file or str(path)
+                raise
+    for node, urls in model.missing_textures():
+        warnings.warn(
+            VttsWarning(
+                f"texture {' '.join(repr(u) for u in urls)} not found (or outside the allowed "
+                "folders): drawn untextured",
+                file=str(path),
+                line=getattr(node, "line", None) or None,
+            ),
+            stacklevel=1,
+        )
     text = f"{_plural(scene.node_count, 'node')}, {_plural(scene.triangle_count(), 'triangle')}"
     if model.tables.adts:
         text += f", {_plural(len(model.tables.adts), 'MIAP')}"

@@ -28,7 +28,7 @@ from vtts.face.miap import N_PARAMS, Miap, face_params
 from vtts.face.temporal import TemporalTables
 from vtts.fap import Fapu
 from vtts.resources import models_dir
-from vtts.vrml import Scene, read, standard_node_types, url_roots
+from vtts.vrml import Node, Scene, read, standard_node_types, url_roots
 
 
 def bundled_models() -> list[str]:
@@ -211,6 +211,20 @@ class FaceModel:
             for f, v in fields.items():
                 node.fields[f] = np.array(v, dtype=np.float64)
         return scene
+
+    def missing_textures(self) -> list[tuple[Node, list[str]]]:
+        """The ``ImageTexture`` nodes whose urls name no file that can be loaded (missing, or
+        outside the allowed folders), with their urls: drawn untextured."""
+        from vtts.vrml import resolve_url
+
+        base = self.path.parent if self.path else None
+        roots = getattr(self.scene, "url_roots", ())
+        out = []
+        for node in self.scene.find("ImageTexture"):
+            urls = list(node.expand()["url"])
+            if urls and resolve_url(urls, base, roots) is None:
+                out.append((node, urls))
+        return out
 
     def describe(self) -> list[str]:
         """What the model can do, as lines for ``vtts info``."""

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
-from vtts.errors import RenderError
+from vtts.errors import RenderError, VttsError, VttsWarning
 from vtts.face import N_PARAMS, FaceModel
 from vtts.limits import MAX_IMAGE_SIDE, MAX_RENDER_PIXELS, check_image_size
 from vtts.render.camera import Camera, find_viewpoint, frame_bounds
@@ -426,7 +426,11 @@ class FaceRenderer:
         solid = bool(geom.get("solid", True))
         material = self._material(inst.model, shape["appearance"], not solid)
         if geom.type.name == "IndexedFaceSet":
-            tm = triangulate(geom)
+            try:
+                tm = triangulate(geom)
+            except VttsError as e:
+                e.file = e.file or (str(inst.model.path) if inst.model.path else None)
+                raise
             if tm.faces.size == 0:
                 return
             _, last, count = self.triangle_sets[-1] if self.triangle_sets else (None, 0, 0)
@@ -522,6 +526,18 @@ class FaceRenderer:
         base = model.path.parent if model.path else None
         path = resolve_url(tex["url"], base, getattr(model.scene, "url_roots", ()))
         if path is None:
+            if list(tex["url"]):
+                import warnings
+
+                warnings.warn(
+                    VttsWarning(
+                        f"texture {' '.join(repr(u) for u in tex['url'])} not found (or outside "
+                        "the allowed folders): drawn untextured",
+                        file=str(model.path) if model.path else None,
+                        line=getattr(tex, "line", None) or None,
+                    ),
+                    stacklevel=2,
+                )
             return None
         # one texture per image file: a head's appearances often share one (decoding it and
         # building its mipmaps again for each would only cost time)
