@@ -108,19 +108,18 @@ def cmd_fit(args: argparse.Namespace) -> int:
         print(f"error: --focal is a 35 mm-equivalent focal length in mm, got {args.focal:g}",
               file=sys.stderr)  # fmt: skip
         return 1
-    # the three outputs must not replace the photo (me-face.png -o me.wrl would) or be anything
-    # but plain files
+    # the three outputs must not replace the photo (me-face.png -o me.wrl would), nor be links
+    # or anything but plain files
+    from vtts.atomic import check_outputs
+
     photo = Path(args.photo)
-    for target in (out, out.with_suffix(".adt"), out.with_name(f"{out.stem}-face.png")):
+    outputs = [out, out.with_suffix(".adt"), out.with_name(f"{out.stem}-face.png")]
+    for target in outputs:
         if target.exists() and photo.exists() and os.path.samefile(target, photo):
             print(f"{target}: error: adi fit would write this over its photo; choose another "
                   "-o", file=sys.stderr)  # fmt: skip
             return 1
-        if target.is_symlink() or (target.exists() and not target.is_file()):
-            print(f"{target}: error: an output must be a plain file (this is "
-                  f"{'a link' if target.is_symlink() else 'not a regular file'})",
-                  file=sys.stderr)  # fmt: skip
-            return 1
+    check_outputs(outputs, [])
     name = args.name or out.stem
     with reported_warnings():
         try:

@@ -266,28 +266,15 @@ def photo_rows() -> list[dict]:
         ]
     n = len(cases)
     if reproj:
-        rows += [
-            row(
-                f"photos: reprojection, median of {len(reproj)} fitted",
-                round(float(np.median(reproj)), 3),
-                "% of eye distance",
-            ),
-            row(
-                f"photos: reprojection, worst of {len(reproj)} fitted",
-                round(max(reproj), 3),
-                "% of eye distance",
-            ),
-            row(
-                f"photos: skin PSNR, median of {len(skin_psnr)} fitted",
-                round(float(np.median(skin_psnr)), 2),
-                "dB",
-            ),
-            row(
-                f"photos: skin PSNR, worst of {len(skin_psnr)} fitted",
-                round(min(skin_psnr), 2),
-                "dB",
-            ),
-        ]
+        summary = (("reprojection", reproj, "% of eye distance", 3, max),
+                   ("skin PSNR", skin_psnr, "dB", 2, min))  # fmt: skip
+        for name, values, unit, digits, worst in summary:
+            rows += [
+                row(f"photos: {name}, median of {len(values)} fitted",
+                    round(float(np.median(values)), digits), unit),
+                row(f"photos: {name}, worst of {len(values)} fitted",
+                    round(worst(values), digits), unit),
+            ]  # fmt: skip
     # a photo without a fit counts as the worst face PSNR
     for label, v in (("median", float(np.median(face_psnr))), ("worst", min(face_psnr))):
         rows.append(

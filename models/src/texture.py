@@ -17,18 +17,19 @@ from __future__ import annotations
 import numpy as np
 from PIL import Image, ImageDraw, ImageFilter
 
-SIZE = 512
-SKIN_TILE = (0.0, 0.25, 1.0, 1.0)  # u0, v0, u1, v1
-EYE_TILE = (0.0, 0.0, 0.25, 0.25)
-TEETH_TILE = (0.25, 0.0, 0.5, 0.25)
-TONGUE_TILE = (0.5, 0.0, 0.75, 0.25)
-EAR_TILE = (0.75, 0.0, 1.0, 0.25)
-#: Texels kept clear at a tile's edge so that filtering never reaches the neighbour.
-INSET = 3 / SIZE
+from vtts.face.atlas import (  # noqa: F401 - the layout, shared with adi fit
+    EAR_TILE,
+    EYE_TILE,
+    GAMMA,
+    INSET,
+    SIZE,
+    SKIN_TILE,
+    TEETH_TILE,
+    TONGUE_TILE,
+)
+
 #: The eye tile's radius grows as (angle from the pupil / π) ** EYE_POWER: more texels for the iris.
 EYE_POWER = 0.6
-#: How much of the skin chart's width the front of the head gets (u = 0.5 ± (θ/π)^GAMMA / 2).
-GAMMA = 0.6
 
 
 def tile_uv(tile, uv: np.ndarray) -> np.ndarray:

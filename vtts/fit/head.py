@@ -149,6 +149,12 @@ def fitted_geometry(head: GenericHead, control: np.ndarray) -> FittedGeometry:
     return FittedGeometry(points, centres)
 
 
+def set_texture_url(scene: Scene, url: str) -> None:
+    """Point every ``ImageTexture`` of ``scene`` at ``url`` (the head has one atlas)."""
+    for node in scene.find("ImageTexture"):
+        node.fields["url"] = [url]
+
+
 def fitted_scene(model: FaceModel, geometry: FittedGeometry, texture_url: str,
                  title: str) -> Scene:  # fmt: skip
     """A copy of ``model``'s neutral scene with the fitted geometry, the texture at
@@ -160,8 +166,7 @@ def fitted_scene(model: FaceModel, geometry: FittedGeometry, texture_url: str,
         coord.fields["point"] = np.round(pts, 6) + 0.0
     for name, c in geometry.centres.items():
         scene.node(name).expand().fields["center"] = np.round(c, 6) + 0.0
-    for node in scene.find("ImageTexture"):
-        node.fields["url"] = [texture_url]
+    set_texture_url(scene, texture_url)
     # the photo's eyes carry their own catch lights: the generic eyes' strong highlight on top
     # would be two (and it hides the photo's colours under it)
     if "EYE" in scene.defs:

@@ -25,8 +25,15 @@ from vtts.atomic import atomic_path
 from vtts.errors import FitError, VttsWarning
 from vtts.face import FaceModel
 from vtts.face.adt import AnimationTables, format_adt
+from vtts.face.atlas import EAR_TILE
 from vtts.fit.generic import GenericHead, generic_head, landmark_map
-from vtts.fit.head import fitted_fapu, fitted_geometry, fitted_scene, transfer_tables
+from vtts.fit.head import (
+    fitted_fapu,
+    fitted_geometry,
+    fitted_scene,
+    set_texture_url,
+    transfer_tables,
+)
 from vtts.fit.landmarks import (
     LEFT_EYE,
     RIGHT_EYE,
@@ -38,7 +45,6 @@ from vtts.fit.landmarks import (
 from vtts.fit.shape import ShapeFit, fit_shape, focal_length
 from vtts.fit.texture import (
     ATLAS_SIZE,
-    EAR_TILE,
     EYE_TILES,
     PAINTED_PARTS,
     PROBE_GREY,
@@ -131,11 +137,6 @@ class FittedHead:
 
 def texture_name(wrl: Path) -> str:
     return f"{wrl.stem}-face.png"
-
-
-def set_texture_url(scene: Scene, url: str) -> None:
-    for node in scene.find("ImageTexture"):
-        node.fields["url"] = [url]
 
 
 def load_photo(path: str | Path) -> tuple[np.ndarray, float | None]:

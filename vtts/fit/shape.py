@@ -29,6 +29,7 @@ import numpy as np
 from vtts.fit.generic import GenericHead, LandmarkMap
 from vtts.fit.landmarks import EYE_CORNERS as LANDMARK_EYE_CORNERS
 from vtts.render.camera import Camera
+from vtts.vrml import rotation_matrix
 
 #: Default focal length as a 35 mm-equivalent (mm) when the photo has no EXIF focal length: a
 #: normal portrait lens.
@@ -110,13 +111,8 @@ class ShapeFit:
 
 
 def rotvec_matrix(v: np.ndarray) -> np.ndarray:
-    """``(3, 3)`` rotation of the rotation vector ``v (3,)`` (axis × angle, radians; Rodrigues)."""
-    angle = float(np.linalg.norm(v))
-    if angle < 1e-12:
-        return np.eye(3)
-    k = np.asarray(v, dtype=np.float64) / angle
-    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + math.sin(angle) * kx + (1 - math.cos(angle)) * (kx @ kx)
+    """``(3, 3)`` rotation of the rotation vector ``v (3,)`` (axis × angle, radians)."""
+    return rotation_matrix(np.r_[v, np.linalg.norm(v)])
 
 
 def yaw_of(rotation: np.ndarray) -> float:

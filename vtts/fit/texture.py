@@ -30,6 +30,7 @@ from PIL import Image
 from scipy import ndimage
 
 from vtts.analysis.raster import ray_barycentrics
+from vtts.face.atlas import EYE_TILE, GAMMA, INSET, SKIN_TILE
 from vtts.render.camera import Camera
 from vtts.vrml import triangulate
 
@@ -48,10 +49,6 @@ PAINTED_PARTS = PHOTO_PARTS
 #: The fitted head's own eye tiles: the generic eye tile's upper half, split in two (the photo
 #: shows each eye's iris where that eye looks).
 EYE_TILES = {"L_EYEBALL": (0.0, 0.125, 0.125, 0.25), "R_EYEBALL": (0.125, 0.125, 0.25, 0.25)}
-#: The atlas tiles (u0, v0, u1, v1) of the bundled heads (models/src/texture.py).
-SKIN_TILE = (0.0, 0.25, 1.0, 1.0)
-EAR_TILE = (0.75, 0.0, 1.0, 0.25)
-EYE_TILE = (0.0, 0.0, 0.25, 0.25)
 #: How far (texels) the photo's colours reach beyond what it saw in the eye and teeth tiles.
 TILE_REACH = 6.0
 #: A texel's weight grows from 0 to 1 as the cosine between its normal and the view grows
@@ -398,12 +395,6 @@ def split_eye_tiles(atlas: np.ndarray, scene) -> None:
         ]
 
 
-#: The bundled heads' skin chart (models/src/texture.py): u = 0.5 ± (|θ|/π)^GAMMA / 2 about the
-#: skull's axis, inside the tile's inset.
-GENERIC_GAMMA = 0.6
-GENERIC_INSET = 3 / 512
-
-
 def rechart_skin(scene) -> None:
     """Give the skin parts (:data:`SKIN_PARTS` in ``scene``) a chart without the bundled
     heads' infinitely steep middle: u = 0.5 ± s(|θ|/π) / 2 with s(t) = t (2 − t) (twice the
@@ -421,10 +412,10 @@ def rechart_skin(scene) -> None:
         coord = coord.expand()
         uv = np.asarray(coord["point"], dtype=np.float64).copy()
         wrap = np.floor(uv[:, 0])  # copies past the back seam carry u + 1
-        u = (uv[:, 0] - wrap - GENERIC_INSET) / (1 - 2 * GENERIC_INSET)
-        t = np.clip(np.abs(2 * u - 1), 0, 1) ** (1 / GENERIC_GAMMA)  # |θ| / π
+        u = (uv[:, 0] - wrap - INSET) / (1 - 2 * INSET)
+        t = np.clip(np.abs(2 * u - 1), 0, 1) ** (1 / GAMMA)  # |θ| / π
         new = 0.5 + 0.5 * np.sign(u - 0.5) * t * (2 - t)
-        uv[:, 0] = wrap + GENERIC_INSET + new * (1 - 2 * GENERIC_INSET)
+        uv[:, 0] = wrap + INSET + new * (1 - 2 * INSET)
         coord.fields["point"] = uv
 
 
