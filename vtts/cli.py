@@ -25,7 +25,6 @@ from vtts.messages import print_error, reported_warnings
 
 
 def _check_wrl(path: Path, args: argparse.Namespace) -> str:
-    from vtts.errors import VttsWarning
     from vtts.face import load_model
     from vtts.vrml import triangulate
 
@@ -41,15 +40,7 @@ def _check_wrl(path: Path, args: argparse.Namespace) -> str:
                 e.file = e.file or str(path)
                 raise
     for node, urls in model.missing_textures():
-        warnings.warn(
-            VttsWarning(
-                f"texture {' '.join(repr(u) for u in urls)} not found (or outside the allowed "
-                "folders): drawn untextured",
-                file=str(path),
-                line=getattr(node, "line", None) or None,
-            ),
-            stacklevel=1,
-        )
+        warnings.warn(model.texture_warning(node, urls), stacklevel=1)
     text = f"{_plural(scene.node_count, 'node')}, {_plural(scene.triangle_count(), 'triangle')}"
     if model.tables.adts:
         text += f", {_plural(len(model.tables.adts), 'MIAP')}"

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vtts.errors import ModelError, VttsError
+from vtts.errors import ModelError, VttsError, VttsWarning
 from vtts.face import cache
 from vtts.face.adt import (
     AnimationTables,
@@ -225,6 +225,15 @@ class FaceModel:
             if urls and resolve_url(urls, base, roots) is None:
                 out.append((node, urls))
         return out
+
+    def texture_warning(self, node: Node, urls: list[str]) -> VttsWarning:
+        """The warning for an ``ImageTexture`` whose ``urls`` load nothing (drawn untextured)."""
+        return VttsWarning(
+            f"texture {' '.join(repr(u) for u in urls)} not found (or outside the allowed "
+            "folders): drawn untextured",
+            file=str(self.path) if self.path else None,
+            line=getattr(node, "line", None) or None,
+        )
 
     def describe(self) -> list[str]:
         """What the model can do, as lines for ``vtts info``."""

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
-from vtts.errors import RenderError, VttsError, VttsWarning
+from vtts.errors import RenderError, VttsError
 from vtts.face import N_PARAMS, FaceModel
 from vtts.limits import MAX_IMAGE_SIDE, MAX_RENDER_PIXELS, check_image_size
 from vtts.render.camera import Camera, find_viewpoint, frame_bounds
@@ -529,15 +529,7 @@ class FaceRenderer:
             if list(tex["url"]):
                 import warnings
 
-                warnings.warn(
-                    VttsWarning(
-                        f"texture {' '.join(repr(u) for u in tex['url'])} not found (or outside "
-                        "the allowed folders): drawn untextured",
-                        file=str(model.path) if model.path else None,
-                        line=getattr(tex, "line", None) or None,
-                    ),
-                    stacklevel=2,
-                )
+                warnings.warn(model.texture_warning(tex, list(tex["url"])), stacklevel=2)
             return None
         # one texture per image file: a head's appearances often share one (decoding it and
         # building its mipmaps again for each would only cost time)
