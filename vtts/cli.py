@@ -408,36 +408,13 @@ def cmd_play(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_say(args: argparse.Namespace) -> int:
-    """Speak bookmarked text with one or more models into an MP4 (and/or PNGs, WAV, FAP)."""
-    import tempfile
+def _speak_and_set_up(args, text: str, models: list, known: set[str]):
+    """The utterance of ``text`` and the renderer (None without video or PNG output) for
+    ``vtts say``: espeak-ng speaks in a process of its own while the renderer is set up."""
     from concurrent.futures import ThreadPoolExecutor
 
-    from vtts.animate.timeline import build_timeline, timeline_stream
-    from vtts.errors import RenderError
-    from vtts.face import load_model
-    from vtts.fap import write_fap
-    from vtts.limits import MAX_TEXT_BYTES, read_bytes_capped
-    from vtts.render import PngSequenceWriter, VideoWriter, progress, write_wav
     from vtts.speech.say import prepare_utterance
 
-    if not (args.output or args.png_dir or args.fap_out or args.wav_out):
-        raise RenderError("nothing to write: give -o OUT.mp4, --png-dir, --fap-out or --wav-out")
-    if not 0 < args.fps <= 240:
-        raise RenderError(f"--fps must be within 0–240, got {args.fps:g}")
-    _background(args, video=bool(args.output))
-    text = args.text
-    if args.file:
-        try:
-            text = read_bytes_capped(args.file, MAX_TEXT_BYTES, what="text").decode("utf-8")
-        except (OSError, UnicodeDecodeError) as e:
-            reason = getattr(e, "strerror", None) or "not UTF-8 text"
-            raise VttsError(f"cannot read the text: {reason}", file=args.file) from None
-    if not text or not text.strip():
-        raise RenderError("nothing to say: give the text, or --file FILE")
-    models = [load_model(m) for m in args.model]
-    known = {x.name for m in models for x in m.tables.adts if x.kind == "expression"}
-    # espeak-ng speaks in a process of its own: set up the renderer meanwhile
     with ThreadPoolExecutor(max_workers=1) as pool:
         speaking = pool.submit(
             prepare_utterance,
@@ -457,6 +434,42 @@ def cmd_say(args: argparse.Namespace) -> int:
                 speaking.result()  # a problem with the text is reported first, as it comes first
                 raise
         utt = speaking.result()
+    return utt, renderer
+
+
+def cmd_say(args: argparse.Namespace) -> int:
+    """Speak bookmarked text with one or more models into an MP4 (and/or PNGs, WAV, FAP)."""
+    import tempfile
+
+    from vtts.animate.timeline import build_timeline, timeline_stream
+    from vtts.errors import BookmarkError, RenderError
+    from vtts.face import load_model
+    from vtts.fap import write_fap
+    from vtts.limits import MAX_TEXT_BYTES, read_bytes_capped
+    from vtts.render import PngSequenceWriter, VideoWriter, progress, write_wav
+
+    if not (args.output or args.png_dir or args.fap_out or args.wav_out):
+        raise RenderError("nothing to write: give -o OUT.mp4, --png-dir, --fap-out or --wav-out")
+    if not 0 < args.fps <= 240:
+        raise RenderError(f"--fps must be within 0–240, got {args.fps:g}")
+    _background(args, video=bool(args.output))
+    text = args.text
+    if args.file:
+        try:
+            text = read_bytes_capped(args.file, MAX_TEXT_BYTES, what="text").decode("utf-8")
+        except (OSError, UnicodeDecodeError) as e:
+            reason = getattr(e, "strerror", None) or "not UTF-8 text"
+            raise VttsError(f"cannot read the text: {reason}", file=args.file) from None
+    if not text or not text.strip():
+        raise RenderError("nothing to say: give the text, or --file FILE")
+    models = [load_model(m) for m in args.model]
+    known = {x.name for m in models for x in m.tables.adts if x.kind == "expression"}
+    try:
+        utt, renderer = _speak_and_set_up(args, text, models, known)
+    except BookmarkError as e:
+        if args.file and e.file is None:
+            e.file = args.file  # the text's place is in that file
+        raise
     for m in models:
         shown = {x.name for x in m.tables.adts if x.kind == "expression"}
         lacking = sorted({b.written for b in utt.text.check_names(shown)})

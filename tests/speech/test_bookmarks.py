@@ -71,6 +71,37 @@ def test_errors_have_the_column_and_the_names(text, column, fragment):
     assert fragment in info.value.message
 
 
+@pytest.mark.parametrize(
+    "text, line, column",
+    [
+        ("Hello \x01 world", None, 7),
+        ("Hello\nthere \x0c now", 2, 7),
+        ("Hello \ufffe", None, 7),
+    ],
+)
+def test_control_characters_are_refused_at_their_place_in_the_users_text(text, line, column):
+    """Not a column of the SSML document that the text becomes (it used to say column 14)."""
+    with pytest.raises(BookmarkError, match="cannot be spoken") as info:
+        parse_bookmarks(text)
+    assert (info.value.line, info.value.column) == (line, column)
+    assert "\\x" in info.value.message or "\\u" in info.value.message
+
+
+@pytest.mark.parametrize(
+    "text, line, column, fragment",
+    [
+        ("Hello\nthere <frown>", 2, 7, "unknown bookmark <frown>"),
+        ("a\nb\n <smile 2s 3s>", 3, 2, "<smile> has two durations"),
+        ("a\nb <smile", 2, 4, "cannot read a bookmark here"),
+    ],
+)
+def test_errors_in_a_text_of_several_lines_give_the_line(text, line, column, fragment):
+    with pytest.raises(BookmarkError) as info:
+        parse_bookmarks(text)
+    assert (info.value.line, info.value.column) == (line, column)
+    assert str(info.value).startswith(f"<input>:{line}:{column}: {fragment}")
+
+
 def test_escapes_and_plain_text_survive():
     t = parse_bookmarks("a \\< b \\\\ c \\d e")
     assert t.text == "a < b \\ c \\d e" and not t.bookmarks

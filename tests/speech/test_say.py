@@ -88,11 +88,17 @@ def test_say_writes_mp4_wav_and_fap_with_matching_durations(tmp_path):
         (["Hi", "--phonemes", "{tmp}/p.txt"], "--audio"),
         (["Hi"], "nothing to write"),
         (["", "-o", "{tmp}/x.mp4"], "nothing to say"),
+        (["Hi \x01 there"], "column 4: the control character '\\x01' cannot be spoken"),
+        (["--file", "{tmp}/t.txt"], "{tmp}/t.txt:2:7: error: unknown bookmark <frown>"),
+        (["--file", "{tmp}/t1.txt"], "{tmp}/t1.txt: error: column 4: unknown bookmark <grin>"),
     ],
 )
 def test_say_bad_input(tmp_path, args, fragment):
     (tmp_path / "p.txt").write_text("0 0.1 h\n")
+    (tmp_path / "t.txt").write_text("Hello\nthere <frown> now\n")
+    (tmp_path / "t1.txt").write_text("Hi <grin>")
     argv = [a.replace("{tmp}", str(tmp_path)) for a in args]
+    fragment = fragment.replace("{tmp}", str(tmp_path))
     if "-o" not in argv and fragment != "nothing to write":
         argv += ["-o", str(tmp_path / "x.mp4")]
     r = vtts("say", *argv, "--model", str(HEAD))

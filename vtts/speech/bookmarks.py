@@ -13,6 +13,7 @@ bookmark gets its time in the audio from the synthesizer's own mark event.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from functools import cache
 from xml.sax.saxutils import escape
@@ -113,53 +114,88 @@ def known_names(expressions: set[str] | None = None) -> list[str]:
     return [*names, *ACTIONS, "fap"]
 
 
+#: Characters that SSML (XML 1.0) cannot hold, so that no synthesizer can be given them.
+_UNSPEAKABLE = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ud800-\udfff\ufffe\uffff]")
+
+
 def parse_bookmarks(text: str, known: set[str] | None = None) -> BookmarkedText:
-    """Parse text with bookmarks; errors are :class:`BookmarkError` with the column (1-based)
-    and, for unknown names, the names that work: ``known`` is the set of expressions the model
-    has tables for (None: all six)."""
+    """Parse text with bookmarks; errors are :class:`BookmarkError` with the column (1-based;
+    and the line, when the text has several) and, for unknown names, the names that work:
+    ``known`` is the set of expressions the model has tables for (None: all six)."""
+    lines = "\n" in text
+    bad = _UNSPEAKABLE.search(text)
+    if bad is not None:
+        line = text.count("\n", 0, bad.start()) + 1
+        col = bad.start() - (text.rfind("\n", 0, bad.start()) + 1) + 1
+        error = BookmarkError(
+            f"column {col}: the control character {bad.group()!r} cannot be spoken (SSML cannot "
+            "hold it); remove it",
+            column=col,
+        )
+        raise _on_line(error, line) if lines else error
     try:
         tree = _lark().parse(text)
     except UnexpectedInput as e:
         col = getattr(e, "column", 0) or 1
         pos = getattr(e, "pos_in_stream", None)
         near = text[pos : pos + 12] if pos is not None else ""
-        raise BookmarkError(
+        error = BookmarkError(
             f"column {col}: cannot read a bookmark here ({near!r}); a bookmark is "
             "<NAME [DURATION] [AMPLITUDE]> or <fap N=V ... [DURATION]>, and \\< writes a "
             "literal <",
             column=col,
-        ) from None
+        )
+        raise (_on_line(error, getattr(e, "line", 1)) if lines else error) from None
     pieces: list[str | Bookmark] = []
     for item in tree.children:
-        if isinstance(item, Token):
-            piece = item[1:] if item.type == "ESCAPE" else str(item)
-            if pieces and isinstance(pieces[-1], str):
-                pieces[-1] += piece
-            else:
-                pieces.append(piece)
-        elif item.data == "bookmark":
-            pieces.append(_bookmark(item, item.children[0].column, known))
-        else:  # an SSML mark: its name holds a bookmark
-            quoted = item.children[1]
-            inner = str(quoted)[1:-1]
-            try:
-                sub = _lark().parse(f"<{inner}>")
-                (bm_tree,) = [c for c in sub.children if isinstance(c, Tree)]
-            except (UnexpectedInput, ValueError):
-                raise BookmarkError(
-                    f"column {quoted.column}: mark name {inner!r} is not a bookmark such as "
-                    '"smile 2s"',
-                    column=quoted.column,
-                ) from None
-            try:
-                pieces.append(_bookmark(bm_tree, item.children[0].column, known))
-            except BookmarkError as e:
-                reason = e.message.split(": ", 1)[-1]
-                raise BookmarkError(
-                    f"column {quoted.column}: mark name {inner!r} is not a bookmark: {reason}",
-                    column=quoted.column,
-                ) from None
+        try:
+            _add_piece(pieces, item, known)
+        except BookmarkError as e:
+            if not lines:
+                raise
+            token = item if isinstance(item, Token) else item.children[0]
+            raise _on_line(e, token.line) from None
     return BookmarkedText(pieces)
+
+
+def _on_line(error: BookmarkError, line: int) -> BookmarkError:
+    """``error`` (whose message starts with ``column N:``) placed on ``line`` of a text of several
+    lines: the line and column become its location (``FILE:LINE:COLUMN:`` in messages)."""
+    message = (
+        error.message.split(": ", 1)[1] if error.message.startswith("column ") else error.message
+    )
+    return BookmarkError(message, line=line, column=error.column)
+
+
+def _add_piece(pieces: list[str | Bookmark], item, known: set[str] | None) -> None:
+    """Append the parse tree's ``item`` (text, a bookmark or an SSML mark) to ``pieces``."""
+    if isinstance(item, Token):
+        piece = item[1:] if item.type == "ESCAPE" else str(item)
+        if pieces and isinstance(pieces[-1], str):
+            pieces[-1] += piece
+        else:
+            pieces.append(piece)
+    elif item.data == "bookmark":
+        pieces.append(_bookmark(item, item.children[0].column, known))
+    else:  # an SSML mark: its name holds a bookmark
+        quoted = item.children[1]
+        inner = str(quoted)[1:-1]
+        try:
+            sub = _lark().parse(f"<{inner}>")
+            (bm_tree,) = [c for c in sub.children if isinstance(c, Tree)]
+        except (UnexpectedInput, ValueError):
+            raise BookmarkError(
+                f'column {quoted.column}: mark name {inner!r} is not a bookmark such as "smile 2s"',
+                column=quoted.column,
+            ) from None
+        try:
+            pieces.append(_bookmark(bm_tree, item.children[0].column, known))
+        except BookmarkError as e:
+            reason = e.message.split(": ", 1)[-1]
+            raise BookmarkError(
+                f"column {quoted.column}: mark name {inner!r} is not a bookmark: {reason}",
+                column=quoted.column,
+            ) from None
 
 
 def _bookmark(t: Tree, column: int, known: set[str] | None = None) -> Bookmark:
