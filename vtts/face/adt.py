@@ -39,6 +39,8 @@ from vtts.vrml.fields import NumberError, format_number, format_numbers, parse_f
 TRANSFORM_FIELDS = ("rotation", "translation", "scale")
 #: MPEG-4 FaceDefTransform.fieldId for each Transform field.
 FIELD_IDS = {"rotation": 1, "scale": 2, "translation": 3}
+#: The largest vertex index a table may name (VRML's SFInt32).
+MAX_VERTEX_INDEX = 2**31 - 1
 
 
 # ---- tables --------------------------------------------------------------------------------------
@@ -358,8 +360,15 @@ class _AdtBuilder:
                 raise
         return adt
 
+    def number(self, tok: Token) -> float:
+        # 1e999 reads as inf, which no table can use and no .adt can write
+        value = float(tok)
+        if not np.isfinite(value):
+            raise self.error(f"{str(tok)!r} is not a finite number", tok)
+        return value
+
     def numbers(self, toks: list[Token]) -> np.ndarray:
-        return np.array([float(x) for x in toks], dtype=np.float64)
+        return np.array([self.number(x) for x in toks], dtype=np.float64)
 
     def mesh(self, t: Tree) -> MeshTable:
         node_tok = t.children[0]
@@ -415,10 +424,13 @@ class _AdtBuilder:
             raise AssertionError("unreachable")  # pragma: no cover
         table = values.reshape(len(rows), width)
         idx = table[:, 0]
-        if not np.array_equal(idx, np.round(idx)) or (idx < 0).any():
-            bad = int(np.argmax((idx != np.round(idx)) | (idx < 0)))
+        # an index of 1e30 would wrap around in int64 and be reported as negative
+        wrong = (idx != np.round(idx)) | (idx < 0) | (idx > MAX_VERTEX_INDEX)
+        if wrong.any():
+            bad = int(np.argmax(wrong))
             raise AdtError(
-                f"vertex index must be a non-negative integer, got {format_number(idx[bad])}",
+                f"vertex index must be a non-negative integer up to {MAX_VERTEX_INDEX}, got "
+                f"{format_number(idx[bad])}",
                 file=self.file,
                 line=tok.line + rows[bad][0],
                 column=1,
@@ -466,7 +478,7 @@ class _AdtBuilder:
                 key, value = s.children
                 if str(key) in settings:
                     raise self.error(f"setting '{key}' is given twice", key)
-                settings[str(key)] = float(value) if value.type == "NUMBER" else str(value)
+                settings[str(key)] = self.number(value) if value.type == "NUMBER" else str(value)
         try:
             temporal.set_entry(words, settings)
         except AdtError as e:
