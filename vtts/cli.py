@@ -304,12 +304,15 @@ def cmd_pose(args: argparse.Namespace) -> int:
 
 
 def _size(text: str) -> tuple[int, int]:
+    import re
+
     from vtts.errors import RenderError
 
-    w, x, h = text.lower().partition("x")
-    if not x or not w.isdigit() or not h.isdigit():
+    # ASCII digits ('²'.isdigit() is true), few enough for int() (it refuses 4,300)
+    m = re.fullmatch(r"([0-9]{1,18})x([0-9]{1,18})", text.lower())
+    if not m:
         raise RenderError(f"--size takes WIDTHxHEIGHT in pixels, such as 352x288; got {text!r}")
-    return int(w), int(h)
+    return int(m[1]), int(m[2])
 
 
 def _background(args: argparse.Namespace, video: bool):

@@ -49,7 +49,9 @@ UNKNOWN_SETS: dict[str, tuple[int | str, ...]] = {
 #: expressions, table indices without a motion of their own).
 ESTIMABLE = range(3, N_FAPS + 1)
 
-_RANGE = re.compile(r"(\d+)-(\d+)")
+# ASCII digits, few enough for int() (it refuses 4,300); longer numbers are no FAP's anyway
+_RANGE = re.compile(r"([0-9]{1,18})-([0-9]{1,18})")
+_NUMBER = re.compile(r"[0-9]{1,18}")
 
 
 def _items(word: str) -> tuple[int | str, ...]:
@@ -65,7 +67,7 @@ def _items(word: str) -> tuple[int | str, ...]:
         if not lo <= hi:
             raise AnalysisError(f"--faps item {word!r}: a range goes from low to high")
         numbers = range(lo, hi + 1)
-    elif key.isascii() and key.isdigit():
+    elif _NUMBER.fullmatch(key):
         numbers = range(int(key), int(key) + 1)
     else:
         try:

@@ -29,6 +29,10 @@ N_PARAMS = EXPRESSION_BASE + 7
 
 KINDS = ("fap", "viseme", "expression")
 
+# A FAP number as users write it; more digits than any number needs fall through to fap(), which
+# refuses them (int() would fail beyond 4,300 digits)
+_SIGNED = re.compile(r"[+-]?[0-9]{1,18}")
+
 
 @dataclass(frozen=True, order=True)
 class Miap:
@@ -80,11 +84,12 @@ class Miap:
         # "viseme 3", "viseme_3", "viseme3", "viseme-3"; but "viseme -1" is viseme -1, not 1
         m = re.fullmatch(r"(viseme|expression)(?:[\s_]+|-(?=\w))?(-?\w+)", t)
         if m:
+            # viseme() and expression() take a number as its digits (ASCII only: '²' is no number)
             kind, key = m.groups()
             if kind == "viseme":
-                return cls("viseme", viseme(int(key) if key.isdigit() else key).number)
-            return cls("expression", expression(int(key) if key.isdigit() else _alias(key)).number)
-        if t.lstrip("+-").isdigit():
+                return cls("viseme", viseme(key).number)
+            return cls("expression", expression(_alias(key)).number)
+        if _SIGNED.fullmatch(t):
             n = int(t)
             return cls("fap", fap(n).number) if n > 2 else cls._bad(text)
         if _alias(t) in {e.name for e in EXPRESSIONS.values()}:

@@ -123,7 +123,8 @@ def fap_set(text: str | Iterable[int | str]) -> tuple[int, ...]:
             if word.lower() in FAP_SETS:
                 out.update(FAP_SETS[word.lower()])
                 continue
-            m = re.fullmatch(r"(\d+)-(\d+)", word)
+            # ASCII digits, few enough for int() (it refuses 4,300)
+            m = re.fullmatch(r"([0-9]{1,18})-([0-9]{1,18})", word)
             if m:
                 lo, hi = int(m.group(1)), int(m.group(2))
                 if not 1 <= lo <= hi <= N_FAPS:

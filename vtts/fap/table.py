@@ -11,6 +11,7 @@ from __future__ import annotations
 import csv
 import math
 import numbers
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
@@ -153,10 +154,11 @@ def positive_number(what: str, value: object) -> float:
 
 
 def _as_number(key: object) -> int | None:
-    """``key`` as an int if it is an integer (not a bool) or a string of digits, else None."""
+    """``key`` as an int if it is an integer (not a bool) or a string of at most 18 ASCII
+    digits, else None (no table number has more, and int() refuses over 4,300 digits)."""
     if isinstance(key, numbers.Integral) and not isinstance(key, bool):
         return int(key)
-    if isinstance(key, str) and key.strip().isdecimal() and key.strip().isascii():
+    if isinstance(key, str) and re.fullmatch(r"[0-9]{1,18}", key.strip()):
         return int(key.strip())
     return None
 

@@ -1,0 +1,155 @@
+"""Fuzzing the readers of option strings (issue 21): ``--fap``/``--viseme``/``--expression``,
+MIAP and FAP names, ``--size``, ``--camera``, ``--background``, ``analyze --faps``, ``encode
+--faps``, ``--seed``. Whatever the string, the only exception is the reader's VttsError (or
+argparse's ArgumentTypeError for a type function); what is accepted reads back the same when
+written as the reader's own syntax.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+from hostile import INTERESTING, mutate, mutations
+from hypothesis import HealthCheck, example, given, settings
+from hypothesis import strategies as st
+
+from vtts.analysis.unknowns import parse_unknowns
+from vtts.cli import _seed, _size, parse_assignments
+from vtts.errors import AnalysisError, FapError, RenderError
+from vtts.face.miap import Miap, face_params
+from vtts.fap.coding import fap_set
+from vtts.render import Camera
+from vtts.render.color import TRANSPARENT, parse_background
+
+FUZZ = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+WORDS = [
+    "19", "3", "68", "69", "0", "1", "2", "-1", "+5", "+-5", "open_jaw", "head_pitch", "viseme",
+    "viseme3", "viseme 3", "viseme-3", "viseme_-1", "expression", "joy", "smile", "expression 7",
+    "tx", "tz", "paper17", "table1", "all", "low", "3-13", "13-3", "0-99", "9" * 30, "9" * 5000,
+    "²", "٣", "3²", "1e999", "nan", "inf", "-0", "0x10", "1_0", " ", "=", ",", "-", "p", "A:",
+]  # fmt: skip
+words = st.sampled_from(WORDS)
+#: An option value: a few words and separators, or any short text, or a mutated real value.
+option_text = st.one_of(
+    st.lists(st.one_of(words, st.sampled_from(INTERESTING)), max_size=6).map("".join),
+    st.lists(words, max_size=4).map(",".join),
+    st.text(max_size=30),
+    st.builds(mutate, st.sampled_from(["19=512,open_jaw=300", "352x288", "400,400,176,144"]),
+              mutations),
+)  # fmt: skip
+
+
+@FUZZ
+@given(option_text)
+@example("²")  # int('²') raised ValueError: str.isdigit() is true for superscripts
+@example("9" * 5000)  # int() refuses more than 4,300 digits with a ValueError
+@example("+-5")  # lstrip('+-') then int('+-5')
+@example("viseme ²")
+@example("expression ²")
+def test_miap_names(text: str) -> None:
+    try:
+        miap = Miap.parse(text)
+    except FapError as e:
+        assert e.message
+        return
+    assert Miap.parse(miap.key) == miap
+    assert Miap.parse(miap.name if miap.kind != "viseme" else f"viseme {miap.number}") == miap
+
+
+@FUZZ
+@given(option_text, st.sampled_from(["FAP", "viseme", "expression"]))
+@example("²=1", "FAP")
+@example("9" * 5000 + "=1", "FAP")
+def test_pose_assignments(text: str, what: str) -> None:
+    """What ``vtts pose``/``render`` do with ``--fap``, ``--viseme`` and ``--expression``."""
+    bounds = (-1e6, 1e6) if what == "FAP" else (0.0, 1.0)
+    default = None if what == "FAP" else 1.0
+    try:
+        values = parse_assignments(text, what, default, bounds=bounds)
+        face_params(
+            values if what == "FAP" else None,
+            visemes=values if what == "viseme" else None,
+            expressions=values if what == "expression" else None,
+        )
+    except FapError as e:
+        assert e.message
+        return
+    for v in values.values():
+        assert math.isfinite(v) and bounds[0] <= v <= bounds[1]
+
+
+@FUZZ
+@given(option_text)
+@example("²x288")  # int('²') after str.isdigit()
+@example("9" * 5000 + "x288")
+def test_size(text: str) -> None:
+    try:
+        w, h = _size(text)
+    except RenderError as e:
+        assert e.message
+        return
+    assert _size(f"{w}x{h}") == (w, h)
+
+
+@FUZZ
+@given(option_text)
+def test_camera(text: str) -> None:
+    try:
+        cam = Camera.parse(text)
+    except RenderError as e:
+        assert e.message
+        return
+    assert all(math.isfinite(v) for v in (cam.fx, cam.fy, cam.cx, cam.cy))
+
+
+@FUZZ
+@given(option_text)
+def test_background(text: str) -> None:
+    try:
+        color = parse_background(text)
+    except RenderError as e:
+        assert e.message
+        return
+    if color != TRANSPARENT:
+        assert all(0 <= c <= 1 for c in color)
+        assert parse_background(",".join(repr(c) for c in color)) == color
+
+
+@FUZZ
+@given(option_text)
+@example("9" * 5000)
+@example("3-" + "9" * 5000)
+@example("²")
+def test_analyze_faps(text: str) -> None:
+    try:
+        unknowns = parse_unknowns(text)
+    except AnalysisError as e:
+        assert e.message
+        return
+    assert parse_unknowns(",".join(map(str, unknowns))) == unknowns
+
+
+@FUZZ
+@given(option_text)
+@example("9" * 5000)
+@example("3-" + "9" * 5000)
+def test_encode_faps(text: str) -> None:
+    try:
+        faps = fap_set(text)
+    except FapError as e:
+        assert e.message
+        return
+    assert faps and fap_set(",".join(map(str, faps))) == faps
+
+
+@FUZZ
+@given(option_text)
+def test_seed(text: str) -> None:
+    try:
+        seed = _seed(text)
+    except argparse.ArgumentTypeError as e:
+        assert str(e)
+        return
+    assert 0 <= seed < 2**63
