@@ -237,6 +237,11 @@ def test_normal_equations_are_those_of_the_per_channel_equations():
     assert np.allclose(ata, a.T @ a, rtol=1e-9) and np.allclose(atb, a.T @ r.reshape(-1))
     ata, atb = _normal_equations(du, dv, gx, gy, r, None)  # no light model: the K columns
     assert np.allclose(ata, (a.T @ a)[:k, :k]) and np.allclose(atb, (a.T @ r.reshape(-1))[:k])
+    w = rng.uniform(0, 1, n)  # robust weights: each pixel's three rows weighed by w
+    ww = np.repeat(w, 3)
+    ata, atb = _normal_equations(du, dv, gx, gy, r, s, w)
+    assert np.allclose(ata, (a * ww[:, None]).T @ a, rtol=1e-9)
+    assert np.allclose(atb, (a * ww[:, None]).T @ r.reshape(-1))
 
 
 def test_a_change_of_light_is_not_read_as_motion(cybatt):

@@ -96,7 +96,9 @@ class Estimator:
     """Tracks one model through a sequence of frames of ``size`` (W, H).
 
     ``camera`` is the camera of the video (default: the framing ``vtts render`` uses for this
-    model and size). ``unknowns`` are FAP numbers and ``"tx"``, ``"ty"``, ``"tz"``.
+    model and size) in the renderer's world; ``model_camera`` the same in the model's own
+    coordinates (as :func:`vtts.fit.fit_photo` and :func:`~vtts.analysis.init.initial_camera`
+    give it). ``unknowns`` are FAP numbers and ``"tx"``, ``"ty"``, ``"tz"``.
     ``illumination`` estimates a gain and offset per color channel. ``sigma`` is the Gaussian
     filter (pixels of each level) applied to both images before the gradients. A level's solves
     stop when the last one moved no unknown's image by more than ``tolerance`` pixels of that
@@ -112,6 +114,7 @@ class Estimator:
         *,
         size: tuple[int, int] = (352, 288),
         camera: Camera | None = None,
+        model_camera: Camera | None = None,
         unknowns: Sequence[int | str] = DEFAULT_UNKNOWNS,
         pyramid: Sequence[Level] = PYRAMID,
         illumination: bool = True,
@@ -119,6 +122,7 @@ class Estimator:
         tolerance: float = TOLERANCE,
         refine: Iterable[int] = EYELIDS,
         predict: Iterable[int | str] = HEAD_MOTION,
+        robust: bool = False,
     ) -> None:
         self.unknowns = _check_unknowns(unknowns)
         wanted = set(refine)
@@ -129,6 +133,7 @@ class Estimator:
         self.illumination = illumination
         self.sigma = sigma
         self.tolerance = tolerance
+        self.robust = robust
         carried = set(predict)
         self.predicted = tuple(u for u in self.unknowns if u in carried)
         # (frame index, parameters, translation) of the last two estimates
@@ -136,7 +141,12 @@ class Estimator:
         w, h = self.size
         # one renderer for every view (pyramid levels, refinement windows): the GL context holds
         # one scene at a time, and changing scenes uploads every mesh and texture again
+        if camera is not None and model_camera is not None:
+            raise VttsError("give the camera in the renderer's frame or the model's, not both")
         self._renderer = FaceRenderer(model, size=self.size, camera=camera)
+        if model_camera is not None:  # the renderer centres the model: carry the camera along
+            placed = self._renderer.model_matrix(0) @ model_camera.pose
+            self._renderer.set_view(replace(model_camera, pose=placed), self.size, 1)
         self.camera = self._renderer.camera
         # pyramid factor -> (camera, image size) of that level
         self._levels: dict[int, tuple[Camera, tuple[int, int]]] = {1: (self.camera, self.size)}
@@ -318,7 +328,14 @@ class Estimator:
         held = support < lv.support
         du[:, held] = 0.0
         dv[:, held] = 0.0
-        ata, atb = _normal_equations(du, dv, gx_p, gy_p, r_p, s_p if self.illumination else None)
+        weights = None
+        if self.robust:
+            # Huber weights on the luminance residual: pixels the model cannot explain (hair,
+            # background at the outline, teeth, a hand) pull as if their residual were TRUNCATE
+            weights = np.minimum(1.0, TRUNCATE / np.maximum(np.abs(ry[keep]), 1e-6))
+        ata, atb = _normal_equations(
+            du, dv, gx_p, gy_p, r_p, s_p if self.illumination else None, weights
+        )
         delta = _least_squares(ata, atb)
         # the linearization holds for small motion: no unknown may move any of its pixels
         # further than the level's step limit in one solve
@@ -615,6 +632,7 @@ def _normal_equations(
     gy: np.ndarray,
     r: np.ndarray,
     s: np.ndarray | None,
+    weights: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The normal equations ``(AᵀA, Aᵀb)`` (float64) of the per-pixel, per-channel equations
     ``−(gx_c·du + gy_c·dv)·Δ + s_c·Δgain_c + Δoffset_c = r_c`` (Equation 10 with the image
@@ -624,12 +642,17 @@ def _normal_equations(
     ``gx``, ``gy``, ``r``, ``s`` ``(N, 3)``: gradients, residual and synthetic color per
     channel. Unknowns: the K, then the gains and offsets of the 3 channels. A is never formed:
     its 3N rows reduce per pixel to the 2×2 matrix of the gradients summed over the channels,
-    so every product is an (N × K)ᵀ(N × K) one."""
+    so every product is an (N × K)ᵀ(N × K) one. ``weights`` ``(N,)``: each pixel's weight in
+    the least-squares sum (default 1)."""
     du = du.astype(np.float64)
     dv = dv.astype(np.float64)
     gx = gx.astype(np.float64)
     gy = gy.astype(np.float64)
     r = r.astype(np.float64)
+    # a pixel's rows scaled by √w: the offsets' coefficient 1 becomes √w too
+    one = np.ones(len(r)) if weights is None else np.sqrt(weights.astype(np.float64))
+    if weights is not None:
+        gx, gy, r = gx * one[:, None], gy * one[:, None], r * one[:, None]
     k = du.shape[1]
     m = k + (6 if s is not None else 0)
     ata = np.zeros((m, m))
@@ -639,16 +662,16 @@ def _normal_equations(
     ata[:k, :k] = (du * gxx[:, None]).T @ du + cross + cross.T + (dv * gyy[:, None]).T @ dv
     atb[:k] = -(du.T @ (gx * r).sum(1) + dv.T @ (gy * r).sum(1))
     if s is not None:
-        s = s.astype(np.float64)
+        s = s.astype(np.float64) * one[:, None]
         for c in range(3):
             g, o = k + c, k + 3 + c  # the channel's gain and offset
             ata[:k, g] = -(du.T @ (gx[:, c] * s[:, c]) + dv.T @ (gy[:, c] * s[:, c]))
-            ata[:k, o] = -(du.T @ gx[:, c] + dv.T @ gy[:, c])
+            ata[:k, o] = -(du.T @ (gx[:, c] * one) + dv.T @ (gy[:, c] * one))
             ata[g, g] = s[:, c] @ s[:, c]
-            ata[g, o] = s[:, c].sum()
-            ata[o, o] = len(s)
+            ata[g, o] = s[:, c] @ one
+            ata[o, o] = one @ one
             atb[g] = s[:, c] @ r[:, c]
-            atb[o] = r[:, c].sum()
+            atb[o] = r[:, c] @ one
         upper = np.triu_indices(m, 1)
         ata[upper[::-1]] = ata[upper]
     return ata, atb
