@@ -23,7 +23,7 @@ from lark.exceptions import UnexpectedInput
 
 from vtts.errors import BookmarkError, FapError
 from vtts.face.miap import EXPRESSION_ALIASES, Miap
-from vtts.limits import MAX_FAP_VALUE
+from vtts.limits import MAX_DURATION_S, MAX_FAP_VALUE
 from vtts.resources import grammar_text
 
 EXPRESSIONS = ("joy", "sadness", "anger", "fear", "disgust", "surprise")
@@ -220,6 +220,12 @@ def _bookmark(t: Tree, column: int, known: set[str] | None = None) -> Bookmark:
                     f"column {column}: <{written}> has two durations", column=column
                 )
             duration = float(v[:-2]) / 1000 if v.endswith("ms") else float(v[:-1])
+            if not duration <= MAX_DURATION_S:  # 400 nines read as inf
+                raise BookmarkError(
+                    f"column {column}: duration {v} of <{written}> is more than the limit of "
+                    f"{MAX_DURATION_S:g} s",
+                    column=column,
+                )
         elif a.type == "AMPLITUDE":
             if amplitude is not None:
                 raise BookmarkError(
