@@ -10,6 +10,7 @@ from __future__ import annotations
 from vtts.fap.fapu import AU, FAPU_DIVISOR, Fapu
 from vtts.fap.stream import (
     EXPRESSION_FIELDS,
+    TRANSLATION_AXES,
     VERSIONS,
     VISEME_FIELDS,
     FapStream,
@@ -39,6 +40,7 @@ __all__ = [
     "FAPS",
     "FAPU_DIVISOR",
     "N_FAPS",
+    "TRANSLATION_AXES",
     "VERSIONS",
     "VISEMES",
     "VISEME_FIELDS",

@@ -8,6 +8,10 @@ A ``.fap`` file (the text format MPEG-4 face players such as Xface read; version
     0 10 10 …                       the frame number, then the values of the masked FAPs in order;
                                     FAP 1 (viseme) takes 4 values, FAP 2 (expression) 6
 
+A stream may also carry the head's translation (:attr:`FapStream.translation`), which is not a FAP
+and has no place in a ``.fap`` file: writing one warns that it is left out (the ``.fbs``
+bitstream of :mod:`vtts.fap.coding` carries it).
+
 We read liberally (69 mask values, the first frame numbered 0, 1 or any n ≥ 0, a wrong NFRAMES,
 comments, also after the data of a line, CRLF or CR line ends, tabs, values written as floats) and
 write exactly: version 2.1, 68 mask values, integral values as integers and the others as ``repr``
@@ -32,6 +36,7 @@ from vtts.errors import FapError, VttsWarning
 from vtts.fap.table import N_FAPS, positive_number
 from vtts.limits import (
     MAX_DURATION_S,
+    MAX_FAP_VALUE,
     MAX_FPS,
     MAX_FRAMES,
     MAX_TEXT_BYTES,
@@ -60,6 +65,13 @@ EXPRESSION_FIELDS: tuple[tuple[str, int, int], ...] = (
     ("init_face", 0, 1),
     ("expression_def", 0, 1),
 )
+
+#: The axes of :attr:`FapStream.translation`, in column order (the names ``vtts analyze`` gives
+#: the head translation's unknowns).
+TRANSLATION_AXES = ("tx", "ty", "tz")
+
+#: The largest head translation a stream may carry, in ES units (a thousand eye separations).
+MAX_TRANSLATION = MAX_FAP_VALUE
 
 #: A resampled stream longer than this is a mistake (an hour at 60 fps).
 MAX_RESAMPLED_FRAMES = MAX_FRAMES
@@ -103,6 +115,15 @@ class FapStream:
             always 0 for an empty stream.
         version: the format version the stream was read from (``"2.0"`` or ``"2.1"``);
             files are always written as 2.1.
+        translation: ``(n, 3) float64`` or ``None``: the head's translation in each frame, in ES
+            units (the model's eye separation ES0 / 1024, FAPU ``es``), along the model's axes
+            (x to the viewer's right, y up, z towards the viewer), from where the model stands
+            at rest. A
+            player moves a model's root by ``translation * fapu.es`` model units
+            (:func:`vtts.animate.fapstream.translated_root`). It is not a FAP: MPEG-4 moves a
+            head with the scene's Transform, so a ``.fap`` file cannot carry it (writing one
+            warns), the ``.fbs`` bitstream can. ``None``: the stream carries none (which a
+            player treats as no motion). Finite, ``|t| ≤`` :data:`MAX_TRANSLATION`.
     """
 
     fps: float
@@ -113,6 +134,7 @@ class FapStream:
     expression: np.ndarray = None  # type: ignore[assignment]
     first_frame: int = 0
     version: str = WRITE_VERSION
+    translation: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.fps = _fps(self.fps)
@@ -158,6 +180,7 @@ class FapStream:
         _check_ranges("viseme", viseme, VISEME_FIELDS)
         _check_ranges("expression", expression, EXPRESSION_FIELDS)
         self.values, self.mask, self.viseme, self.expression = values, mask, viseme, expression
+        self.translation = _translation(self.translation, n)
         if n == 0:
             self.first_frame = 0  # no frame carries a number: a file cannot tell it
 
@@ -188,6 +211,8 @@ class FapStream:
             and np.array_equal(self.mask, other.mask)
             and np.array_equal(self.viseme, other.viseme)
             and np.array_equal(self.expression, other.expression)
+            and (self.translation is None) == (other.translation is None)
+            and (self.translation is None or np.array_equal(self.translation, other.translation))
         )
 
     __hash__ = None  # type: ignore[assignment]  # mutable arrays
@@ -195,7 +220,8 @@ class FapStream:
     def __repr__(self) -> str:
         return (
             f"FapStream(name={self.name!r}, fps={self.fps!r}, n_frames={self.n_frames}, "
-            f"first_frame={self.first_frame}, version={self.version!r})"
+            f"first_frame={self.first_frame}, version={self.version!r}"
+            f"{', translation' if self.translation is not None else ''})"
         )
 
     def resample(self, fps: float) -> FapStream:
@@ -207,7 +233,8 @@ class FapStream:
         neighbouring input frames; a FAP is masked in an output frame only if it is masked in
         both (an output frame that falls on an input frame takes that frame as it is). The
         high-level FAPs 1 and 2 are table indices and cannot be interpolated: they, and their
-        mask, come from the nearest input frame.
+        mask, come from the nearest input frame. The head translation, set in every frame, is
+        interpolated like a low-level FAP.
         """
         fps = _fps(fps)
         n = self.n_frames
@@ -232,6 +259,10 @@ class FapStream:
         nearest = np.minimum(np.floor(pos + 0.5).astype(np.int64), max(n - 1, 0))
         mask[:, :2] = self.mask[nearest, :2]
         values[:, :2] = 0.0
+        translation = None
+        if self.translation is not None:
+            t = self.translation
+            translation = (1.0 - w)[:, None] * t[i0] + w[:, None] * t[i1]
         return FapStream(
             fps=fps,
             name=self.name,
@@ -241,6 +272,7 @@ class FapStream:
             expression=self.expression[nearest],
             first_frame=self.first_frame,
             version=self.version,
+            translation=translation,
         )
 
 
@@ -271,6 +303,22 @@ def _array(what: str, data: Any, dtype: Any) -> np.ndarray:
         return np.array(data, dtype=dtype, copy=True)
     except (TypeError, ValueError) as e:
         raise FapError(f"{what} must be a numeric array: {e}") from None
+
+
+def _translation(data: Any, n: int) -> np.ndarray | None:
+    if data is None:
+        return None
+    t = _array("translation", data, np.float64)
+    if t.shape != (n, 3):
+        raise FapError(f"translation must have shape ({n}, 3) like the frames, got {t.shape}")
+    bad = ~(np.abs(t) <= MAX_TRANSLATION)  # also nan
+    if np.any(bad):
+        i, a = (int(x) for x in np.argwhere(bad)[0])
+        raise FapError(
+            f"translation[{i}, {a}] ({TRANSLATION_AXES[a]}) must be finite and within "
+            f"±{MAX_TRANSLATION:g} ES units, got {t[i, a]!r}"
+        )
+    return t
 
 
 def _int_array(
@@ -587,7 +635,27 @@ def _format_number(value: float) -> str:
 
 
 def format_fap(stream: FapStream) -> str:
-    """The text of ``stream`` as a version 2.1 ``.fap`` file (68 mask values per frame)."""
+    """The text of ``stream`` as a version 2.1 ``.fap`` file (68 mask values per frame).
+
+    A ``.fap`` file has no place for :attr:`FapStream.translation`: a stream that carries one
+    is written without it, with a :class:`FapWarning` saying so."""
+    _warn_translation(stream, None)
+    return _format(stream)
+
+
+def _warn_translation(stream: FapStream, file: str | None) -> None:
+    if stream.translation is not None:
+        warnings.warn(
+            FapWarning(
+                "the stream's head translation is not written: a .fap file has no place for it "
+                "(a .fbs bitstream keeps it)",
+                file=file,
+            ),
+            stacklevel=3,
+        )
+
+
+def _format(stream: FapStream) -> str:
     out = [f"{WRITE_VERSION} {stream.name} {_format_number(stream.fps)} {stream.n_frames}\n"]
     for i in range(stream.n_frames):
         row = stream.mask[i]
@@ -605,8 +673,10 @@ def format_fap(stream: FapStream) -> str:
 
 
 def write_fap(stream: FapStream, path: str | os.PathLike[str]) -> None:
-    """Write ``stream`` to ``path`` as a version 2.1 ``.fap`` file (atomically)."""
-    write_text(path, format_fap(stream))
+    """Write ``stream`` to ``path`` as a version 2.1 ``.fap`` file (atomically); without its
+    head translation, with a :class:`FapWarning` naming ``path`` (see :func:`format_fap`)."""
+    _warn_translation(stream, os.fspath(path))
+    write_text(path, _format(stream))
 
 
 def _fps(fps: object) -> float:
