@@ -19,6 +19,7 @@ from vtts.errors import FapError
 from vtts.fap.coding import (
     CODERS,
     FAP_SETS,
+    FbsHeader,
     decode,
     encode,
     error_stats,
@@ -51,14 +52,19 @@ def read_stream(path: str | os.PathLike[str]) -> FapStream:
 
 def check_fbs(path: str | os.PathLike[str]) -> str:
     """Decode a ``.fbs`` file completely and summarize it for ``vtts check``:
-    ``"N frames at R Hz, K FAPs, CODER, B bits/frame, X kbit/s"``."""
+    ``"N frames at R Hz, K FAPs[ and the head translation], CODER, B bits/frame, X kbit/s"``
+    (the bits count everything sent, the translation included)."""
     data = _read_bytes(path)
     decode(data, file=os.fspath(path))
     h = read_header(data, file=os.fspath(path))
-    return (
-        f"{h.n_frames} frames at {h.fps:g} Hz, {len(h.faps)} FAPs, {h.coder}, "
+    return f"{h.n_frames} frames at {h.fps:g} Hz, {_contents(h)}, {h.coder}, " + (
         f"{h.bits_per_frame:.1f} bits/frame, {h.kbit_per_s:.3f} kbit/s"
     )
+
+
+def _contents(h: FbsHeader) -> str:
+    faps = f"{len(h.faps)} FAP{'s' if len(h.faps) != 1 else ''}"
+    return f"{faps} and the head translation" if h.translation else faps
 
 
 def _positive(text: str) -> float:
@@ -88,23 +94,35 @@ def cmd_encode(args: argparse.Namespace) -> int:
                 ),
                 stacklevel=2,
             )
-    data = encode(stream, faps=faps, rate=args.rate, quantizer=args.quantizer, coder=args.coder)
+    translation = not args.no_translation
+    data = encode(
+        stream,
+        faps=faps,
+        rate=args.rate,
+        quantizer=args.quantizer,
+        coder=args.coder,
+        translation=translation,
+    )
     write_bytes(args.output, data)
     if not args.quiet:
         h = read_header(data)
         decoded = decode(data)
-        stats = error_stats(source_stream(stream, faps=faps, rate=args.rate), decoded)
+        source = source_stream(stream, faps=faps, rate=args.rate, translation=translation)
+        stats = error_stats(source, decoded)
         steps = h.steps
         if stats:
             worst = max(stats, key=lambda k: stats[k][0] / steps[k])
+            where = f"ES units on the head translation's {worst}"
+            if isinstance(worst, int):
+                where = f"FAP units on FAP {worst}"
             err = (
                 f"; max error {stats[worst][0] / steps[worst]:.2f} step "
-                f"({stats[worst][0]:.4g} FAP units on FAP {worst}, step {steps[worst]:g})"
+                f"({stats[worst][0]:.4g} {where}, step {steps[worst]:g})"
             )
         else:
             err = ""
         print(
-            f"wrote {args.output}: {h.n_frames} frames at {h.fps:g} Hz, {len(h.faps)} FAPs, "
+            f"wrote {args.output}: {h.n_frames} frames at {h.fps:g} Hz, {_contents(h)}, "
             f"{h.coder}, {h.size} bytes = {h.bits_per_frame:.1f} bits/frame, "
             f"{h.kbit_per_s:.3f} kbit/s{err}"
         )
@@ -112,7 +130,8 @@ def cmd_encode(args: argparse.Namespace) -> int:
 
 
 def cmd_decode(args: argparse.Namespace) -> int:
-    """``vtts decode IN.fbs -o OUT.fap``: decode a bitstream into a ``.fap`` file."""
+    """``vtts decode IN.fbs -o OUT.fap``: decode a bitstream into a ``.fap`` file (which cannot
+    carry a head translation: :func:`~vtts.fap.stream.write_fap` warns that it is left out)."""
     stream = decode(_read_bytes(args.input), file=args.input)
     write_fap(stream, args.output)
     if not args.quiet:
@@ -160,10 +179,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default="arithmetic",
         help="entropy coder: huffman (the paper's) or adaptive arithmetic (default, fewer bits)",
     )
+    e.add_argument(
+        "--no-translation",
+        action="store_true",
+        help="leave out the head translation a .fbs input carries (default: sent)",
+    )
     e.add_argument("--quiet", action="store_true", help="print nothing on success")
     e.set_defaults(func=cmd_encode)
 
-    d = subparsers.add_parser("decode", help="decode a .fbs bitstream into a .fap file")
+    d = subparsers.add_parser(
+        "decode",
+        help="decode a .fbs bitstream into a .fap file",
+        description="Decode a .fbs bitstream into a .fap file. A .fap file has no place for the "
+        "head translation a bitstream may carry: it is left out, with a warning.",
+    )
     d.add_argument("input", metavar="IN.fbs", help="a FAP bitstream")
     d.add_argument("-o", "--output", required=True, metavar="OUT.fap", help="output .fap file")
     d.add_argument("--quiet", action="store_true", help="print nothing on success")

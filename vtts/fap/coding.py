@@ -36,6 +36,16 @@ Arithmetic mode
     constriction take the probabilities as given, so the adaptive modelling would be ours anyway,
     and the binary range coder under it is a few dozen lines of exact integer arithmetic.
 
+Head translation
+    The paper's six head-motion parameters include a translation, which MPEG-4 has no FAP for
+    (the scene's Transform moves a head). When a stream carries one
+    (:attr:`FapStream.translation`, ES units), its three axes are coded in every frame exactly
+    like three more low-level FAPs, after them: closed-loop DPCM on the grid of
+    :data:`TRANSLATION_BASE_STEP` (4 ES units, about 0.23 pixels of a CIF head) times the
+    quantizer, the base steps stored in the header, the errors through the same Huffman tables
+    or adaptive contexts. A header flag says so; a stream without translation codes to the
+    bytes it always did, and bitstreams made before translation existed decode as they did.
+
 High-level FAPs 1 (viseme) and 2 (expression) are lossless: a "same as before" decision, then the
 changed fields (raw bits in Huffman mode, differences in arithmetic mode). Frames whose mask of
 coded FAPs differs from the previous frame's send the new mask (unless the header says the mask is
@@ -59,7 +69,14 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from vtts.errors import CodingError, FapError
-from vtts.fap.stream import EXPRESSION_FIELDS, MAX_RESAMPLED_FRAMES, VISEME_FIELDS, FapStream
+from vtts.fap.stream import (
+    EXPRESSION_FIELDS,
+    MAX_RESAMPLED_FRAMES,
+    MAX_TRANSLATION,
+    TRANSLATION_AXES,
+    VISEME_FIELDS,
+    FapStream,
+)
 from vtts.fap.table import FAPS, N_FAPS
 from vtts.fap.table import fap as fap_def
 from vtts.limits import MAX_DURATION_S, MAX_FPS, MIN_FPS
@@ -105,6 +122,15 @@ _FIXED = struct.Struct(">4sBBBdII9sf")  # magic … quantizer: 36 bytes
 _VISEME_BITS = tuple(hi.bit_length() for _, _, hi in VISEME_FIELDS)
 _EXPRESSION_BITS = tuple(hi.bit_length() for _, _, hi in EXPRESSION_FIELDS)
 _FLAG_CONSTANT_MASK = 0x01
+_FLAG_TRANSLATION = 0x02
+_FLAGS = _FLAG_CONSTANT_MASK | _FLAG_TRANSLATION
+
+#: The base step of the head translation's three axes, in ES units (ES0 / 1024), sent in the
+#: header like the FAPs' base steps. On a CIF head (ES0 ≈ 60 pixels) 4 ES units are 0.23 pixels,
+#: the order of the image motion of the FAPs' own steps (170 AU of head rotation moves a point
+#: one ES from the axis by 0.1 pixels, 4 MNS units of the jaw 0.08 pixels): at quantizer 1 the
+#: head lands within 0.12 pixels of where it was, at quantizer 4 within 0.47.
+TRANSLATION_BASE_STEP = 4
 
 
 # --- FAP selection ------------------------------------------------------------------------------
@@ -167,6 +193,8 @@ class _Plan:
     mask: np.ndarray  # (n, len(faps)) bool
     index: np.ndarray  # (n, len(low)) int64, 0 where not set
     reconstruction: FapStream
+    translation_steps: tuple[int, ...] = ()  # base steps of tx, ty, tz; () when not sent
+    translation_index: np.ndarray | None = None  # (n, 3) int64 when sent
 
 
 def _steps(base_steps: Iterable[int], quantizer: float) -> np.ndarray:
@@ -185,14 +213,20 @@ def _assemble(
     index: np.ndarray,
     viseme: np.ndarray,
     expression: np.ndarray,
+    translation_steps: np.ndarray | None = None,
+    translation_index: np.ndarray | None = None,
 ) -> FapStream:
-    """The decoded stream: ``index · step`` for the low-level FAPs, the rest as sent."""
+    """The decoded stream: ``index · step`` for the low-level FAPs and the head translation
+    (when sent), the rest as sent."""
     n = mask.shape[0]
     full_mask = np.zeros((n, N_FAPS), dtype=bool)
     full_mask[:, [k - 1 for k in faps]] = mask
     values = np.zeros((n, N_FAPS), dtype=np.float64)
     if low:
         values[:, [k - 1 for k in low]] = index.astype(np.float64) * steps
+    translation = None
+    if translation_index is not None:
+        translation = translation_index.astype(np.float64) * translation_steps
     return FapStream(
         fps=fps,
         name=name,
@@ -201,6 +235,7 @@ def _assemble(
         viseme=viseme,
         expression=expression,
         first_frame=first_frame,
+        translation=translation,
     )
 
 
@@ -209,6 +244,7 @@ def _prepare(
     faps: Iterable[int | str] | str | None,
     rate: float | None,
     quantizer: float,
+    translation: bool = True,
 ) -> _Plan:
     if not isinstance(stream, FapStream):
         raise FapError(f"expected a FapStream, got {type(stream).__name__}")
@@ -243,6 +279,23 @@ def _prepare(
     index = np.where(low_mask, np.rint(ratio), 0.0).astype(np.int64)
     viseme = stream.viseme if 1 in coded else None
     expression = stream.expression if 2 in coded else None
+    t_base: tuple[int, ...] = ()
+    t_steps = t_index = None
+    if translation and stream.translation is not None:
+        t_base = (TRANSLATION_BASE_STEP,) * 3
+        t_steps = _steps(t_base, q32)
+        t_index = np.rint(stream.translation / t_steps).astype(np.int64)
+        # |t| ≤ MAX_TRANSLATION keeps |t / step| far below MAX_INDEX; its grid point may lie
+        # beyond the bound only within half a step of it
+        beyond = ~(np.abs(t_index * t_steps) <= MAX_TRANSLATION)
+        if np.any(beyond):
+            i, a = (int(x) for x in np.argwhere(beyond)[0])
+            value = float(stream.translation[i, a])
+            raise CodingError(
+                f"head translation {TRANSLATION_AXES[a]} = {value!r} in frame "
+                f"{i} is too large to code with step {t_steps[a]:g}: its reconstruction would "
+                f"leave ±{MAX_TRANSLATION:g} ES units"
+            )
     recon = _assemble(
         stream.fps,
         stream.name,
@@ -254,8 +307,10 @@ def _prepare(
         index,
         np.zeros((n, 4), np.int64) if viseme is None else viseme,
         np.zeros((n, 6), np.int64) if expression is None else expression,
+        t_steps,
+        t_index,
     )
-    return _Plan(stream, coded, low, base, q32, mask, index, recon)
+    return _Plan(stream, coded, low, base, q32, mask, index, recon, t_base, t_index)
 
 
 def reconstruct(
@@ -264,14 +319,16 @@ def reconstruct(
     faps: Iterable[int | str] | str | None = None,
     rate: float | None = None,
     quantizer: float = 1.0,
+    translation: bool = True,
 ) -> FapStream:
     """The stream a decoder reconstructs from ``encode(stream, …)`` with the same arguments
-    (either coder): the selected FAPs at ``rate``, low-level values on their quantizer grid.
+    (either coder): the selected FAPs at ``rate``, low-level values on their quantizer grid, the
+    head translation (when the stream has one and ``translation``) on its grid.
 
     ``decode(encode(s, **kw)) == reconstruct(s, **kw)`` holds exactly (same arrays, name, rate,
     first frame; version 2.1).
     """
-    return _prepare(stream, faps, rate, quantizer).reconstruction
+    return _prepare(stream, faps, rate, quantizer, translation).reconstruction
 
 
 def source_stream(
@@ -279,10 +336,12 @@ def source_stream(
     *,
     faps: Iterable[int | str] | str | None = None,
     rate: float | None = None,
+    translation: bool = True,
 ) -> FapStream:
     """What the encoder codes before quantization: ``stream`` resampled to ``rate`` with only the
-    selected FAPs (those masked in some frame) kept. Compare a decoded stream with this one."""
-    plan = _prepare(stream, faps, rate, 1.0)
+    selected FAPs (those masked in some frame) kept, and its head translation if it is sent.
+    Compare a decoded stream with this one."""
+    plan = _prepare(stream, faps, rate, 1.0, translation)
     s = plan.source
     keep = np.zeros(N_FAPS, dtype=bool)
     keep[[k - 1 for k in plan.faps]] = True
@@ -295,23 +354,35 @@ def source_stream(
         viseme=s.viseme if keep[0] else None,
         expression=s.expression if keep[1] else None,
         first_frame=s.first_frame,
+        translation=s.translation if plan.translation_steps else None,
     )
 
 
-def error_stats(reference: FapStream, decoded: FapStream) -> dict[int, tuple[float, float]]:
+def error_stats(reference: FapStream, decoded: FapStream) -> dict[int | str, tuple[float, float]]:
     """Per low-level FAP set in ``decoded``: ``(max, rms)`` of ``|decoded − reference|`` in FAP
-    units over the frames that set it. The streams must have the same frames."""
+    units over the frames that set it; and when ``decoded`` carries a head translation, the same
+    for each of its axes (keys ``"tx"``, ``"ty"``, ``"tz"``, ES units, every frame). The streams
+    must have the same frames (and both a translation, or ``decoded`` none)."""
     if reference.n_frames != decoded.n_frames:
         raise FapError(
             f"the streams have {reference.n_frames} and {decoded.n_frames} frames: "
             "compare a decoded stream with source_stream() of the original"
         )
-    out = {}
+    if decoded.translation is not None and reference.translation is None:
+        raise FapError(
+            "the decoded stream carries a head translation, the reference none: "
+            "compare a decoded stream with source_stream() of the original"
+        )
+    out: dict[int | str, tuple[float, float]] = {}
     for k in range(3, N_FAPS + 1):
         m = decoded.mask[:, k - 1]
         if m.any():
             d = np.abs(decoded.values[m, k - 1] - reference.values[m, k - 1])
             out[k] = (float(d.max()), float(np.sqrt(np.mean(d * d))))
+    if decoded.translation is not None and decoded.n_frames:
+        for a, axis in enumerate(TRANSLATION_AXES):
+            d = np.abs(decoded.translation[:, a] - reference.translation[:, a])  # type: ignore[index]
+            out[axis] = (float(d.max()), float(np.sqrt(np.mean(d * d))))
     return out
 
 
@@ -334,7 +405,10 @@ class FbsHeader:
         name: the stream's name.
         huffman_tables: Huffman mode: up to 4 codes, each the code length (bits) of each
             symbol −64…63 it has (−64 = escape).
-        huffman_table_of: Huffman mode: the table of each coded low-level FAP, in order.
+        huffman_table_of: Huffman mode: the table of each coded low-level FAP, in order, then
+            of each translation axis (when sent).
+        translation_base_steps: the base steps of the head translation's axes tx, ty, tz (ES
+            units; :data:`TRANSLATION_BASE_STEP`), or ``()`` when the stream carries none.
         predictors: arithmetic mode: FAP → the earlier FAP whose error in the same frame
             predicts its error.
         header_size, payload_size: bytes of the header (with its CRC) and of the frame data
@@ -356,6 +430,7 @@ class FbsHeader:
     version: int = VERSION
     header_size: int = 0
     payload_size: int = 0
+    translation_base_steps: tuple[int, ...] = ()
 
     @property
     def low(self) -> tuple[int, ...]:
@@ -363,9 +438,19 @@ class FbsHeader:
         return tuple(k for k in self.faps if k >= 3)
 
     @property
-    def steps(self) -> dict[int, float]:
-        """Quantizer step of each coded low-level FAP, in its FAP units."""
-        return dict(zip(self.low, _steps(self.base_steps, self.quantizer).tolist(), strict=True))
+    def translation(self) -> bool:
+        """Whether the bitstream carries the head translation."""
+        return bool(self.translation_base_steps)
+
+    @property
+    def steps(self) -> dict[int | str, float]:
+        """Quantizer step of each coded low-level FAP, in its FAP units, and of each head
+        translation axis (``"tx"``, ``"ty"``, ``"tz"``; ES units) when it is sent."""
+        out: dict[int | str, float] = {}
+        out.update(zip(self.low, _steps(self.base_steps, self.quantizer).tolist(), strict=True))
+        t = _steps(self.translation_base_steps, self.quantizer).tolist()
+        out.update(zip(TRANSLATION_AXES[: len(t)], t, strict=True))
+        return out
 
     @property
     def size(self) -> int:
@@ -423,6 +508,8 @@ def _pack_table(lengths: dict[int, int]) -> bytes:
 
 def _pack_header(h: FbsHeader, payload_size: int) -> bytes:
     flags = _FLAG_CONSTANT_MASK if h.constant_mask else 0
+    if h.translation:
+        flags |= _FLAG_TRANSLATION
     out = bytearray(
         _FIXED.pack(
             MAGIC,
@@ -436,7 +523,7 @@ def _pack_header(h: FbsHeader, payload_size: int) -> bytes:
             h.quantizer,
         )
     )
-    for b in h.base_steps:
+    for b in (*h.base_steps, *h.translation_base_steps):
         out += _varint(b)
     name = h.name.encode("utf-8")
     out += _varint(len(name)) + name
@@ -520,8 +607,8 @@ def read_header(data: bytes, *, file: str | None = None) -> FbsHeader:
         raise cur.error(f"unsupported bitstream version {version} (this decoder reads 1)", 4)
     if coder_id not in _CODER_NAMES:
         raise cur.error(f"unknown coder {coder_id} (0 = Huffman, 1 = arithmetic)", 5)
-    if flags & ~_FLAG_CONSTANT_MASK:
-        raise cur.error(f"unknown flags 0x{flags:02x} (only bit 0 is defined)", 6)
+    if flags & ~_FLAGS:
+        raise cur.error(f"unknown flags 0x{flags:02x} (only bits 0 and 1 are defined)", 6)
     if not (math.isfinite(fps) and fps > 0):
         raise cur.error(f"frame rate must be finite and > 0, got {fps!r}", 7)
     if not MIN_FPS <= fps <= MAX_FPS:
@@ -546,6 +633,10 @@ def read_header(data: bytes, *, file: str | None = None) -> FbsHeader:
 
     # variable fields: extents now, values once the CRC vouches for them
     steps = [cur.varint(f"base step of FAP {k}", MAX_BASE_STEP) for k in low]
+    sent = TRANSLATION_AXES if flags & _FLAG_TRANSLATION else ()
+    steps += [cur.varint(f"base step of the head translation's {a}", MAX_BASE_STEP) for a in sent]
+    # the channels whose errors are coded: the low-level FAPs, then the translation's axes
+    channels = [f"FAP {k}" for k in low] + [f"head translation {a}" for a in sent]
     name_len, name_at = cur.varint("name length", MAX_NAME_BYTES)
     name_at = cur.pos
     name_raw = cur.take(name_len, "name")
@@ -557,7 +648,7 @@ def read_header(data: bytes, *, file: str | None = None) -> FbsHeader:
         if count > 4:
             raise cur.error(f"at most 4 Huffman tables, got {count}", table_at)
         if count > 1:
-            assignment = cur.take((2 * len(low) + 7) // 8, "Huffman table assignment")
+            assignment = cur.take((2 * len(channels) + 7) // 8, "Huffman table assignment")
         for _ in range(count):
             at = cur.pos
             n = cur.take(1, "Huffman table")[0]
@@ -603,17 +694,18 @@ def read_header(data: bytes, *, file: str | None = None) -> FbsHeader:
             if kraft != 1 << MAX_CODE_LENGTH and not single:
                 raise cur.error("Huffman code lengths do not form a complete prefix code", at)
             tables.append(lengths)
+        nc = len(channels)
         if len(tables) > 1:
-            bits = int.from_bytes(assignment, "big") >> (8 * len(assignment) - 2 * len(low))
-            table_of = [(bits >> (2 * (len(low) - 1 - j))) & 3 for j in range(len(low))]
+            bits = int.from_bytes(assignment, "big") >> (8 * len(assignment) - 2 * nc)
+            table_of = [(bits >> (2 * (nc - 1 - j))) & 3 for j in range(nc)]
             for j, x in enumerate(table_of):
                 if x >= len(tables):
                     raise cur.error(
-                        f"FAP {low[j]} uses Huffman table {x} of {len(tables)}",
+                        f"{channels[j]} uses Huffman table {x} of {len(tables)}",
                         table_at + 1 + j // 4,
                     )
         else:
-            table_of = [0] * len(low) if tables else []
+            table_of = [0] * nc if tables else []
     elif coder == "arithmetic":
         low_set = set(low)
         for i in range(count):
@@ -654,7 +746,7 @@ def read_header(data: bytes, *, file: str | None = None) -> FbsHeader:
         n_frames=n_frames,
         faps=faps,
         quantizer=quantizer,
-        base_steps=tuple(base_steps),
+        base_steps=tuple(base_steps[: len(low)]),
         constant_mask=bool(flags & _FLAG_CONSTANT_MASK),
         name=name,
         huffman_tables=tuple(tables),
@@ -663,6 +755,7 @@ def read_header(data: bytes, *, file: str | None = None) -> FbsHeader:
         version=version,
         header_size=header_size,
         payload_size=payload_size,
+        translation_base_steps=tuple(base_steps[len(low) :]),
     )
 
 
@@ -694,15 +787,25 @@ class _Io:
 
 
 def _syntax(io: _Io, h: FbsHeader, plan: _Plan | None) -> tuple[np.ndarray, ...]:
-    """Send (``plan`` given) or read the frames; return ``(mask, index, viseme, expression)`` as
-    the decoder sees them: ``(n, K) bool``, ``(n, L) int64``, ``(n, 4)`` and ``(n, 6) int64``."""
+    """Send (``plan`` given) or read the frames; return ``(mask, index, viseme, expression,
+    translation)`` as the decoder sees them: ``(n, K) bool``, ``(n, L) int64``, ``(n, 4)`` and
+    ``(n, 6) int64``, and the translation's indices ``(n, 3) int64`` (``(n, 0)`` when not sent).
+
+    Channels (a coder's error statistics and contexts): the low-level FAPs 0 … L−1, the
+    translation's axes L … L+T−1 (T = 3 when sent, else 0), then the viseme fields (4) and the
+    expression fields (6). Without translation they are numbered as in the first bitstreams."""
     n, faps, low = h.n_frames, h.faps, h.low
     nk, nl = len(faps), len(low)
+    nt = len(h.translation_base_steps)
     enc = plan is not None
     pos = {k: i for i, k in enumerate(faps)}
     low_pos = [pos[k] for k in low]
     pred = [low.index(h.predictors[k]) if k in h.predictors else -1 for k in low]
-    v_fields = [(VISEME_FIELDS, _VISEME_BITS, nl), (EXPRESSION_FIELDS, _EXPRESSION_BITS, nl + 4)]
+    hl = nl + nt  # the first high-level field's channel
+    v_fields = [(VISEME_FIELDS, _VISEME_BITS, hl), (EXPRESSION_FIELDS, _EXPRESSION_BITS, hl + 4)]
+    t_steps = _steps(h.translation_base_steps, h.quantizer).tolist()
+    t_index = np.zeros((n, nt), dtype=np.int64)
+    t_last = [0] * nt
     mask = np.zeros((n, nk), dtype=bool)
     index = np.zeros((n, nl), dtype=np.int64)
     high = [np.zeros((n, 4), dtype=np.int64), np.zeros((n, 6), dtype=np.int64)]
@@ -750,9 +853,20 @@ def _syntax(io: _Io, h: FbsHeader, plan: _Plan | None) -> tuple[np.ndarray, ...]
             last[j] = value
             q_now[j] = q
             index[i, j] = value
+        for a in range(nt):
+            q = None if plan is None else int(plan.translation_index[i, a]) - t_last[a]  # type: ignore[index]
+            value = t_last[a] + io.residual(nl + a, q)
+            if not abs(value * t_steps[a]) <= MAX_TRANSLATION:
+                raise io.error(
+                    f"the head translation's {TRANSLATION_AXES[a]} leaves ±{MAX_TRANSLATION:g} "
+                    f"ES units in frame {i}"
+                )
+            t_last[a] = value
+            t_index[i, a] = value
     if enc:
         assert np.array_equal(mask, plan.mask) and np.array_equal(index, plan.index)
-    return mask, index, high[0], high[1]
+        assert nt == 0 or np.array_equal(t_index, plan.translation_index)
+    return mask, index, high[0], high[1], t_index
 
 
 # --- Huffman mode -------------------------------------------------------------------------------
@@ -1257,6 +1371,7 @@ def encode(
     rate: float | None = None,
     quantizer: float = 1.0,
     coder: str = "arithmetic",
+    translation: bool = True,
 ) -> bytes:
     """Code ``stream`` as a ``.fbs`` bitstream.
 
@@ -1269,12 +1384,16 @@ def encode(
         quantizer: the global factor of the quantizer steps (1 = the MPEG-4 steps of
             ``faps.tsv``); the reconstruction error of every value is at most half a step.
         coder: ``"huffman"`` (the paper's) or ``"arithmetic"`` (adaptive, fewer bits).
+        translation: send the stream's head translation (:attr:`FapStream.translation`, in ES
+            units, on the grid of :data:`TRANSLATION_BASE_STEP` · ``quantizer``) when it has
+            one; ``False`` leaves it out. A stream without translation codes to the same bytes
+            as before translation could be sent.
 
     Returns the bitstream; ``decode`` of it equals :func:`reconstruct` with the same arguments.
     """
     if coder not in CODERS:
         raise FapError(f"unknown coder {coder!r}: expected one of {', '.join(CODERS)}")
-    plan = _prepare(stream, faps, rate, quantizer)
+    plan = _prepare(stream, faps, rate, quantizer, translation)
     src = plan.source
     constant = bool(plan.mask.all())
     h = FbsHeader(
@@ -1287,9 +1406,10 @@ def encode(
         base_steps=plan.base_steps,
         constant_mask=constant,
         name=src.name,
+        translation_base_steps=plan.translation_steps,
     )
     if coder == "huffman":
-        counter = _ErrorCounter(len(plan.low))
+        counter = _ErrorCounter(len(plan.low) + len(plan.translation_steps))
         _syntax(counter, h, plan)
         tables, table_of = _choose_tables(counter.errors)
         h = replace(h, huffman_tables=tables, huffman_table_of=table_of)
@@ -1315,12 +1435,24 @@ def decode(data: bytes, *, file: str | None = None) -> FapStream:
         reader = _HuffmanReader(payload, h.header_size, h.huffman_tables, h.huffman_table_of, file)
     else:
         reader = _RangeReader(payload, h.header_size, file)
-    mask, index, viseme, expression = _syntax(reader, h, None)
+    mask, index, viseme, expression, t_index = _syntax(reader, h, None)
     reader.finish()
     steps = _steps(h.base_steps, h.quantizer)
+    t_steps = _steps(h.translation_base_steps, h.quantizer)
     try:
         return _assemble(
-            h.fps, h.name, h.first_frame, h.faps, h.low, steps, mask, index, viseme, expression
+            h.fps,
+            h.name,
+            h.first_frame,
+            h.faps,
+            h.low,
+            steps,
+            mask,
+            index,
+            viseme,
+            expression,
+            t_steps if h.translation else None,
+            t_index if h.translation else None,
         )
     except FapError as e:  # pragma: no cover - the syntax checks every field's range
         raise CodingError(
