@@ -129,3 +129,24 @@ def test_bad_indices_are_named(extra, faces, fragment):
     with pytest.raises(VrmlSemanticError, match="IndexedFaceSet") as info:
         triangulate(ifs(extra, faces=faces))
     assert fragment in info.value.message
+
+
+@pytest.mark.parametrize(
+    "body", ["", "coordIndex []", "coord Coordinate { point [ 0 0 0 ] } coordIndex [ -1 ]"]
+)
+def test_no_polygons_is_an_empty_mesh(body):
+    mesh = triangulate(parse(H + f"DEF G IndexedFaceSet {{ {body} }}").node("G"))
+    assert mesh.faces.shape == (0, 3) and mesh.positions.shape == (0, 3)
+
+
+def test_an_unknown_texture_coordinate_node_is_no_texture_coordinates():
+    """A lenient load keeps an X3D TextureCoordinateGenerator as a generic node: it gives no
+    coordinates, so the standard's default mapping is used."""
+    with pytest.warns(UserWarning, match="TextureCoordinateGenerator"):
+        scene = parse(
+            H + "DEF G IndexedFaceSet { coord Coordinate { point [ 0 0 0, 1 0 0, 0 1 0 ] } "
+            'coordIndex [ 0 1 2 ] texCoord TextureCoordinateGenerator { mode "SPHERE" } }',
+            lenient=True,
+        )
+    mesh = triangulate(scene.node("G"))
+    assert mesh.texcoords.shape == (3, 2) and mesh.faces.shape == (1, 3)

@@ -185,7 +185,12 @@ def _attribute_node_values(node: Node, field_name: str, value_field: str) -> np.
     child = node[field_name]
     if child is None:
         return None
-    return np.asarray(child.expand()[value_field], dtype=np.float64)
+    child = child.expand()
+    if child.type.kind == "generic" or child.type.field(value_field) is None:
+        # a node vtts does not know (parsed leniently, e.g. X3D's TextureCoordinateGenerator)
+        # gives no values: the attribute is treated as absent
+        return None
+    return np.asarray(child[value_field], dtype=np.float64)
 
 
 def triangulate(node: Node, points: np.ndarray | None = None) -> TriangleMesh:
@@ -205,6 +210,17 @@ def triangulate(node: Node, points: np.ndarray | None = None) -> TriangleMesh:
     pos, pid, k = _corners(ci)
     corner_coord = ci[pos]
     _check_range("coordIndex", corner_coord, points.shape[0], node, "Coordinate")
+    if pos.size == 0:  # no polygons (no coord, or an empty coordIndex): nothing to draw
+        return TriangleMesh(
+            positions=np.zeros((0, 3)),
+            faces=np.zeros((0, 3), dtype=np.int64),
+            normals=np.zeros((0, 3)),
+            colors=None,
+            texcoords=np.zeros((0, 2)),
+            coord_index=np.zeros(0, dtype=np.int64),
+            face_polygon=np.zeros(0, dtype=np.int64),
+            double_sided=not node["solid"],
+        )
     tri = _fan(k)
     if not node["ccw"]:
         tri = tri[:, [0, 2, 1]]
