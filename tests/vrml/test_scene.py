@@ -108,3 +108,25 @@ def test_scene_equality_sees_differences():
     assert parse(SCENE.replace("0 0 -5", "0 0 -5.000001")) != a
     assert parse(SCENE.replace("USE FACE", "DEF FACE2 Shape {}")) != a
     assert parse(dumps(a)) == a
+
+
+def test_a_long_proto_chain_is_a_limit_not_recursion():
+    """P99's first node is a P98, whose first node is a P97, …: no PROTO expands into itself,
+    the chain is just deeper than the limit (and one within the limit expands)."""
+    from vtts.errors import VrmlLimitError, VrmlSemanticError
+    from vtts.vrml.scene import MAX_PROTO_CHAIN, Node
+
+    def chain(n: int) -> str:
+        protos = "".join(f"PROTO P{i} [] {{ P{i - 1} {{}} }}\n" for i in range(1, n))
+        return H + "PROTO P0 [] { Shape { geometry Box {} } }\n" + protos + f"P{n - 1} {{}}\n"
+
+    with pytest.raises(VrmlLimitError, match=f"chain of more than {MAX_PROTO_CHAIN} PROTOs") as e:
+        list(parse(chain(100)).traverse())
+    assert "into itself" not in str(e.value) and "P99 -> P98" in str(e.value)
+    shapes = list(parse(chain(MAX_PROTO_CHAIN)).shapes())
+    assert [s.type.name for s, _, _ in shapes] == ["Shape"]
+    # true recursion (not writable in VRML97 text, where a PROTO body cannot name its own PROTO)
+    scene = parse(H + "PROTO P [] { Group {} }\nP {}\n")
+    scene.protos[0].body[0] = Node(scene.protos[0])
+    with pytest.raises(VrmlSemanticError, match=r"PROTO P expands into itself \(P -> P\)"):
+        scene.roots[0].expand()

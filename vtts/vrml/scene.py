@@ -27,6 +27,10 @@ from vtts.vrml.nodes import FieldDecl, NodeType
 #: describe an exponentially large graph).
 MAX_INSTANCES = 200_000
 
+#: Most PROTO instances one node expands through (P1's first node a P2 instance, whose first node
+#: is a P3 instance, …) before :meth:`Node.expand` gives up with a :class:`VrmlLimitError`.
+MAX_PROTO_CHAIN = 64
+
 
 @dataclass(eq=False)
 class Route:
@@ -116,15 +120,29 @@ class Node:
         instantiated body for a PROTO instance (recursively). EXTERNPROTO instances have no
         implementation here (vtts loads nothing from the network) and expand to themselves."""
         node = self
-        for _ in range(64):
-            if node.type.kind != "proto":
-                return node
+        chain: list[str] = []
+        seen: set[int] = set()
+        while node.type.kind == "proto":
+            if id(node.type) in seen:
+                raise VrmlSemanticError(
+                    f"PROTO {node.type.name} expands into itself "
+                    f"({' -> '.join([*chain, node.type.name])})",
+                    line=self.line,
+                )
+            if len(chain) == MAX_PROTO_CHAIN:
+                raise VrmlLimitError(
+                    f"PROTO {self.type.name} starts a chain of more than {MAX_PROTO_CHAIN} PROTOs "
+                    f"(each one's first node an instance of the next: {chain[0]} -> {chain[1]} "
+                    f"-> … -> {chain[-1]} -> {node.type.name}), deeper than the limit of "
+                    f"{MAX_PROTO_CHAIN}",
+                    line=self.line,
+                )
+            seen.add(id(node.type))
+            chain.append(node.type.name)
             if node._expansion is None:
                 node._expansion = _instantiate(node)
             node = node._expansion
-        raise VrmlSemanticError(
-            f"PROTO {self.type.name} expands into itself more than 64 times", line=self.line
-        )
+        return node
 
     def children_nodes(self) -> Iterator[Node]:
         """Every node directly held in this node's SFNode/MFNode fields (file order)."""
