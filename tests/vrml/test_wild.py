@@ -115,6 +115,40 @@ CASES = {
             (5, 29, "USE Nowhere in the default of PROTO Part field 'extras' names no DEF"),
         ],
     ),
+    "values of the wrong type": (
+        H + "Transform {\n"
+        "  translation 1 2\n"
+        "  children Shape {\n"
+        '    appearance Appearance { material Material { shininess "high" } }\n'
+        "    geometry IndexedFaceSet {\n"
+        "      coord Coordinate { point [ 0 0 0, 1 0 0, 0 1 0 ] }\n"
+        "      color Color { color [ 1 0 0, 0 1 0, ..., 0 0 1 ] }\n"
+        '      solid "no" coordIndex [ 0 1 2 -1 ]\n'
+        "    }\n"
+        "  }\n"
+        "}\n"
+        'PROTO Ball [ field SFFloat size "big" ] { Sphere { radius IS size } }\n'
+        "Shape { geometry Ball {} }\n",
+        (VrmlSemanticError, 3, 15, "expects SFVec3f (3 numbers), got 2 numbers"),
+        [
+            (3, 15, "field 'translation' of Transform expects SFVec3f"),
+            (5, 59, "field 'shininess' of Material expects SFFloat (1 number), got a string"),
+            (8, 43, "field 'color' of Color expects MFColor: '...' is not a number"),
+            (9, 13, "field 'solid' of IndexedFaceSet expects SFBool, got a string"),
+            (13, 33, "PROTO Ball field 'size' gets an empty value"),
+        ],
+    ),
+    "a field given twice": (
+        H + "DEF Clock TimeSensor { loop TRUE cycleInterval 2 loop FALSE }\n"
+        'NavigationInfo {\n  type "FLY"\n  type [ "WALK" "ANY" ]\n}\n'
+        "PROTO Ball [ field SFFloat size 1 ] { Sphere { radius 2 radius IS size } }\n",
+        (VrmlSemanticError, 2, 50, "field 'loop' is given twice in one TimeSensor"),
+        [
+            (2, 50, "field 'loop' is given twice in one TimeSensor: the last one is kept"),
+            (5, 3, "field 'type' is given twice in one NavigationInfo"),
+            (7, 57, "field 'radius' is given twice in one Sphere"),
+        ],
+    ),
     "url out of the folder": (
         H + "Shape {\n"
         '  appearance Appearance { texture ImageTexture { url "../textures/wall.png" } }\n'
@@ -207,11 +241,35 @@ def test_conformance_bad_default_use_is_dropped_when_lenient():
     assert scene.protos[0].decls["val1"].default is None
 
 
+def test_values_of_the_wrong_type_are_skipped():
+    """The field keeps its default (or, given twice, its earlier value); a PROTO field whose
+    default cannot be typed gets the type's empty value."""
+    scene, _ = lenient(CASES["values of the wrong type"][0])
+    transform, shape = scene.roots
+    assert "translation" not in transform.fields
+    ifs = transform["children"][0]["geometry"]
+    assert ifs["solid"] is True and ifs["color"]["color"].shape == (0, 3)
+    assert ifs["coord"]["point"].shape == (3, 3)
+    assert shape.expand()["geometry"].expand()["radius"] == 0.0
+    scene, _ = lenient(H + "Transform { translation 1 2 3 translation 4 five 6 }")
+    assert scene.roots[0]["translation"].tolist() == [1, 2, 3]
+
+
+def test_a_field_given_twice_keeps_the_last():
+    scene, _ = lenient(CASES["a field given twice"][0])
+    (clock, nav), ball = scene.roots, scene.protos[0]
+    assert clock["loop"] is False and clock["cycleInterval"] == 2.0
+    assert nav["type"] == ["WALK", "ANY"]
+    sphere = ball.first_node()
+    assert "radius" not in sphere.fields and sphere.is_maps == {"radius": "size"}
+    assert dumps(scene).count("loop") == 1
+
+
 def test_lenient_keeps_the_other_rules():
-    with pytest.raises(VrmlSemanticError, match="expects SFFloat"):
-        parse(H + 'Material { shininess "high" }', lenient=True)
     with pytest.raises(VrmlSemanticError, match="USE of undefined name 'X'"):
         parse(H + "Group { children USE X }", lenient=True)
+    with pytest.raises(VrmlSemanticError, match="ROUTE names 'Nowhere'"):
+        parse(H + "DEF T TimeSensor {}\nROUTE T.fraction_changed TO Nowhere.set_x", lenient=True)
 
 
 # ---- real files ---------------------------------------------------------------------------------

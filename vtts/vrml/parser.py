@@ -50,6 +50,7 @@ from vtts.vrml.nodes import (
     NodeType,
     generic_node_type,
     interface_conflict,
+    parse_default,
     standard_node_types,
 )
 from vtts.vrml.scene import Node, Proto, Route, Scene
@@ -309,6 +310,15 @@ class _DropDefault(Exception):
     """Lenient mode: a USE in a PROTO field default names no DEF anywhere (the default goes)."""
 
 
+class _BadValue(Exception):
+    """Lenient mode: a value of the wrong type for its field (``error`` says why, and where);
+    the field that holds it is skipped with a warning. Strict mode raises ``error`` itself."""
+
+    def __init__(self, error: VrmlSemanticError) -> None:
+        super().__init__(error.message)
+        self.error = error
+
+
 class _Builder:
     def __init__(
         self,
@@ -334,16 +344,33 @@ class _Builder:
         col = getattr(tok, "column", None)
         return cls(msg, file=self.file, line=line, column=col)
 
-    def warn(self, msg: str, tok: Token | None) -> None:
+    def warn(self, msg: str, tok: Token | None, where: Any = None) -> None:
+        """A lenient-mode warning at ``tok`` (or at ``where``'s ``line``/``column``)."""
+        place = where if where is not None else tok
         warnings.warn(
             VttsWarning(
                 msg,
                 file=self.file,
-                line=getattr(tok, "line", None),
-                column=getattr(tok, "column", None),
+                line=getattr(place, "line", None),
+                column=getattr(place, "column", None),
             ),
             stacklevel=2,
         )
+
+    def value_error(self, msg: str, tok: Token | None = None, *, line=None, column=None):
+        """A value of the wrong type for its field: an error in strict mode, a :class:`_BadValue`
+        (the field is skipped) in lenient mode."""
+        err = VrmlSemanticError(
+            msg,
+            file=self.file,
+            line=line if line is not None else getattr(tok, "line", None),
+            column=column if column is not None else getattr(tok, "column", None),
+        )
+        return _BadValue(err) if self.lenient else err
+
+    def skip_bad_value(self, bad: _BadValue, outcome: str) -> None:
+        """Lenient mode: warn at the bad value's place, saying what becomes of it."""
+        self.warn(f"{bad.error.message}: {outcome} (--lenient)", None, bad.error)
 
     # ---- statements -------------------------------------------------------------------------
 
@@ -483,9 +510,15 @@ class _Builder:
         name = str(name_tok)
         ntype = node.type
         if ntype.kind == "generic":
-            ftype, value = self.infer_value(
-                value_tree, scope, depth, f"{name}' of {ntype.describe()}"
-            )
+            try:
+                ftype, value = self.infer_value(
+                    value_tree, scope, depth, f"{name}' of {ntype.describe()}"
+                )
+            except _BadValue as bad:
+                self.skip_bad_value(bad, "the value is skipped")
+                return False
+            if name in node.fields:  # given twice: the last one's type
+                ntype.decls[name] = FieldDecl("exposedField", ftype, name, None)
             ntype.decls.setdefault(name, FieldDecl("exposedField", ftype, name, None))
         else:
             decl = ntype.field(name)
@@ -500,14 +533,29 @@ class _Builder:
                 )
                 self.warn(f"{what}: skipped with its value (--lenient)", name_tok)
                 return False
-            value = self.value(value_tree, decl, scope, depth, f"{name}' of {ntype.describe()}")
+            try:
+                value = self.value(value_tree, decl, scope, depth, f"{name}' of {ntype.describe()}")
+            except _BadValue as bad:
+                self.skip_bad_value(bad, "the value is skipped")
+                return False
         if name in node.fields or name in node.is_maps:
-            raise self.error(f"field '{name}' is given twice in one {ntype.describe()}", name_tok)
+            self.given_twice(node, name, name_tok)
         if value is _DROPPED:
             return False
         self.check_field_urls(ntype, name, value_tree, value)
         node.fields[name] = value
         return True
+
+    def given_twice(self, node: Node, name: str, tok: Token) -> None:
+        """A field (or IS binding) set a second time in one node: an error, or in lenient mode a
+        warning and the earlier one forgotten (the last one counts, as in other browsers)."""
+        msg = f"field '{name}' is given twice in one {node.type.describe()}"
+        if not self.lenient:
+            raise self.error(msg, tok)
+        self.warn(f"{msg}: the last one is kept (--lenient)", tok)
+        node.fields.pop(name, None)
+        node.is_maps.pop(name, None)
+        node.order = [o for o in node.order if not (o[0] in ("field", "is") and o[1] == name)]
 
     def unknown_member(self, ntype: NodeType, name_tok: Token) -> Exception:
         name = str(name_tok)
@@ -580,7 +628,7 @@ class _Builder:
                 member_tok,
             )
         if str(member_tok) in node.fields or str(member_tok) in node.is_maps:
-            raise self.error(f"member '{member_tok}' is given twice", member_tok)
+            self.given_twice(node, str(member_tok), member_tok)
         node.is_maps[str(member_tok)] = str(iface_tok)
         return True
 
@@ -644,6 +692,9 @@ class _Builder:
                 )
             except _DropDefault:  # lenient: the warning is given
                 value = [] if ftype.multi else None
+            except _BadValue as bad:
+                self.skip_bad_value(bad, f"{owner} field '{name_tok}' gets an empty value")
+                value = _empty_value(ftype)
             if value is _DROPPED:
                 value = None
         decl = FieldDecl(str(access_tok), ftype, str(name_tok), None if in_script else value, None)
@@ -790,7 +841,7 @@ class _Builder:
         items = t.children
         first_tok = _first_token(t)
         if bracketed and not ftype.multi:
-            raise self.error(
+            raise self.value_error(
                 f"field '{what} is {ftype.describe()}: a single value, not a '[ ]' list",
                 first_tok,
             )
@@ -837,7 +888,7 @@ class _Builder:
 
     def wrong_kind(self, what: str, ftype: FieldType, items: list, tok: Token | None) -> Exception:
         got = _describe_items(items)
-        return self.error(f"field '{what} expects {ftype.describe()}, got {got}", tok)
+        return self.value_error(f"field '{what} expects {ftype.describe()}, got {got}", tok)
 
     def numbers(self, toks: list[Token], ftype: FieldType, what: str, first: Token) -> Any:
         parts = []
@@ -851,9 +902,8 @@ class _Builder:
                     parts.append(parse_ints(str(tok)))
             except NumberError as e:
                 line, col = _offset_position(tok, e.offset)
-                raise VrmlSemanticError(
+                raise self.value_error(
                     f"field '{what} expects {ftype.describe()}: {e.word!r} is not {e.expected}",
-                    file=self.file,
                     line=line,
                     column=col,
                 ) from None
@@ -866,7 +916,7 @@ class _Builder:
         w = ftype.width
         if not ftype.multi:
             if n != w:
-                raise self.error(
+                raise self.value_error(
                     f"field '{what} expects {ftype.describe()}, got {n} number"
                     f"{'s' if n != 1 else ''}",
                     first,
@@ -875,7 +925,7 @@ class _Builder:
                 return arr.astype(np.float64)
             return int(arr[0]) if ftype.kind == "int" else float(arr[0])
         if n % w:
-            raise self.error(
+            raise self.value_error(
                 f"field '{what} expects {ftype.name}, a multiple of {w} numbers, got {n}", first
             )
         if ftype.kind == "int":
@@ -884,26 +934,26 @@ class _Builder:
 
     def image(self, arr: np.ndarray, what: str, tok: Token) -> SFImage:
         if arr.size < 3:
-            raise self.error(
+            raise self.value_error(
                 f"field '{what} expects SFImage (width height components pixels…), got "
                 f"{arr.size} numbers",
                 tok,
             )
         w, h, c = (int(v) for v in arr[:3])
         if w < 0 or h < 0 or not 0 <= c <= 4:
-            raise self.error(
+            raise self.value_error(
                 f"field '{what}: SFImage size {w}x{h} with {c} components is invalid "
                 "(components must be 1 to 4)",
                 tok,
             )
         pixels = arr[3:]
         if pixels.size != w * h:
-            raise self.error(
+            raise self.value_error(
                 f"field '{what}: SFImage of {w}x{h} needs {w * h} pixels, got {pixels.size}", tok
             )
         pixels = pixels.astype(np.int64) & 0xFFFFFFFF
         if c and pixels.size and pixels.max() >= 1 << (8 * c):
-            raise self.error(
+            raise self.value_error(
                 f"field '{what}: pixel value {int(pixels.max()):#x} has more than {c} "
                 f"component byte{'s' if c > 1 else ''}",
                 tok,
@@ -929,7 +979,7 @@ class _Builder:
         elif not items:
             tname = "MFNode"
         else:
-            raise self.error(
+            raise self.value_error(
                 f"field '{what} mixes kinds of values ({_describe_items(items)} and more); a "
                 "field of an unknown node type must hold one kind",
                 _first_token(t),
@@ -1143,6 +1193,17 @@ def _is_script_decl(node: Node, name: str) -> bool:
 
 def _roles_of(node: Node) -> frozenset[str]:
     return node.type.roles
+
+
+def _empty_value(ftype: FieldType) -> Any:
+    """The empty value of a type: 0, FALSE, "", NULL, a zero vector, an empty list or image."""
+    if ftype.multi:
+        text = "[]"
+    else:
+        text = {"bool": "FALSE", "string": '""', "node": "NULL", "image": "0 0 0"}.get(
+            ftype.kind, " ".join(["0"] * ftype.width)
+        )
+    return parse_default(ftype, text)
 
 
 def _first_token(t: Any) -> Token | None:
