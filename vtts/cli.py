@@ -369,8 +369,9 @@ def cmd_render(args: argparse.Namespace) -> int:
 
 
 def cmd_play(args: argparse.Namespace) -> int:
-    """Play a FAP stream on one or more models into an MP4 and/or a folder of PNGs."""
-    from vtts.animate.fapstream import stream_params, warn_ignored
+    """Play a FAP stream on one or more models into an MP4 and/or a folder of PNGs; a stream's
+    head translation moves each model by that many of its own ES units."""
+    from vtts.animate.fapstream import model_roots, stream_params, warn_ignored
     from vtts.errors import RenderError
     from vtts.face import load_model
     from vtts.fap.cli_coding import read_stream
@@ -383,14 +384,22 @@ def cmd_play(args: argparse.Namespace) -> int:
     _background(args, video=bool(args.output))
     stream = read_stream(args.stream)
     models = [load_model(m) for m in args.model]
-    tracks = []
+    tracks, played = [], []
     for m in models:
         sp = stream_params(stream, set(m.tables.adts), fps=args.fps)
         warn_ignored(m.name, sp.ignored)
         tracks.append(sp.params)
+        played.append(sp)
     n = tracks[0].shape[0]
     with contextlib.ExitStack() as stack:
         renderer = stack.enter_context(_renderer(args, models, video=bool(args.output)))
+        roots = [
+            model_roots(sp, renderer.model_matrix(j), m.fapu, m.name)
+            for j, (sp, m) in enumerate(zip(played, models, strict=True))
+        ]
+        moving = None
+        if any(r is not None for r in roots):
+            moving = ([None if r is None else r[i] for r in roots] for i in range(n))
         sinks = []
         if args.output:
             sinks.append(
@@ -401,7 +410,7 @@ def cmd_play(args: argparse.Namespace) -> int:
         if args.png_dir:
             sinks.append(stack.enter_context(PngSequenceWriter(args.png_dir)))
         bar = stack.enter_context(progress(n, f"rendering {Path(args.stream).name}", args.quiet))
-        for frame in renderer.frames([t[i] for t in tracks] for i in range(n)):
+        for frame in renderer.frames(([t[i] for t in tracks] for i in range(n)), moving):
             for sink in sinks:
                 sink.write(frame)
             bar.advance()

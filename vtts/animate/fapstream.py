@@ -20,6 +20,12 @@ vectors (the layout of :mod:`vtts.face.miap`) at the output frame rate, in four 
    are interpolated like the low-level FAPs: a viseme switch between two input frames becomes a
    short cross-fade rather than a jump at the nearest frame.
 
+A stream's head translation (:attr:`~vtts.fap.FapStream.translation`, ES units) is resampled the
+same way into :attr:`StreamParams.translation`; it is not a parameter of the face but moves the
+model as a whole: :func:`translated_root` (one frame) and :func:`head_roots` (every frame) give
+the model's root pose, ``translation × ES`` model units from where it stands, in its own ES, so
+one stream moves heads of any size alike.
+
 The low-level FAPs 3–68 are placed at ``params[k - 1]`` whether or not the model has tables for
 them (a model ignores entries it has no table for).
 
@@ -73,7 +79,7 @@ import numpy as np
 
 from vtts.errors import FapError, VttsWarning
 from vtts.face.miap import EXPRESSION_BASE, N_PARAMS, VISEME_BASE, Miap
-from vtts.fap import FAPS, N_FAPS, FapStream, fap
+from vtts.fap import FAPS, N_FAPS, FapStream, Fapu, fap
 from vtts.fap.stream import MAX_RESAMPLED_FRAMES
 from vtts.fap.table import positive_number
 
@@ -154,6 +160,8 @@ class StreamParams:
         missing_visemes: visemes (1–14) the stream gives a weight > 0 but the model has no table
             for, ascending.
         missing_expressions: expressions (1–6) likewise.
+        translation: ``(n, 3) float64``: the stream's head translation in each frame, ES units
+            (see :attr:`vtts.fap.FapStream.translation`), or None when the stream has none.
     """
 
     params: np.ndarray
@@ -163,6 +171,7 @@ class StreamParams:
     ignored: list[int] = field(default_factory=list)
     missing_visemes: list[int] = field(default_factory=list)
     missing_expressions: list[int] = field(default_factory=list)
+    translation: np.ndarray | None = None
 
     @property
     def n_frames(self) -> int:
@@ -327,8 +336,11 @@ def stream_params(
         e for e in range(1, 7) if e not in shown_expressions and np.any(ew[:, e] > 0)
     ]
 
+    translation = stream.translation
     if fps_out != stream.fps:
         params = resample_params(params, stream.fps, fps_out)
+        if translation is not None:
+            translation = resample_params(translation, stream.fps, fps_out)
     times = np.arange(params.shape[0], dtype=np.float64) / fps_out
     return StreamParams(
         params=params,
@@ -338,7 +350,63 @@ def stream_params(
         ignored=ignored,
         missing_visemes=missing_visemes,
         missing_expressions=missing_expressions,
+        translation=None if translation is None else translation.copy(),
     )
+
+
+# --- the head translation --------------------------------------------------------------------
+
+
+def translated_root(root_pose: np.ndarray, translation_es: np.ndarray, fapu: Fapu) -> np.ndarray:
+    """The ``(4, 4)`` pose of a model's root moved by a head translation.
+
+    ``root_pose``: ``(4, 4)``, the root's pose at rest (for a :class:`~vtts.render.FaceRenderer`,
+    ``renderer.model_matrix(i)`` before any frame); ``translation_es``: ``(3,)`` in ES units
+    (:attr:`vtts.fap.FapStream.translation`: x to the viewer's right, y up, z towards the
+    viewer, along the model's axes); ``fapu``: the model's FAPUs (``model.fapu``). The root
+    moves by ``translation_es · fapu.es`` model units along its own axes: ``root_pose @
+    T(translation_es · fapu.es)``, which for the renderer's roots (translations only) adds the
+    offset to the root's position, as the analysis does. The inverse, a root offset ``d`` in
+    model units as ES units, is ``R⁻¹ d / fapu.es`` (``d / fapu.es`` for those roots).
+    """
+    return head_roots(root_pose, np.asarray(translation_es, dtype=np.float64)[None], fapu)[0]
+
+
+def head_roots(root_pose: np.ndarray, translation_es: np.ndarray, fapu: Fapu) -> np.ndarray:
+    """``(n, 4, 4)``: :func:`translated_root` for each row of ``translation_es`` ``(n, 3)``."""
+    root = np.asarray(root_pose, dtype=np.float64)
+    t = np.asarray(translation_es, dtype=np.float64)
+    if root.shape != (4, 4):
+        raise FapError(f"a root pose has shape (4, 4), got {root.shape}")
+    if t.ndim != 2 or t.shape[1] != 3:
+        raise FapError(f"a head translation has shape (n, 3), got {t.shape}")
+    if not isinstance(fapu, Fapu):
+        raise FapError(f"the head translation needs the model's FAPUs, got {fapu!r}")
+    out = np.repeat(root[None], t.shape[0], axis=0)
+    out[:, :3, 3] += (t * fapu.es) @ root[:3, :3].T
+    return out
+
+
+def model_roots(
+    params: StreamParams, root_pose: np.ndarray, fapu: Fapu | None, model_name: str | None = None
+) -> np.ndarray | None:
+    """The model's root pose in each frame of ``params`` ``(n, 4, 4)``, moved by the stream's
+    head translation (:func:`head_roots`); None when the stream carries none, or when the model
+    has no FAPUs (its tables give no feature points to measure ES on): then a
+    :class:`MissingTableWarning` says the translation is ignored."""
+    if params.translation is None:
+        return None
+    if fapu is None:
+        who = f"model {model_name}" if model_name else "the model"
+        warnings.warn(
+            MissingTableWarning(
+                f"{who} has no FAPUs (no feature points to measure its eye separation on): the "
+                "stream's head translation is ignored"
+            ),
+            stacklevel=2,
+        )
+        return None
+    return head_roots(root_pose, params.translation, fapu)
 
 
 # --- the warning -----------------------------------------------------------------------------

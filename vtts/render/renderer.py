@@ -590,18 +590,31 @@ class FaceRenderer:
 
     # ---- per frame -----------------------------------------------------------------------------
 
-    def prepare(self, params: np.ndarray | list[np.ndarray], poses: list | None = None) -> list:
+    def prepare(
+        self,
+        params: np.ndarray | list[np.ndarray],
+        poses: list | None = None,
+        roots: list | None = None,
+    ) -> list:
         """Compute a frame's geometry without touching OpenGL (safe in a worker thread).
 
         ``params`` is one ``(N_PARAMS,)`` vector for all models or a list with one per model.
         ``poses``: each model's :class:`~vtts.face.deform.Pose` for its ``params``, when the
-        caller has deformed the model already. Returns what :meth:`apply` puts on the GPU."""
+        caller has deformed the model already. ``roots``: each model's root pose ``(4, 4)``
+        in the renderer's world for this frame (a head's translation, see
+        :func:`vtts.animate.fapstream.head_roots`), None where it stays as it is. Returns what
+        :meth:`apply` puts on the GPU."""
         if isinstance(params, np.ndarray) and params.ndim == 1:
             params = [params] * len(self.instances)
         if len(params) != len(self.instances):
             raise RenderError(f"{len(self.instances)} models but {len(params)} parameter vectors")
         if poses is not None and len(poses) != len(self.instances):
             raise RenderError(f"{len(self.instances)} models but {len(poses)} poses")
+        if roots is None:
+            roots = [None] * len(self.instances)
+        if len(roots) != len(self.instances):
+            raise RenderError(f"{len(self.instances)} models but {len(roots)} root poses")
+        roots = [None if r is None else _root_pose(r) for r in roots]
         prepared = []
         for i, (inst, p) in enumerate(zip(self.instances, params, strict=True)):
             p = np.asarray(p, dtype=np.float64)
@@ -636,12 +649,15 @@ class FaceRenderer:
                     )
                     at.last = (key, m)
                 matrices.append((at, at.last[1]))
-            prepared.append((meshes, matrices))
+            prepared.append((meshes, matrices, roots[i]))
         return prepared
 
     def apply(self, prepared: list) -> None:
-        """Put a :meth:`prepare` d frame into the scene (vertex buffers, Transform matrices)."""
-        for meshes, matrices in prepared:
+        """Put a :meth:`prepare` d frame into the scene (vertex buffers, Transform matrices,
+        root poses)."""
+        for inst, (meshes, matrices, root) in zip(self.instances, prepared, strict=True):
+            if root is not None:
+                self.scene.set_pose(inst.root, root)
             for am, positions, normals, vertex_data in meshes:
                 if not _update_in_place(am, vertex_data):
                     self.scene.remove_node(am.node)
@@ -653,27 +669,36 @@ class FaceRenderer:
                 for pn in at.nodes:
                     self.scene.set_pose(pn, m)
 
-    def pose(self, params: np.ndarray | list[np.ndarray], poses: list | None = None) -> None:
+    def pose(
+        self,
+        params: np.ndarray | list[np.ndarray],
+        poses: list | None = None,
+        roots: list | None = None,
+    ) -> None:
         """Pose every model (see :meth:`prepare`)."""
-        self.apply(self.prepare(params, poses))
+        self.apply(self.prepare(params, poses, roots))
 
-    def frames(self, params: Iterable) -> Iterator[np.ndarray]:
+    def frames(self, params: Iterable, roots: Iterable | None = None) -> Iterator[np.ndarray]:
         """Render a sequence: one frame ``(H, W, 3) uint8`` (``(H, W, 4)`` when transparent) per
-        item of ``params`` (each item as :meth:`prepare` takes it). The next frame's geometry is
-        computed in a worker thread while the current one rasterizes, which hides most of the
+        item of ``params`` (each item as :meth:`prepare` takes it; with ``roots``, the item of
+        ``roots`` alongside, as :meth:`prepare` takes its ``roots``). The next frame's geometry
+        is computed in a worker thread while the current one rasterizes, which hides most of the
         deformation's cost."""
         from concurrent.futures import ThreadPoolExecutor
 
-        it = iter(params)
+        if roots is None:
+            it = ((p, None, None) for p in params)
+        else:
+            it = ((p, None, r) for p, r in zip(params, roots, strict=True))
         with ThreadPoolExecutor(max_workers=1) as pool:
             try:
-                nxt = pool.submit(self.prepare, next(it))
+                nxt = pool.submit(self.prepare, *next(it))
             except StopIteration:
                 return
             while nxt is not None:
                 prepared = nxt.result()
                 try:
-                    nxt = pool.submit(self.prepare, next(it))
+                    nxt = pool.submit(self.prepare, *next(it))
                 except StopIteration:
                     nxt = None
                 self.apply(prepared)
@@ -684,17 +709,19 @@ class FaceRenderer:
         params: np.ndarray | list[np.ndarray] | None = None,
         poses: list | None = None,
         *,
+        roots: list | None = None,
         triangles: bool = False,
     ):
         """The frame ``(H, W, 3) uint8`` for the given parameters (None: as last posed; ``poses``
-        as :meth:`prepare` takes them); ``(H, W, 4)`` RGBA for a transparent background.
+        and ``roots`` as :meth:`prepare` takes them); ``(H, W, 4)`` RGBA for a transparent
+        background.
 
         With ``triangles``, returns ``(frame, numbers)``: also the number of the triangle each
         pixel shows ``(H, W) int64`` from the same rasterization (−1: none, or a VRML primitive
         such as a Sphere); see :attr:`triangle_sets`. Needs ``supersample`` 1 and no
         background image."""
         if params is not None:
-            self.pose(params, poses)
+            self.pose(params, poses, roots)
         if self._renderer is None:
             raise RenderError("this renderer is closed")
         ss = self.supersample
@@ -725,6 +752,13 @@ class FaceRenderer:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _root_pose(matrix) -> np.ndarray:
+    m = np.asarray(matrix, dtype=np.float64)
+    if m.shape != (4, 4) or not np.isfinite(m).all():
+        raise RenderError(f"a root pose is a finite (4, 4) matrix, got shape {m.shape}")
+    return m
 
 
 def _check_size(size: tuple[int, int]) -> tuple[int, int]:
