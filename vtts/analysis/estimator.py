@@ -53,6 +53,9 @@ EDGE = 2
 #: Residuals beyond this many gray levels count as this many in the match energy (robust).
 TRUNCATE = 10.0
 
+#: Residuals (gray levels of luminance) beyond which a pixel has no say in a robust solve.
+ROBUST_LIMIT = 30.0
+
 #: Rec. 601 luminance weights (Equation 18 is on luminance).
 LUMA = np.array([0.299, 0.587, 0.114])
 
@@ -105,7 +108,11 @@ class Estimator:
     level. ``refine``: the FAPs that, when they are unknowns, are refined after the pyramid by
     a search over integer values on the rendered image (:meth:`_refine`). ``predict``: the
     unknowns that start each frame where their motion between the last two estimates leads
-    (:meth:`_extrapolate`; default the head's rotation and translation).
+    (:meth:`_extrapolate`; default the head's rotation and translation). ``robust``: Tukey's
+    biweight on each pixel's luminance residual (a pixel beyond :data:`ROBUST_LIMIT` gray levels
+    has no say), for camera video where parts of the image are not the model's. ``ignore``:
+    DEF names of IndexedFaceSets drawn but left out of the match (a fitted head's hair, ears and
+    neck, whose texture the photo did not give); their pixels are not in the face area either.
     """
 
     def __init__(
@@ -129,6 +136,7 @@ class Estimator:
         self.refined = tuple(u for u in self.unknowns if u in wanted)
         self.model = model
         self.size = (int(size[0]), int(size[1]))
+        ignore: Iterable[str] = (),
         self.pyramid = tuple(pyramid)
         self.illumination = illumination
         self.sigma = sigma
@@ -167,6 +175,10 @@ class Estimator:
         self.gain = np.ones(3)
         self.offset = np.zeros(3)
 
+        self.ignored = frozenset(ignore)
+        for node, first, count in self._renderer.triangle_sets:
+            if node.name in self.ignored:  # drawn (they hide what is behind them), not matched
+                self._faces[first : first + count] = -1
     # ---- rendering -----------------------------------------------------------------------------
 
     def render(self, factor: int = 1) -> tuple[np.ndarray, np.ndarray]:
@@ -302,6 +314,8 @@ class Estimator:
         ry, gxy, gyy = r_p @ LUMA, gx_p @ LUMA, gy_p @ LUMA
         d = np.abs(ry) / np.sqrt(gxy * gxy + gyy * gyy + 1e-6)
         keep = d <= lv.g
+        if rows.size < 4 * len(self.unknowns) and lv.factor > 1:
+            return 0.0  # too small a face for this level (QCIF at 1/4): the finer levels solve
         rows, cols = rows[keep], cols[keep]
         gx_p, gy_p, r_p, s_p = gx_p[keep], gy_p[keep], r_p[keep], s_p[keep]
         tri = ids[rows, cols]
@@ -330,9 +344,11 @@ class Estimator:
         dv[:, held] = 0.0
         weights = None
         if self.robust:
-            # Huber weights on the luminance residual: pixels the model cannot explain (hair,
-            # background at the outline, teeth, a hand) pull as if their residual were TRUNCATE
-            weights = np.minimum(1.0, TRUNCATE / np.maximum(np.abs(ry[keep]), 1e-6))
+            # Tukey's biweight on the luminance residual: pixels the model cannot explain
+            # (background at the outline, teeth in an open mouth, a hand) pull less and less,
+            # and not at all beyond ROBUST_LIMIT gray levels
+            u = np.minimum(np.abs(ry[keep]) / ROBUST_LIMIT, 1.0)
+            weights = (1.0 - u * u) ** 2
         ata, atb = _normal_equations(
             du, dv, gx_p, gy_p, r_p, s_p if self.illumination else None, weights
         )

@@ -116,7 +116,17 @@ def _place_marks(utt: Utterance, marks: list[tuple[str, float]], *, fallback: bo
 def _read_wav(path: Path) -> tuple[np.ndarray, int]:
     import soundfile as sf
 
+    from vtts.limits import MAX_DURATION_S, LimitError
+
     try:
+        # the length first: a 1 MB FLAC of silence decodes to ten hours (and a timeline as long)
+        info = sf.info(str(path))
+        if not info.frames <= MAX_DURATION_S * info.samplerate:
+            raise LimitError(
+                f"the audio lasts {info.frames / max(info.samplerate, 1):g} s, more than the "
+                f"limit of {MAX_DURATION_S:g} s",
+                file=str(path),
+            )
         data, sr = sf.read(str(path), dtype="int16", always_2d=True)
     except (RuntimeError, OSError) as e:
         raise SpeechError(f"cannot read audio: {e}", file=str(path)) from None
