@@ -537,18 +537,28 @@ def cmd_say(args: argparse.Namespace) -> int:
 
 def cmd_analyze(args: argparse.Namespace) -> int:
     """Estimate FAPs from a video (Eisert–Girod analysis by synthesis) into a .fap/.fbs file."""
+    import tempfile
+
     from vtts.analysis.report import mean_psnr, write_report
     from vtts.analysis.unknowns import parse_unknowns
     from vtts.analysis.video import read_video
-    from vtts.atomic import atomic_path
-    from vtts.errors import AnalysisError
+    from vtts.atomic import atomic_path, check_outputs
+    from vtts.errors import AnalysisError, VttsWarning
     from vtts.face import load_model
     from vtts.fap.stream import format_fap
     from vtts.render import Camera, progress
 
     # everything that can be wrong with the input fails here, before minutes of estimation
-    if len(args.model) != 1:
-        raise AnalysisError(f"vtts analyze fits one model, got {len(args.model)} --model flags")
+    models = args.model or ["auto"]
+    if len(models) != 1:
+        raise AnalysisError(f"vtts analyze fits one model, got {len(models)} --model flags")
+    auto = models[0] == "auto"
+    if auto and args.camera:
+        raise AnalysisError("--camera is for a given --model: a fitted head brings its camera")
+    if args.face is not None and args.face < 1:
+        raise AnalysisError(f"--face must be 1 (the largest) or more, got {args.face}")
+    if args.rate is not None and not 0 < args.rate <= 1000:
+        raise AnalysisError(f"--rate must be within 0–1000 Hz, got {args.rate:g}")
     if args.step < 1:
         raise AnalysisError(f"--step must be a whole number ≥ 1, got {args.step}")
     if args.fps is not None and not 0 < args.fps <= 1000:
@@ -565,11 +575,15 @@ def cmd_analyze(args: argparse.Namespace) -> int:
             "-o and --report name the same path: the estimate is a file, the report a folder",
             file=args.report,
         )
-    for path in (out, extra_fbs, args.report and Path(args.report) / "frames.csv"):
+    if args.rate is not None and not (fbs or extra_fbs):
+        raise AnalysisError("--rate sets the rate of a coded .fbs: give -o OUT.fbs or --fbs")
+    fitted = fitted_paths(out) if auto else []
+    for path in (out, extra_fbs, args.report and Path(args.report) / "frames.csv", *fitted):
         if path:
             _check_writable(path)
+    check_outputs([p for p in (out, extra_fbs, *fitted) if p], [Path(args.video)])
     video = read_video(args.video, fps=args.fps)
-    model = load_model(args.model[0])
+    model = None if auto else load_model(models[0])
     total = None if video.n_frames is None else -(-video.n_frames // args.step)
 
     with contextlib.ExitStack() as stack:
@@ -577,39 +591,61 @@ def cmd_analyze(args: argparse.Namespace) -> int:
         # are renamed into place only when everything succeeded
         tmp_out = stack.enter_context(atomic_path(out))
         tmp_fbs = stack.enter_context(atomic_path(extra_fbs)) if extra_fbs else None
-        from vtts.analysis.estimator import analyze
+        # a fitted head is written into a hidden folder beside OUT and moved into place with OUT
+        staging = stack.enter_context(tempfile.TemporaryDirectory(dir=out.parent, prefix=".vtts-"))
+        from vtts.analysis.track import track
 
         bar = stack.enter_context(progress(total, f"analyzing {Path(args.video).name}", args.quiet))
         options = {} if unknowns is None else {"unknowns": unknowns}
-        analysis = analyze(
+        tracked = track(
             video.frames(),
-            model,
             fps=video.fps,
-            step=args.step,
+            model=model,
+            model_path=Path(staging) / fitted[0].name if auto else None,
             camera=camera,
+            face=args.face,
+            step=args.step,
             progress=lambda _index: bar.advance(),
             **options,
         )
-        stream = analysis.stream(_stream_name(args.video))
+        analysis = tracked.analysis
+        stream = analysis.stream(_stream_name(args.video), fapu=tracked.model.fapu)
         if fbs:
-            tmp_out.write_bytes(_encode_fbs(stream))
+            tmp_out.write_bytes(_encode_fbs(stream, args.rate))
         else:
-            tmp_out.write_text(format_fap(stream), encoding="utf-8")
+            with warnings.catch_warnings():  # the summary says where the translation went
+                warnings.simplefilter("ignore", VttsWarning)
+                tmp_out.write_text(format_fap(stream), encoding="utf-8")
         if tmp_fbs is not None:
-            tmp_fbs.write_bytes(_encode_fbs(stream))
+            tmp_fbs.write_bytes(_encode_fbs(stream, args.rate))
         if args.report:
             write_report(analysis, args.report)
+        for written in tracked.fitted:
+            os.replace(written, out.with_name(written.name))
     if not args.quiet:
         written = [str(p) for p in (out, extra_fbs) if p]
+        if fitted:
+            written.append(f"the fitted head {fitted[0]} (+ .adt, -face.png)")
         if args.report:
             written.append(f"report in {args.report}")
         n = len(analysis.frames)
+        restarts = len(tracked.restarts)
         print(
             f"wrote {', '.join(written)}: {n} frame{'s' if n != 1 else ''} at "
             f"{analysis.fps:g} fps, {len(analysis.unknowns)} unknowns, "
-            f"mean face PSNR {mean_psnr(analysis.psnr()):.2f} dB"
+            f"mean face PSNR {mean_psnr(analysis.psnr()):.2f} dB, "
+            f"{restarts} re-initialization{'s' if restarts != 1 else ''}"
         )
+        if not fbs and not extra_fbs and any(isinstance(u, str) for u in analysis.unknowns):
+            print("note: a .fap file cannot carry the head translation; -o OUT.fbs or --fbs does")
     return 0
+
+
+def fitted_paths(out: Path) -> list[Path]:
+    """The files of the head ``vtts analyze --model auto`` fits, beside ``OUT``:
+    ``OUT-model.wrl``, ``OUT-model.adt`` and ``OUT-model-face.png``."""
+    wrl = out.with_name(f"{out.stem}-model.wrl")
+    return [wrl, wrl.with_suffix(".adt"), wrl.with_name(f"{wrl.stem}-face.png")]
 
 
 def _check_writable(path: Path) -> None:
@@ -637,11 +673,11 @@ def _stream_name(video: str) -> str:
     return re.sub(r"\s+", "_", Path(video).stem.strip()).lstrip("#") or "vtts_analyze"
 
 
-def _encode_fbs(stream) -> bytes:
-    """``stream`` coded as ``vtts encode`` codes it by default."""
+def _encode_fbs(stream, rate: float | None = None) -> bytes:
+    """``stream`` coded as ``vtts encode`` codes it by default (at ``rate`` Hz if given)."""
     from vtts.fap.coding import encode
 
-    return encode(stream)
+    return encode(stream, rate=rate)
 
 
 def cmd_voices(args: argparse.Namespace) -> int:
@@ -792,9 +828,24 @@ def build_parser() -> argparse.ArgumentParser:
         ),
     )
     an.add_argument("video", metavar="VIDEO", help="a video file (MP4, ...) or a folder of PNGs")
-    _models_flag(an)
+    an.add_argument(
+        "--model",
+        action="append",
+        help="auto (default): fit a head to the first face and write it as OUT-model.wrl; or "
+        "a bundled model name or .wrl path, placed on the first face's landmarks",
+    )
+    _url_root_flag(an)
     an.add_argument(
         "-o", "--output", required=True, metavar="OUT.fap", help="output .fap (or coded .fbs)"
+    )
+    an.add_argument(
+        "--face", type=int, metavar="N", help="which face to track, 1 = the largest (default)"
+    )
+    an.add_argument(
+        "--rate",
+        type=float,
+        metavar="HZ",
+        help="frame rate of the coded .fbs (default: the analysis rate; the paper's is 12.5)",
     )
     an.add_argument(
         "--faps",

@@ -140,9 +140,9 @@ def test_a_run_writes_the_fap_file_the_bitstream_and_the_report(tmp_path, render
 
 @pytest.fixture
 def fake_estimator(monkeypatch):
-    """Replace ``analyze`` by a stand-in: FAP k of frame i is the frame's mean + k, tx the frame
+    """Replace the tracking by a stand-in: FAP k of frame i is the frame's mean + k, tx the frame
     index. Returns the list of the calls' keyword arguments."""
-    import vtts.analysis.estimator as estimator
+    import vtts.analysis.track as track
     from vtts.analysis.result import Analysis, FrameEstimate
     from vtts.analysis.unknowns import DEFAULT_UNKNOWNS
     from vtts.face import N_PARAMS
@@ -150,9 +150,10 @@ def fake_estimator(monkeypatch):
 
     calls: list[dict] = []
 
-    def analyze(
-        frames, model, *, fps, step=1, camera=None, unknowns=DEFAULT_UNKNOWNS, progress=None
-    ):
+    def fake_track(
+        frames, *, fps, model, step=1, camera=None, unknowns=DEFAULT_UNKNOWNS, progress=None,
+        **_options,
+    ):  # fmt: skip
         calls.append({"fps": fps, "step": step, "camera": camera, "unknowns": tuple(unknowns)})
         out = []
         for i, frame in enumerate(frames):
@@ -170,9 +171,12 @@ def fake_estimator(monkeypatch):
             from vtts.errors import AnalysisError
 
             raise AnalysisError("the video has no frames")
-        return Analysis(out, tuple(unknowns), fps / step, camera or Camera(1, 1, 0, 0), model.name)
+        analysis = Analysis(
+            out, tuple(unknowns), fps / step, camera or Camera(1, 1, 0, 0), model.name
+        )
+        return track.Tracked(analysis, model)
 
-    monkeypatch.setattr(estimator, "analyze", analyze)
+    monkeypatch.setattr(track, "track", fake_track)
     return calls
 
 
@@ -232,15 +236,15 @@ def test_fbs_output_and_camera(tmp_path, five_frames, fake_estimator, capsys):
 
 
 def test_a_failing_estimation_leaves_no_output(tmp_path, five_frames, monkeypatch, capsys):
-    import vtts.analysis.estimator as estimator
+    import vtts.analysis.track as track
     from vtts.cli import main
     from vtts.errors import VttsError
 
-    def analyze(frames, model, **kw):
+    def fake_track(frames, **kw):
         next(iter(frames))
         raise VttsError("the face left the image")
 
-    monkeypatch.setattr(estimator, "analyze", analyze)
+    monkeypatch.setattr(track, "track", fake_track)
     out = tmp_path / "est.fap"
     argv = ["analyze", str(five_frames), "--model", HEAD, "-o", str(out), "--fbs"]
     argv += ["--report", str(tmp_path / "report")]

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from vtts.fap.fapu import Fapu
 from vtts.fap.stream import FapStream
 from vtts.fap.table import N_FAPS
 from vtts.render.camera import Camera
@@ -68,9 +69,11 @@ class Analysis:
         """``(n_frames,)`` face-area PSNR of each estimate (dB)."""
         return np.array([fe.psnr for fe in self.frames], dtype=np.float64)
 
-    def stream(self, name: str = "vtts analyze") -> FapStream:
+    def stream(self, name: str = "vtts analyze", fapu: Fapu | None = None) -> FapStream:
         """The estimates as a FAP stream at :attr:`fps`: the estimated FAPs rounded to integers,
-        every frame setting each of them (the translation is not a FAP and is not included)."""
+        every frame setting each of them. With the model's ``fapu``, the estimated head
+        translation rides along (:attr:`FapStream.translation`, in ES units; axes not estimated
+        stay 0); without it, or when none was estimated, the stream has none."""
         n = len(self.frames)
         values = np.zeros((n, N_FAPS))
         mask = np.zeros((n, N_FAPS), dtype=bool)
@@ -78,5 +81,8 @@ class Analysis:
             for f in self.faps:
                 values[i, f - 1] = np.round(fe.params[f - 1])
                 mask[i, f - 1] = True
-        return FapStream(self.fps, name, values, mask)
+        translation = None
+        if fapu is not None and any(u in TRANSLATION for u in self.unknowns):
+            translation = np.array([fe.translation for fe in self.frames]).reshape(n, 3) / fapu.es
+        return FapStream(self.fps, name, values, mask, translation=translation)
 

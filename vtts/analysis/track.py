@@ -1,0 +1,255 @@
+"""Tracking a real person through a camera video: the model, its start and its recoveries.
+
+:func:`track` drives the :class:`~vtts.analysis.estimator.Estimator` over a camera video where
+nothing is known in advance (Eisert & Girod's "Camera sequences"):
+
+1. **The model.** Without one (``model=None``, ``vtts analyze --model auto``), a personalized
+   head is fitted to the first frame where a face is found, with ``adi fit``'s code
+   (:func:`vtts.fit.fit_photo`), and written (``OUT-model.wrl``, ``.adt``, ``-face.png``, its
+   ``photo`` Viewpoint the video's camera). The estimator then looks through that camera, so the
+   head starts exactly where the fit put it; frames before the first face copy its estimate.
+   A given model starts at frame 0 where the camera frames it and, when a face is found there
+   whose landmarks its feature points miss by more than :data:`PLACED_PX`, is placed on them
+   (:func:`~vtts.analysis.landmark_pose.landmark_pose`).
+2. **What the model does not know.** The match is robust (Huber weights: background at the
+   outline, hair, a hand, highlights pull no harder than a residual of
+   :data:`~vtts.analysis.estimator.TRUNCATE` gray levels) and, for a fitted head, leaves out the
+   parts whose texture the photo did not give (:data:`FITTED_IGNORED`: the hair cap, the ears,
+   the neck), which are still drawn and hide what lies behind them.
+3. **Losing the track.** A frame whose face PSNR falls :data:`LOST_DB` below the median of the
+   last good frames (or under :data:`LOST_FLOOR_DB`) is re-initialized from its landmarks — the
+   head rotation and translation placed on them — and estimated again; the better of the two
+   estimates is kept.
+4. **Several faces.** ``face`` picks one (1 = the largest, as ``adi fit --face``); later
+   re-initializations take the face nearest to where the tracked head was.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from vtts.analysis.estimator import DEFAULT_UNKNOWNS, Estimator
+from vtts.analysis.landmark_pose import landmark_pose, placement_error
+from vtts.analysis.result import Analysis, FrameEstimate
+from vtts.errors import AnalysisError, FitError, VttsWarning
+from vtts.face import FaceModel
+from vtts.render.camera import Camera
+
+#: The meshes of a fitted head that the estimator draws but does not match: their texture is
+#: made up (pull-push from the face, the generic ears), not seen in the photo.
+FITTED_IGNORED = ("HAIR", "NECK", "L_EAR", "R_EAR")
+
+#: A frame is lost when its face PSNR falls this far (dB) below the median of the recent frames…
+LOST_DB = 6.0
+#: … or below this (dB) at all.
+LOST_FLOOR_DB = 12.0
+#: Recent frames whose median PSNR is the reference for :data:`LOST_DB`.
+RECENT = 10
+#: A given model whose feature points already fall this close (median, pixels) to the first
+#: face's landmarks is left where the camera frames it (a video rendered by vtts itself).
+PLACED_PX = 3.0
+
+
+@dataclass
+class Tracked:
+    """The outcome of :func:`track`.
+
+    analysis   the :class:`~vtts.analysis.result.Analysis` (one estimate per analyzed frame)
+    model      the model tracked (the fitted one with ``model=None``)
+    fitted     the paths written for a fitted head (``.wrl``, ``.adt``, ``-face.png``), else []
+    first      index of the frame the model was fitted to or placed on
+    restarts   indices of the frames re-initialized from landmarks
+    """
+
+    analysis: Analysis
+    model: FaceModel
+    fitted: list[Path] = field(default_factory=list)
+    first: int = 0
+    restarts: list[int] = field(default_factory=list)
+
+
+def track(
+    frames: Iterable[np.ndarray],
+    *,
+    fps: float,
+    model: FaceModel | None = None,
+    model_path: str | Path | None = None,
+    camera: Camera | None = None,
+    face: int | None = None,
+    step: int = 1,
+    unknowns: Sequence[int | str] = DEFAULT_UNKNOWNS,
+    progress: Callable[[int], None] | None = None,
+    detector=None,
+    **options,
+) -> Tracked:
+    """Track the face in ``frames`` (each ``(H, W, 3) uint8`` RGB) of a video at ``fps``.
+
+    ``model`` None fits a head on the first frame with a face and writes it to ``model_path``
+    (a ``.wrl``; required then). ``camera`` (renderer frame) is for a given model only (default:
+    the framing ``vtts render`` uses). ``face``: 1 = the largest face. ``options`` go to the
+    :class:`~vtts.analysis.estimator.Estimator` (defaults here: ``robust=True``)."""
+    from vtts.fit.landmarks import detect_faces
+
+    if not (math.isfinite(fps) and fps > 0):
+        raise AnalysisError(f"fps must be a positive number, got {fps}")
+    if step < 1:
+        raise AnalysisError(f"step must be at least 1, got {step}")
+    if model is None and model_path is None:
+        raise AnalysisError("fitting a head to the video needs a path to write it to")
+    if model is None and camera is not None:
+        raise AnalysisError("a fitted head brings the video's camera: give no camera with it")
+    options.setdefault("robust", True)
+    estimator: Estimator | None = None
+    out: list[FrameEstimate] = []
+    waiting: list[tuple[int, float]] = []  # frames before the first face
+    result = Tracked(Analysis([], (), fps / step, Camera(1, 1, 0, 0)), model)  # type: ignore
+    recent: list[float] = []
+    for i, frame in enumerate(frames):
+        if i % step:
+            continue
+        t = i / fps
+        if estimator is None:
+            faces = detect_faces(frame, detector)
+            if not faces and model is None:
+                waiting.append((i, t))
+                _progress(progress, i)
+                continue
+            chosen = _choose(faces, face, i) if faces else None
+            estimator = _start(result, frame, chosen, face, model, model_path, camera, unknowns,
+                               detector, options)  # fmt: skip
+            result.first = i
+        fe = estimator.estimate(frame, i, t)
+        if _lost(fe.psnr, recent):
+            again = _restart(estimator, frame, i, t, fe, detector)
+            if again is not None:
+                fe = again
+                result.restarts.append(i)
+        if math.isfinite(fe.psnr):
+            recent = [*recent[-(RECENT - 1) :], fe.psnr]
+        if waiting:
+            out += [_copy(fe, j, tj) for j, tj in waiting]
+            waiting = []
+        out.append(fe)
+        _progress(progress, i)
+    if estimator is None:
+        if not waiting:
+            raise AnalysisError("the video has no frames")
+        raise AnalysisError(f"no face found in any of the {len(waiting)} frames analyzed")
+    result.analysis = Analysis(out, estimator.unknowns, fps / step, estimator.camera,
+                               result.model.name)  # fmt: skip
+    return result
+
+
+def _progress(progress: Callable[[int], None] | None, index: int) -> None:
+    if progress is not None:
+        progress(index)
+
+
+def _choose(faces: list, face: int | None, index: int):
+    """The face to track among ``faces`` (largest first) of frame ``index``."""
+    if face is not None and not 1 <= face <= len(faces):
+        raise AnalysisError(
+            f"--face {face}: frame {index}, the first with a face, shows {len(faces)} face(s), "
+            f"numbered 1–{len(faces)} from the largest"
+        )
+    if face is None and len(faces) > 1:
+        warnings.warn(
+            VttsWarning(
+                f"frame {index} shows {len(faces)} faces: tracking the largest (choose another "
+                "with --face N, 1 = largest)"
+            ),
+            stacklevel=3,
+        )
+    return faces[(face or 1) - 1]
+
+
+def _start(result: Tracked, frame, chosen, face, model, model_path, camera, unknowns, detector,
+           options) -> Estimator:  # fmt: skip
+    """The estimator for the first frame with a face: a head fitted to it, or ``model`` placed
+    on its landmarks."""
+    h, w = frame.shape[:2]
+    if model is None:
+        from vtts.face import load_model
+        from vtts.fit import fit_photo
+
+        try:
+            head = fit_photo(frame, face=face or 1, detector=detector)
+        except FitError as e:
+            raise AnalysisError(f"cannot fit a head to the first face: {e.message}") from None
+        result.fitted = head.write(model_path)
+        result.model = load_model(str(result.fitted[0]))
+        options = {"ignore": FITTED_IGNORED, **options}
+        return Estimator(result.model, size=(w, h), model_camera=head.shape.camera,
+                         unknowns=unknowns, **options)  # fmt: skip
+    estimator = Estimator(model, size=(w, h), camera=camera, unknowns=unknowns, **options)
+    if chosen is None:
+        return estimator  # no face seen: the model starts where the camera frames it
+    error = placement_error(estimator, chosen.landmarks)
+    if error is None:
+        warnings.warn(
+            VttsWarning(
+                f"{model.name} defines too few MPEG-4 feature points to be placed on the face's "
+                "landmarks: it starts where the camera frames it"
+            ),
+            stacklevel=3,
+        )
+    elif error > PLACED_PX:
+        landmark_pose(estimator, chosen.landmarks)
+    return estimator
+
+
+def _lost(psnr: float, recent: list[float]) -> bool:
+    """Whether a frame of face PSNR ``psnr`` (dB) lost the track, given the ``recent`` ones."""
+    if not math.isfinite(psnr):
+        return psnr != float("inf")
+    if psnr < LOST_FLOOR_DB:
+        return True
+    return len(recent) >= 3 and psnr < float(np.median(recent)) - LOST_DB
+
+
+def _restart(estimator: Estimator, frame, index: int, time: float, fe: FrameEstimate,
+             detector) -> FrameEstimate | None:  # fmt: skip
+    """Estimate frame ``index`` again from the head placed on its landmarks; the new estimate
+    when it matches better than ``fe``, else None (the estimator is left as ``fe`` left it)."""
+    from vtts.fit.landmarks import detect_faces
+
+    faces = detect_faces(frame, detector)
+    if not faces:
+        return None
+    kept = (estimator.params.copy(), estimator.translation.copy(), estimator.gain.copy(),
+            estimator.offset.copy(), list(estimator._history))  # fmt: skip
+    near = _nearest(faces, estimator)
+    try:
+        landmark_pose(estimator, near.landmarks)
+    except AnalysisError:
+        return None
+    estimator._history = []  # the motion before the loss says nothing about what follows
+    again = estimator.estimate(frame, index, time)
+    if again.psnr > fe.psnr:
+        return again
+    (estimator.params, estimator.translation, estimator.gain, estimator.offset,
+     estimator._history) = kept  # fmt: skip
+    return None
+
+
+def _nearest(faces: list, estimator: Estimator):
+    """The face whose box centre is nearest the tracked head's image."""
+    _, ids = estimator.render(1)
+    rows, cols = np.nonzero(ids >= 0)
+    if rows.size == 0:
+        return faces[0]
+    centre = np.array([cols.mean(), rows.mean()])
+    boxes = np.array([f.box for f in faces], dtype=np.float64)
+    mids = np.stack([(boxes[:, 0] + boxes[:, 2]) / 2, (boxes[:, 1] + boxes[:, 3]) / 2], 1)
+    return faces[int(np.argmin(np.linalg.norm(mids - centre, axis=1)))]
+
+
+def _copy(fe: FrameEstimate, index: int, time: float) -> FrameEstimate:
+    """``fe`` standing in for frame ``index`` (before the first face): no PSNR of its own."""
+    return replace(fe, index=index, time=time, psnr=float("nan"), face_pixels=0, iterations=0)
