@@ -149,6 +149,27 @@ CASES = {
             (7, 57, "field 'radius' is given twice in one Sphere"),
         ],
     ),
+    "field types VRML97 lacks": (
+        H + "EXTERNPROTO Tessellation [\n"
+        "  exposedField SFLong slices\n"
+        "  exposedField SFInt32 divisions\n"
+        '] [ "urn:example:Tessellation" ]\n'
+        "Tessellation { slices 8 divisions 50 }\n"
+        "PROTO Head [ field SFDouble scale 1.5 field SFFloat size 1 ] {\n"
+        "  Transform { scale IS scale children Shape { geometry Sphere { radius IS size } } }\n"
+        "}\n"
+        "Head { scale 2 size 3 }\n"
+        "Script { field SFVec3d where 1 2 3 field SFInt32 n 2 }\n",
+        (VrmlSemanticError, 3, 16, "unknown field type 'SFLong'"),
+        [
+            (3, 16, "unknown field type 'SFLong': EXTERNPROTO Tessellation member 'slices'"),
+            (6, 16, "EXTERNPROTO Tessellation has no field 'slices'"),
+            (7, 20, "unknown field type 'SFDouble': PROTO Head member 'scale' left out"),
+            (8, 24, "PROTO Head has no interface member 'scale'"),
+            (10, 8, "PROTO Head has no field 'scale'"),
+            (11, 16, "unknown field type 'SFVec3d': Script member 'where' left out"),
+        ],
+    ),
     "url out of the folder": (
         H + "Shape {\n"
         '  appearance Appearance { texture ImageTexture { url "../textures/wall.png" } }\n'
@@ -253,6 +274,9 @@ def test_values_of_the_wrong_type_are_skipped():
     assert shape.expand()["geometry"].expand()["radius"] == 0.0
     scene, _ = lenient(H + "Transform { translation 1 2 3 translation 4 five 6 }")
     assert scene.roots[0]["translation"].tolist() == [1, 2, 3]
+    scene, got = lenient(H + "Transform { scale [ 2 2 2 ] }")
+    assert "a single value, not a '[ ]' list: the value is skipped" in got[0][2]
+    assert scene.roots[0]["scale"].tolist() == [1, 1, 1]
 
 
 def test_a_field_given_twice_keeps_the_last():
@@ -263,6 +287,16 @@ def test_a_field_given_twice_keeps_the_last():
     sphere = ball.first_node()
     assert "radius" not in sphere.fields and sphere.is_maps == {"radius": "size"}
     assert dumps(scene).count("loop") == 1
+
+
+def test_members_of_unknown_types_are_left_out():
+    scene, _ = lenient(CASES["field types VRML97 lacks"][0])
+    tessellation, head, script = scene.roots
+    assert set(tessellation.type.decls) == {"divisions"}
+    assert tessellation.fields == {"divisions": 50}
+    assert set(head.type.decls) == {"size"}
+    assert head.expand()["children"][0]["geometry"]["radius"] == 3.0
+    assert [d.name for d in script.script_decls] == ["n"]
 
 
 def test_lenient_keeps_the_other_rules():

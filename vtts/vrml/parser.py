@@ -310,6 +310,10 @@ class _DropDefault(Exception):
     """Lenient mode: a USE in a PROTO field default names no DEF anywhere (the default goes)."""
 
 
+class _SkipDeclaration(Exception):
+    """Lenient mode: an interface declaration of a type VRML97 lacks (the warning is given)."""
+
+
 class _BadValue(Exception):
     """Lenient mode: a value of the wrong type for its field (``error`` says why, and where);
     the field that holds it is skipped with a warning. Strict mode raises ``error`` itself."""
@@ -498,7 +502,10 @@ class _Builder:
                 node.order.append(("extra", len(node.extras)))
                 node.extras.append(self.statement(el, scope, depth + 1))
             elif kind in ("event_decl", "field_decl"):
-                self.script_decl(node, el, scope, depth)
+                try:
+                    self.script_decl(node, el, scope, depth)
+                except _SkipDeclaration:
+                    continue
                 node.order.append(("decl", str(el.children[2])))
             else:  # pragma: no cover
                 raise AssertionError(kind)
@@ -665,12 +672,7 @@ class _Builder:
 
         ``owner`` names the PROTO in messages (``PROTO P``)."""
         access_tok, type_tok, name_tok = el.children[:3]
-        ftype = FIELD_TYPES.get(str(type_tok))
-        if ftype is None:
-            raise self.error(
-                f"unknown field type '{type_tok}' (VRML97 types: {', '.join(FIELD_TYPES)})",
-                type_tok,
-            )
+        ftype = self.field_type(type_tok, name_tok, owner)
         rest = el.children[3:]
         is_name: Token | None = None
         value = None
@@ -700,6 +702,24 @@ class _Builder:
         decl = FieldDecl(str(access_tok), ftype, str(name_tok), None if in_script else value, None)
         return decl, value, is_name
 
+    def field_type(self, type_tok: Token, name_tok: Token, owner: str) -> FieldType:
+        """The type a declaration names. One VRML97 lacks (VRML 1.0's SFLong, X3D's SFDouble) is
+        an error, or in lenient mode a warning and the member is left out (raises
+        :class:`_SkipDeclaration`; IS bindings to it and values given for it then warn in turn)."""
+        ftype = FIELD_TYPES.get(str(type_tok))
+        if ftype is not None:
+            return ftype
+        if not self.lenient:
+            raise self.error(
+                f"unknown field type '{type_tok}' (VRML97 types: {', '.join(FIELD_TYPES)})",
+                type_tok,
+            )
+        self.warn(
+            f"unknown field type '{type_tok}': {owner} member '{name_tok}' left out (--lenient)",
+            type_tok,
+        )
+        raise _SkipDeclaration
+
     # ---- PROTO / EXTERNPROTO / ROUTE ---------------------------------------------------------
 
     def proto(self, t: Tree, scope: _Scope, depth: int) -> Proto:
@@ -716,9 +736,12 @@ class _Builder:
         body_trees = []
         for el in t.children[1:]:
             if el.data in ("event_decl", "field_decl"):
-                decl, _value, is_name = self.declaration(
-                    el, scope, depth, in_script=False, owner=f"PROTO {proto.name}"
-                )
+                try:
+                    decl, _value, is_name = self.declaration(
+                        el, scope, depth, in_script=False, owner=f"PROTO {proto.name}"
+                    )
+                except _SkipDeclaration:
+                    continue
                 if is_name is not None:
                     raise self.error(
                         f"PROTO {proto.name}: IS is not allowed in a PROTO interface", is_name
@@ -763,9 +786,10 @@ class _Builder:
         for el in t.children[1:]:
             if el.data == "extern_decl":
                 access_tok, type_tok, member_tok = el.children
-                ftype = FIELD_TYPES.get(str(type_tok))
-                if ftype is None:
-                    raise self.error(f"unknown field type '{type_tok}'", type_tok)
+                try:
+                    ftype = self.field_type(type_tok, member_tok, f"EXTERNPROTO {proto.name}")
+                except _SkipDeclaration:
+                    continue
                 decl = FieldDecl(str(access_tok), ftype, str(member_tok), None)
                 problem = interface_conflict(proto.decls, decl)
                 if problem:
