@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from vtts.errors import AnalysisError, RenderError
-from vtts.limits import check_image_size
+from vtts.limits import MAX_IMAGE_PIXELS, LimitError, check_image_size
 
 #: Frame rate of a PNG folder when none is given (frames per second).
 DEFAULT_FOLDER_FPS = 25.0
@@ -130,6 +130,8 @@ def _png_size(path: Path) -> tuple[int, int]:
                 )
             check_image_size(*img.size, file=str(path), what="frame")
             return img.size
+    except Image.DecompressionBombError as e:
+        raise _too_large(e, path) from None
     except (OSError, UnidentifiedImageError, ValueError) as e:
         raise AnalysisError(f"cannot read the PNG: {_reason(e)}", file=str(path)) from None
 
@@ -180,8 +182,17 @@ def load_png(path: str | os.PathLike[str], size: tuple[int, int] | None = None) 
                 gray = (np.asarray(img, dtype=np.int64) >> 8).clip(0, 255).astype(np.uint8)
                 return np.repeat(gray[:, :, None], 3, axis=2)
             return np.array(img.convert("RGB"), dtype=np.uint8)
+    except Image.DecompressionBombError as e:
+        raise _too_large(e, path) from None
     except (OSError, UnidentifiedImageError, ValueError, SyntaxError) as e:
         raise AnalysisError(f"cannot read the PNG: {_reason(e)}", file=str(path)) from None
+
+
+def _too_large(e: Exception, path: str | os.PathLike[str]) -> LimitError:
+    """Pillow refuses to open an image of over 179 million pixels, before its size is known."""
+    return LimitError(
+        f"the frame is larger than the limit of {MAX_IMAGE_PIXELS} pixels ({e})", file=str(path)
+    )
 
 
 # ---- video files ---------------------------------------------------------------------------------
