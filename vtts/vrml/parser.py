@@ -125,7 +125,8 @@ def parse(
     instead of an error: unknown node types (parsed generically), unknown fields (skipped), nodes
     of the wrong role in a field (dropped), IS naming a missing member (ignored), X3D statements
     (skipped), a PROTO field default that USEs a DEF of the enclosing file (resolved, or dropped),
-    and urls that leave the allowed folders (kept as data, never loaded).
+    urls that leave the allowed folders (kept as data, never loaded), values of the wrong type
+    (skipped), a field given twice (the last kept) and members of types VRML97 lacks (left out).
     ``url_root``: folders besides the file's own that url fields may name files in (one or
     several; None reads ``$VTTS_URL_ROOT``). Raises a :class:`~vtts.errors.VrmlError` subclass for
     any invalid input.
