@@ -5,17 +5,19 @@ nothing is known in advance (Eisert & Girod's "Camera sequences"):
 
 1. **The model.** Without one (``model=None``, ``vtts analyze --model auto``), a personalized
    head is fitted to the first frame where a face is found, with ``adi fit``'s code
-   (:func:`vtts.fit.fit_photo`), and written (``OUT-model.wrl``, ``.adt``, ``-face.png``, its
-   ``photo`` Viewpoint the video's camera). The estimator then looks through that camera, so the
-   head starts exactly where the fit put it; frames before the first face copy its estimate.
+   (:func:`vtts.fit.fit_photo`, the neck painted from the frame too), and written
+   (``OUT-model.wrl``, ``.adt``, ``-face.png``, its ``photo`` Viewpoint the video's camera).
+   The estimator then looks through that camera, so the head starts exactly where the fit put
+   it; frames before the first face copy its estimate.
    A given model starts at frame 0 where the camera frames it and, when a face is found there
    whose landmarks its feature points miss by more than :data:`PLACED_PX`, is placed on them
    (:func:`~vtts.analysis.landmark_pose.landmark_pose`).
-2. **What the model does not know.** The match is robust (Huber weights: background at the
-   outline, hair, a hand, highlights pull no harder than a residual of
-   :data:`~vtts.analysis.estimator.TRUNCATE` gray levels) and, for a fitted head, leaves out the
-   parts whose texture the photo did not give (:data:`FITTED_IGNORED`: the hair cap, the ears,
-   the neck), which are still drawn and hide what lies behind them.
+2. **What the model does not know.** The match is robust (Tukey's biweight: background at the
+   outline, teeth, a hand, highlights have no say beyond
+   :data:`~vtts.analysis.estimator.ROBUST_LIMIT` gray levels) and, for a fitted head, leaves out
+   the parts that do not move with the face or whose texture the photo could not give
+   (:data:`FITTED_IGNORED`: the hair cap, the ears, the neck); they are still drawn and hide what
+   lies behind them.
 3. **Losing the track.** A frame whose face PSNR falls :data:`LOST_DB` below the median of the
    last good frames (or under :data:`LOST_FLOOR_DB`) is re-initialized from its landmarks — the
    head rotation and translation placed on them — and estimated again; the better of the two
@@ -177,9 +179,10 @@ def _start(result: Tracked, frame, chosen, face, model, model_path, camera, unkn
     if model is None:
         from vtts.face import load_model
         from vtts.fit import fit_photo
+        from vtts.fit.photo import VIDEO_PARTS
 
         try:
-            head = fit_photo(frame, face=face or 1, detector=detector)
+            head = fit_photo(frame, face=face or 1, detector=detector, photo_parts=VIDEO_PARTS)
         except FitError as e:
             raise AnalysisError(f"cannot fit a head to the first face: {e.message}") from None
         result.fitted = head.write(model_path)

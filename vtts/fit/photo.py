@@ -47,6 +47,7 @@ from vtts.fit.texture import (
     ATLAS_SIZE,
     EYE_TILES,
     PAINTED_PARTS,
+    PHOTO_PARTS,
     PROBE_GREY,
     depth_map,
     iris_colour,
@@ -76,6 +77,9 @@ MAX_AIM = 0.3
 #: the texture take time with the pixels, and the texture has no use for more (the written
 #: Viewpoint's field of view holds at any size of the photo).
 WORK_SIZE = 1024
+#: The parts a video's first frame paints (``vtts analyze --model auto``): the photo's, and the
+#: neck, which a portrait may show as collar or shadow but a video will show again as it is.
+VIDEO_PARTS = (*PHOTO_PARTS, "NECK")
 #: Larger photos are refused (a 16k photo is 270 megapixels).
 MAX_SIZE = 16384
 
@@ -176,13 +180,16 @@ def fit_photo(
     focal_35mm: float | None = None,
     name: str = "fitted",
     detector: LandmarkDetector | None = None,
+    photo_parts: tuple[str, ...] = PHOTO_PARTS,
 ) -> FittedHead:
     """Fit the generic head of ``personality`` to the face in ``image (H, W, 3) uint8`` RGB.
 
     ``face`` chooses among several faces (1 = the largest; default: the largest, with a
     warning); ``focal_35mm`` is the lens as a 35 mm-equivalent focal length (mm; default
-    :data:`~vtts.fit.shape.DEFAULT_FOCAL_35MM`). Raises :class:`~vtts.errors.FitError` when no
-    face is found."""
+    :data:`~vtts.fit.shape.DEFAULT_FOCAL_35MM`); ``photo_parts`` the parts the photo paints
+    where it sees them (:data:`~vtts.fit.texture.PHOTO_PARTS`; ``vtts analyze`` adds the neck,
+    :data:`VIDEO_PARTS`, since the video shows what the photo showed there). Raises
+    :class:`~vtts.errors.FitError` when no face is found."""
     t0 = time.perf_counter()
     timings: dict[str, float] = {}
     image = check_image(image)
@@ -226,7 +233,7 @@ def fit_photo(
     add_viewpoint(scene, shape)
     timings["head"] = time.perf_counter() - t
     t = time.perf_counter()
-    atlas, seen = _texture(g, scene, tables, shape, image, chosen)
+    atlas, seen = _texture(g, scene, tables, shape, image, chosen, photo_parts)
     timings["texture"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t0
     return FittedHead(scene, tables, atlas, shape, chosen, image, len(faces), seen, personality,
@@ -257,7 +264,7 @@ def add_viewpoint(scene: Scene, shape: ShapeFit) -> None:
 
 
 def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.ndarray,
-             face: Face):  # fmt: skip
+             face: Face, photo_parts: tuple[str, ...] = PHOTO_PARTS):  # fmt: skip
     """The atlas: the generic tiles (upscaled; one eye tile per eye, in the photo's eye
     colours; the ear in its skin colour), painted from the photo where it sees the head."""
     from vtts.render import FaceRenderer
@@ -293,8 +300,9 @@ def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.nd
         if irises:
             for tile in EYE_TILES.values():
                 tint_eye(generic_atlas, np.mean(irises, axis=0), tile)
-        parts = {n: model.scene.node(n).expand() for n in PAINTED_PARTS if n in model.scene.defs}
-        texels = skin_texels(parts, ATLAS_SIZE)
+        names = [*PAINTED_PARTS, *(n for n in photo_parts if n not in PAINTED_PARTS)]
+        parts = {n: model.scene.node(n).expand() for n in names if n in model.scene.defs}
+        texels = skin_texels(parts, ATLAS_SIZE, photo_parts)
         proj = project_skin(texels, shape.camera, (w, h), depth, gain, offset)
         target = photo
         for k in range(TEXTURE_PASSES):

@@ -80,14 +80,14 @@ class SkinTexels:
     photo: np.ndarray
 
 
-def skin_texels(parts: dict[str, object], size: int = ATLAS_SIZE) -> SkinTexels:
-    """Rasterize the painted parts (IndexedFaceSet nodes by DEF name, already fitted; those of
-    :data:`PAINTED_PARTS` that are there) in texture space: texel centres inside a triangle's
-    texture coordinates."""
+def skin_texels(
+    parts: dict[str, object], size: int = ATLAS_SIZE, photo_parts: tuple[str, ...] = PHOTO_PARTS
+) -> SkinTexels:
+    """Rasterize the painted ``parts`` (IndexedFaceSet nodes by DEF name, already fitted) in
+    texture space: texel centres inside a triangle's texture coordinates; those of
+    ``photo_parts`` are the photo's to paint."""
     rows, cols, pts, nrm, photo = [], [], [], [], []
-    for name in PAINTED_PARTS:
-        if name not in parts:
-            continue
+    for name in parts:
         tm = triangulate(parts[name])
         uv = tm.texcoords
         x = (uv[:, 0] * size - 0.5).astype(np.float32)
@@ -126,7 +126,7 @@ def skin_texels(parts: dict[str, object], size: int = ATLAS_SIZE) -> SkinTexels:
         cols.append(px[inside] % size)  # the chart repeats across the back seam
         pts.append(p)
         nrm.append(n)
-        photo.append(np.full(len(p), name in PHOTO_PARTS))
+        photo.append(np.full(len(p), name in photo_parts))
     return SkinTexels(*(np.concatenate(a) for a in (rows, cols, pts, nrm, photo)))
 
 
