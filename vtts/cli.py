@@ -539,7 +539,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     """Estimate FAPs from a video (Eisert–Girod analysis by synthesis) into a .fap/.fbs file."""
     import tempfile
 
-    from vtts.analysis.report import mean_psnr, write_report
+    from vtts.analysis.report import mean_psnr, write_report, write_side_by_side
     from vtts.analysis.unknowns import parse_unknowns
     from vtts.analysis.video import read_video
     from vtts.atomic import atomic_path, check_outputs
@@ -620,6 +620,8 @@ def cmd_analyze(args: argparse.Namespace) -> int:
             tmp_fbs.write_bytes(_encode_fbs(stream, args.rate))
         if args.report:
             write_report(analysis, args.report)
+            video = read_video(args.video, fps=args.fps)  # again: the frames were not kept
+            write_side_by_side(args.report, video.frames(), analysis, tracked.model)
         for written in tracked.fitted:
             os.replace(written, out.with_name(written.name))
     if not args.quiet:
@@ -867,7 +869,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="frame rate of a PNG folder (default 25), or instead of a video's own",
     )
     an.add_argument(
-        "--report", metavar="DIR", help="also write frames.csv, psnr.png and faps.png into DIR"
+        "--report",
+        metavar="DIR",
+        help="also write frames.csv, psnr.png, faps.png and side-by-side.mp4 into DIR",
     )
     an.add_argument(
         "--fbs", action="store_true", help="also write the coded bitstream beside OUT (.fbs)"

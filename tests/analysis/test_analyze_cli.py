@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -131,7 +132,14 @@ def test_a_run_writes_the_fap_file_the_bitstream_and_the_report(tmp_path, render
         "frames.csv",
         "psnr.png",
         "faps.png",
+        "side-by-side.mp4",
     }
+    # camera | decoder's view | difference, one frame per estimate
+    from vtts.render import probe_media
+
+    info = probe_media(tmp_path / "report" / "side-by-side.mp4")
+    frame = next(iter(Image.open(rendered_frames / sorted(os.listdir(rendered_frames))[0]).size))
+    assert info.frames == 3 and info.width == 3 * frame, info
     assert sorted(p.name for p in out.parent.iterdir()) == ["talk.fap", "talk.fbs"]
 
 
@@ -209,7 +217,9 @@ def test_outputs_of_a_run(tmp_path, five_frames, fake_estimator, capsys):
     coded = read_stream(out.with_suffix(".fbs"))
     # coded on the grid of open_jaw's MPEG-4 step (4 MNS units): within half a step
     np.testing.assert_allclose(coded.values[:, 2], [3, 23, 43], atol=2)
-    assert sorted(p.name for p in report.iterdir()) == ["faps.png", "frames.csv", "psnr.png"]
+    assert sorted(p.name for p in report.iterdir()) == [
+        "faps.png", "frames.csv", "psnr.png", "side-by-side.mp4"
+    ]
     text = capsys.readouterr().out.strip()
     assert len(text.splitlines()) == 1
     assert str(out) in text and str(out.with_suffix(".fbs")) in text and str(report) in text

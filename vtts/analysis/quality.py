@@ -21,6 +21,7 @@ from scipy.ndimage import binary_erosion
 from vtts.errors import AnalysisError
 from vtts.face import FaceModel
 from vtts.fap.stream import FapStream
+from vtts.render.camera import Camera
 
 #: Pixels the model's coverage is shrunk by before the face PSNR is taken.
 SHRINK = 2
@@ -52,15 +53,21 @@ def decoded_frames(
     model: FaceModel,
     size: tuple[int, int],
     viewpoint: str | None = VIEWPOINT,
+    camera: Camera | None = None,
 ) -> Iterator[np.ndarray]:
     """The decoder's view: ``model`` rendered with each frame of ``stream`` (its FAPs and head
-    translation) at ``size`` (W, H) through the model's ``viewpoint`` (None: the default
-    framing), as ``(H, W, 4) uint8`` RGBA over a transparent background."""
+    translation) at ``size`` (W, H) through the model's ``viewpoint``, or ``camera`` (the
+    renderer's world, as :attr:`Analysis.camera`), or the default framing when both are None,
+    as ``(H, W, 4) uint8`` RGBA over a transparent background."""
     from vtts.animate.fapstream import head_roots, stream_params
     from vtts.render import FaceRenderer
 
+    if camera is not None:
+        viewpoint = None
     params = stream_params(stream, model.tables.adts).params
-    with FaceRenderer(model, size=size, viewpoint=viewpoint, background="transparent") as r:
+    with FaceRenderer(
+        model, size=size, viewpoint=viewpoint, camera=camera, background="transparent"
+    ) as r:
         roots = None
         if stream.translation is not None:
             roots = head_roots(r.model_matrix(0), stream.translation, model.fapu)
@@ -89,6 +96,18 @@ def stream_psnr(
         if k < len(frames):
             out[i] = face_psnr_rgb(frames[k], rgba, coverage(rgba))
     return out
+
+
+def side_by_side(frame: np.ndarray, rgba: np.ndarray, gain: float = 4.0) -> np.ndarray:
+    """One frame of ``side-by-side.mp4``: the camera ``frame`` ``(H, W, 3)``, the decoder's
+    view ``rgba`` ``(H, W, 4)`` over mid-grey, and their absolute difference over the model's
+    coverage, amplified ``gain`` times (black elsewhere): ``(H, 3W, 3) uint8``."""
+    frame = np.asarray(frame, np.float32)[..., :3]
+    alpha = rgba[..., 3:4].astype(np.float32) / 255.0
+    model = rgba[..., :3].astype(np.float32) * alpha + 128.0 * (1 - alpha)
+    diff = np.abs(frame - model) * gain * (rgba[..., 3:4] == 255)
+    row = np.concatenate([frame, model, diff], axis=1)
+    return np.clip(np.round(row), 0, 255).astype(np.uint8)
 
 
 def mean_psnr(psnr: np.ndarray) -> float:

@@ -14,16 +14,22 @@
     one small plot per estimated FAP over time (and the translation, when estimated), with the
     true values dashed when they are known.
 
+and :func:`write_side_by_side` (``vtts analyze --report``) adds ``side-by-side.mp4``: each
+analyzed camera frame, the decoder's view of its estimate (the model rendered from the stream
+alone, :func:`vtts.analysis.quality.decoded_frames`) and their difference, amplified.
+
 matplotlib is imported only here, and only its object-oriented API is used (no pyplot, no
 global backend switch): figures render with Agg whatever backend the caller's process uses.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import math
 import os
+from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
@@ -31,11 +37,13 @@ import numpy as np
 from vtts.analysis.result import TRANSLATION, Analysis
 from vtts.atomic import atomic_path, write_text
 from vtts.errors import AnalysisError
+from vtts.face import FaceModel
 
 #: The report's file names.
 CSV_NAME = "frames.csv"
 PSNR_PLOT = "psnr.png"
 FAPS_PLOT = "faps.png"
+SIDE_BY_SIDE = "side-by-side.mp4"
 
 #: How far above the best finite PSNR infinite values are drawn (dB), and where when no value
 #: is finite.
@@ -121,6 +129,42 @@ def write_report(
     _save(psnr_figure(analysis), written[1])
     _save(faps_figure(analysis, truth), written[2])
     return written
+
+
+def write_side_by_side(
+    directory: str | os.PathLike[str],
+    frames: Iterable[np.ndarray],
+    analysis: Analysis,
+    model: FaceModel,
+) -> Path:
+    """Write ``side-by-side.mp4`` into ``directory`` at the analysis's rate: for each analyzed
+    frame (``frames`` is the whole video, ``(H, W, 3) uint8`` each; those the analysis skipped
+    are passed over) the camera frame, the decoder's view of the estimate (the FAPs as the
+    stream carries them and the head translation, through the analysis's camera, without the
+    light correction, which a stream does not carry) and their difference ×4
+    (:func:`vtts.analysis.quality.side_by_side`). Returns the path."""
+    from vtts.analysis.quality import decoded_frames, side_by_side
+    from vtts.render import VideoWriter
+
+    path = Path(directory) / SIDE_BY_SIDE
+    stream = analysis.stream(fapu=model.fapu)
+    wanted = iter(fe.index for fe in analysis.frames)
+    next_index = next(wanted, None)
+    views = None
+    writer = None
+    with contextlib.ExitStack() as stack:
+        for i, frame in enumerate(frames):
+            if next_index is None:
+                break
+            if i != next_index:
+                continue
+            if views is None:
+                h, w = frame.shape[:2]
+                views = decoded_frames(stream, model, (w, h), camera=analysis.camera)
+                writer = stack.enter_context(VideoWriter(path, analysis.fps, (3 * w, h)))
+            writer.write(side_by_side(frame, next(views)))
+            next_index = next(wanted, None)
+    return path
 
 
 def _save(fig, path: Path) -> None:
