@@ -149,6 +149,11 @@ def load_photo(path: str | Path) -> tuple[np.ndarray, float | None]:
     p = Path(path)
     try:
         with Image.open(p) as im:
+            w, h = im.size
+            if max(w, h) > MAX_SIZE:  # before decoding: a 100-byte PNG may declare 89 million x 1
+                raise FitError(
+                    f"{p}: the photo is {w}x{h} pixels: larger than {MAX_SIZE}; scale it down"
+                )
             im.load()
             exif = im.getexif()
             from PIL import ImageOps
