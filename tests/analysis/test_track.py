@@ -173,3 +173,24 @@ def test_analyze_auto_bad_input(tmp_path, args, fragment):
     assert fragment in r.stderr, r.stderr
     assert "Traceback" not in r.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["clip"]
+
+
+def test_a_frame_that_loses_the_model_is_started_again_from_its_landmarks(tmp_path, monkeypatch):
+    from vtts.errors import VttsError
+
+    real = Estimator.estimate
+    calls = []
+
+    def estimate(self, frame, index=0, time=0.0):
+        calls.append(index)
+        if index == 1 and calls.count(1) == 1:
+            self.translation[:] = (100.0, 0.0, 0.0)  # thrown out of view
+            raise VttsError("the model covers only 0 pixels at 1/1 size")
+        return real(self, frame, index, time)
+
+    monkeypatch.setattr(Estimator, "estimate", estimate)
+    tracked = track(_frames(2), fps=25.0, model_path=tmp_path / "m.wrl")
+    assert tracked.restarts == [1]
+    assert calls == [0, 1, 1]
+    assert tracked.analysis.psnr()[1] > 22.0
+    assert abs(tracked.analysis.frames[1].translation[0]) < 1.0

@@ -39,7 +39,7 @@ import numpy as np
 from vtts.analysis.estimator import DEFAULT_UNKNOWNS, Estimator
 from vtts.analysis.landmark_pose import landmark_pose, placement_error
 from vtts.analysis.result import Analysis, FrameEstimate
-from vtts.errors import AnalysisError, FitError, VttsWarning
+from vtts.errors import AnalysisError, FitError, VttsError, VttsWarning
 from vtts.face import FaceModel
 from vtts.render.camera import Camera
 
@@ -112,6 +112,7 @@ def track(
     waiting: list[tuple[int, float]] = []  # frames before the first face
     result = Tracked(Analysis([], (), fps / step, Camera(1, 1, 0, 0)), model)  # type: ignore
     recent: list[float] = []
+    kept = None  # the estimator's state after the last good frame
     for i, frame in enumerate(frames):
         if i % step:
             continue
@@ -126,12 +127,20 @@ def track(
             estimator = _start(result, frame, chosen, face, model, model_path, camera, unknowns,
                                detector, options)  # fmt: skip
             result.first = i
-        fe = estimator.estimate(frame, i, t)
-        if _lost(fe.psnr, recent):
-            again = _restart(estimator, frame, i, t, fe, detector)
-            if again is not None:
-                fe = again
-                result.restarts.append(i)
+        try:
+            fe = estimator.estimate(frame, i, t)
+        except VttsError as e:  # the model left the view: start again from the landmarks
+            fe = _restart(estimator, frame, i, t, None, detector, kept=kept)
+            if fe is None:
+                raise AnalysisError(f"frame {i}: {e.message}; no face to restart from") from None
+            result.restarts.append(i)
+        else:
+            if _lost(fe.psnr, recent):
+                again = _restart(estimator, frame, i, t, fe, detector)
+                if again is not None:
+                    fe = again
+                    result.restarts.append(i)
+        kept = _state(estimator)
         if math.isfinite(fe.psnr):
             recent = [*recent[-(RECENT - 1) :], fe.psnr]
         if waiting:
@@ -216,28 +225,42 @@ def _lost(psnr: float, recent: list[float]) -> bool:
     return len(recent) >= 3 and psnr < float(np.median(recent)) - LOST_DB
 
 
-def _restart(estimator: Estimator, frame, index: int, time: float, fe: FrameEstimate,
-             detector) -> FrameEstimate | None:  # fmt: skip
+def _state(estimator: Estimator) -> tuple:
+    return (estimator.params.copy(), estimator.translation.copy(), estimator.gain.copy(),
+            estimator.offset.copy(), list(estimator._history))  # fmt: skip
+
+
+def _set_state(estimator: Estimator, state: tuple) -> None:
+    params, translation, gain, offset, history = state
+    estimator.params, estimator.translation = params.copy(), translation.copy()
+    estimator.gain, estimator.offset, estimator._history = gain.copy(), offset.copy(), list(history)
+
+
+def _restart(estimator: Estimator, frame, index: int, time: float, fe: FrameEstimate | None,
+             detector, kept: tuple | None = None) -> FrameEstimate | None:  # fmt: skip
     """Estimate frame ``index`` again from the head placed on its landmarks; the new estimate
-    when it matches better than ``fe``, else None (the estimator is left as ``fe`` left it)."""
+    when it matches better than ``fe`` (None: an estimate that failed), else None (the
+    estimator is left as ``fe`` left it). ``kept``: the state to place from, when the failed
+    estimate left the estimator elsewhere (the last good frame's)."""
     from vtts.fit.landmarks import detect_faces
 
     faces = detect_faces(frame, detector)
     if not faces:
         return None
-    kept = (estimator.params.copy(), estimator.translation.copy(), estimator.gain.copy(),
-            estimator.offset.copy(), list(estimator._history))  # fmt: skip
+    after = _state(estimator)
+    if kept is not None:
+        _set_state(estimator, kept)
     near = _nearest(faces, estimator)
     try:
         landmark_pose(estimator, near.landmarks)
-    except AnalysisError:
+        estimator._history = []  # the motion before the loss says nothing about what follows
+        again = estimator.estimate(frame, index, time)
+    except VttsError:
+        _set_state(estimator, after)
         return None
-    estimator._history = []  # the motion before the loss says nothing about what follows
-    again = estimator.estimate(frame, index, time)
-    if again.psnr > fe.psnr:
+    if fe is None or again.psnr > fe.psnr:
         return again
-    (estimator.params, estimator.translation, estimator.gain, estimator.offset,
-     estimator._history) = kept  # fmt: skip
+    _set_state(estimator, after)
     return None
 
 
