@@ -444,6 +444,7 @@ _COMPONENT_TYPES: dict[int, str] = {
     5126: "<f4",
 }
 _NORMALIZE = {5120: 127.0, 5121: 255.0, 5122: 32767.0, 5123: 65535.0}
+_SPARSE_INDEX_TYPES = (5121, 5123, 5125)
 _COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 
 
@@ -487,13 +488,18 @@ class _GltfReader:
     def error(self, msg: str) -> AdtError:
         return AdtError(msg, file=self.file)
 
+    def item(self, items: list | None, index: Any, what: str) -> Any:
+        """``items[index]`` for a glTF index: an integer (not a bool), 0 or more (Python's -1
+        would be the last), within the array."""
+        valid = isinstance(index, int) and not isinstance(index, bool)
+        if not (valid and 0 <= index < len(items or [])):
+            raise self.error(f"{what} {index!r} does not exist")
+        return items[index]
+
     def buffer(self, index: int) -> bytes:
+        buf = self.item(self.doc.buffers, index, "buffer")
         if index in self.buffers:
             return self.buffers[index]
-        try:
-            buf = self.doc.buffers[index]
-        except IndexError:
-            raise self.error(f"buffer {index} does not exist") from None
         uri = buf.uri
         if uri is None:
             data = self.doc.binary_blob()
@@ -522,10 +528,7 @@ class _GltfReader:
 
     def view_bytes(self, view_index: int) -> tuple[bytes, int, int, int | None]:
         """(buffer bytes, view start, view length, byte stride) of a bufferView."""
-        try:
-            view = self.doc.bufferViews[view_index]
-        except IndexError:
-            raise self.error(f"bufferView {view_index} does not exist") from None
+        view = self.item(self.doc.bufferViews, view_index, "bufferView")
         data = self.buffer(view.buffer)
         start, length = view.byteOffset or 0, view.byteLength
         if not all(isinstance(v, int) and v >= 0 for v in (start, length)):
@@ -562,10 +565,7 @@ class _GltfReader:
     def accessor(self, index: int, what: str) -> np.ndarray:
         """``(count, components) float64`` values of an accessor (sparse and normalized
         accessors included)."""
-        try:
-            acc = self.doc.accessors[index]
-        except (IndexError, TypeError):
-            raise self.error(f"{what}: accessor {index} does not exist") from None
+        acc = self.item(self.doc.accessors, index, f"{what}: accessor")
         ncomp = _COMPONENTS.get(acc.type)
         if ncomp is None or acc.componentType not in _COMPONENT_TYPES:
             raise self.error(
@@ -574,7 +574,8 @@ class _GltfReader:
         what = f"{what} (accessor {index})"
         counts = (("count", acc.count), ("sparse count", getattr(acc.sparse, "count", 0)))
         for name, count in counts:
-            if not (isinstance(count, int) and 0 <= count <= MAX_ACCESSOR_COUNT):
+            if isinstance(count, bool) or not (isinstance(count, int)
+                                               and 0 <= count <= MAX_ACCESSOR_COUNT):
                 raise self.error(
                     f"{what}: {name} {count!r} is not an integer within 0–{MAX_ACCESSOR_COUNT} "
                     "(vtts.limits)"
@@ -588,6 +589,13 @@ class _GltfReader:
             values = np.maximum(values / _NORMALIZE[acc.componentType], -1.0)
         sparse = acc.sparse
         if sparse is not None and sparse.count:
+            if getattr(sparse.indices, "componentType", None) not in _SPARSE_INDEX_TYPES or (
+                getattr(sparse, "values", None) is None
+            ):
+                raise self.error(
+                    f"{what}: sparse indices need a componentType of 5121, 5123 or 5125 "
+                    "(unsigned integers), and sparse values"
+                )
             idx = self.read(sparse.indices.bufferView, sparse.indices.byteOffset or 0,
                             sparse.count, sparse.indices.componentType, 1,
                             f"{what} sparse indices").reshape(-1).astype(np.int64)
@@ -624,10 +632,14 @@ class _GltfReader:
                 for ti, t in enumerate(targets):
                     tpos = _attr(t, "POSITION")
                     n = len(bases[-1])
-                    deltas[ti].append(
-                        np.zeros((n, 3)) if tpos is None
-                        else self.accessor(tpos, f"{label} morph target {ti} POSITION")
-                    )
+                    delta = (np.zeros((n, 3)) if tpos is None
+                             else self.accessor(tpos, f"{label} morph target {ti} POSITION"))
+                    if len(delta) != n:
+                        raise self.error(
+                            f"{label}, primitive {pi}: morph target {ti} has {len(delta)} "
+                            f"POSITIONs but the primitive {n} (glTF requires the same number)"
+                        )
+                    deltas[ti].append(delta)
             base = np.concatenate(bases) if bases else np.zeros((0, 3))
             if base.shape[1:] != (3,):
                 raise self.error(f"{label}: POSITION must be VEC3")
