@@ -1,43 +1,21 @@
 """Inputs whose size is hostile fail at once with a clear error naming the limit: each case runs
-the CLI in a process limited to 3 GB of address space and 60 s, and must exit 1 with the message
-and no traceback (before the limits of vtts.limits, these took 6 to 24 GB or ran for minutes)."""
+the CLI in a process limited to 3 GB of address space and 60 s (``hostile.vtts``), and must exit
+1 with the message and no traceback (before the limits of vtts.limits, these took 6 to 24 GB or
+ran for minutes)."""
 
 from __future__ import annotations
 
-import os
-import resource
 import struct
-import subprocess
-import sys
 import wave
 from pathlib import Path
 
 import pytest
+from hostile import DATA, vtts
 
 from vtts import limits
 
-DATA = Path(__file__).parent / "data"
 HEAD = str(DATA / "models" / "head.wrl")
 JOY = str(DATA / "fap" / "xface-joy.fap")
-MEMORY = 3 << 30
-
-
-def _limited() -> None:
-    resource.setrlimit(resource.RLIMIT_AS, (MEMORY, MEMORY))
-
-
-def vtts(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    exe = Path(sys.executable).with_name("vtts")
-    env = {**os.environ, "VTTS_CACHE_DIR": ""}
-    return subprocess.run(
-        [str(exe), *args],
-        capture_output=True,
-        text=True,
-        timeout=60,
-        cwd=cwd,
-        env=env,
-        preexec_fn=_limited,
-    )
 
 
 def _wav(path: Path, seconds: float = 0.5) -> Path:
