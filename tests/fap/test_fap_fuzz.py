@@ -6,6 +6,7 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+from hostile import mutate, mutations
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -58,50 +59,6 @@ def test_random_unicode_text(text: str) -> None:
 @given(st.binary(max_size=200))
 def test_random_bytes_after_a_header(data: bytes) -> None:
     parse_or_fap_error("2.1 x 25 1\n" + data.decode("latin-1"))
-
-
-INTERESTING = [
-    "0", "1", "2", "-1", "+1", "1.5", ".", "-", "e", "1e999", "nan", "inf", "#", " ", "\t", "\n",
-    "\r", "\r\n", "\x0b", "\x0c", "\xa0", "\x85", "\u2028", "\ufeff", "\x00", "x", "2.0", "2.1",
-    "9" * 30, "1_0",
-]
-mutations = st.lists(
-    st.tuples(
-        st.sampled_from(["insert", "delete", "replace", "drop_line", "dup_line", "swap_lines",
-                         "truncate"]),
-        st.integers(0, 10**6),
-        st.integers(0, 10**6),
-        st.sampled_from(INTERESTING),
-    ),
-    min_size=1,
-    max_size=4,
-)
-
-
-def mutate(text: str, ops: list[tuple[str, int, int, str]]) -> str:
-    for op, a, b, s in ops:
-        if op in ("insert", "delete", "replace", "truncate"):
-            i = a % (len(text) + 1)
-            if op == "insert":
-                text = text[:i] + s + text[i:]
-            elif op == "delete":
-                text = text[:i] + text[i + 1 + b % 5:]
-            elif op == "replace":
-                j = i + 1 + b % 4
-                text = text[:i] + s + text[j:]
-            else:
-                text = text[:i]
-        else:
-            lines = text.split("\n")
-            i, j = a % len(lines), b % len(lines)
-            if op == "drop_line":
-                del lines[i]
-            elif op == "dup_line":
-                lines.insert(i, lines[i])
-            else:
-                lines[i], lines[j] = lines[j], lines[i]
-            text = "\n".join(lines)
-    return text
 
 
 @FUZZ
