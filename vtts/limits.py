@@ -49,7 +49,8 @@ MIN_FPS, MAX_FPS = 0.01, 1000.0
 
 #: The largest side of a rendered image, a video frame or a texture, in pixels.
 MAX_IMAGE_SIDE = 4096
-#: The most pixels of one image (a video frame, a photo, a texture): 16 megapixels.
+#: The most pixels of one image (a video frame, a texture): 16 megapixels. ``adi fit`` takes larger
+#: photos (up to 16384 pixels on a side) and scales them down.
 MAX_IMAGE_PIXELS = 16 << 20
 #: The most pixels of a rendered image (4K UHD): rendering takes about 400 bytes a pixel.
 MAX_RENDER_PIXELS = 3840 * 2160
