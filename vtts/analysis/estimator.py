@@ -130,13 +130,13 @@ class Estimator:
         refine: Iterable[int] = EYELIDS,
         predict: Iterable[int | str] = HEAD_MOTION,
         robust: bool = False,
+        ignore: Iterable[str] = (),
     ) -> None:
         self.unknowns = _check_unknowns(unknowns)
         wanted = set(refine)
         self.refined = tuple(u for u in self.unknowns if u in wanted)
         self.model = model
         self.size = (int(size[0]), int(size[1]))
-        ignore: Iterable[str] = (),
         self.pyramid = tuple(pyramid)
         self.illumination = illumination
         self.sigma = sigma
@@ -169,16 +169,16 @@ class Estimator:
         self._root = self._renderer.scene.get_pose(self._renderer.instances[0].root)
         self.geometry = HeadGeometry(model, self.unknowns, self._root)
         self._faces = _face_numbers(self._renderer, self.geometry)
+        self.ignored = frozenset(ignore)
+        for node, first, count in self._renderer.triangle_sets:
+            if node.name in self.ignored:  # drawn (they hide what is behind them), not matched
+                self._faces[first : first + count] = -1
         self._last_step: _Step | None = None
         self.params = np.zeros(N_PARAMS)
         self.translation = np.zeros(3)
         self.gain = np.ones(3)
         self.offset = np.zeros(3)
 
-        self.ignored = frozenset(ignore)
-        for node, first, count in self._renderer.triangle_sets:
-            if node.name in self.ignored:  # drawn (they hide what is behind them), not matched
-                self._faces[first : first + count] = -1
     # ---- rendering -----------------------------------------------------------------------------
 
     def render(self, factor: int = 1) -> tuple[np.ndarray, np.ndarray]:
@@ -291,6 +291,8 @@ class Estimator:
         # pixels within the model's outline: at the outline the synthetic background (which a
         # camera never shows) and antialiasing would read as motion
         rows, cols = np.nonzero(binary_erosion(ids >= 0, iterations=EDGE))
+        if rows.size < 4 * len(self.unknowns) and lv.factor > 1:
+            return 0.0  # too small a face for this level (QCIF at 1/4): the finer levels solve
         if rows.size < 4 * len(self.unknowns):
             raise VttsError(
                 f"the model covers only {rows.size} pixels at 1/{lv.factor} size: it is out of "
@@ -314,8 +316,6 @@ class Estimator:
         ry, gxy, gyy = r_p @ LUMA, gx_p @ LUMA, gy_p @ LUMA
         d = np.abs(ry) / np.sqrt(gxy * gxy + gyy * gyy + 1e-6)
         keep = d <= lv.g
-        if rows.size < 4 * len(self.unknowns) and lv.factor > 1:
-            return 0.0  # too small a face for this level (QCIF at 1/4): the finer levels solve
         rows, cols = rows[keep], cols[keep]
         gx_p, gy_p, r_p, s_p = gx_p[keep], gy_p[keep], r_p[keep], s_p[keep]
         tri = ids[rows, cols]
