@@ -69,6 +69,20 @@ def project(points: np.ndarray, camera) -> tuple[np.ndarray, np.ndarray]:
     return xy, pc
 
 
+def projection_jacobian(
+    points: np.ndarray, motion: np.ndarray, camera
+) -> tuple[np.ndarray, np.ndarray]:
+    """Where ``points`` ``(n, 3)`` (world) fall in ``camera``'s image ``(n, 2)``, and how they
+    move there per unit of each unknown ``(2n, K)`` (rows x0, y0, x1, …), given their world
+    motion ``motion`` ``(n, 3, K)`` (:meth:`HeadGeometry.jacobian`)."""
+    xy, pc = project(points, camera)
+    local = np.einsum("ab,nbk->nak", np.asarray(camera.pose)[:3, :3].T, motion)
+    d = -pc[:, 2:3]
+    dx = camera.fx * (local[:, 0] / d + pc[:, 0:1] * local[:, 2] / d**2)
+    dy = -camera.fy * (local[:, 1] / d + pc[:, 1:2] * local[:, 2] / d**2)
+    return xy, np.stack([dx, dy], 1).reshape(-1, motion.shape[2])
+
+
 def placement_error(estimator, landmarks: np.ndarray) -> float | None:
     """The median distance (pixels) between where ``estimator``'s current estimate puts the
     model's feature points and the ``landmarks`` ``(468, ≥2)``; None when the model defines
@@ -124,14 +138,11 @@ def landmark_pose(estimator, landmarks: np.ndarray, iterations: int = 30) -> flo
     weights = np.array([1.0 / ROTATION_SIGMA if k in rotations else 0.0 for k in columns])
     for _ in range(iterations):
         params, translation = estimator.params, estimator.translation
-        xy, pc = project(geometry.positions(params, translation)[index], camera)
-        residual = np.concatenate([(target - xy).reshape(-1), -prior()])
         world = geometry.jacobian(params, translation, index)[:, :, columns]  # (n, 3, k)
-        local = np.einsum("ab,nbk->nak", camera.pose[:3, :3].T, world)
-        d = -pc[:, 2:3]
-        dx = camera.fx * (local[:, 0] / d + pc[:, 0:1] * local[:, 2] / d**2)
-        dy = -camera.fy * (local[:, 1] / d + pc[:, 1:2] * local[:, 2] / d**2)
-        jac = np.vstack([np.stack([dx, dy], 1).reshape(-1, len(columns)), np.diag(weights)])
+        points = geometry.positions(params, translation)[index]
+        xy, image = projection_jacobian(points, world, camera)
+        residual = np.concatenate([(target - xy).reshape(-1), -prior()])
+        jac = np.vstack([image, np.diag(weights)])
         scale = np.linalg.norm(jac, axis=0)
         scale[scale == 0] = 1.0
         js = jac / scale

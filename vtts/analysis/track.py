@@ -266,6 +266,8 @@ def _restart(estimator: Estimator, frame, index: int, time: float, fe: FrameEsti
 
 def _nearest(faces: list, estimator: Estimator):
     """The face whose box centre is nearest the tracked head's image."""
+    if len(faces) == 1:
+        return faces[0]
     _, ids = estimator.render(1)
     rows, cols = np.nonzero(ids >= 0)
     if rows.size == 0:
