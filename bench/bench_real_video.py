@@ -16,7 +16,8 @@ motion only (the paper's Figure 13 comparison). Figures:
 * H.264 (the bundled ffmpeg's x264, ``-preset veryslow``) of the same sequence at its lowest
   quality (``-crf 51``) and at a fixed 10 kbit/s: its bit rate and face PSNR over the same
   pixels (the decoded model's coverage at each frame);
-* the analysis's frames per second and how many frames were re-initialized from landmarks.
+* the analysis's frames per second, how many frames were re-initialized from landmarks and
+  how many held the last estimate (the estimate failed and so did the re-initialization).
 
 Targets (issue 15): mean face PSNR ≥ 31.6 dB at ≤ 0.58 kbit/s with 17 parameters at 12.5 Hz
 (the paper), goal ≥ 34 dB at ≤ 0.5 kbit/s. ``VTTS_BENCH_FRAMES=N`` limits each sequence to
@@ -87,6 +88,8 @@ def _sequence(label: str, path: Path) -> list[dict]:
                              round(n / seconds, 2), "frames/s"))  # fmt: skip
             rows.append(_row("real video: frames re-initialized from landmarks", base,
                              len(tracked.restarts), "frames"))  # fmt: skip
+            rows.append(_row("real video: frames held (no estimate)", base,
+                             len(tracked.held), "frames"))  # fmt: skip
             psnr = _psnr(frames, stream, tracked.model, video.fps)
             rows += _psnr_rows("real video: face PSNR, uncoded estimates", base, psnr)
             for coder in ("huffman", "arithmetic"):

@@ -632,11 +632,12 @@ def cmd_analyze(args: argparse.Namespace) -> int:
             written.append(f"report in {args.report}")
         n = len(analysis.frames)
         restarts = len(tracked.restarts)
+        held = f", {len(tracked.held)} held (no estimate)" if tracked.held else ""
         print(
             f"wrote {', '.join(written)}: {n} frame{'s' if n != 1 else ''} at "
             f"{analysis.fps:g} fps, {len(analysis.unknowns)} unknowns, "
             f"mean face PSNR {mean_psnr(analysis.psnr()):.2f} dB, "
-            f"{restarts} re-initialization{'s' if restarts != 1 else ''}"
+            f"{restarts} re-initialization{'s' if restarts != 1 else ''}{held}"
         )
         if not fbs and not extra_fbs and any(isinstance(u, str) for u in analysis.unknowns):
             print("note: a .fap file cannot carry the head translation; -o OUT.fbs or --fbs does")

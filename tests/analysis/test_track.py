@@ -194,3 +194,25 @@ def test_a_frame_that_loses_the_model_is_started_again_from_its_landmarks(tmp_pa
     assert calls == [0, 1, 1]
     assert tracked.analysis.psnr()[1] > 22.0
     assert abs(tracked.analysis.frames[1].translation[0]) < 1.0
+
+
+def test_a_frame_that_cannot_be_restarted_holds_the_last_estimate(tmp_path, monkeypatch):
+    import vtts.analysis.track as track_module
+    from vtts.errors import VttsError
+
+    real = Estimator.estimate
+
+    def estimate(self, frame, index=0, time=0.0):
+        if index == 1:
+            self.translation[:] = (100.0, 0.0, 0.0)
+            raise VttsError("the model covers only 0 pixels at 1/1 size")
+        return real(self, frame, index, time)
+
+    monkeypatch.setattr(Estimator, "estimate", estimate)
+    monkeypatch.setattr(track_module, "_restart", lambda *a, **k: None)
+    tracked = track(_frames(3), fps=25.0, model_path=tmp_path / "m.wrl")
+    assert tracked.held == [1] and tracked.restarts == []
+    frames = tracked.analysis.frames
+    assert np.array_equal(frames[1].params, frames[0].params)
+    assert np.isnan(frames[1].psnr) and np.isfinite(frames[2].psnr)
+    assert abs(frames[2].translation[0]) < 1.0  # frame 2 starts from frame 0's state

@@ -21,7 +21,7 @@ nothing is known in advance (Eisert & Girod's "Camera sequences"):
 3. **Losing the track.** A frame whose face PSNR falls :data:`LOST_DB` below the median of the
    last good frames (or under :data:`LOST_FLOOR_DB`) is re-initialized from its landmarks — the
    head rotation and translation placed on them — and estimated again; the better of the two
-   estimates is kept.
+   estimates is kept. A frame where that fails too holds the last good estimate.
 4. **Several faces.** ``face`` picks one (1 = the largest, as ``adi fit --face``); later
    re-initializations take the face nearest to where the tracked head was.
 """
@@ -67,6 +67,8 @@ class Tracked:
     fitted     the paths written for a fitted head (``.wrl``, ``.adt``, ``-face.png``), else []
     first      index of the frame the model was fitted to or placed on
     restarts   indices of the frames re-initialized from landmarks
+    held       indices of the frames whose estimate failed even so: the last good estimate is
+               held for them (their PSNR is NaN)
     """
 
     analysis: Analysis
@@ -74,6 +76,7 @@ class Tracked:
     fitted: list[Path] = field(default_factory=list)
     first: int = 0
     restarts: list[int] = field(default_factory=list)
+    held: list[int] = field(default_factory=list)
 
 
 def track(
@@ -131,9 +134,14 @@ def track(
             fe = estimator.estimate(frame, i, t)
         except VttsError as e:  # the model left the view: start again from the landmarks
             fe = _restart(estimator, frame, i, t, None, detector, kept=kept)
-            if fe is None:
+            if fe is not None:
+                result.restarts.append(i)
+            elif kept is None or not out:
                 raise AnalysisError(f"frame {i}: {e.message}; no face to restart from") from None
-            result.restarts.append(i)
+            else:  # hold the last good estimate; a later frame may find the face again
+                _set_state(estimator, kept)
+                fe = _copy(out[-1], i, t)
+                result.held.append(i)
         else:
             if _lost(fe.psnr, recent):
                 again = _restart(estimator, frame, i, t, fe, detector)
@@ -279,5 +287,6 @@ def _nearest(faces: list, estimator: Estimator):
 
 
 def _copy(fe: FrameEstimate, index: int, time: float) -> FrameEstimate:
-    """``fe`` standing in for frame ``index`` (before the first face): no PSNR of its own."""
+    """``fe`` standing in for frame ``index`` (before the first face, or one whose estimate
+    failed): no PSNR of its own."""
     return replace(fe, index=index, time=time, psnr=float("nan"), face_pixels=0, iterations=0)
