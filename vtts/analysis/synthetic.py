@@ -2,7 +2,8 @@
 
 Their Table 1 comes from a CIF sequence of 100 frames rendered from known FAPs with "a viewing
 angle of about 25 degrees", analyzed every fifth frame. :func:`table1_truth` makes such FAP
-curves (each FAP sweeps to its extreme and back, at its own pace), :func:`side_camera` the
+curves (each FAP sweeps to its extreme and back, at its own pace), :func:`random_truth` seeded
+curves through the same FAPs' ranges that start anywhere in them, :func:`side_camera` the
 camera 25° to the side of the default framing, and :func:`render_sequence` the frames, with
 optional camera noise and a change of light for the harder cases. :func:`relative_errors` is the
 table's measure: the mean absolute error of each FAP relative to its extreme value.
@@ -46,6 +47,46 @@ def table1_truth(n_frames: int = 100, extremes: dict[int, float] | None = None) 
         cycles = 1.0 + (i * 0.37) % 1.0
         out[:, fap - 1] = np.round(peak * np.sin(np.pi * cycles * t) ** 2)
     return out
+
+
+#: FAPs whose range in :func:`random_truth` is one-sided, from neutral to the extreme: the jaw
+#: opens only (FAP 3 is unidirectional), and the eyelids go from open to as far closed as Table 1
+#: closes them.
+ONE_SIDED: frozenset[int] = frozenset({3, 19, 20, 21, 22})
+
+
+def table1_range(fap: int, extreme: float) -> tuple[float, float]:
+    """The range ``(lo, hi)`` a FAP of :func:`random_truth` moves in: ``[0, extreme]`` (or
+    ``[extreme, 0]``) for :data:`ONE_SIDED` FAPs, ``±|extreme|`` for the others."""
+    if fap in ONE_SIDED:
+        return min(0.0, extreme), max(0.0, extreme)
+    return -abs(extreme), abs(extreme)
+
+
+def random_truth(
+    seed: int, n_frames: int = 100, extremes: dict[int, float] | None = None
+) -> np.ndarray:
+    """``(n_frames, N_PARAMS)`` parameter vectors of the FAPs of ``extremes`` (default
+    :data:`TABLE1_EXTREMES`) on seeded random trajectories that start away from neutral.
+
+    Each FAP follows ``lo + (hi − lo) · sin²(π · c · t + φ)`` (t from 0 to 1) over its range
+    :func:`table1_range`: its value at frame 0 is uniform in the range (φ from a uniform
+    fraction of the range, rising or falling at random), and c is chosen so that its fastest
+    motion is that of a :func:`table1_truth` curve (1 to 2 cycles of ``extreme · sin²``): a
+    two-sided range sweeps twice the span at half the cycles. Values are integers."""
+    extremes = TABLE1_EXTREMES if extremes is None else extremes
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 1.0, n_frames)
+    out = np.zeros((n_frames, N_PARAMS))
+    for fap, peak in sorted(extremes.items()):
+        lo, hi = table1_range(fap, peak)
+        start, falling, pace = rng.uniform(), rng.uniform() < 0.5, rng.uniform(1.0, 2.0)
+        phase = np.arcsin(np.sqrt(start))  # sin²(phase) = start
+        if falling:
+            phase = np.pi - phase
+        cycles = pace * abs(peak) / (hi - lo)
+        out[:, fap - 1] = np.round(lo + (hi - lo) * np.sin(np.pi * cycles * t + phase) ** 2)
+    return out + 0.0  # no negative zeros
 
 
 def side_camera(model: FaceModel, size: tuple[int, int], angle_deg: float = 25.0) -> Camera:

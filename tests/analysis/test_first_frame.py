@@ -1,0 +1,53 @@
+"""The first frame of an analysis starts from neutral: seeded trajectories that start away from
+it (issue 15), and the estimator's search and restarts on that frame."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from vtts.analysis.synthetic import (
+    ONE_SIDED,
+    TABLE1_EXTREMES,
+    random_truth,
+    table1_range,
+)
+from vtts.face import N_PARAMS
+
+
+def test_table1_ranges():
+    assert table1_range(3, 600.0) == (0.0, 600.0)
+    assert table1_range(19, 700.0) == (0.0, 700.0)
+    assert table1_range(13, -250.0) == (-250.0, 250.0)
+    assert table1_range(49, -20000.0) == (-20000.0, 20000.0)
+    assert {3, 19, 20} <= ONE_SIDED and not ONE_SIDED & {12, 13, 35, 36, 48, 49, 50}
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3, 4, 5, 6, 7, 8])
+def test_random_truth_starts_away_from_neutral_within_the_ranges(seed):
+    truth = random_truth(seed, 100)
+    assert truth.shape == (100, N_PARAMS)
+    assert np.array_equal(truth, np.round(truth))
+    assert np.array_equal(truth, random_truth(seed, 100))  # seeded
+    assert not np.array_equal(truth, random_truth(seed + 100, 100))
+    moving = [f - 1 for f in TABLE1_EXTREMES]
+    assert not truth[:, [i for i in range(N_PARAMS) if i not in moving]].any()
+    assert np.count_nonzero(truth[0, moving]) >= len(moving) - 1  # (a start may round to 0)
+    for fap, peak in TABLE1_EXTREMES.items():
+        lo, hi = table1_range(fap, peak)
+        column = truth[:, fap - 1]
+        assert lo <= column.min() and column.max() <= hi, fap
+        # no faster than the Table 1 curves (1 to 2 cycles of the extreme: 2π·|extreme|/99
+        # per frame at most), and moving
+        speed = np.abs(np.diff(column)).max()
+        assert 0 < speed <= 2 * np.pi * abs(peak) / 99 + 1, (fap, speed)
+
+
+def test_random_truth_starts_are_spread_over_the_ranges():
+    starts = np.array([random_truth(seed, 2)[0] for seed in range(200)])
+    for fap, peak in TABLE1_EXTREMES.items():
+        lo, hi = table1_range(fap, peak)
+        fraction = (starts[:, fap - 1] - lo) / (hi - lo)
+        # uniform over the range: each quarter holds about a quarter of the starts
+        counts = np.histogram(fraction, bins=4, range=(0, 1))[0]
+        assert counts.min() > 25, (fap, counts)
