@@ -6,13 +6,23 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import vtts
+from vtts.analysis import TABLE1_FAPS, Estimator
 from vtts.analysis.synthetic import (
     ONE_SIDED,
     TABLE1_EXTREMES,
     random_truth,
+    render_sequence,
     table1_range,
 )
 from vtts.face import N_PARAMS
+
+SIZE = (176, 144)
+
+
+@pytest.fixture(scope="module")
+def cybatt():
+    return vtts.load_model("cybatt")
 
 
 def test_table1_ranges():
@@ -51,3 +61,19 @@ def test_random_truth_starts_are_spread_over_the_ranges():
         # uniform over the range: each quarter holds about a quarter of the starts
         counts = np.histogram(fraction, bins=4, range=(0, 1))[0]
         assert counts.min() > 25, (fap, counts)
+
+
+def test_the_first_frame_is_found_far_from_neutral(cybatt):
+    """Seed 2 starts with the left eyelid 460 units closed (66 % of Table 1's extreme), the head
+    pitched and turned: from neutral, the pyramid alone left that eyelid 162 units open (the
+    eyelid search reaches ±60 units) and the head 80 AU off, at 40 dB. The first frame's search
+    over the eyelids' whole range and the pyramid's restarts find every FAP within a few units."""
+    truth = random_truth(2, 100)[0]
+    assert truth[18] == 460
+    frame = render_sequence(cybatt, truth[None], size=SIZE)[0]
+    est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS)
+    fe = est.estimate(frame, 0)
+    error = {f: abs(fe.params[f - 1] - truth[f - 1]) for f in TABLE1_FAPS}
+    assert all(error[f] <= 2 for f in (3, 12, 13, 19, 20, 35, 36)), error
+    assert all(error[f] <= 10 for f in (48, 49, 50)), error  # 1e-4 rad
+    assert fe.psnr > 45

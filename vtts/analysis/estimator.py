@@ -64,6 +64,12 @@ LUMA = np.array([0.299, 0.587, 0.114])
 REFINE_STEPS = (8, 4, 2, 1)
 REFINE_MOVES = 4
 
+#: The eyelid search on the first frame, which starts from neutral: steps from 128 units, so
+#: that it reaches ±1020 units (an eyelid anywhere from wide open to closed), and how many times
+#: at most the first frame's search and pyramid are restarted (:meth:`Estimator.estimate`).
+FIRST_REFINE_STEPS = (128, 64, 32, 16, 8, 4, 2, 1)
+FIRST_RESTARTS = 3
+
 #: A level's solves stop when no unknown moved its image by more than this many pixels (of that
 #: level) in the last one.
 TOLERANCE = 0.003
@@ -225,17 +231,29 @@ class Estimator:
         if self.predicted:
             self._extrapolate(index)
         pyramid: dict[int, np.ndarray] = {}
-        solves = 0
         for lv in self.pyramid:
             if lv.factor not in pyramid:
                 pyramid[lv.factor] = _smooth(_subsample(full, lv.factor), self.sigma)
-            camera_image = pyramid[lv.factor]
-            self._last_step = None  # energies of different levels do not compare
-            for _ in range(lv.iterations):
-                step = self._solve(camera_image, lv)
-                solves += 1
-                if step < self.tolerance:
+        solves, converged = self._descend(pyramid)
+        if not self._history:
+            # the first frame starts from neutral, which may be far from the truth (an eyelid
+            # half closed, the head turned): its eyelids are searched over their whole range and
+            # the pyramid restarted from the coarsest level until it settles. A restart that
+            # matches the frame worse is taken back (with a change of light the solves can
+            # wander about without settling; another pass then lands elsewhere, no closer)
+            best = self._mismatch(full)
+            for _ in range(FIRST_RESTARTS):
+                state = self._state()
+                moved = self._refine(full, FIRST_REFINE_STEPS)
+                if converged and moved <= REFINE_STEPS[0]:
+                    break  # what is left is the ordinary search's
+                more, converged = self._descend(pyramid)
+                solves += more
+                mismatch = self._mismatch(full)
+                if mismatch >= best:
+                    self._set_state(state)
                     break
+                best = mismatch
         # the estimate as a FAP stream carries it: integer FAPs
         params = self.params.copy()
         for u in self.unknowns:
@@ -263,6 +281,38 @@ class Estimator:
             face_pixels=int(mask.sum()),
             iterations=solves,
         )
+
+    def _mismatch(self, frame: np.ndarray) -> float:
+        """Mean squared luminance difference over the face area between the camera ``frame``
+        ``(H, W, 3) float32`` and the model at the current estimate (one full-size rendering)."""
+        image, ids = self.render(1)
+        diff = (frame - (image * self.gain + self.offset)) @ LUMA
+        face = ids >= 0
+        return float(np.mean(diff[face] ** 2)) if face.any() else math.inf
+
+    def _state(self) -> tuple[np.ndarray, ...]:
+        """The current estimate: parameters, translation, gain and offset (copies)."""
+        return tuple(a.copy() for a in (self.params, self.translation, self.gain, self.offset))
+
+    def _set_state(self, state: tuple[np.ndarray, ...]) -> None:
+        for target, value in zip(
+            (self.params, self.translation, self.gain, self.offset), state, strict=True
+        ):
+            target[:] = value
+
+    def _descend(self, pyramid: dict[int, np.ndarray]) -> tuple[int, bool]:
+        """One pass down the pyramid, coarse to fine, with the camera frame smoothed at each
+        level's factor in ``pyramid``; returns the linear solves made and whether the finest
+        level's last one moved no unknown by :attr:`tolerance` or more."""
+        solves, step = 0, math.inf
+        for lv in self.pyramid:
+            self._last_step = None  # energies of different levels do not compare
+            for _ in range(lv.iterations):
+                step = self._solve(pyramid[lv.factor], lv)
+                solves += 1
+                if step < self.tolerance:
+                    break
+        return solves, step < self.tolerance
 
     def _extrapolate(self, index: int) -> None:
         """Start frame ``index`` with the unknowns :attr:`predicted` carried on at the speed
@@ -362,9 +412,9 @@ class Estimator:
         self._last_step = _Step(energy, delta, 0, moved)
         return moved
 
-    def _refine(self, frame: np.ndarray) -> None:
+    def _refine(self, frame: np.ndarray, steps: Sequence[int] = REFINE_STEPS) -> float:
         """Refine the (integer) values of the FAPs :attr:`refined` on the rendered image: a
-        pattern search with the steps of :data:`REFINE_STEPS`, each taken (up or down, at most
+        pattern search with ``steps`` (:data:`REFINE_STEPS`), each taken (up or down, at most
         :data:`REFINE_MOVES` times in a row) while it improves the luminance match (sum of
         squared differences after gain and offset) with the camera ``frame`` ``(H, W, 3)
         float32`` over the pixels where the FAP's motion shows (:meth:`_window`).
@@ -375,8 +425,11 @@ class Estimator:
 
         FAPs whose windows do not overlap (the left and the right eyelid) are searched side by
         side: each rendering tries a move of each of them, and each keeps its own move by the
-        match in its own window, exactly as if it were searched alone."""
-        windows = {fap: self._window(fap) for fap in self.refined}
+        match in its own window, exactly as if it were searched alone.
+
+        Returns how far (units) the FAP that moved most was moved."""
+        reach = max(100.0, REFINE_MOVES * sum(steps))
+        windows = {fap: self._window(fap, reach) for fap in self.refined}
         groups: list[list[int]] = []
         for fap, win in windows.items():
             if win is None:
@@ -387,10 +440,14 @@ class Estimator:
                     break
             else:
                 groups.append([fap])
+        before = self.params.copy()
         for group in groups:
-            self._search(frame, {fap: windows[fap] for fap in group})
+            self._search(frame, {fap: windows[fap] for fap in group}, steps)
+        return float(np.abs(self.params - before).max(initial=0.0))
 
-    def _search(self, frame: np.ndarray, windows: dict[int, tuple[slice, slice]]) -> None:
+    def _search(
+        self, frame: np.ndarray, windows: dict[int, tuple[slice, slice]], steps: Sequence[int]
+    ) -> None:
         """The pattern search of :meth:`_refine` for FAPs whose ``windows`` do not overlap, all
         in one rendering of the box around them."""
         boxes = list(windows.values())
@@ -418,7 +475,7 @@ class Estimator:
             return {fap: float(np.sum(synth[win] ** 2)) for fap, win in local.items()}
 
         best = mismatch()
-        for step in REFINE_STEPS:
+        for step in steps:
             # FAP -> moves left at this step (0: neither way improves any more)
             left = dict.fromkeys(windows, REFINE_MOVES)
             direction = dict.fromkeys(windows, 0)  # 0: try up, then down
@@ -439,14 +496,14 @@ class Estimator:
                     else:
                         left[fap] = 0  # the last way taken (or both) no longer improves
 
-    def _window(self, fap: int) -> tuple[slice, slice] | None:
+    def _window(self, fap: int, reach: float = 100.0) -> tuple[slice, slice] | None:
         """The rows and columns of the full-size image where ``fap``'s motion shows: the box
-        around the vertices it moves (at the current estimate, opened and closed by 100 units),
-        widened by :data:`REFINE_MARGIN`. None when it moves nothing in view."""
+        around the vertices it moves (at the current estimate, opened and closed by ``reach``
+        units), widened by :data:`REFINE_MARGIN`. None when it moves nothing in view."""
         probe = self.params.copy()
-        probe[fap - 1] -= 100.0
+        probe[fap - 1] -= reach
         lo = self.geometry.positions(probe, self.translation)
-        probe[fap - 1] += 200.0
+        probe[fap - 1] += 2 * reach
         hi = self.geometry.positions(probe, self.translation)
         moved = np.any(np.abs(hi - lo) > 0, axis=1)
         if not moved.any():
