@@ -11,6 +11,7 @@ import os
 import resource
 import subprocess
 import sys
+import wave
 from pathlib import Path
 
 from hypothesis import strategies as st
@@ -138,3 +139,13 @@ def mutate_bytes(data: bytes, ops: list[tuple[int, str, int]], *, start: int = 0
         elif kind == "truncate":
             del out[i:]
     return bytes(out)
+
+
+def wav(path: Path, seconds: float = 0.5) -> Path:
+    """A silent 16 kHz mono WAV of ``seconds`` at ``path``."""
+    with wave.open(str(path), "wb") as w:
+        w.setnchannels(1)
+        w.setsampwidth(2)
+        w.setframerate(16000)
+        w.writeframes(b"\0\0" * int(16000 * seconds))
+    return path

@@ -18,14 +18,13 @@ import json
 import random
 import shutil
 import struct
-import wave
 import zlib
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pytest
-from hostile import DATA, INTERESTING, OPS, mutate, mutate_bytes, run_cli
+from hostile import DATA, INTERESTING, OPS, mutate, mutate_bytes, run_cli, wav
 
 ROOT = DATA.parent.parent
 HEAD = DATA / "models" / "head.wrl"
@@ -57,15 +56,6 @@ def put(path: Path, data: str | bytes, *args: str) -> list[str]:
         data = data.encode("utf-8", "surrogatepass")
     path.write_bytes(data)
     return list(args)
-
-
-def wav(path: Path, seconds: float = 0.5) -> Path:
-    with wave.open(str(path), "wb") as w:
-        w.setnchannels(1)
-        w.setsampwidth(2)
-        w.setframerate(16000)
-        w.writeframes(b"\0\0" * int(16000 * seconds))
-    return path
 
 
 def png_size(data: bytes, w: int, h: int) -> bytes:

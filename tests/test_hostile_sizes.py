@@ -6,25 +6,15 @@ ran for minutes)."""
 from __future__ import annotations
 
 import struct
-import wave
 from pathlib import Path
 
 import pytest
-from hostile import DATA, vtts
+from hostile import DATA, vtts, wav
 
 from vtts import limits
 
 HEAD = str(DATA / "models" / "head.wrl")
 JOY = str(DATA / "fap" / "xface-joy.fap")
-
-
-def _wav(path: Path, seconds: float = 0.5) -> Path:
-    with wave.open(str(path), "wb") as w:
-        w.setnchannels(1)
-        w.setsampwidth(2)
-        w.setframerate(16000)
-        w.writeframes(b"\0\0" * int(16000 * seconds))
-    return path
 
 
 def _slow_fap(tmp: Path) -> Path:
@@ -80,7 +70,7 @@ def _phonemes(tmp: Path) -> Path:
 CASES = {
     "a phoneme table ending at 10^6 s": (
         lambda t: ["say", "Hi", "--model", HEAD, "--phonemes", str(_phonemes(t)), "--audio",
-                   str(_wav(t / "a.wav")), "--wav-out", "x.wav"],
+                   str(wav(t / "a.wav")), "--wav-out", "x.wav"],
         "the phonemes last until 1e+06 s, more than the limit of 3600 s",
     ),
     "a .fap at 0.0001 fps": (
@@ -113,7 +103,7 @@ CASES = {
     ),
     "/dev/zero as --phonemes": (
         lambda t: ["say", "Hi", "--model", HEAD, "--phonemes", "/dev/zero", "--audio",
-                   str(_wav(t / "a.wav")), "--wav-out", "x.wav"],
+                   str(wav(t / "a.wav")), "--wav-out", "x.wav"],
         "/dev/zero: error: phoneme file is larger than the limit of 64 MiB",
     ),
     "/dev/zero to encode": (
@@ -141,7 +131,7 @@ POLLY = {
 for _name, (_polly_args, _message) in POLLY.items():
     CASES[f"Polly speech marks: {_name}"] = (
         lambda t, a=_polly_args: ["say", "Hi", "--model", HEAD, "--phonemes",
-                                  str(_polly(t, *a)), "--audio", str(_wav(t / "a.wav")),
+                                  str(_polly(t, *a)), "--audio", str(wav(t / "a.wav")),
                                   "--wav-out", "x.wav"],
         _message,
     )  # fmt: skip

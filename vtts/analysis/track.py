@@ -172,20 +172,10 @@ def _progress(progress: Callable[[int], None] | None, index: int) -> None:
 
 def _choose(faces: list, face: int | None, index: int):
     """The face to track among ``faces`` (largest first) of frame ``index``."""
-    if face is not None and not 1 <= face <= len(faces):
-        raise AnalysisError(
-            f"--face {face}: frame {index}, the first with a face, shows {len(faces)} face(s), "
-            f"numbered 1–{len(faces)} from the largest"
-        )
-    if face is None and len(faces) > 1:
-        warnings.warn(
-            VttsWarning(
-                f"frame {index} shows {len(faces)} faces: tracking the largest (choose another "
-                "with --face N, 1 = largest)"
-            ),
-            stacklevel=3,
-        )
-    return faces[(face or 1) - 1]
+    from vtts.fit.landmarks import choose_face
+
+    where = f"frame {index}, the first with a face,"
+    return choose_face(faces, face, where, "tracking", AnalysisError, stacklevel=4)
 
 
 def _start(result: Tracked, frame, chosen, face, model, model_path, camera, unknowns, detector,

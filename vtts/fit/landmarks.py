@@ -19,6 +19,7 @@ import math
 import os
 import sys
 import tempfile
+import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -27,7 +28,7 @@ from typing import Protocol
 import numpy as np
 from PIL import Image
 
-from vtts.errors import FitError
+from vtts.errors import FitError, VttsWarning
 from vtts.resources import package_data
 
 # ---------------------------------------------------------------------------------------------
@@ -465,6 +466,34 @@ def default_detector() -> MediaPipeDetector:
     if _default is None:
         _default = MediaPipeDetector()
     return _default
+
+
+def choose_face(
+    faces: list[Face],
+    face: int | None,
+    where: str,
+    doing: str,
+    error: type[Exception] = FitError,
+    stacklevel: int = 3,
+) -> Face:
+    """The face ``face`` (1 = the largest) of ``faces`` (largest first, not empty); with None
+    the largest, and a warning when there are several. ``where`` names the picture in messages
+    (``"the photo"``), ``doing`` what is done with the face (``"fitting"``); a ``face`` out of
+    range raises ``error``."""
+    if face is not None and not 1 <= face <= len(faces):
+        raise error(
+            f"--face {face}: {where} shows {len(faces)} face(s), numbered 1–{len(faces)} from "
+            "the largest"
+        )
+    if face is None and len(faces) > 1:
+        warnings.warn(
+            VttsWarning(
+                f"{where} shows {len(faces)} faces: {doing} the largest (choose another with "
+                "--face N, 1 = largest)"
+            ),
+            stacklevel=stacklevel,
+        )
+    return faces[(face or 1) - 1]
 
 
 def detect_faces(image: np.ndarray, detector: LandmarkDetector | None = None) -> list[Face]:

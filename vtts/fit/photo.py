@@ -14,7 +14,6 @@ from __future__ import annotations
 import contextlib
 import tempfile
 import time
-import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -22,7 +21,7 @@ import numpy as np
 from PIL import Image
 
 from vtts.atomic import atomic_path
-from vtts.errors import FitError, VttsWarning
+from vtts.errors import FitError
 from vtts.face import FaceModel
 from vtts.face.adt import AnimationTables, format_adt
 from vtts.face.atlas import EAR_TILE
@@ -40,6 +39,7 @@ from vtts.fit.landmarks import (
     Face,
     LandmarkDetector,
     check_image,
+    choose_face,
     detect_faces,
 )
 from vtts.fit.shape import ShapeFit, fit_shape, focal_length
@@ -212,18 +212,7 @@ def fit_photo(
     timings["landmarks"] = time.perf_counter() - t0
     if not faces:
         raise FitError("no face found in the photo")
-    if face is not None and not 1 <= face <= len(faces):
-        raise FitError(f"--face {face}: the photo shows {len(faces)} face(s), numbered 1–"
-                       f"{len(faces)} from the largest")  # fmt: skip
-    if face is None and len(faces) > 1:
-        warnings.warn(
-            VttsWarning(
-                f"the photo shows {len(faces)} faces: fitting the largest "
-                "(choose another with --face N, 1 = largest)"
-            ),
-            stacklevel=2,
-        )
-    chosen = faces[(face or 1) - 1]
+    chosen = choose_face(faces, face, "the photo", "fitting")
     g = generic_head(personality)
     t = time.perf_counter()
     focal = focal_length((w, h), focal_35mm)
