@@ -60,7 +60,7 @@ def _row(benchmark: str, case: str, value, unit: str, target: str = "", ok=None)
 
 
 def _sequence(label: str, path: Path) -> list[dict]:
-    from vtts.analysis.quality import coverage, decoded_frames, face_psnr_rgb, mean_psnr
+    from vtts.analysis.quality import coverage, decoded_frames, face_psnr_rgb, sequence_psnr
     from vtts.analysis.track import track
     from vtts.analysis.unknowns import DEFAULT_UNKNOWNS, HEAD_MOTION
     from vtts.analysis.video import read_video
@@ -106,7 +106,7 @@ def _sequence(label: str, path: Path) -> list[dict]:
             for q in QUANTIZERS:
                 data = encode(stream, rate=rate, quantizer=q)
                 kbps = len(data) * 8 / duration / 1000
-                m = mean_psnr(_psnr(frames, decode(data), tracked.model, video.fps))
+                m = sequence_psnr(_psnr(frames, decode(data), tracked.model, video.fps))
                 rows.append(_row("real video: rate-PSNR curve",
                                  f"{label}, 17 parameters, {rate:g} Hz, quantizer {q}: "
                                  f"{kbps:.3f} kbit/s", round(m, 2), "dB"))  # fmt: skip
@@ -131,10 +131,10 @@ def _psnr(frames, stream, model, fps) -> np.ndarray:
 
 
 def _psnr_rows(benchmark: str, case: str, psnr: np.ndarray, target: bool = False) -> list[dict]:
-    from vtts.analysis.quality import mean_psnr
+    from vtts.analysis.quality import sequence_psnr
 
     p = psnr[~np.isnan(psnr)]
-    mean = mean_psnr(p)
+    mean = sequence_psnr(p)
     rows = [_row(benchmark, case + ", mean", round(mean, 2), "dB",
                  f">= {TARGET_DB}" if target else "",
                  mean >= TARGET_DB if target else None)]  # fmt: skip

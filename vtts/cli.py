@@ -577,7 +577,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
         )
     if args.rate is not None and not (fbs or extra_fbs):
         raise AnalysisError("--rate sets the rate of a coded .fbs: give -o OUT.fbs or --fbs")
-    fitted = fitted_paths(out) if auto else []
+    fitted = _fitted_paths(out) if auto else []
     for path in (out, extra_fbs, args.report and Path(args.report) / "frames.csv", *fitted):
         if path:
             _check_writable(path)
@@ -644,7 +644,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     return 0
 
 
-def fitted_paths(out: Path) -> list[Path]:
+def _fitted_paths(out: Path) -> list[Path]:
     """The files of the head ``vtts analyze --model auto`` fits, beside ``OUT``:
     ``OUT-model.wrl``, ``OUT-model.adt`` and ``OUT-model-face.png``."""
     wrl = out.with_name(f"{out.stem}-model.wrl")

@@ -11,7 +11,7 @@ from vtts.analysis.quality import (
     coverage,
     decoded_frames,
     face_psnr_rgb,
-    mean_psnr,
+    sequence_psnr,
     side_by_side,
     stream_psnr,
 )
@@ -50,8 +50,8 @@ def test_coverage_is_the_opaque_alpha_shrunk():
 
 
 def test_mean_psnr_is_that_of_the_mean_squared_error():
-    assert mean_psnr(np.array([20.0, 20.0])) == pytest.approx(20.0)
-    assert mean_psnr(np.array([10.0, 30.0, np.nan])) == pytest.approx(
+    assert sequence_psnr(np.array([20.0, 20.0])) == pytest.approx(20.0)
+    assert sequence_psnr(np.array([10.0, 30.0, np.nan])) == pytest.approx(
         10 * math.log10(2 / (0.1 + 0.001))
     )
 

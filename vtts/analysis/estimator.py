@@ -214,6 +214,23 @@ class Estimator:
         pose = self.geometry.pose(self.params)
         return renderer.render(self.params, poses=[pose], triangles=triangles)
 
+    def snapshot(self) -> tuple:
+        """The estimate as it stands (parameters, translation, light, recent motion), for
+        :meth:`restore`."""
+        return (self.params.copy(), self.translation.copy(), self.gain.copy(),
+                self.offset.copy(), list(self._history))  # fmt: skip
+
+    def restore(self, snapshot: tuple) -> None:
+        """Go back to a :meth:`snapshot`."""
+        params, translation, gain, offset, history = snapshot
+        self.params, self.translation = params.copy(), translation.copy()
+        self.gain, self.offset, self._history = gain.copy(), offset.copy(), list(history)
+
+    def forget_motion(self) -> None:
+        """Start the next frame as a first one: no motion carried on from earlier estimates,
+        and the first frame's wider search (after a track was lost and placed again)."""
+        self._history = []
+
     def reconstruct(self) -> np.ndarray:
         """The synthetic frame ``(H, W, 3) uint8`` at full size with gain and offset applied."""
         image, _ = self.render(1)

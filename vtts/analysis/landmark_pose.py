@@ -83,16 +83,23 @@ def projection_jacobian(
     return xy, np.stack([dx, dy], 1).reshape(-1, motion.shape[2])
 
 
+def _targets(estimator, landmarks: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """The estimator's vertex indices ``(n,)`` of the model's feature points that have
+    landmarks, where the ``landmarks`` put them ``(n, 2)``, and n."""
+    vertices = feature_vertices(estimator.geometry, estimator.model.tables.feature_points)
+    names = sorted(vertices)
+    index = np.array([vertices[p] for p in names], dtype=np.int64)
+    target = np.array([landmarks[list(FEATURE_LANDMARKS[p]), :2].mean(0) for p in names])
+    return index, target.reshape(-1, 2), len(names)
+
+
 def placement_error(estimator, landmarks: np.ndarray) -> float | None:
     """The median distance (pixels) between where ``estimator``'s current estimate puts the
     model's feature points and the ``landmarks`` ``(468, ≥2)``; None when the model defines
     fewer than :data:`MIN_POINTS` of them."""
-    vertices = feature_vertices(estimator.geometry, estimator.model.tables.feature_points)
-    if len(vertices) < MIN_POINTS:
+    index, target, n = _targets(estimator, landmarks)
+    if n < MIN_POINTS:
         return None
-    names = sorted(vertices)
-    index = np.array([vertices[p] for p in names])
-    target = np.array([landmarks[list(FEATURE_LANDMARKS[p]), :2].mean(0) for p in names])
     positions = estimator.geometry.positions(estimator.params, estimator.translation)
     xy, _ = project(positions[index], estimator.camera)
     return float(np.median(np.linalg.norm(xy - target, axis=1)))
@@ -105,19 +112,16 @@ def landmark_pose(estimator, landmarks: np.ndarray, iterations: int = 30) -> flo
     reprojection error (pixels). Raises :class:`~vtts.errors.AnalysisError` when the model has
     too few feature points or no pose unknowns."""
     geometry = estimator.geometry
-    vertices = feature_vertices(geometry, estimator.model.tables.feature_points)
-    if len(vertices) < MIN_POINTS:
+    index, target, n = _targets(estimator, landmarks)
+    if n < MIN_POINTS:
         raise AnalysisError(
-            f"the model {estimator.model.name} defines {len(vertices)} of the feature points "
+            f"the model {estimator.model.name} defines {n} of the feature points "
             f"that place a head from landmarks ({', '.join(FEATURE_LANDMARKS)}); it needs "
             f"{MIN_POINTS}"
         )
     columns = [k for k, u in enumerate(estimator.unknowns) if u in POSE_UNKNOWNS]
     if not columns:
         raise AnalysisError("no head rotation or translation among the unknowns to place")
-    names = sorted(vertices)
-    index = np.array([vertices[p] for p in names])
-    target = np.array([landmarks[list(FEATURE_LANDMARKS[p]), :2].mean(0) for p in names])
     camera = estimator.camera
     rotations = [k for k in columns if not isinstance(estimator.unknowns[k], str)]
     start = estimator.params.copy()

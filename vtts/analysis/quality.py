@@ -110,7 +110,7 @@ def side_by_side(frame: np.ndarray, rgba: np.ndarray, gain: float = 4.0) -> np.n
     return np.clip(np.round(row), 0, 255).astype(np.uint8)
 
 
-def mean_psnr(psnr: np.ndarray) -> float:
+def sequence_psnr(psnr: np.ndarray) -> float:
     """The PSNR of the mean squared error over frames (dB), the usual figure for a sequence;
     frames with NaN are left out."""
     p = np.asarray(psnr, np.float64)

@@ -139,7 +139,7 @@ def track(
             elif kept is None or not out:
                 raise AnalysisError(f"frame {i}: {e.message}; no face to restart from") from None
             else:  # hold the last good estimate; a later frame may find the face again
-                _set_state(estimator, kept)
+                estimator.restore(kept)
                 fe = _copy(out[-1], i, t)
                 result.held.append(i)
         else:
@@ -148,7 +148,7 @@ def track(
                 if again is not None:
                     fe = again
                     result.restarts.append(i)
-        kept = _state(estimator)
+        kept = estimator.snapshot()
         if math.isfinite(fe.psnr):
             recent = [*recent[-(RECENT - 1) :], fe.psnr]
         if waiting:
@@ -223,17 +223,6 @@ def _lost(psnr: float, recent: list[float]) -> bool:
     return len(recent) >= 3 and psnr < float(np.median(recent)) - LOST_DB
 
 
-def _state(estimator: Estimator) -> tuple:
-    return (estimator.params.copy(), estimator.translation.copy(), estimator.gain.copy(),
-            estimator.offset.copy(), list(estimator._history))  # fmt: skip
-
-
-def _set_state(estimator: Estimator, state: tuple) -> None:
-    params, translation, gain, offset, history = state
-    estimator.params, estimator.translation = params.copy(), translation.copy()
-    estimator.gain, estimator.offset, estimator._history = gain.copy(), offset.copy(), list(history)
-
-
 def _restart(estimator: Estimator, frame, index: int, time: float, fe: FrameEstimate | None,
              detector, kept: tuple | None = None) -> FrameEstimate | None:  # fmt: skip
     """Estimate frame ``index`` again from the head placed on its landmarks; the new estimate
@@ -245,20 +234,20 @@ def _restart(estimator: Estimator, frame, index: int, time: float, fe: FrameEsti
     faces = detect_faces(frame, detector)
     if not faces:
         return None
-    after = _state(estimator)
+    after = estimator.snapshot()
     if kept is not None:
-        _set_state(estimator, kept)
+        estimator.restore(kept)
     near = _nearest(faces, estimator)
     try:
         landmark_pose(estimator, near.landmarks)
-        estimator._history = []  # the motion before the loss says nothing about what follows
+        estimator.forget_motion()  # the motion before the loss says nothing about what follows
         again = estimator.estimate(frame, index, time)
     except VttsError:
-        _set_state(estimator, after)
+        estimator.restore(after)
         return None
     if fe is None or again.psnr > fe.psnr:
         return again
-    _set_state(estimator, after)
+    estimator.restore(after)
     return None
 
 
