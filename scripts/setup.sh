@@ -12,8 +12,9 @@ cd "$(dirname "$0")/.."
 extras="${1:-test}"
 # espeak-ng: speech with phoneme and mark events. Offscreen rendering with Mesa's software EGL
 # (llvmpipe): libegl1 + libegl-mesa0 (the EGL vendor), libgl1 (PyOpenGL loads libGL.so.1 for
-# desktop GL), libgl1-mesa-dri (the llvmpipe driver).
-deb_packages=(espeak-ng libespeak-ng1 libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri libgles2)
+# desktop GL), libgl1-mesa-dri (the llvmpipe driver). chromium: the web player's tests and benchmark
+# load it in headless Chromium (vtts.export.browser).
+deb_packages=(espeak-ng libespeak-ng1 libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri libgles2 chromium)
 
 missing=()
 for p in "${deb_packages[@]}"; do
