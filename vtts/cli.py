@@ -627,7 +627,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     if not args.quiet:
         written = [str(p) for p in (out, extra_fbs) if p]
         if fitted:
-            written.append(f"the fitted head {fitted[0]} (+ .adt, -face.png)")
+            written.append(f"the fitted head {fitted[0]} (+ .adt, -face.png, -frame.png)")
         if args.report:
             written.append(f"report in {args.report}")
         n = len(analysis.frames)
@@ -646,9 +646,11 @@ def cmd_analyze(args: argparse.Namespace) -> int:
 
 def _fitted_paths(out: Path) -> list[Path]:
     """The files of the head ``vtts analyze --model auto`` fits, beside ``OUT``:
-    ``OUT-model.wrl``, ``OUT-model.adt`` and ``OUT-model-face.png``."""
+    ``OUT-model.wrl``, ``OUT-model.adt``, ``OUT-model-face.png`` (the atlas) and
+    ``OUT-model-frame.png`` (the first frame, the texture of what it shows)."""
     wrl = out.with_name(f"{out.stem}-model.wrl")
-    return [wrl, wrl.with_suffix(".adt"), wrl.with_name(f"{wrl.stem}-face.png")]
+    return [wrl, wrl.with_suffix(".adt"), wrl.with_name(f"{wrl.stem}-face.png"),
+            wrl.with_name(f"{wrl.stem}-frame.png")]  # fmt: skip
 
 
 def _check_writable(path: Path) -> None:

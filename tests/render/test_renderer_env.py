@@ -6,6 +6,8 @@ import os
 import subprocess
 import sys
 
+import numpy as np
+
 from vtts.render.renderer import LLVMPIPE_MIN_THREADS, llvmpipe_threads
 
 
@@ -28,3 +30,28 @@ def test_llvmpipe_threads_are_set_unless_the_caller_chose():
     env = {k: v for k, v in os.environ.items() if k != "LP_NUM_THREADS"}
     assert _lp_after_loading(env) == str(llvmpipe_threads())
     assert _lp_after_loading({**env, "LP_NUM_THREADS": "1"}) == "1"  # e.g. one per batch worker
+
+
+def test_an_appearance_without_material_is_unlit(tmp_path):
+    """VRML97: an Appearance with no Material shows its texture's colours as they are."""
+    from PIL import Image
+
+    from vtts.face import load_model
+    from vtts.render import FaceRenderer
+
+    Image.fromarray(np.full((4, 4, 3), (200, 30, 90), np.uint8)).save(tmp_path / "t.png")
+    quad = (
+        "geometry IndexedFaceSet {{ coord Coordinate {{ point [-1 -1 0, 1 -1 0, 1 1 0, -1 1 0] }}"
+        " coordIndex [0 1 2 3 -1] texCoord TextureCoordinate {{ point [0 0, 1 0, 1 1, 0 1] }} }}"
+    )
+    for material, lit in (("", False), ("material Material { diffuseColor 1 1 1 }", True)):
+        (tmp_path / "m.wrl").write_text(
+            "#VRML V2.0 utf8\nShape { appearance Appearance { "
+            + material
+            + ' texture ImageTexture { url "t.png" } } '
+            + quad.format()
+            + " }\n"
+        )
+        with FaceRenderer(load_model(str(tmp_path / "m.wrl")), size=(64, 64)) as r:
+            centre = r.render(np.zeros(90))[32, 32]
+        assert (tuple(centre) != (200, 30, 90)) == lit, (material, centre)

@@ -8,9 +8,10 @@
 Stages (plain values between them): :mod:`~vtts.fit.landmarks` (the face detector),
 :mod:`~vtts.fit.generic` (the generic head as Candide control points),
 :mod:`~vtts.fit.shape` (pose, camera, shape), :mod:`~vtts.fit.head` (the whole head and its
-tables), :mod:`~vtts.fit.texture` (the photo as the skin), :mod:`~vtts.fit.report`.
+tables), :mod:`~vtts.fit.texture` (the photo as the skin), :mod:`~vtts.fit.frame` (a video's first
+frame as the texture of the head made for that video), :mod:`~vtts.fit.report`.
 """
 
-from vtts.fit.photo import FittedHead, fit_photo, load_photo
+from vtts.fit.photo import FittedHead, fit_photo, load_photo, with_frame
 
-__all__ = ["FittedHead", "fit_photo", "load_photo"]
+__all__ = ["FittedHead", "fit_photo", "load_photo", "with_frame"]

@@ -25,6 +25,7 @@ from vtts.errors import FitError
 from vtts.face import FaceModel
 from vtts.face.adt import AnimationTables, format_adt
 from vtts.face.atlas import EAR_TILE
+from vtts.fit.frame import FRAME_APPEARANCES, frame_texture, project_frame
 from vtts.fit.generic import GenericHead, generic_head, landmark_map
 from vtts.fit.head import (
     fitted_fapu,
@@ -45,6 +46,7 @@ from vtts.fit.landmarks import (
 from vtts.fit.shape import ShapeFit, fit_shape, focal_length
 from vtts.fit.texture import (
     ATLAS_SIZE,
+    EAR_TILES,
     EYE_TILES,
     PAINTED_PARTS,
     PHOTO_PARTS,
@@ -55,6 +57,7 @@ from vtts.fit.texture import (
     project_skin,
     rechart_skin,
     skin_texels,
+    split_ear_tiles,
     split_eye_tiles,
     srgb_to_linear,
     tint_eye,
@@ -77,9 +80,14 @@ MAX_AIM = 0.3
 #: the texture take time with the pixels, and the texture has no use for more (the written
 #: Viewpoint's field of view holds at any size of the photo).
 WORK_SIZE = 1024
-#: The parts a video's first frame paints (``vtts analyze --model auto``): the photo's, and the
-#: neck, which a portrait may show as collar or shadow but a video will show again as it is.
-VIDEO_PARTS = (*PHOTO_PARTS, "NECK")
+#: The ears, painted from a video's first frame where it shows them (each ear then gets a tile of
+#: its own): what lies there in the frame — an ear, or the hair that hides it — is what the next
+#: frames show there too, while a portrait's head turns later and the generic ears serve better.
+EARS = ("L_EAR", "R_EAR")
+#: The parts a video's first frame paints (``vtts analyze --model auto``): the photo's, the
+#: neck, which a portrait may show as collar or shadow but a video will show again as it is,
+#: and the ears.
+VIDEO_PARTS = (*PHOTO_PARTS, "NECK", *EARS)
 #: Larger photos are refused (a 16k photo is 270 megapixels).
 MAX_SIZE = 16384
 
@@ -98,6 +106,8 @@ class FittedHead:
     faces      how many faces the photo showed
     seen       the fraction of skin texels the photo saw
     timings    seconds per step
+    frame      ``(H_tex, W_tex, 3) uint8`` the photo as the texture of what it shows, for a
+               head made for a video (see :func:`with_frame`), else None
     """
 
     scene: Scene
@@ -110,37 +120,66 @@ class FittedHead:
     seen: float
     personality: str
     timings: dict[str, float] = field(default_factory=dict)
+    frame: np.ndarray | None = None
 
     def write(self, path: str | Path) -> list[Path]:
         """Write ``PATH.wrl`` (the scene), ``PATH.adt`` (its tables) and ``PATH-face.png`` (its
-        texture) beside each other, each renamed into place only when all are written. Returns
-        the paths."""
+        texture) — and ``PATH-frame.png`` for a head made for a video — beside each other, each
+        renamed into place only when all are written. Returns the paths."""
         wrl = Path(path)
         if wrl.suffix.lower() != ".wrl":
             raise FitError(f"the output must be a .wrl file, got {str(path)!r}")
         adt = wrl.with_suffix(".adt")
-        png = wrl.with_name(texture_name(wrl))
-        set_texture_url(self.scene, png.name)
+        pngs = self._set_urls(wrl)
         text = dumps(self.scene)
+        paths = [wrl, adt, *pngs]
         with contextlib.ExitStack() as stack:
-            tmp = [stack.enter_context(atomic_path(p)) for p in (wrl, adt, png)]
+            tmp = [stack.enter_context(atomic_path(p)) for p in paths]
             tmp[0].write_text(text, encoding="utf-8")
             tmp[1].write_text(format_adt(self.tables), encoding="utf-8")
-            # zlib level 3: a tenth of a second, a few percent larger than the default 6
-            Image.fromarray(self.texture).save(tmp[2], format="PNG", compress_level=3)
-        return [wrl, adt, png]
+            for image, target in zip((self.texture, self.frame), tmp[2:], strict=False):
+                # zlib level 3: a tenth of a second, a few percent larger than the default 6
+                Image.fromarray(image).save(target, format="PNG", compress_level=3)
+        return paths
 
     def model(self, folder: Path, name: str = "fitted") -> FaceModel:
-        """The head as a :class:`~vtts.face.FaceModel` whose texture is written into
+        """The head as a :class:`~vtts.face.FaceModel` whose textures are written into
         ``folder``."""
-        png = folder / f"{name}-face.png"
-        Image.fromarray(self.texture).save(png)
+        wrl = folder / f"{name}.wrl"
+        for image, png in zip((self.texture, self.frame), self._set_urls(wrl), strict=False):
+            Image.fromarray(image).save(png)
+        return FaceModel(self.scene, self.tables, wrl)
+
+    def _set_urls(self, wrl: Path) -> list[Path]:
+        """Point the scene's textures at their files beside ``wrl``; returns the files: the
+        atlas, and the frame's texture for a head made for a video."""
+        png = wrl.with_name(texture_name(wrl))
         set_texture_url(self.scene, png.name)
-        return FaceModel(self.scene, self.tables, folder / f"{name}.wrl")
+        if self.frame is None:
+            return [png]
+        frame_png = wrl.with_name(frame_texture_name(wrl))
+        for name in FRAME_APPEARANCES:
+            self.scene.node(name).expand()["texture"].expand().fields["url"] = [frame_png.name]
+        return [png, frame_png]
+
+
+def with_frame(head: FittedHead) -> FittedHead:
+    """``head`` (fitted to a video's frame) made for that video: the parts the frame shows take
+    the frame itself as their texture, unlit (:mod:`vtts.fit.frame`), so that the head rendered
+    at the frame's view gives the frame back."""
+    h, w = head.photo.shape[:2]
+    project_frame(head.scene, head.shape.camera, (w, h))
+    head.frame = frame_texture(head.photo)
+    return head
 
 
 def texture_name(wrl: Path) -> str:
     return f"{wrl.stem}-face.png"
+
+
+def frame_texture_name(wrl: Path) -> str:
+    """The file of a video head's frame texture (see :func:`with_frame`)."""
+    return f"{wrl.stem}-frame.png"
 
 
 def load_photo(path: str | Path) -> tuple[np.ndarray, float | None]:
@@ -266,6 +305,9 @@ def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.nd
     with Image.open(models_dir() / f"{g.model.name}-face.png") as im:
         generic_atlas = upscale(im, ATLAS_SIZE)
     split_eye_tiles(generic_atlas, scene)
+    ears = [n for n in EARS if n in photo_parts]
+    if ears:
+        split_ear_tiles(generic_atlas, scene)
     rechart_skin(scene)
     h, w = image.shape[:2]
     photo = ((image / 255.0) ** 2.2).astype(np.float32)
@@ -301,6 +343,12 @@ def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.nd
         target = photo
         for k in range(TEXTURE_PASSES):
             atlas, seen = paint_skin(generic_atlas.copy(), proj, target)
+            if k == 0 and ears:
+                # what the picture does not show of a painted ear keeps the generic ear, in the
+                # skin's colour: tinted before the passes paint over it
+                for name in ears:
+                    tint_tile(generic_atlas, EAR_TILES[name], _skin_ratio(atlas, generic_atlas))
+                atlas, seen = paint_skin(generic_atlas.copy(), proj, target)
             if k == TEXTURE_PASSES - 1:
                 break
             # render what the texture gives and aim the next pass at what it missed: the
@@ -315,10 +363,15 @@ def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.nd
             # background, a mouth it draws shut) the aim would run away into specks
             aim = np.clip(target + photo - rendered, photo - MAX_AIM, photo + MAX_AIM)
             target = np.where(covered, np.clip(aim, 0.0, 1.0), target)
-    # the ears keep the generic tile, in the photo's skin colour
+    if not ears:
+        # the ears keep the generic tile, in the photo's skin colour
+        tint_tile(atlas, EAR_TILE, _skin_ratio(atlas, generic_atlas))
+    return (np.clip(atlas, 0, 1) * 255 + 0.5).astype(np.uint8), seen
+
+
+def _skin_ratio(atlas: np.ndarray, generic_atlas: np.ndarray) -> np.ndarray:
+    """``(3,)``: the painted skin chart's mean colour over the generic one's, per channel."""
     rows = slice(0, int(ATLAS_SIZE * 0.75))
-    ratio = atlas[rows].reshape(-1, 3).mean(axis=0) / np.maximum(
+    return atlas[rows].reshape(-1, 3).mean(axis=0) / np.maximum(
         generic_atlas[rows].reshape(-1, 3).mean(axis=0), 1e-6
     )
-    tint_tile(atlas, EAR_TILE, ratio)
-    return (np.clip(atlas, 0, 1) * 255 + 0.5).astype(np.uint8), seen

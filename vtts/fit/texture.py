@@ -30,7 +30,7 @@ from PIL import Image
 from scipy import ndimage
 
 from vtts.analysis.raster import ray_barycentrics
-from vtts.face.atlas import EYE_TILE, GAMMA, INSET, SKIN_TILE
+from vtts.face.atlas import EAR_TILE, EYE_TILE, GAMMA, INSET, SKIN_TILE
 from vtts.render.camera import Camera
 from vtts.vrml import triangulate
 
@@ -49,6 +49,9 @@ PAINTED_PARTS = PHOTO_PARTS
 #: The fitted head's own eye tiles: the generic eye tile's upper half, split in two (the photo
 #: shows each eye's iris where that eye looks).
 EYE_TILES = {"L_EYEBALL": (0.0, 0.125, 0.125, 0.25), "R_EYEBALL": (0.125, 0.125, 0.25, 0.25)}
+#: Each ear's own tile, for a head whose ears are painted from its picture (a video's first
+#: frame, see :func:`split_ear_tiles`): the generic ear tile's upper half, split in two.
+EAR_TILES = {"L_EAR": (0.75, 0.125, 0.875, 0.25), "R_EAR": (0.875, 0.125, 1.0, 0.25)}
 #: How far (texels) the photo's colours reach beyond what it saw in the eye and teeth tiles.
 TILE_REACH = 6.0
 #: A texel's weight grows from 0 to 1 as the cosine between its normal and the view grows
@@ -373,20 +376,36 @@ def tint_eye(atlas: np.ndarray, iris_colour: np.ndarray, tile) -> None:
 def split_eye_tiles(atlas: np.ndarray, scene) -> None:
     """Give each eyeball a tile of its own (:data:`EYE_TILES`): the generic eye tile, halved,
     copied into both, and the eyeballs' texture coordinates moved there (in ``scene``)."""
+    split_tile(atlas, scene, EYE_TILE, EYE_TILES)
+
+
+def split_ear_tiles(atlas: np.ndarray, scene) -> None:
+    """Give each ear a tile of its own (:data:`EAR_TILES`), as :func:`split_eye_tiles` does for
+    the eyes: the bundled heads' ears share one tile, which a picture can paint for one ear
+    only."""
+    split_tile(atlas, scene, EAR_TILE, EAR_TILES)
+
+
+def split_tile(atlas: np.ndarray, scene, shared, tiles: dict) -> None:
+    """Copy the tile ``shared`` (u0, v0, u1, v1) of ``atlas (S, S, 3)``, halved, into each of
+    ``tiles`` (part name → its tile, half the size of ``shared``) and move each part's texture
+    coordinates (in ``scene``) from ``shared`` to its own tile."""
     size = atlas.shape[0]
-    u0, v0, u1, v1 = EYE_TILE
+    u0, v0, u1, v1 = shared
     r0, r1 = int(round((1 - v1) * size)), int(round((1 - v0) * size))
     c0, c1 = int(round(u0 * size)), int(round(u1 * size))
-    eye = Image.fromarray((np.clip(atlas[r0:r1, c0:c1], 0, 1) * 255).astype(np.uint8))
+    tile = Image.fromarray((np.clip(atlas[r0:r1, c0:c1], 0, 1) * 255).astype(np.uint8))
     half = (
         np.asarray(
-            eye.resize(((c1 - c0) // 2, (r1 - r0) // 2), Image.Resampling.LANCZOS), np.float64
+            tile.resize(((c1 - c0) // 2, (r1 - r0) // 2), Image.Resampling.LANCZOS), np.float64
         )
         / 255.0
     )
-    for name, (a0, b0, a1, b1) in EYE_TILES.items():
+    for name, (a0, b0, a1, b1) in tiles.items():
         rr0, cc0 = int(round((1 - b1) * size)), int(round(a0 * size))
         atlas[rr0 : rr0 + half.shape[0], cc0 : cc0 + half.shape[1]] = half
+        if name not in scene.defs:
+            continue
         coord = scene.node(name).expand()["texCoord"].expand()
         uv = np.asarray(coord["point"], dtype=np.float64)
         coord.fields["point"] = np.c_[

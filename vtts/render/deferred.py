@@ -32,6 +32,7 @@ from OpenGL.GL import shaders
 
 from vtts.errors import RenderError
 from vtts.render.forward import ForwardPass, _cull_back, _read_color
+from vtts.render.renderer import UNLIT
 
 SHADER_DIR = Path(__file__).resolve().parent / "shaders"
 
@@ -246,6 +247,7 @@ class DeferredPass(ForwardPass):
             [np.r_[m.emissiveFactor, m.metallicFactor] for m in materials],
         )
         self._uniform_array(pid, "roughness_factors", [m.roughnessFactor for m in materials])
+        self._uniform_array(pid, "unlit", [float(getattr(m, UNLIT, False)) for m in materials])
         GL.glBindVertexArray(vertex_array)
         GL.glDrawArrays(GL.GL_TRIANGLES, 0, 3)
         GL.glDepthFunc(GL.GL_LESS)  # the depth state pyrender draws with, for whoever draws next

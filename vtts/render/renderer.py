@@ -41,6 +41,12 @@ MAX_EXTENT = 1e9
 MSAA_SAMPLES = 0
 
 
+#: The attribute that marks a pyrender material as unlit (VRML97: an Appearance without a
+#: Material is not lit, its texture's colour shows as it is): the deferred pass's resolve writes
+#: the texture's sample times the base color factor, as stored. pyrender's own shader has no
+#: such mode: a scene that the G-buffer cannot hold draws these materials lit.
+UNLIT = "vtts_unlit"
+
 #: The fewest rasterizer threads Mesa's llvmpipe is given (``LP_NUM_THREADS``, unless the
 #: environment sets it): its default, one per CPU, leaves the cores idle while the main thread
 #: bins the next draw and the deformation thread and ffmpeg take their turn. Measured on the
@@ -528,6 +534,8 @@ class FaceRenderer:
             alphaMode="BLEND" if base[3] < 1.0 else "OPAQUE",
             doubleSided=double_sided,
         )
+        # VRML97: an Appearance without a Material is not lit; its texture shows as it is
+        setattr(material, UNLIT, appearance is not None and appearance["material"] is None)
         self._materials[key] = material
         return material
 

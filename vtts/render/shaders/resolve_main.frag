@@ -11,6 +11,7 @@ uniform sampler2D g_color;
 uniform vec4 base_color_factors[MAX_MATERIALS];
 uniform vec4 emissive_metallic_factors[MAX_MATERIALS];
 uniform float roughness_factors[MAX_MATERIALS];
+uniform float unlit[MAX_MATERIALS];  // 1: no lighting (VRML97's Appearance without a Material)
 
 void main()
 {
@@ -33,5 +34,17 @@ void main()
     material.emissive_factor = emissive_metallic_factors[m].xyz;
     material.metallic_factor = emissive_metallic_factors[m].w;
     material.roughness_factor = roughness_factors[m];
+    if (unlit[m] > 0.5) {
+        // VRML97: without a Material the texture's colour is shown as it is (sRGB, no lights)
+        vec4 colour = base_color_factors[m];
+        if (normal.w > 0.5) {
+            colour = colour * texelFetch(g_texel, pixel, 0);
+        }
+#ifdef VERTEX_COLORS
+        colour = colour * color_multiplier;
+#endif
+        frag_color = clamp(colour, 0.0, 1.0);
+        return;
+    }
     pyrender_main();
 }

@@ -1,0 +1,92 @@
+"""A head made for a video (:func:`vtts.fit.with_frame`): the first frame as the texture of what
+it shows, unlit, gives the frame back; each ear has a tile of its own."""
+
+from __future__ import annotations
+
+import copy
+import itertools
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from vtts.analysis.quality import coverage, face_psnr_rgb
+from vtts.analysis.video import read_video
+from vtts.face import N_PARAMS, load_model
+from vtts.fit import fit_photo, with_frame
+from vtts.fit.frame import FRAME_APPEARANCES, FRAME_PARTS, frame_texture, texture_size
+from vtts.fit.photo import PHOTO_PARTS, VIDEO_PARTS
+from vtts.fit.texture import EAR_TILES
+from vtts.render import FaceRenderer
+
+AKIYO = Path(__file__).parents[1] / "data" / "video" / "akiyo_cif.mp4"
+
+
+@pytest.fixture(scope="module")
+def akiyo():
+    """Akiyo's first frame and a head fitted to it as for a video (not yet made for it)."""
+    frame = next(itertools.islice(read_video(AKIYO).frames(), 0, None))
+    return frame, fit_photo(frame, photo_parts=VIDEO_PARTS)
+
+
+def _render(paths, frame) -> np.ndarray:
+    h, w = frame.shape[:2]
+    model = load_model(str(paths[0]))
+    with FaceRenderer(model, size=(w, h), viewpoint="photo", background="transparent") as r:
+        return r.render(np.zeros(N_PARAMS))
+
+
+def test_texture_size_is_the_powers_of_two_that_hold_the_frame():
+    assert texture_size(352, 288) == (512, 512)
+    assert texture_size(176, 144) == (256, 256)
+    assert texture_size(256, 255) == (256, 256)
+    assert texture_size(1920, 1080) == (2048, 2048)
+    image = np.arange(2 * 3 * 3, dtype=np.uint8).reshape(2, 3, 3)
+    tex = frame_texture(image)
+    assert tex.shape == (2, 4, 3)
+    assert np.array_equal(tex[:, :3], image) and np.array_equal(tex[:, 3], image[:, 2])
+
+
+def test_the_head_made_for_the_video_gives_its_frame_back(akiyo, tmp_path):
+    frame, head = akiyo
+    head = copy.deepcopy(head)
+    atlas_paths = head.write(tmp_path / "atlas.wrl")
+    atlas = _render(atlas_paths, frame)
+    mask = coverage(atlas)
+    before = face_psnr_rgb(frame, atlas, mask)
+    paths = with_frame(head).write(tmp_path / "video.wrl")
+    assert [p.name for p in paths] == ["video.wrl", "video.adt", "video-face.png",
+                                       "video-frame.png"]  # fmt: skip
+    rendered = _render(paths, frame)
+    mask = coverage(rendered)
+    after = face_psnr_rgb(frame, rendered, mask)
+    # the painted atlas, resampled twice and lit, gives about 28 dB; the frame itself, unlit,
+    # gives it back but for the few pixels of the eye sockets and teeth that show
+    assert before < 32.0, before
+    assert after > 40.0, (before, after)
+    text = paths[0].read_text()
+    assert text.count('"video-frame.png"') == len(FRAME_APPEARANCES)
+    assert '"video-face.png"' in text  # the mouth's inside keeps the atlas
+    model = load_model(str(paths[0]))
+    for name in FRAME_APPEARANCES:
+        assert model.scene.node(name).expand()["material"] is None  # unlit
+    for name in FRAME_PARTS:
+        uv = np.asarray(model.scene.node(name).expand()["texCoord"].expand()["point"])
+        assert uv.shape[0] == len(model.scene.node(name).expand()["coord"].expand()["point"])
+
+
+def test_the_ears_of_a_video_head_have_tiles_of_their_own(akiyo):
+    _, head = akiyo
+    for name, (u0, v0, u1, v1) in EAR_TILES.items():
+        uv = np.asarray(head.scene.node(name).expand()["texCoord"].expand()["point"])
+        assert (uv[:, 0] >= u0 - 1e-9).all() and (uv[:, 0] <= u1 + 1e-9).all(), name
+        assert (uv[:, 1] >= v0 - 1e-9).all() and (uv[:, 1] <= v1 + 1e-9).all(), name
+
+
+def test_a_photo_head_keeps_the_shared_generic_ear(akiyo):
+    frame, _ = akiyo
+    head = fit_photo(frame, photo_parts=PHOTO_PARTS)
+    left = np.asarray(head.scene.node("L_EAR").expand()["texCoord"].expand()["point"])
+    right = np.asarray(head.scene.node("R_EAR").expand()["texCoord"].expand()["point"])
+    assert left[:, 1].min() < EAR_TILES["L_EAR"][1]  # the whole generic tile, not a half
+    assert np.allclose(np.sort(left[:, 0]).mean(), np.sort(right[:, 0]).mean(), atol=0.1)
