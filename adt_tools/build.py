@@ -455,11 +455,18 @@ class GltfMesh:
     name      the mesh name (may be None)
     base      ``(v, 3) float64`` POSITION of the base mesh (mesh-local coordinates)
     targets   morph target name → ``(v, 3) float64`` POSITION displacements
+    intervals morph target name → (from, to): the ADT interval a target of a vtts export
+              (``vtts say -o x.glb``) spans, in the MIAP's units; empty for other files
+
+    A vtts export says in the mesh's ``extras.vtts`` how many of its vertices are the
+    IndexedFaceSet's Coordinate points (the first ``points``; the rest are copies at seams):
+    ``base`` and the targets keep those.
     """
 
     name: str | None
     base: np.ndarray
     targets: dict[str, np.ndarray]
+    intervals: dict[str, tuple[float, float]] = field(default_factory=dict)
 
 
 class _GltfReader:
@@ -657,8 +664,52 @@ class _GltfReader:
                 if delta.shape[1:] != (3,):
                     raise self.error(f"{label}: morph target '{tname}' POSITION must be VEC3")
                 targets_by_name[tname] = delta
-            out.append(GltfMesh(mesh.name, base, targets_by_name))
+            points, intervals = self._vtts_extras(mesh, label, len(base), names)
+            if points is not None:
+                base = base[:points]
+                targets_by_name = {k: v[:points] for k, v in targets_by_name.items()}
+            out.append(GltfMesh(mesh.name, base, targets_by_name, intervals))
         return out
+
+    def _vtts_extras(
+        self, mesh: Any, label: str, n_vertices: int, names: list[str]
+    ) -> tuple[int | None, dict[str, tuple[float, float]]]:
+        """(points, intervals) from a vtts export's mesh ``extras.vtts`` (see :class:`GltfMesh`);
+        (None, {}) for other files."""
+        extras = getattr(mesh, "extras", None)
+        info = extras.get("vtts") if isinstance(extras, dict) else None
+        if not isinstance(info, dict):
+            return None, {}
+        points = info.get("points")
+        if points is not None and (
+            isinstance(points, bool) or not isinstance(points, int)
+            or not 0 <= points <= n_vertices
+        ):
+            raise self.error(
+                f"{label}: extras.vtts.points must be an integer within 0–{n_vertices} (the "
+                f"vertices that are Coordinate points), got {points!r}"
+            )
+        given = info.get("intervals")
+        if given is None:
+            return points, {}
+        ok = isinstance(given, list) and len(given) == len(names)
+        pairs: dict[str, tuple[float, float]] = {}
+        for tname, pair in zip(names, given if ok else [], strict=False):
+            valid = (
+                isinstance(pair, list) and len(pair) == 2
+                and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in pair)
+                and all(math.isfinite(v) for v in pair) and pair[0] != pair[1]
+            )
+            if not valid:
+                ok = False
+                break
+            pairs[tname] = (float(pair[0]), float(pair[1]))
+        if not ok:
+            raise self.error(
+                f"{label}: extras.vtts.intervals must give [from, to] (two different finite "
+                f"numbers) for each of its {len(names)} morph targets"
+            )
+        return points, pairs
 
 
 def _attr(attributes: Any, name: str) -> int | None:
@@ -701,11 +752,15 @@ def _load_gltf(path: Path, neutral: Scene, node: str | None) -> list[DeformedPos
                 raise AdtError(f"two meshes map onto IndexedFaceSet {name}", file=file)
             pose.points[name] = m.base
         return [pose]
-    poses: dict[str, DeformedPose] = {}
+    poses: dict[Any, DeformedPose] = {}
+    interval_meshes = []
     for m in morphing:
         name = _map_gltf_mesh(m, morphing, neutral, file, node)
         neutral_pts = node_points(mesh_nodes(neutral)[name])
         _check_base(m, name, neutral_pts, neutral, file)
+        if m.intervals:
+            interval_meshes.append((m, name, neutral_pts))
+            continue
         for tname, delta in m.targets.items():
             pose = poses.get(tname)
             if pose is None:
@@ -721,7 +776,54 @@ def _load_gltf(path: Path, neutral: Scene, node: str | None) -> list[DeformedPos
                     file=file,
                 )
             pose.points[name] = neutral_pts + delta
+    for pose in _interval_poses(interval_meshes, file):
+        if (pose.miap, pose.amplitude) in poses:
+            raise AdtError(f"two meshes give MIAP {pose.miap} at {pose.amplitude:g}", file=file)
+        poses[(pose.miap, pose.amplitude)] = pose
     return list(poses.values())
+
+
+def _interval_poses(meshes: list[tuple[GltfMesh, str, np.ndarray]], file: str) -> list:
+    """The poses of a vtts export's morph targets (one per ADT interval, named ``MIAP#K``, with
+    their borders in :attr:`GltfMesh.intervals`): for each MIAP, one pose at each of its interval
+    borders but 0, the sum of every target of the MIAP weighted by how far the border lies
+    through its interval (0–1), so that :func:`build_tables` gives back the tables' borders and
+    slopes."""
+    from vtts.export.morph import parse_target_name, target_label
+
+    per_miap: dict[Miap, list] = {}
+    borders: dict[Miap, set[float]] = {}
+    for m, name, neutral_pts in meshes:
+        items: dict[Miap, list] = {}
+        for tname, delta in m.targets.items():
+            try:
+                miap, _ = parse_target_name(tname)
+            except FapError as e:
+                raise AdtError(f"mesh {m.name}: {e.message}", file=file) from None
+            if tname not in m.intervals:
+                raise AdtError(f"mesh {m.name}: morph target '{tname}' has no interval", file=file)
+            start, end = m.intervals[tname]
+            items.setdefault(miap, []).append((start, end, delta))
+            borders.setdefault(miap, set()).update(b for b in (start, end) if b != 0)
+        for miap, parts in items.items():
+            per_miap.setdefault(miap, []).append((name, neutral_pts, parts))
+    out = []
+    for miap in sorted(per_miap, key=lambda x: x.index):
+        for b in sorted(borders[miap]):
+            source = f"{file}#{target_label(miap)}@{format_number(b)}"
+            pose = DeformedPose(miap, b, source, has_transforms=False)
+            for name, neutral_pts, parts in per_miap[miap]:
+                if name in pose.points:
+                    raise AdtError(
+                        f"two meshes with MIAP {miap}'s targets map onto IndexedFaceSet {name}",
+                        file=file,
+                    )
+                d = np.zeros_like(neutral_pts)
+                for start, end, delta in parts:
+                    d += delta * float(np.clip((b - start) / (end - start), 0.0, 1.0))
+                pose.points[name] = neutral_pts + d
+            out.append(pose)
+    return out
 
 
 def _map_gltf_mesh(

@@ -13,12 +13,24 @@ extras="${1:-test}"
 # espeak-ng: speech with phoneme and mark events. Offscreen rendering with Mesa's software EGL
 # (llvmpipe): libegl1 + libegl-mesa0 (the EGL vendor), libgl1 (PyOpenGL loads libGL.so.1 for
 # desktop GL), libgl1-mesa-dri (the llvmpipe driver). chromium: the web player's tests and benchmark
-# load it in headless Chromium (vtts.export.browser).
-deb_packages=(espeak-ng libespeak-ng1 libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri libgles2 chromium)
+# load it in headless Chromium (vtts.export.browser). nodejs and npm: the Khronos glTF-Validator the
+# tests check exported .glb/.gltf files with (tools/node/).
+deb_packages=(espeak-ng libespeak-ng1 libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri libgles2 chromium
+  nodejs npm)
 
+# node and npm installed another way count too (NodeSource's nodejs package carries npm and
+# conflicts with Debian's npm package)
+provided() {
+  case "$1" in
+    nodejs) command -v node >/dev/null ;;
+    npm) command -v npm >/dev/null ;;
+    *) return 1 ;;
+  esac
+}
 missing=()
 for p in "${deb_packages[@]}"; do
-  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" &&
+    ! provided "$p"; then
     missing+=("$p")
   fi
 done
@@ -57,6 +69,15 @@ if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$digest" ]; then
   .venv/bin/python -m pip install -q -c constraints.txt --build-constraint constraints.txt \
     -e ".[$extras]"
   echo "$digest" >"$stamp"
+fi
+# The node tools (the glTF-Validator) at the versions tools/node/package-lock.json pins, into the
+# git-ignored tools/node/node_modules; again only when package.json or the lock changed.
+node_stamp="tools/node/node_modules/.vtts-setup"
+node_digest="$(cat tools/node/package.json tools/node/package-lock.json | sha256sum | cut -d' ' -f1)"
+if [ ! -f "$node_stamp" ] || [ "$(cat "$node_stamp")" != "$node_digest" ]; then
+  echo "setup: installing the node tools (tools/node: npm ci)"
+  (cd tools/node && npm ci --no-audit --no-fund --loglevel=error >/dev/null)
+  echo "$node_digest" >"$node_stamp"
 fi
 # Byte-compile vtts itself (an editable install is not compiled, and PYTHONDONTWRITEBYTECODE=1
 # would have every command compile it again at startup); up-to-date files are skipped.

@@ -108,6 +108,10 @@ class RenderError(VttsError):
     """Rendering or writing an output (image, video, audio) failed."""
 
 
+class ExportError(RenderError):
+    """Exporting an animation (glTF) failed, or what it was given is invalid."""
+
+
 class AnalysisError(VttsError):
     """Estimating FAPs from video failed, or its input (video, PNG folder, FAP list) is invalid."""
 

@@ -49,6 +49,10 @@ class _MeshBlock:
     hi: np.ndarray  # (C,)
     at_zero: np.ndarray  # (C,) clip(0, lo, hi): the weight offset
     halves: tuple[sp.csr_matrix, sp.csr_matrix] | None = None  # row halves of csr, when large
+    # (C,) the column's interval number in its MIAP's table for this IndexedFaceSet, and
+    # (C, 2) that interval's borders as the table gives them (finite, unlike lo and hi)
+    interval: np.ndarray | None = None
+    borders: np.ndarray | None = None
 
 
 @dataclass
@@ -93,7 +97,8 @@ class DeformationEngine:
                     lo = -np.inf if k == 0 else m.borders[k]
                     hi = np.inf if k == n - 1 else m.borders[k + 1]
                     rows = (3 * m.vertices[:, None] + np.arange(3)).reshape(-1)
-                    entry.append((pi, lo, hi, rows, m.displacements[k].reshape(-1)))
+                    entry.append((pi, lo, hi, rows, m.displacements[k].reshape(-1), k,
+                                  m.borders[k], m.borders[k + 1]))  # fmt: skip
         for name, entries in cols.items():
             neutral = np.asarray(neutral_points[name], dtype=np.float64)
             nrows = 3 * neutral.shape[0]
@@ -117,6 +122,8 @@ class DeformationEngine:
                 lo=lo,
                 hi=hi,
                 at_zero=np.clip(0.0, lo, hi),
+                interval=np.array([e[5] for e in entries], dtype=np.int64),
+                borders=np.array([e[6:8] for e in entries], dtype=np.float64).reshape(-1, 2),
             )
 
     def _compile_transforms(self, tables: AnimationTables, neutral_transforms) -> None:
@@ -151,12 +158,18 @@ class DeformationEngine:
         params = np.asarray(params, dtype=np.float64)
         if params.shape != (N_PARAMS,):
             raise ValueError(f"parameter vector must have shape ({N_PARAMS},), got {params.shape}")
-        pose = Pose()
+        pose = Pose(transforms=self.transform_values(params))
         for name, b in self.meshes.items():
             pose.points[name] = b.neutral + self.displacement(b, params).reshape(-1, 3)
-        for (node, fld), t in self.transforms.items():
-            pose.transforms.setdefault(node, {})[fld] = _transform_value(t, fld, params)
         return pose
+
+    def transform_values(self, params: np.ndarray) -> dict[str, dict[str, np.ndarray]]:
+        """The animated Transform fields for a ``(N_PARAMS,)`` parameter vector, as
+        :attr:`Pose.transforms` has them (without deforming any mesh)."""
+        out: dict[str, dict[str, np.ndarray]] = {}
+        for (node, fld), t in self.transforms.items():
+            out.setdefault(node, {})[fld] = _transform_value(t, fld, params)
+        return out
 
     def displacement(self, b: _MeshBlock, params: np.ndarray) -> np.ndarray:
         f = params[b.param]

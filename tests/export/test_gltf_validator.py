@@ -1,0 +1,51 @@
+"""The Khronos glTF-Validator (npm ``gltf-validator``, installed by ``scripts/setup.sh`` into
+``tools/node``) finds no error and no warning in what vtts exports: binary and JSON, one head and
+two, every kind of Transform, texture and primitive the rig has, the room layout."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from gltf_helpers import HEAD, problems, sweep, validate, write_rig
+
+from vtts.export import write_gltf
+from vtts.face import N_PARAMS, load_model
+
+
+@pytest.fixture(scope="module")
+def rig(tmp_path_factory):
+    return load_model(write_rig(tmp_path_factory.mktemp("rig")))
+
+
+@pytest.mark.parametrize("suffix", [".glb", ".gltf"])
+@pytest.mark.parametrize("case", ["cybatt", "rig", "two heads in a room"])
+def test_the_validator_finds_nothing_wrong(case, suffix, rig, tmp_path):
+    if case == "cybatt":
+        models, kw = [load_model("cybatt")], {}
+    elif case == "rig":
+        models, kw = [rig], {}
+    else:
+        models, kw = [rig, load_model(HEAD)], {"layout": "room"}
+    params = [sweep(m, n_frames=20, seed=i) for i, m in enumerate(models)]
+    path = write_gltf(tmp_path / f"out{suffix}", models, params, 30.0, **kw)
+    report = validate(path)
+    assert problems(report) == []
+    issues = report["issues"]
+    assert issues["numErrors"] == 0 and issues["numWarnings"] == 0
+    info = report["info"]
+    assert info["animationCount"] == 1 and info["hasMorphTargets"]
+    if case != "two heads in a room":
+        assert info["hasTextures"]
+
+
+def test_the_validator_is_wired_to_fail(tmp_path):
+    """The wrapper reports what the validator finds: a file with a broken accessor has errors
+    (so the test above can fail)."""
+    head = load_model(HEAD)
+    path = write_gltf(tmp_path / "x.gltf", [head], np.zeros((2, N_PARAMS)), 30.0)
+    text = path.read_text(encoding="utf-8")
+    broken = tmp_path / "broken.gltf"
+    # the first accessor claims a million times more elements than its bufferView holds
+    broken.write_text(text.replace('"count":', '"count":1000000', 1), "utf-8")
+    report = validate(broken)
+    assert report["issues"]["numErrors"] > 0
