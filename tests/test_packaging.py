@@ -45,6 +45,9 @@ def test_wheel_contains_grammars_models_and_both_packages(wheel):
     # adi fit: where the landmarks lie on FACE, and Candide-3 for the subdivision matrix
     assert "vtts/data/fit/face_landmarks.tsv" in names
     assert "vtts/_data/models/src/candide3.wfm" in names
+    # the web player (vtts say/play --web) and the three.js it ships, with three's licence
+    for name in ("player.js", "index.html", "vendor/three.module.min.js", "vendor/LICENSE"):
+        assert f"vtts/export/player/{name}" in names, name
     assert "adt_tools/__init__.py" in names
     entry_points = next(n for n in names if n.endswith("entry_points.txt"))
     text = zipfile.ZipFile(wheel).read(entry_points).decode()
