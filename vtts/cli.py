@@ -377,11 +377,12 @@ def cmd_play(args: argparse.Namespace) -> int:
     from vtts.fap.cli_coding import read_stream
     from vtts.render import PngSequenceWriter, VideoWriter, progress
 
-    if not args.output and not args.png_dir:
-        raise RenderError("nothing to write: give -o OUT.mp4 and/or --png-dir DIR")
+    if not args.output and not args.png_dir and not args.web:
+        raise RenderError("nothing to write: give -o OUT.mp4, --png-dir DIR and/or --web DIR")
     if not 0 < args.fps <= 240:
         raise RenderError(f"--fps must be within 0–240, got {args.fps:g}")
     _background(args, video=bool(args.output))
+    _check_web(args)
     stream = read_stream(args.stream)
     models = [load_model(m) for m in args.model]
     tracks, played = [], []
@@ -391,6 +392,12 @@ def cmd_play(args: argparse.Namespace) -> int:
         tracks.append(sp.params)
         played.append(sp)
     n = tracks[0].shape[0]
+    if args.web:
+        _play_web(args, models, played, tracks)
+    if not args.output and not args.png_dir:
+        if not args.quiet:
+            print(f"wrote {args.web}: {n} frames at {args.fps:g} fps ({n / args.fps:.2f} s)")
+        return 0
     with contextlib.ExitStack() as stack:
         renderer = stack.enter_context(_renderer(args, models, video=bool(args.output)))
         roots = [
@@ -414,10 +421,66 @@ def cmd_play(args: argparse.Namespace) -> int:
             for sink in sinks:
                 sink.write(frame)
             bar.advance()
-    outputs = " and ".join(str(p) for p in (args.output, args.png_dir) if p)
+    outputs = " and ".join(str(p) for p in (args.output, args.png_dir, args.web) if p)
     if not args.quiet:
         print(f"wrote {outputs}: {n} frames at {args.fps:g} fps ({n / args.fps:.2f} s)")
     return 0
+
+
+def _check_web(args: argparse.Namespace) -> None:
+    """``--web DIR`` names a folder the web player may be written into (before any work)."""
+    if args.web:
+        from vtts.export.web import check_web_folder
+
+        check_web_folder(args.web)
+
+
+def _write_web(args: argparse.Namespace, models, params, *, audio=None, roots=None) -> None:
+    """``--web DIR`` of say and play: the web player (:func:`vtts.export.web.write_web`) with
+    the camera, size, layout and background the video would have."""
+    from vtts.export.web import write_web
+    from vtts.render import Camera
+    from vtts.render.color import parse_background
+
+    write_web(
+        args.web,
+        models,
+        params,
+        args.fps,
+        audio=audio,
+        roots=roots,
+        camera=Camera.parse(args.camera) if args.camera else None,
+        viewpoint=args.viewpoint,
+        size=_size(args.size),
+        layout=args.layout,
+        background=parse_background(args.background) if args.background else None,
+    )
+
+
+def _play_web(args: argparse.Namespace, models, played, tracks) -> None:
+    """``vtts play --web``: the stream's head translation moves each head as in the video."""
+    from vtts.animate.fapstream import model_roots
+    from vtts.export import placement
+    from vtts.render import Camera
+
+    where = placement(
+        models,
+        camera=Camera.parse(args.camera) if args.camera else None,
+        viewpoint=args.viewpoint,
+        size=_size(args.size),
+        layout=args.layout,
+    )
+    roots = [
+        model_roots(sp, where.matrices[j], m.fapu, m.name)
+        for j, (sp, m) in enumerate(zip(played, models, strict=True))
+    ]
+    _write_web(
+        args,
+        models,
+        tracks,
+        audio=args.audio,
+        roots=roots if any(r is not None for r in roots) else None,
+    )
 
 
 def _speak_and_set_up(args, text: str, models: list, known: set[str]):
@@ -460,11 +523,14 @@ def cmd_say(args: argparse.Namespace) -> int:
     from vtts.limits import MAX_TEXT_BYTES, read_bytes_capped
     from vtts.render import PngSequenceWriter, VideoWriter, progress, write_wav
 
-    if not (args.output or args.png_dir or args.fap_out or args.wav_out):
-        raise RenderError("nothing to write: give -o OUT.mp4, --png-dir, --fap-out or --wav-out")
+    if not (args.output or args.png_dir or args.fap_out or args.wav_out or args.web):
+        raise RenderError(
+            "nothing to write: give -o OUT.mp4, --png-dir, --web, --fap-out or --wav-out"
+        )
     if not 0 < args.fps <= 240:
         raise RenderError(f"--fps must be within 0–240, got {args.fps:g}")
     _background(args, video=bool(args.output))
+    _check_web(args)
     text = args.text
     if args.file:
         try:
@@ -524,13 +590,19 @@ def cmd_say(args: argparse.Namespace) -> int:
                 for sink in sinks:
                     sink.write(frame)
                 bar.advance()
+    if args.web:
+        with tempfile.TemporaryDirectory(prefix="vtts-say-") as tmp:
+            wav = Path(tmp) / "speech.wav"
+            write_wav(wav, utt.audio, utt.rate)
+            _write_web(args, models, [tl.params for tl in timelines], audio=wav)
     # the stream and the speech last: a say that fails on the way leaves them as they were
     if args.fap_out:
         write_fap(timeline_stream(timelines[0], models[0].name), args.fap_out)
     if args.wav_out:
         write_wav(args.wav_out, utt.audio, utt.rate)
     if not args.quiet:
-        outputs = [str(p) for p in (args.output, args.png_dir, args.fap_out, args.wav_out) if p]
+        written = (args.output, args.png_dir, args.web, args.fap_out, args.wav_out)
+        outputs = [str(p) for p in written if p]
         print(f"wrote {', '.join(outputs)}: {utt.duration:.2f} s, {n} frames at {args.fps:g} fps")
     return 0
 
@@ -783,6 +855,7 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--fps", type=float, default=30.0, help="output frame rate (default 30)")
     pl.add_argument("--png-dir", help="also (or only) write lossless PNG frames into this folder")
     pl.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    _web_flag(pl)
     _view_flags(pl)
     pl.add_argument("-o", "--output", help="output .mp4")
     pl.set_defaults(func=cmd_play)
@@ -819,6 +892,7 @@ def build_parser() -> argparse.ArgumentParser:
     sy.add_argument("--wav-out", help="also write the speech (.wav)")
     sy.add_argument("--png-dir", help="also (or only) write lossless PNG frames into this folder")
     sy.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    _web_flag(sy)
     _view_flags(sy)
     sy.add_argument("-o", "--output", help="output .mp4")
     sy.set_defaults(func=cmd_say)
@@ -951,6 +1025,15 @@ def _pose_flags(p: argparse.ArgumentParser) -> None:
         action="append",
         metavar="NAME[=W]",
         help="expression with an optional weight 0-1 (joy=0.8)",
+    )
+
+
+def _web_flag(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--web",
+        metavar="DIR",
+        help="also (or only) write a web player into this folder: index.html, the animation as "
+        ".glb, the audio and three.js; serve it with python -m http.server -d DIR",
     )
 
 
