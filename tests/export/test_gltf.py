@@ -398,10 +398,10 @@ def test_a_failed_export_leaves_the_old_file(head, tmp_path, monkeypatch):
     before = out.read_bytes()
     import vtts.export.gltf as gltf
 
-    def broken(self):
-        raise KeyboardInterrupt
+    def broken(self, **kwargs):
+        raise KeyboardInterrupt  # as Ctrl-C while the file is written
 
-    monkeypatch.setattr(gltf.gl.GLTF2, "save_to_bytes", broken)
+    monkeypatch.setattr(gltf.gl.GLTF2, "gltf_to_json", broken)
     with pytest.raises(KeyboardInterrupt):
         write_gltf(out, [head], np.ones((2, N_PARAMS)), FPS)
     assert out.read_bytes() == before

@@ -27,6 +27,7 @@ import base64
 import io
 import math
 import os
+import struct
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -94,7 +95,7 @@ def write_gltf(
     with atomic_path(path) as tmp:
         if suffix == ".glb":
             with open(tmp, "wb") as f:
-                f.writelines(doc.save_to_bytes())
+                f.writelines(glb_chunks(doc))
         else:
             tmp.write_text(doc.gltf_to_json(separators=(",", ":"), indent=None), "utf-8")
     return path
@@ -138,6 +139,21 @@ def placement(
     ``placement(models).matrices[i]`` is ``FaceRenderer.model_matrix(i)``, the root pose that
     :func:`vtts.animate.fapstream.model_roots` moves."""
     return place(_model_list(models), size=size, camera=camera, viewpoint=viewpoint, layout=layout)
+
+
+def glb_chunks(doc: gl.GLTF2) -> list[bytes]:
+    """The binary glTF (GLB) of a document whose one buffer is its binary blob, as the byte
+    strings to write one after the other: the 12-byte header, the JSON chunk (padded with
+    spaces) and the BIN chunk (padded with zeros), each chunk 4-byte aligned."""
+    blob = doc.binary_blob() or b""
+    text = doc.gltf_to_json(separators=(",", ":"), indent=None).encode("utf-8")
+    text += b" " * (-len(text) % 4)
+    blob += b"\0" * (-len(blob) % 4)
+    total = 12 + 8 + len(text) + (8 + len(blob) if blob else 0)
+    out = [struct.pack("<4sII", b"glTF", 2, total), struct.pack("<I4s", len(text), b"JSON"), text]
+    if blob:
+        out += [struct.pack("<I4s", len(blob), b"BIN\0"), blob]
+    return out
 
 
 # ---- the binary buffer --------------------------------------------------------------------------
@@ -425,17 +441,11 @@ class _Exporter:
             w = entry.targets.weights(params)
             for node in entry.nodes:
                 out.append((node, "weights", w))
-        animated = model.engine.transforms
-        if animated:
-            names = {name for name, _ in animated}
-            per_frame = [model.engine.transform_values(p) for p in params]
-            for name, te in entries:
-                if name not in names:
-                    continue
-                for fld in ("rotation", "translation", "scale"):
-                    if (name, fld) not in animated:
-                        continue
-                    values = np.array([f[name][fld] for f in per_frame])
+        tracks = model.engine.transform_tracks(params) if model.engine.transforms else {}
+        for name, te in entries:
+            for fld in ("rotation", "translation", "scale"):
+                values = tracks.get((name, fld))
+                if values is not None:
                     if fld == "rotation":
                         out.append((te.rotation, "rotation", _continuous(_quats(values))))
                     elif fld == "translation":
@@ -841,7 +851,16 @@ def _quat(rotation: np.ndarray) -> np.ndarray:
 
 
 def _quats(rotations: np.ndarray) -> np.ndarray:
-    return np.array([_quat(r) for r in rotations])
+    """:func:`_quat` of each row of ``rotations`` ``(T, 4)``: ``(T, 4)``."""
+    r = np.asarray(rotations, dtype=np.float64)
+    n = np.linalg.norm(r[:, :3], axis=1)
+    turns = (n > 0) & (r[:, 3] != 0)
+    q = np.zeros((len(r), 4))
+    q[:, 3] = 1.0
+    half = r[turns, 3] / 2
+    q[turns, :3] = r[turns, :3] / n[turns, None] * np.sin(half)[:, None]
+    q[turns, 3] = np.cos(half)
+    return q
 
 
 def _opt_rotation(rotation: np.ndarray) -> list[float] | None:
@@ -860,10 +879,9 @@ def _continuous(q: np.ndarray) -> np.ndarray:
     """Quaternions ``(T, 4)`` with signs chosen so that each is within 90° of the one before:
     LINEAR (slerp) then turns the short way between keyframes."""
     q = np.array(q, dtype=np.float64)
-    for i in range(1, len(q)):
-        if np.dot(q[i], q[i - 1]) < 0:
-            q[i] = -q[i]
-    return q
+    # flipping one keyframe flips its dot with the next: the signs multiply up
+    flips = np.where(np.einsum("ij,ij->i", q[1:], q[:-1]) < 0, -1.0, 1.0)
+    return q * np.r_[1.0, np.cumprod(flips)][:, None]
 
 
 def _unique(names: list[str]) -> list[str]:

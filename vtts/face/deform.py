@@ -163,6 +163,23 @@ class DeformationEngine:
             pose.points[name] = b.neutral + self.displacement(b, params).reshape(-1, 3)
         return pose
 
+    def transform_tracks(self, params: np.ndarray) -> dict[tuple[str, str], np.ndarray]:
+        """The animated Transform fields for each row of ``params`` ``(T, N_PARAMS)``:
+        (DEF name, field) → ``(T, 4)`` rotations (axis, angle in rad) or ``(T, 3)`` translations
+        and scales, as :meth:`transform_values` gives them frame by frame."""
+        params = np.asarray(params, dtype=np.float64)
+        out: dict[tuple[str, str], np.ndarray] = {}
+        for (node, fld), t in self.transforms.items():
+            f = params[:, t.param]
+            if fld != "rotation":
+                out[(node, fld)] = t.neutral + f @ t.unit
+            elif t.axes is None:
+                axis = np.broadcast_to(t.neutral[:3], (len(f), 3))
+                out[(node, fld)] = np.c_[axis, t.neutral[3] + f @ t.unit]
+            else:
+                out[(node, fld)] = np.array([_transform_value(t, fld, p) for p in params])
+        return out
+
     def transform_values(self, params: np.ndarray) -> dict[str, dict[str, np.ndarray]]:
         """The animated Transform fields for a ``(N_PARAMS,)`` parameter vector, as
         :attr:`Pose.transforms` has them (without deforming any mesh)."""
