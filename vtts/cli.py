@@ -377,8 +377,10 @@ def cmd_play(args: argparse.Namespace) -> int:
     from vtts.fap.cli_coding import read_stream
     from vtts.render import PngSequenceWriter, VideoWriter, progress
 
-    if not args.output and not args.png_dir and not args.web:
-        raise RenderError("nothing to write: give -o OUT.mp4, --png-dir DIR and/or --web DIR")
+    if not args.output and not args.png_dir and not args.web and not args.gltf:
+        raise RenderError(
+            "nothing to write: give -o OUT.mp4 (or OUT.glb), --png-dir DIR and/or --web DIR"
+        )
     if not 0 < args.fps <= 240:
         raise RenderError(f"--fps must be within 0–240, got {args.fps:g}")
     _background(args, video=bool(args.output))
@@ -392,11 +394,16 @@ def cmd_play(args: argparse.Namespace) -> int:
         tracks.append(sp.params)
         played.append(sp)
     n = tracks[0].shape[0]
+    # where the stream's head translation moves the heads (the renderer finds them in the video)
+    roots = _stream_roots(args, models, played) if args.web or args.gltf else None
     if args.web:
-        _play_web(args, models, played, tracks)
+        _write_web(args, models, tracks, audio=args.audio, roots=roots)
+    if args.gltf:
+        _write_gltf(args, models, tracks, roots)
     if not args.output and not args.png_dir:
         if not args.quiet:
-            print(f"wrote {args.web}: {n} frames at {args.fps:g} fps ({n / args.fps:.2f} s)")
+            outputs = " and ".join(str(p) for p in (args.gltf, args.web) if p)
+            print(f"wrote {outputs}: {n} frames at {args.fps:g} fps ({n / args.fps:.2f} s)")
         return 0
     with contextlib.ExitStack() as stack:
         renderer = stack.enter_context(_renderer(args, models, video=bool(args.output)))
@@ -421,10 +428,51 @@ def cmd_play(args: argparse.Namespace) -> int:
             for sink in sinks:
                 sink.write(frame)
             bar.advance()
-    outputs = " and ".join(str(p) for p in (args.output, args.png_dir, args.web) if p)
+    outputs = " and ".join(str(p) for p in (args.output, args.gltf, args.png_dir, args.web) if p)
     if not args.quiet:
         print(f"wrote {outputs}: {n} frames at {args.fps:g} fps ({n / args.fps:.2f} s)")
     return 0
+
+
+def _write_gltf(args: argparse.Namespace, models, params, roots=None) -> None:
+    """``-o OUT.glb`` (or ``.gltf``) of say and play: the animation as glTF
+    (:func:`vtts.export.write_gltf`) with the camera, size and layout the video would have."""
+    from vtts.export import write_gltf
+    from vtts.render import Camera
+
+    write_gltf(
+        args.gltf,
+        models,
+        params,
+        args.fps,
+        roots=roots,
+        camera=Camera.parse(args.camera) if args.camera else None,
+        viewpoint=args.viewpoint,
+        size=_size(args.size),
+        layout=args.layout,
+    )
+
+
+def _stream_roots(args: argparse.Namespace, models, played) -> list | None:
+    """Each model's root pose per frame as the stream's head translation moves it
+    (:func:`vtts.animate.fapstream.model_roots`) where the export places it; None when none
+    moves."""
+    from vtts.animate.fapstream import model_roots
+    from vtts.export import placement
+    from vtts.render import Camera
+
+    where = placement(
+        models,
+        camera=Camera.parse(args.camera) if args.camera else None,
+        viewpoint=args.viewpoint,
+        size=_size(args.size),
+        layout=args.layout,
+    )
+    roots = [
+        model_roots(sp, where.matrices[j], m.fapu, m.name)
+        for j, (sp, m) in enumerate(zip(played, models, strict=True))
+    ]
+    return roots if any(r is not None for r in roots) else None
 
 
 def _check_web(args: argparse.Namespace) -> None:
@@ -454,32 +502,6 @@ def _write_web(args: argparse.Namespace, models, params, *, audio=None, roots=No
         size=_size(args.size),
         layout=args.layout,
         background=parse_background(args.background) if args.background else None,
-    )
-
-
-def _play_web(args: argparse.Namespace, models, played, tracks) -> None:
-    """``vtts play --web``: the stream's head translation moves each head as in the video."""
-    from vtts.animate.fapstream import model_roots
-    from vtts.export import placement
-    from vtts.render import Camera
-
-    where = placement(
-        models,
-        camera=Camera.parse(args.camera) if args.camera else None,
-        viewpoint=args.viewpoint,
-        size=_size(args.size),
-        layout=args.layout,
-    )
-    roots = [
-        model_roots(sp, where.matrices[j], m.fapu, m.name)
-        for j, (sp, m) in enumerate(zip(played, models, strict=True))
-    ]
-    _write_web(
-        args,
-        models,
-        tracks,
-        audio=args.audio,
-        roots=roots if any(r is not None for r in roots) else None,
     )
 
 
@@ -523,9 +545,10 @@ def cmd_say(args: argparse.Namespace) -> int:
     from vtts.limits import MAX_TEXT_BYTES, read_bytes_capped
     from vtts.render import PngSequenceWriter, VideoWriter, progress, write_wav
 
-    if not (args.output or args.png_dir or args.fap_out or args.wav_out or args.web):
+    if not (args.output or args.gltf or args.png_dir or args.fap_out or args.wav_out or args.web):
         raise RenderError(
-            "nothing to write: give -o OUT.mp4, --png-dir, --web, --fap-out or --wav-out"
+            "nothing to write: give -o OUT.mp4 (or OUT.glb), --png-dir, --web, --fap-out or "
+            "--wav-out"
         )
     if not 0 < args.fps <= 240:
         raise RenderError(f"--fps must be within 0–240, got {args.fps:g}")
@@ -590,6 +613,8 @@ def cmd_say(args: argparse.Namespace) -> int:
                 for sink in sinks:
                     sink.write(frame)
                 bar.advance()
+    if args.gltf:  # a glTF has no sound: --wav-out writes the speech beside it
+        _write_gltf(args, models, [tl.params for tl in timelines])
     if args.web:
         with tempfile.TemporaryDirectory(prefix="vtts-say-") as tmp:
             wav = Path(tmp) / "speech.wav"
@@ -601,7 +626,7 @@ def cmd_say(args: argparse.Namespace) -> int:
     if args.wav_out:
         write_wav(args.wav_out, utt.audio, utt.rate)
     if not args.quiet:
-        written = (args.output, args.png_dir, args.web, args.fap_out, args.wav_out)
+        written = (args.output, args.gltf, args.png_dir, args.web, args.fap_out, args.wav_out)
         outputs = [str(p) for p in written if p]
         print(f"wrote {', '.join(outputs)}: {utt.duration:.2f} s, {n} frames at {args.fps:g} fps")
     return 0
@@ -857,8 +882,8 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     _web_flag(pl)
     _view_flags(pl)
-    pl.add_argument("-o", "--output", help="output .mp4")
-    pl.set_defaults(func=cmd_play)
+    pl.add_argument("-o", "--output", help="output .mp4, or an animated .glb/.gltf")
+    pl.set_defaults(func=cmd_play, gltf=None)
 
     ms = sub.add_parser("models", help="list the bundled models")
     ms.set_defaults(func=cmd_models)
@@ -894,8 +919,8 @@ def build_parser() -> argparse.ArgumentParser:
     sy.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     _web_flag(sy)
     _view_flags(sy)
-    sy.add_argument("-o", "--output", help="output .mp4")
-    sy.set_defaults(func=cmd_say)
+    sy.add_argument("-o", "--output", help="output .mp4, or an animated .glb/.gltf")
+    sy.set_defaults(func=cmd_say, gltf=None)
 
     an = sub.add_parser(
         "analyze",
@@ -1102,21 +1127,29 @@ def _check_io(args: argparse.Namespace) -> None:
     check_outputs(outputs, inputs)
 
 
-#: What ``-o`` of ``say`` and ``play`` may be: video containers ffmpeg writes with H.264 and AAC.
+#: What ``-o`` of ``say`` and ``play`` may be: video containers ffmpeg writes with H.264 and AAC,
+#: or an animated glTF (binary or JSON: :data:`vtts.export.GLTF_SUFFIXES`).
 VIDEO_SUFFIXES = (".mp4", ".m4v", ".mov", ".mkv")
+GLTF_SUFFIXES = (".glb", ".gltf")
 
 
 def _video_output(args: argparse.Namespace) -> None:
-    """``say``/``play -o`` must name a video (``say -o x.png`` wrote an MP4 named .png)."""
+    """``say``/``play -o`` must name a video (``say -o x.png`` wrote an MP4 named .png) or a
+    glTF file: then ``args.gltf`` takes it and ``args.output``, the video, is None."""
     from vtts.errors import RenderError
 
     out = getattr(args, "output", None)
-    if out and args.func in (cmd_say, cmd_play) and Path(out).suffix.lower() not in VIDEO_SUFFIXES:
+    if not out or args.func not in (cmd_say, cmd_play):
+        return
+    suffix = Path(out).suffix.lower()
+    if suffix in GLTF_SUFFIXES:
+        args.gltf, args.output = out, None
+    elif suffix not in VIDEO_SUFFIXES:
         given = Path(out).suffix or "a name without a suffix"
         kinds = ", ".join(VIDEO_SUFFIXES)
         raise RenderError(
-            f"-o writes a video ({kinds}), not {given}: for frames give --png-dir DIR, for a "
-            "still use vtts render",
+            f"-o writes a video ({kinds}) or an animated glTF (.glb, .gltf), not {given}: for "
+            "frames give --png-dir DIR, for a still use vtts render",
             file=str(out),
         )
 
