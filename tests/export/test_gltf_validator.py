@@ -5,6 +5,7 @@ two, every kind of Transform, texture and primitive the rig has, the room layout
 from __future__ import annotations
 
 import numpy as np
+import pygltflib
 import pytest
 from gltf_helpers import HEAD, problems, sweep, validate, write_rig
 
@@ -49,3 +50,24 @@ def test_the_validator_is_wired_to_fail(tmp_path):
     broken.write_text(text.replace('"count":', '"count":1000000', 1), "utf-8")
     report = validate(broken)
     assert report["issues"]["numErrors"] > 0
+
+
+def test_an_appearance_without_material_is_unlit_as_in_vrml97(tmp_path):
+    wrl = tmp_path / "u.wrl"
+    wrl.write_text(
+        "#VRML V2.0 utf8\n"
+        "Shape { appearance Appearance { texture PixelTexture { image 1 1 3 0xff0000 } }\n"
+        "  geometry IndexedFaceSet { coord Coordinate { point [0 0 0, 1 0 0, 0 1 0] }\n"
+        "  coordIndex [0 1 2 -1] } }\n"
+        "Transform { translation 2 0 0 children Shape { appearance Appearance {\n"
+        "  material Material { diffuseColor 0 0 1 } } geometry Sphere {} } }\n",
+        encoding="utf-8",
+    )
+    path = write_gltf(tmp_path / "u.glb", [load_model(wrl)], np.zeros((1, N_PARAMS)), 30.0)
+    report = validate(path)
+    assert problems(report) == [] and report["info"]["extensionsUsed"] == ["KHR_materials_unlit"]
+    doc = pygltflib.GLTF2.load(str(path))
+    unlit, lit = doc.materials
+    assert unlit.extensions == {"KHR_materials_unlit": {}}
+    assert unlit.pbrMetallicRoughness.baseColorFactor == [1.0, 1.0, 1.0, 1.0]  # the texture's
+    assert not lit.extensions and lit.pbrMetallicRoughness.baseColorFactor == [0, 0, 1, 1]

@@ -57,6 +57,8 @@ GLTF_SUFFIXES = (".glb", ".gltf")
 CAMERA_NODE = "vtts"
 #: The name of the one animation.
 ANIMATION = "vtts"
+#: The glTF extension of materials drawn without lighting.
+UNLIT = "KHR_materials_unlit"
 
 _ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
 _FLOAT, _UINT8, _UINT16, _UINT32 = 5126, 5121, 5123, 5125
@@ -322,7 +324,9 @@ class _Exporter:
             scene_nodes.append(self._room_node(name, tri, color))
         scene_nodes.append(self._camera_node(pl.camera, pl.size))
         animation = self._animation(animations)
+        used = sorted({e for m in self.materials for e in (m.extensions or {})})
         doc = gl.GLTF2(
+            extensionsUsed=used,
             asset=gl.Asset(
                 version="2.0",
                 generator=f"vtts {_version()}",
@@ -604,7 +608,8 @@ class _Exporter:
     ) -> int:
         """The renderer's mapping of a VRML Appearance: diffuseColor and 1 − transparency as the
         base color, emissiveColor, roughness 1 − 0.8·shininess, not metallic; a texture
-        multiplies the base color (white when there is no Material)."""  # fmt: skip
+        multiplies the base color (white when there is no Material). An Appearance without a
+        Material is not lit (VRML97): ``KHR_materials_unlit``."""  # fmt: skip
         key = (id(appearance), double_sided, textured)
         if key in self._material_cache:
             return self._material_cache[key]
@@ -613,10 +618,12 @@ class _Exporter:
         roughness = 0.8
         texture = None
         name = None
+        unlit = False
         if appearance is not None:
             appearance = appearance.expand()
             name = appearance.name or None
             mat = appearance["material"]
+            unlit = mat is None
             if mat is not None:
                 mat = mat.expand()
                 name = name or mat.name or None
@@ -642,6 +649,8 @@ class _Exporter:
             alphaMode="BLEND" if base[3] < 1.0 else "OPAQUE",
             doubleSided=double_sided,
         )
+        if unlit:
+            material.extensions = {UNLIT: {}}
         self.materials.append(material)
         index = self._material_cache[key] = len(self.materials) - 1
         return index
