@@ -33,6 +33,7 @@ def test_the_validator_finds_nothing_wrong(case, suffix, rig, tmp_path):
     assert problems(report) == []
     issues = report["issues"]
     assert issues["numErrors"] == 0 and issues["numWarnings"] == 0
+    assert issues["messages"] == []  # not even an info or a hint
     info = report["info"]
     assert info["animationCount"] == 1 and info["hasMorphTargets"]
     if case != "two heads in a room":
