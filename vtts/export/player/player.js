@@ -383,7 +383,7 @@ async function main() {
   const slider = $('time');
   const playButton = $('play');
   slider.max = String(duration);
-  slider.step = String(config.fps ? 1 / config.fps : 'any');
+  slider.step = 'any';
   const format = (t) => {
     const m = Math.floor(t / 60);
     return `${m}:${(t - 60 * m).toFixed(2).padStart(5, '0')}`;
@@ -403,7 +403,10 @@ async function main() {
   async function play() {
     try {
       await clock.play();
+      $('message').textContent = '';
+      showBar(); // hidden a moment after playing starts, back when the pointer moves
     } catch (e) {
+      // browsers play sound only after the user has done something on the page
       $('message').textContent = 'press ▶ to play';
     }
     changed = true;
@@ -415,7 +418,8 @@ async function main() {
   slider.addEventListener('input', () => seek(Number(slider.value)));
   $('view').addEventListener('click', resetView);
   window.addEventListener('keydown', (e) => {
-    if (e.target instanceof HTMLSelectElement) return;
+    // the menu and the buttons have keys of their own (space presses a focused button)
+    if (e.target instanceof HTMLSelectElement || e.target instanceof HTMLButtonElement) return;
     const step = config.fps ? 1 / config.fps : 1 / 30;
     if (e.key === ' ') toggle();
     else if (e.key === 'ArrowRight') { pause(); seek(clock.time() + step); }
