@@ -17,12 +17,8 @@ renderer, shares the machine's two cores (with whatever else runs: see the load)
 
 from __future__ import annotations
 
-import contextlib
-import functools
-import http.server
 import os
 import tempfile
-import threading
 import time
 from pathlib import Path
 
@@ -34,25 +30,6 @@ FPS = 30.0
 #: Seconds of playback measured, after WARMUP seconds of playing.
 SECONDS = 4.0
 WARMUP = 1.0
-
-
-class _Quiet(http.server.SimpleHTTPRequestHandler):
-    def log_message(self, *args) -> None:
-        pass
-
-
-@contextlib.contextmanager
-def _serve(folder: Path):
-    handler = functools.partial(_Quiet, directory=str(folder))
-    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
-    thread = threading.Thread(target=server.serve_forever, daemon=True)
-    thread.start()
-    try:
-        yield f"http://127.0.0.1:{server.server_port}"
-    finally:
-        server.shutdown()
-        server.server_close()
-        thread.join()
 
 
 def _web_folder(names: list[str], out: Path) -> tuple[Path, float]:
@@ -78,9 +55,9 @@ def _web_folder(names: list[str], out: Path) -> tuple[Path, float]:
 def measure(folder: Path) -> tuple[float, float, str]:
     """(frames drawn per second while playing, largest |animation time − audio time| in s, the
     WebGL renderer's name)."""
-    from vtts.export.browser import Chromium
+    from vtts.export.browser import Chromium, serve
 
-    with _serve(folder) as base, Chromium(SIZE, autoplay=True) as browser:
+    with serve(folder) as base, Chromium(SIZE, autoplay=True) as browser:
         browser.load(f"{base}/index.html?paused=1", timeout=120)
         renderer = browser.webgl_renderer()
         browser.evaluate("vttsPlayer.play()")

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -102,3 +103,24 @@ def check_outputs(
             if out.resolve() == other.resolve() or same(out, other):
                 raise VttsError(f"two outputs name the same file ({other})", file=str(out))
         seen.append(out)
+
+
+def replace_folder(new: str | os.PathLike[str], dest: str | os.PathLike[str]) -> None:
+    """Rename the finished folder ``new`` to ``dest`` (same filesystem). A previous ``dest`` is
+    moved aside first and removed after, or put back when the rename fails, so that ``dest`` is
+    at every moment either the old folder or the new one, whole."""
+    new, dest = Path(new), Path(dest)
+    if not dest.exists():
+        os.replace(new, dest)
+        return
+    if dest.is_dir() and not any(dest.iterdir()):
+        os.replace(new, dest)  # rename(2) replaces an empty folder
+        return
+    old = Path(tempfile.mkdtemp(prefix=f".{dest.name[:40]}.", suffix=".old", dir=dest.parent))
+    os.replace(dest, old)  # replaces the empty placeholder folder
+    try:
+        os.replace(new, dest)
+    except BaseException:
+        os.replace(old, dest)
+        raise
+    shutil.rmtree(old, ignore_errors=True)

@@ -14,18 +14,13 @@ docs/web.md shows).
 
 from __future__ import annotations
 
-import contextlib
-import functools
-import http.server
 import io
 import os
-import threading
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from vtts.export.browser import Chromium, find_chromium
+from vtts.export.browser import Chromium, find_chromium, serve
 from vtts.export.web import write_web
 from vtts.render import write_wav
 
@@ -44,26 +39,6 @@ def chromium_binary() -> str:
     if found is None:
         pytest.fail("no chromium: scripts/setup.sh installs Debian's chromium for these tests")
     return found
-
-
-class _Quiet(http.server.SimpleHTTPRequestHandler):
-    def log_message(self, *args) -> None:
-        pass
-
-
-@contextlib.contextmanager
-def serve(folder: Path):
-    """Serve ``folder`` on 127.0.0.1 (a free port) while the block runs; yields the base URL."""
-    handler = functools.partial(_Quiet, directory=str(folder))
-    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
-    thread = threading.Thread(target=server.serve_forever, daemon=True)
-    thread.start()
-    try:
-        yield f"http://127.0.0.1:{server.server_port}"
-    finally:
-        server.shutdown()
-        server.server_close()
-        thread.join()
 
 
 def track(model) -> np.ndarray:

@@ -16,18 +16,23 @@ Chromium's SwiftShader where EGL is missing (:meth:`Chromium.webgl_renderer` say
 from __future__ import annotations
 
 import base64
+import contextlib
+import functools
+import http.server
 import json
 import os
 import select
 import shutil
 import subprocess
 import tempfile
+import threading
 import time
+from collections.abc import Iterator
 from typing import Any
 
 from vtts.errors import VttsError
 
-__all__ = ["BrowserError", "Chromium", "find_chromium"]
+__all__ = ["BrowserError", "Chromium", "find_chromium", "serve"]
 
 #: Names of the Chromium binary, in the order they are looked for on PATH.
 CHROMIUM_NAMES = ("chromium", "chromium-browser", "google-chrome", "chrome")
@@ -313,3 +318,24 @@ class Chromium:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+class _QuietHandler(http.server.SimpleHTTPRequestHandler):
+    def log_message(self, *args) -> None:
+        pass
+
+
+@contextlib.contextmanager
+def serve(folder: str | os.PathLike[str]) -> Iterator[str]:
+    """Serve ``folder`` over HTTP on 127.0.0.1 (a free port) while the block runs, as any static
+    server would serve a web player's folder; yields the base URL (``http://127.0.0.1:PORT``)."""
+    handler = functools.partial(_QuietHandler, directory=str(folder))
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        yield f"http://127.0.0.1:{server.server_port}"
+    finally:
+        server.shutdown()
+        server.server_close()
+        thread.join()

@@ -17,7 +17,8 @@ from vtts.errors import ExportError, VttsError
 from vtts.face import FaceModel
 from vtts.limits import MAX_IMAGE_SIDE
 from vtts.render.camera import Camera, find_viewpoint, frame_bounds
-from vtts.vrml import Node, TriangleMesh, transform_matrix, triangulate
+from vtts.vrml import Node, TriangleMesh, drawn_children, transform_matrix, triangulate
+from vtts.vrml.scene import GROUPING
 
 #: The deepest scene graph walked (as the renderer: deeper graphs are refused).
 MAX_DEPTH = 128
@@ -111,18 +112,11 @@ def walk_head(model: FaceModel) -> HeadScene:
                 return
             sn = SceneNode(node.name or None, node, local)
             parent.children.append(sn)
-            for c in node["children"]:
+            for c in drawn_children(node):
                 walk(c, sn, world @ local, depth + 1)
-        elif t in ("Group", "Anchor", "Billboard", "Collision"):
-            for c in node["children"]:
+        elif t in GROUPING:
+            for c in drawn_children(node):
                 walk(c, parent, world, depth + 1)
-        elif t == "Switch":
-            k = node["whichChoice"]
-            if 0 <= k < len(node["choice"]):
-                walk(node["choice"][k], parent, world, depth + 1)
-        elif t == "LOD":
-            if node["level"]:
-                walk(node["level"][0], parent, world, depth + 1)
         elif t == "Shape":
             item = _shape(model, node)
             if item is None:

@@ -119,7 +119,7 @@ def write_web(
     :func:`~vtts.render.color.parse_background` gives it (RGB in 0–1, or ``"transparent"``;
     default: vtts render's). ``title`` is the page's title (default: the models' names). Returns
     the folder's path."""
-    from vtts.atomic import current_umask
+    from vtts.atomic import current_umask, replace_folder
     from vtts.export.gltf import write_gltf
 
     dest = Path(directory)
@@ -158,7 +158,7 @@ def write_web(
         (tmp / "index.html").write_text(page, encoding="utf-8")
         # mkdtemp makes the folder private; a finished folder gets the usual permissions
         os.chmod(tmp, 0o777 & ~current_umask())
-        _replace_folder(tmp, dest)
+        replace_folder(tmp, dest)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
@@ -185,23 +185,6 @@ def css_color(background) -> str:
     if rgb.shape != (3,) or not np.isfinite(rgb).all():
         raise WebError(f"a page background is an RGB color in 0–1, got {background!r}")
     return "#" + "".join(f"{round(float(c) * 255):02x}" for c in rgb)
-
-
-def _replace_folder(new: Path, dest: Path) -> None:
-    """Rename ``new`` to ``dest``; a previous ``dest`` is moved aside first and removed after,
-    or put back when the rename fails."""
-    if not dest.exists():
-        os.replace(new, dest)  # an empty folder there is replaced too (rename(2) allows it)
-        return
-    old = Path(tempfile.mkdtemp(prefix=f".{dest.name[:40]}.", suffix=".old", dir=dest.parent))
-    os.rmdir(old)
-    os.rename(dest, old)
-    try:
-        os.rename(new, dest)
-    except BaseException:
-        os.rename(old, dest)
-        raise
-    shutil.rmtree(old, ignore_errors=True)
 
 
 def _audio_seconds(audio: str | os.PathLike[str]) -> float:

@@ -38,7 +38,7 @@ try:
 except ImportError:  # pragma: no cover - Windows
     fcntl = None  # type: ignore[assignment]
 
-from vtts.atomic import atomic_path, current_umask
+from vtts.atomic import atomic_path, current_umask, replace_folder
 from vtts.errors import RenderError
 
 __all__ = [
@@ -424,20 +424,7 @@ class PngSequenceWriter:
             return
         try:
             self._check_destination()
-            d = self.directory
-            if d.is_dir() and not any(d.iterdir()):
-                d.rmdir()
-            if d.exists():  # overwrite: old folder aside, new one in, then drop the old one
-                old = Path(tempfile.mkdtemp(prefix=f".{d.name}.", suffix=".old", dir=d.parent))
-                os.replace(d, old)  # replaces the empty placeholder folder
-                try:
-                    os.replace(tmp, d)
-                except BaseException:
-                    os.replace(old, d)
-                    raise
-                shutil.rmtree(old, ignore_errors=True)
-            else:
-                os.replace(tmp, d)
+            replace_folder(tmp, self.directory)
         except BaseException:
             self.abort()
             raise

@@ -29,8 +29,9 @@ from vtts.face import N_PARAMS, FaceModel
 from vtts.limits import MAX_IMAGE_SIDE, MAX_RENDER_PIXELS, check_image_size
 from vtts.render.camera import Camera, find_viewpoint, frame_bounds
 from vtts.render.color import TRANSPARENT, parse_background
-from vtts.vrml import Node, resolve_url, transform_matrix, triangulate
+from vtts.vrml import Node, drawn_children, resolve_url, transform_matrix, triangulate
 from vtts.vrml.geometry import TriangleMesh
+from vtts.vrml.scene import GROUPING
 from vtts.vrml.transform import compose_transform
 
 _pyrender = None
@@ -420,18 +421,11 @@ class FaceRenderer:
                     inst.transforms.setdefault(
                         node.name, _AnimatedTransform(node.name, node)
                     ).nodes.append(pn)
-                for c in node["children"]:
+                for c in drawn_children(node):
                     walk(c, pn, world @ local, depth + 1)
-            elif t in ("Group", "Anchor", "Billboard", "Collision"):
-                for c in node["children"]:
+            elif t in GROUPING:
+                for c in drawn_children(node):
                     walk(c, parent, world, depth + 1)
-            elif t == "Switch":
-                k = node["whichChoice"]
-                if 0 <= k < len(node["choice"]):
-                    walk(node["choice"][k], parent, world, depth + 1)
-            elif t == "LOD":
-                if node["level"]:
-                    walk(node["level"][0], parent, world, depth + 1)
             elif t == "Shape":
                 self._add_shape(inst, node, parent, world, animated_meshes)
 

@@ -10,7 +10,7 @@ from vtts.vrml.fields import FIELD_TYPES, FieldType, SFImage
 from vtts.vrml.geometry import TriangleMesh, polygon_triangle_count, triangulate
 from vtts.vrml.nodes import FieldDecl, NodeType, standard_node_types
 from vtts.vrml.parser import parse, read, resolve_url, url_problem, url_roots
-from vtts.vrml.scene import Node, Proto, Route, Scene, same_node
+from vtts.vrml.scene import Node, Proto, Route, Scene, drawn_children, same_node
 from vtts.vrml.transform import compose_transform, rotation_matrix, transform_matrix
 from vtts.vrml.writer import dumps, write
 
@@ -26,6 +26,7 @@ __all__ = [
     "Scene",
     "TriangleMesh",
     "compose_transform",
+    "drawn_children",
     "dumps",
     "parse",
     "polygon_triangle_count",

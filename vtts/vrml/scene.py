@@ -197,6 +197,26 @@ def _instantiate(instance: Node) -> Node:
     return clone(first)
 
 
+
+#: The grouping nodes whose children are drawn (see :func:`drawn_children`).
+GROUPING = ("Transform", "Group", "Anchor", "Billboard", "Collision", "Switch", "LOD")
+
+
+def drawn_children(node: Node) -> list:
+    """The children of a grouping node that a browser draws: all of a Transform's, Group's,
+    Anchor's, Billboard's or Collision's, a Switch's ``whichChoice`` (none when out of range),
+    an LOD's first level (vtts draws the most detailed one); [] for any other node."""
+    t = node.type.name
+    if t in ("Transform", "Group", "Anchor", "Billboard", "Collision"):
+        return list(node["children"])
+    if t == "Switch":
+        k = node["whichChoice"]
+        return [node["choice"][k]] if 0 <= k < len(node["choice"]) else []
+    if t == "LOD":
+        return list(node["level"][:1])
+    return []
+
+
 @dataclass(eq=False)
 class Scene:
     """A parsed VRML97 file.
@@ -282,20 +302,10 @@ class Scene:
                     line=n.line,
                 )
             yield n, m, path
-            t = n.type.name
-            if t == "Transform":
-                m2 = m @ transform_matrix(n)
-                kids = n["children"]
-            elif t in ("Group", "Anchor", "Billboard", "Collision"):
-                m2, kids = m, n["children"]
-            elif t == "Switch":
-                choice, kids, m2 = n["whichChoice"], [], m
-                if 0 <= choice < len(n["choice"]):
-                    kids = [n["choice"][choice]]
-            elif t == "LOD":
-                m2, kids = m, n["level"][:1]
-            else:
+            if n.type.name not in GROUPING:
                 return
+            kids = drawn_children(n)
+            m2 = m @ transform_matrix(n) if n.type.name == "Transform" else m
             if len(path) > 256:
                 raise VrmlLimitError("scene graph nests deeper than 256 levels", line=n.line)
             for c in kids:
