@@ -85,6 +85,19 @@ def test_folder_holds_page_glb_audio_player_and_three(tmp_path, head, tone):
     assert leftovers(tmp_path, {"web", "tone.wav"}) == []
 
 
+def test_a_model_given_twice_is_named_as_the_glb_names_it(tmp_path, head):
+    import json
+
+    params = [np.zeros((6, N_PARAMS))] * 2
+    out = write_web(tmp_path / "web", [head, head], params, 24.0)
+    assert page_config(out)["heads"] == [head.name, f"{head.name}-2"]
+    # the .glb's JSON chunk: 12-byte header, then length and type of the chunk
+    data = (out / GLB_NAME).read_bytes()
+    length = int.from_bytes(data[12:16], "little")
+    doc = json.loads(data[20 : 20 + length])
+    assert doc["asset"]["extras"]["vtts"]["heads"] == page_config(out)["heads"]
+
+
 def test_without_audio_there_is_none(tmp_path, head):
     out = write_web(tmp_path / "web", [head], [np.zeros((12, N_PARAMS))], 24.0)
     assert not (out / AUDIO_NAME).exists()

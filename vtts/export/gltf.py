@@ -315,7 +315,7 @@ class _Exporter:
         pl = self.placement
         scene_nodes = []
         animations: list[tuple[int, str, np.ndarray]] = []  # (node, path, (T, k) values)
-        names = _unique([h.model.name for h in pl.heads])
+        names = unique_names([h.model.name for h in pl.heads])
         for i, (head, matrix) in enumerate(zip(pl.heads, pl.matrices, strict=True)):
             root, entries, meshes = self._head(head, names[i], matrix)
             scene_nodes.append(root)
@@ -893,8 +893,9 @@ def _continuous(q: np.ndarray) -> np.ndarray:
     return q * np.r_[1.0, np.cumprod(flips)][:, None]
 
 
-def _unique(names: list[str]) -> list[str]:
-    """``names`` with repeats numbered: cybatt, cybatt-2."""
+def unique_names(names: list[str]) -> list[str]:
+    """``names`` with repeats numbered: cybatt, cybatt-2 (the heads' root nodes in the file, and
+    the web player's head menu)."""
     seen: dict[str, int] = {}
     out = []
     for n in names:

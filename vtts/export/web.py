@@ -139,7 +139,12 @@ def write_web(
             encode_aac(audio, tmp / AUDIO_NAME)
         shutil.copy2(PLAYER_DIR / "player.js", tmp / "player.js")
         shutil.copytree(PLAYER_DIR / "vendor", tmp / "vendor")
-        names = [getattr(m, "name", None) or f"head {i + 1}" for i, m in enumerate(models)]
+        from vtts.export.gltf import unique_names
+
+        # the names the .glb gives its heads' root nodes: a model given twice is cybatt-2 there
+        names = unique_names(
+            [getattr(m, "name", None) or f"head {i + 1}" for i, m in enumerate(models)]
+        )
         config = {
             "glb": GLB_NAME,
             "audio": AUDIO_NAME if audio is not None else None,
