@@ -49,7 +49,7 @@ from vtts.export.scene import HeadScene, Placement, SceneNode, ShapeItem, place
 from vtts.face import N_PARAMS, FaceModel
 from vtts.limits import MAX_FPS, MAX_FRAMES, MIN_FPS, check_image_size
 from vtts.render.camera import Camera
-from vtts.vrml import Node, resolve_url, rotation_matrix
+from vtts.vrml import Node, rotation_matrix
 
 #: What ``write_gltf`` writes, by suffix: binary glTF, or JSON with everything embedded.
 GLTF_SUFFIXES = (".glb", ".gltf")
@@ -662,8 +662,7 @@ class _Exporter:
                 return None
             image = self._image(("pixel", id(tex)), lambda: (_png(img.to_rgba()), "image/png"))
         elif tex.type.name == "ImageTexture":
-            base = model.path.parent if model.path else None
-            path = resolve_url(tex["url"], base, getattr(model.scene, "url_roots", ()))
+            path = model.texture_file(tex)
             if path is None:
                 if list(tex["url"]):
                     warnings.warn(model.texture_warning(tex, list(tex["url"])), stacklevel=4)

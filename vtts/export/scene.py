@@ -16,7 +16,7 @@ import numpy as np
 from vtts.errors import ExportError, VttsError
 from vtts.face import FaceModel
 from vtts.limits import MAX_IMAGE_SIDE
-from vtts.render.camera import Camera, find_viewpoint, frame_bounds
+from vtts.render.camera import Camera, find_viewpoint, frame_bounds, row_layout
 from vtts.vrml import Node, TriangleMesh, drawn_children, transform_matrix, triangulate
 from vtts.vrml.scene import GROUPING
 
@@ -170,8 +170,6 @@ def place(
     viewpoint=viewpoint, layout=layout)`` does: side by side along x, centred, 15 % of the widest
     head apart; the camera framing them all (or ``camera`` when placed, or the first model's
     Viewpoint ``viewpoint``)."""
-    from vtts.render.renderer import MAX_EXTENT
-
     if isinstance(models, FaceModel):
         models = [models]
     if not models:
@@ -182,30 +180,11 @@ def place(
         raise ExportError("give a camera or a viewpoint to look through, not both")
     w, h = _check_size(size)
     heads = [walk_head(m) for m in models]
-    for head in heads:
-        if np.isinf(head.lo).all() and np.isinf(head.hi).all():
-            head.lo, head.hi = np.full(3, -0.5), np.full(3, 0.5)
-        extent = head.hi - head.lo
-        if not (np.isfinite(extent).all() and extent.max() <= MAX_EXTENT):
-            raise ExportError(
-                f"{head.model.name}: the scene spans {extent.max():.3g} units, more than the "
-                f"{MAX_EXTENT:g} a picture can frame (coordinates too large?)"
-            )
-    widths = [max(hd.hi[0] - hd.lo[0], 1e-6) for hd in heads]
-    gap = 0.15 * max(widths)
-    x = -(sum(widths) + gap * (len(widths) - 1)) / 2
-    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
-    matrices = []
-    for head, width in zip(heads, widths, strict=True):
-        shift = np.array([x - head.lo[0], 0.0, 0.0])
-        shift[1] = -(head.lo[1] + head.hi[1]) / 2
-        shift[2] = -(head.lo[2] + head.hi[2]) / 2
-        m = np.eye(4)
-        m[:3, 3] = shift
-        matrices.append(m)
-        lo = np.minimum(lo, head.lo + shift)
-        hi = np.maximum(hi, head.hi + shift)
-        x += width + gap
+    matrices, fixed, lo, hi = row_layout(
+        [(hd.lo, hd.hi) for hd in heads], [hd.model.name for hd in heads], ExportError
+    )
+    for head, bounds in zip(heads, fixed, strict=True):
+        head.lo, head.hi = bounds
     if viewpoint is not None:
         camera = _viewpoint_camera(heads[0].model, viewpoint, (w, h), matrices[0], lo, hi)
     elif camera is None or not camera.placed:

@@ -212,17 +212,21 @@ class FaceModel:
                 node.fields[f] = np.array(v, dtype=np.float64)
         return scene
 
-    def missing_textures(self) -> list[tuple[Node, list[str]]]:
-        """The ``ImageTexture`` nodes whose urls name no file that can be loaded (missing, or
-        outside the allowed folders), with their urls: drawn untextured."""
+    def texture_file(self, node: Node) -> Path | None:
+        """The file an ``ImageTexture`` ``node`` loads: the first of its urls that names a file
+        inside the model's folder (or the allowed url roots); None when none does."""
         from vtts.vrml import resolve_url
 
         base = self.path.parent if self.path else None
-        roots = getattr(self.scene, "url_roots", ())
+        return resolve_url(node.expand()["url"], base, getattr(self.scene, "url_roots", ()))
+
+    def missing_textures(self) -> list[tuple[Node, list[str]]]:
+        """The ``ImageTexture`` nodes whose urls name no file that can be loaded (missing, or
+        outside the allowed folders), with their urls: drawn untextured."""
         out = []
         for node in self.scene.find("ImageTexture"):
             urls = list(node.expand()["url"])
-            if urls and resolve_url(urls, base, roots) is None:
+            if urls and self.texture_file(node) is None:
                 out.append((node, urls))
         return out
 

@@ -67,14 +67,14 @@ def project_frame(scene, camera, size: tuple[int, int]) -> None:
     for name in FRAME_APPEARANCES:
         if name not in scene.defs:
             raise FitError(f"the head has no {name} Appearance to texture with the frame")
+    appearances = [scene.node(a).expand() for a in FRAME_APPEARANCES]
+    parts = [scene.node(p).expand() for p in FRAME_PARTS if p in scene.defs]
     for shape in scene.find("Shape"):
         appearance, geometry = shape["appearance"], shape["geometry"]
         if appearance is None or geometry is None:
             continue
-        if appearance.expand() in [scene.node(a).expand() for a in FRAME_APPEARANCES]:
-            if geometry.expand() not in [scene.node(p).expand() for p in FRAME_PARTS
-                                         if p in scene.defs]:  # fmt: skip
-                raise FitError("a part outside the frame's parts shares their Appearance")
+        if appearance.expand() in appearances and geometry.expand() not in parts:
+            raise FitError("a part outside the frame's parts shares their Appearance")
     for name in FRAME_PARTS:
         if name not in scene.defs:
             continue

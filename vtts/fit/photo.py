@@ -164,9 +164,10 @@ class FittedHead:
 
 
 def with_frame(head: FittedHead) -> FittedHead:
-    """``head`` (fitted to a video's frame) made for that video: the parts the frame shows take
-    the frame itself as their texture, unlit (:mod:`vtts.fit.frame`), so that the head rendered
-    at the frame's view gives the frame back."""
+    """``head`` (fitted to a video's frame) made for that video, changed in place and returned:
+    the parts the frame shows take the frame itself as their texture, unlit
+    (:mod:`vtts.fit.frame`), so that the head rendered at the frame's view gives the frame
+    back."""
     h, w = head.photo.shape[:2]
     project_frame(head.scene, head.shape.camera, (w, h))
     head.frame = frame_texture(head.photo)

@@ -242,3 +242,45 @@ def viewpoint_fields(camera: Camera, size: tuple[int, int]) -> dict[str, object]
         "orientation": np.array([*axis, angle]),
         "fieldOfView": fov,
     }
+
+
+#: The largest scene extent (model units) vtts frames; beyond it depth precision and the
+#: camera's placement break down (coordinates of 1e308 overflow).
+MAX_EXTENT = 1e9
+
+
+def row_layout(
+    bounds: list[tuple[np.ndarray, np.ndarray]], names: list[str], error: type = RenderError
+) -> tuple[list[np.ndarray], list[tuple[np.ndarray, np.ndarray]], np.ndarray, np.ndarray]:
+    """Place heads with bounding boxes ``bounds`` (``(lo, hi)``, each ``(3,)``, in their own
+    coordinates) side by side along x, centred, 15 % of the widest head apart, as
+    :class:`~vtts.render.FaceRenderer` draws them. A head with nothing visible (infinite bounds)
+    takes a unit box. Returns each head's ``(4, 4)`` placing matrix, the bounds used, and the
+    ``(3,)`` bounds of them all placed. A head spanning more than :data:`MAX_EXTENT` (or not
+    finite) raises ``error`` naming it (``names``)."""
+    fixed = []
+    for (lo, hi), name in zip(bounds, names, strict=True):
+        if np.isinf(lo).all() and np.isinf(hi).all():
+            # nothing visible (an empty scene, a scale of 0, a Switch choosing nothing): a unit
+            # box frames an empty picture
+            lo, hi = np.full(3, -0.5), np.full(3, 0.5)
+        extent = hi - lo
+        if not (np.isfinite(extent).all() and extent.max() <= MAX_EXTENT):
+            raise error(
+                f"{name}: the scene spans {extent.max():.3g} units, more than the "
+                f"{MAX_EXTENT:g} a picture can frame (coordinates too large?)"
+            )
+        fixed.append((lo, hi))
+    widths = [max(hi[0] - lo[0], 1e-6) for lo, hi in fixed]
+    gap = 0.15 * max(widths)
+    x = -(sum(widths) + gap * (len(widths) - 1)) / 2
+    all_lo, all_hi = np.full(3, np.inf), np.full(3, -np.inf)
+    matrices = []
+    for (lo, hi), width in zip(fixed, widths, strict=True):
+        shift = np.array([x - lo[0], -(lo[1] + hi[1]) / 2, -(lo[2] + hi[2]) / 2])
+        m = np.eye(4)
+        m[:3, 3] = shift
+        matrices.append(m)
+        all_lo, all_hi = np.minimum(all_lo, lo + shift), np.maximum(all_hi, hi + shift)
+        x += width + gap
+    return matrices, fixed, all_lo, all_hi

@@ -27,17 +27,14 @@ import scipy.sparse as sp
 from vtts.errors import RenderError, VttsError
 from vtts.face import N_PARAMS, FaceModel
 from vtts.limits import MAX_IMAGE_SIDE, MAX_RENDER_PIXELS, check_image_size
-from vtts.render.camera import Camera, find_viewpoint, frame_bounds
+from vtts.render.camera import Camera, find_viewpoint, frame_bounds, row_layout
 from vtts.render.color import TRANSPARENT, parse_background
-from vtts.vrml import Node, drawn_children, resolve_url, transform_matrix, triangulate
+from vtts.vrml import Node, drawn_children, transform_matrix, triangulate
 from vtts.vrml.geometry import TriangleMesh
 from vtts.vrml.scene import GROUPING
 from vtts.vrml.transform import compose_transform
 
 _pyrender = None
-#: The largest scene extent (model units) the renderer frames; beyond it depth precision and the
-#: camera's placement break down (coordinates of 1e308 overflow).
-MAX_EXTENT = 1e9
 #: Multisampling of the main framebuffer (pyrender's own default is 4).
 MSAA_SAMPLES = 0
 
@@ -541,8 +538,7 @@ class FaceRenderer:
             return _pyrender_texture(img.to_rgba())
         if tex.type.name != "ImageTexture":
             return None
-        base = model.path.parent if model.path else None
-        path = resolve_url(tex["url"], base, getattr(model.scene, "url_roots", ()))
+        path = model.texture_file(tex)
         if path is None:
             if list(tex["url"]):
                 import warnings
@@ -559,32 +555,12 @@ class FaceRenderer:
     def _place(self, layout: str) -> None:
         """Put the models side by side along x, centred, with a gap of 15 % of a head."""
         pr = _pr()
-        for inst in self.instances:
-            if np.isinf(inst.lo).all() and np.isinf(inst.hi).all():
-                # nothing visible (an empty scene, a scale of 0, a Switch choosing nothing):
-                # a unit box frames an empty picture
-                inst.lo, inst.hi = np.full(3, -0.5), np.full(3, 0.5)
-            extent = inst.hi - inst.lo
-            if not (np.isfinite(extent).all() and extent.max() <= MAX_EXTENT):
-                raise RenderError(
-                    f"{inst.model.name}: the scene spans {extent.max():.3g} units, more than the "
-                    f"{MAX_EXTENT:g} a picture can frame (coordinates too large?)"
-                )
-        widths = [max(i.hi[0] - i.lo[0], 1e-6) for i in self.instances]
-        gap = 0.15 * max(widths)
-        total = sum(widths) + gap * (len(widths) - 1)
-        x = -total / 2
-        lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
-        for inst, width in zip(self.instances, widths, strict=True):
-            shift = np.array([x - inst.lo[0], 0.0, 0.0])
-            shift[1] = -(inst.lo[1] + inst.hi[1]) / 2
-            shift[2] = -(inst.lo[2] + inst.hi[2]) / 2
-            m = np.eye(4)
-            m[:3, 3] = shift
+        matrices, fixed, lo, hi = row_layout(
+            [(i.lo, i.hi) for i in self.instances], [i.model.name for i in self.instances]
+        )
+        for inst, m, bounds in zip(self.instances, matrices, fixed, strict=True):
+            inst.lo, inst.hi = bounds
             self.scene.set_pose(inst.root, m)
-            lo = np.minimum(lo, inst.lo + shift)
-            hi = np.maximum(hi, inst.hi + shift)
-            x += width + gap
         if layout == "room":
             size = hi - lo
             floor_y = lo[1] - 0.6 * size[1]
