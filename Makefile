@@ -12,8 +12,10 @@ setup:
 demo: setup
 	@bash samples/demo.sh
 
+# The suite runs on every core (pytest-xdist), a test file per worker so that a file's
+# fixtures are made once.
 test: setup
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n auto --dist loadfile
 
 lint: setup
 	$(VENV)/bin/ruff check .
