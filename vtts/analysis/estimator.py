@@ -46,6 +46,7 @@ from vtts.errors import VttsError
 from vtts.face import N_PARAMS, FaceModel
 from vtts.render.camera import Camera
 from vtts.render.renderer import FaceRenderer
+from vtts.threads import one_blas_thread
 
 #: Pixels next to the model's outline left out of the estimation.
 EDGE = 2
@@ -238,8 +239,10 @@ class Estimator:
 
     # ---- estimation ----------------------------------------------------------------------------
 
+    @one_blas_thread()
     def estimate(self, frame: np.ndarray, index: int = 0, time: float = 0.0) -> FrameEstimate:
-        """Update the estimate to the camera ``frame`` ``(H, W, 3) uint8`` and return it."""
+        """Update the estimate to the camera ``frame`` ``(H, W, 3) uint8`` and return it (with
+        one BLAS thread: :mod:`vtts.threads`)."""
         frame = np.asarray(frame)
         w, h = self.size
         if frame.shape != (h, w, 3):

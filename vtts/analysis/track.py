@@ -44,6 +44,7 @@ from vtts.analysis.result import Analysis, FrameEstimate
 from vtts.errors import AnalysisError, FitError, VttsError, VttsWarning
 from vtts.face import FaceModel
 from vtts.render.camera import Camera
+from vtts.threads import one_blas_thread
 
 #: The meshes of a fitted head that the estimator draws but does not match: the neck, which
 #: turns with the head in the model while the person's neck stays with the shoulders, and the
@@ -84,6 +85,7 @@ class Tracked:
     held: list[int] = field(default_factory=list)
 
 
+@one_blas_thread()
 def track(
     frames: Iterable[np.ndarray],
     *,
@@ -103,7 +105,8 @@ def track(
     ``model`` None fits a head on the first frame with a face and writes it to ``model_path``
     (a ``.wrl``; required then). ``camera`` (renderer frame) is for a given model only (default:
     the framing ``vtts render`` uses). ``face``: 1 = the largest face. ``options`` go to the
-    :class:`~vtts.analysis.estimator.Estimator` (defaults here: ``robust=True``)."""
+    :class:`~vtts.analysis.estimator.Estimator` (defaults here: ``robust=True``). BLAS runs on
+    one thread meanwhile (:mod:`vtts.threads`)."""
     from vtts.fit.landmarks import detect_faces
 
     if not (math.isfinite(fps) and fps > 0):
