@@ -1,0 +1,238 @@
+"""Forced alignment of a transcript to recorded speech, through espeak-ng's synthesis of it.
+
+The method (measured in ``docs/speech.md``, "Lip-sync for recorded speech"):
+
+1. **Reference.** espeak-ng speaks the transcript (the same SSML with one ``<mark/>`` per
+   bookmark that ``vtts say`` sends it), which gives its phones, words and marks in its own clock.
+   Its speaking rate is then matched to the recording's (the speech-to-pause ratio of both is
+   measured from their energies) and it speaks again, so that the warping has less to do.
+2. **Warping.** MFCC features of both (:mod:`vtts.align.features`) are aligned by dynamic time
+   warping in bounded memory (:mod:`vtts.align.dtw`); espeak's own phone times are carried to the
+   recording through the warping path (the method of the ``aeneas`` aligner).
+3. **Refinement** (:mod:`vtts.align.refine`): the recording's frames under each phone now give
+   models of *this* voice's phones; a Viterbi pass of the phone sequence over the recording with
+   those models, at a finer frame step and within a window around the warped boundaries, moves
+   each boundary to where this voice's spectrum actually changes. Repeated twice.
+4. **Check.** Each word's warping cost (the mean distance of the frames the path matched) says
+   how well the recording and the transcript agree there; a run of words far above what a
+   different voice costs is reported as a warning naming the words and their time.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from vtts.align.dtw import dtw_path
+from vtts.align.features import ANALYSIS_RATE, MIN_RATE, log_mel, mfcc, resample
+from vtts.errors import SpeechError
+from vtts.speech.phonemes import PAUSES, Mark, Phone
+
+#: Frame step of the warping, s.
+HOP = 0.010
+#: Frame step of the refinement, s.
+FINE_HOP = 0.005
+#: espeak-ng's default speaking rate, words per minute.
+DEFAULT_RATE = 175
+#: A frame is speech when its energy is within this many dB of the loud frames (90th percentile).
+SPEECH_DB = 30.0
+#: Mean warping cost of a word above which the recording does not match it (measured: a
+#: different voice of the same text costs 2.5–4.5 a word; a wrong word 6 and more).
+WORD_COST_LIMIT = 5.5
+
+
+@dataclass(frozen=True)
+class AlignedWord:
+    """A word of the transcript in the recording's clock.
+
+    start, end  s (its first phone's start, its last phone's end, pauses left out)
+    text        the word as written
+    cost        the mean warping cost of its frames (lower is a better match)
+    """
+
+    start: float
+    end: float
+    text: str
+    cost: float
+
+
+@dataclass
+class Alignment:
+    """What :func:`align` returns.
+
+    phones    every phone of the reference, pauses included, in the recording's clock (s),
+              covering it from 0 to its end; ``viseme`` set
+    words     the words, in order
+    marks     one per ``<mark/>`` of the SSML, in document order, with its aligned time (s)
+    rate      the espeak-ng speaking rate the reference was made at, words per minute
+    problems  messages about where the alignment breaks down (empty when it holds)
+    """
+
+    phones: list[Phone]
+    words: list[AlignedWord]
+    marks: list[Mark]
+    rate: int
+    problems: list[str] = field(default_factory=list)
+
+
+def speech_frames(db: np.ndarray) -> np.ndarray:
+    """``(n,)`` bool: frames of ``(n, n_mels)`` log-mel energies that hold speech (within
+    :data:`SPEECH_DB` of the loud frames)."""
+    energy = db.mean(axis=1)
+    return energy > np.percentile(energy, 90) - SPEECH_DB
+
+
+def check_rate(rate: int, what: str = "the recording") -> None:
+    if not isinstance(rate, int | np.integer) or rate < MIN_RATE:
+        raise SpeechError(f"{what} is sampled at {rate} Hz; alignment needs at least {MIN_RATE} Hz")
+
+
+def align(
+    samples: np.ndarray,
+    rate: int,
+    ssml: str,
+    *,
+    voice: str = "en-us",
+    match_rate: bool = True,
+    refine: bool = True,
+) -> Alignment:
+    """Align the SSML transcript ``ssml`` to ``(n,)`` mono ``samples`` at ``rate`` Hz.
+
+    ``voice``: the espeak-ng voice that phonemizes and speaks the reference (its language must be
+    the recording's). ``match_rate``: speak the reference again at the recording's rate;
+    ``refine``: the Viterbi refinement of :mod:`vtts.align.refine`. Raises :class:`SpeechError`
+    for a recording that is too short, silent or sampled too low.
+    """
+    from vtts.speech.tts import synthesize
+
+    check_rate(int(rate))
+    samples = np.asarray(samples)
+    if samples.ndim != 1:
+        raise SpeechError(f"the recording must be mono samples (n,), got shape {samples.shape}")
+    if samples.dtype.kind in "iu":
+        samples = samples.astype(np.float32) / 32768.0
+    duration = len(samples) / rate
+    if duration < 0.1:
+        raise SpeechError(f"the recording lasts {duration:.3f} s: too short to align")
+    fs = min(ANALYSIS_RATE, int(rate))
+    rec = resample(samples, int(rate), fs)
+    rec_db = log_mel(rec, fs, HOP)
+    if float(np.abs(rec).max(initial=0.0)) < 1e-4:
+        raise SpeechError("the recording is silent: there is no speech to align")
+    rec_speech = speech_frames(rec_db)
+
+    ref = synthesize(ssml, voice=voice)
+    if not any(p.phoneme not in PAUSES for p in ref.phonemes):
+        raise SpeechError("the transcript has nothing to say: no phones to align")
+    used_rate = DEFAULT_RATE
+    if match_rate:
+        ref_db = log_mel(resample(ref.audio / 32768.0, ref.rate, fs), fs, HOP)
+        ratio = speech_frames(ref_db).sum() / max(rec_speech.sum(), 1)
+        wanted = int(np.clip(round(DEFAULT_RATE * ratio), 80, 450))
+        if abs(wanted - DEFAULT_RATE) > 0.05 * DEFAULT_RATE:
+            used_rate = wanted
+            ref = synthesize(ssml, voice=voice, rate=used_rate)
+    ref_x = mfcc(resample(ref.audio / 32768.0, ref.rate, fs), fs, HOP)
+    rec_x = mfcc(rec, fs, HOP)
+    path, _ = dtw_path(ref_x, rec_x)
+    warp = _Warp(path, ref_x, rec_x)
+    phones = _warped_phones(ref.phonemes, warp, duration)
+    if refine:
+        from vtts.align.refine import refine_phones
+
+        phones = refine_phones(phones, rec, fs, duration)
+    words = _words(ref, ssml, phones, warp)
+    marks = [Mark(m.name, _carry(m.time, ref.phonemes, phones)) for m in ref.marks]
+    return Alignment(phones, words, marks, used_rate, _problems(words))
+
+
+class _Warp:
+    """The warping path as a map from reference time to recording time, and its local costs."""
+
+    def __init__(self, path: np.ndarray, ref_x: np.ndarray, rec_x: np.ndarray) -> None:
+        n = len(ref_x)
+        diff = ref_x[path[:, 0]] - rec_x[path[:, 1]]
+        self.cost = np.sqrt(np.einsum("ij,ij->i", diff, diff))
+        self.rows = path[:, 0]
+        counts = np.bincount(path[:, 0], minlength=n)
+        # each reference frame maps to the middle of the recording frames it was matched with
+        self.target = np.bincount(path[:, 0], weights=path[:, 1], minlength=n) / counts
+
+    def time(self, t: np.ndarray | float) -> np.ndarray:
+        """Reference times (s) → recording times (s)."""
+        frames = np.arange(len(self.target))
+        return np.interp(np.asarray(t) / HOP, frames, self.target) * HOP
+
+    def mean_cost(self, t0: float, t1: float) -> float:
+        """Mean local cost of the path cells whose reference frame lies in ``[t0, t1)`` s."""
+        sel = (self.rows >= t0 / HOP) & (self.rows < t1 / HOP)
+        return float(self.cost[sel].mean()) if sel.any() else 0.0
+
+
+def _warped_phones(ref: list[Phone], warp: _Warp, duration: float) -> list[Phone]:
+    starts = warp.time(np.array([p.start for p in ref]))
+    starts = np.clip(np.maximum.accumulate(starts), 0.0, duration)
+    starts[0] = 0.0
+    ends = np.append(starts[1:], duration)
+    return [
+        Phone(float(s), float(e), p.phoneme, p.viseme, p.ipa)
+        for p, s, e in zip(ref, starts, ends, strict=True)
+    ]
+
+
+def _carry(t: float, ref: list[Phone], aligned: list[Phone]) -> float:
+    """A reference time carried to the recording: the same fraction of the same phone."""
+    starts = [p.start for p in ref]
+    k = max(0, int(np.searchsorted(starts, t, side="right")) - 1)
+    p, q = ref[k], aligned[k]
+    f = 0.0 if p.duration <= 0 else min(max((t - p.start) / p.duration, 0.0), 1.0)
+    return q.start + f * q.duration
+
+
+def _words(ref, ssml: str, phones: list[Phone], warp: _Warp) -> list[AlignedWord]:
+    """The reference's word events, carried to the recording through the aligned phones."""
+    from vtts.speech.tts import Speech
+
+    assert isinstance(ref, Speech)
+    ref_starts = np.array([p.start for p in ref.phonemes])
+    out: list[AlignedWord] = []
+    events = ref.words
+    for w, word in enumerate(events):
+        k0 = int(np.searchsorted(ref_starts, word.start - 1e-9))
+        t_next = events[w + 1].start if w + 1 < len(events) else np.inf
+        k1 = int(np.searchsorted(ref_starts, t_next - 1e-9))
+        ks = [k for k in range(k0, k1) if ref.phonemes[k].phoneme not in PAUSES]
+        if not ks:
+            continue
+        a, b = phones[ks[0]], phones[ks[-1]]
+        cost = warp.mean_cost(ref.phonemes[ks[0]].start, ref.phonemes[ks[-1]].end)
+        out.append(
+            AlignedWord(a.start, b.end, ssml[word.position : word.position + word.length], cost)
+        )
+    return out
+
+
+def _problems(words: list[AlignedWord]) -> list[str]:
+    """Runs of words whose warping cost says the recording does not match the transcript."""
+    bad = [w.cost > WORD_COST_LIMIT for w in words]
+    problems = []
+    k = 0
+    while k < len(words):
+        if not bad[k]:
+            k += 1
+            continue
+        j = k
+        while j + 1 < len(words) and bad[j + 1]:
+            j += 1
+        first, last = words[k], words[j]
+        names = " ".join(w.text for w in words[k : j + 1] if w.text) or f"{j - k + 1} word(s)"
+        if len(names) > 60:
+            names = names[:59] + "…"
+        cost = max(w.cost for w in words[k : j + 1])
+        problems.append(
+            f"the recording does not match the transcript at {first.start:.2f}–{last.end:.2f} s "
+            f'("{names}": alignment cost up to {cost:.1f}, above the limit {WORD_COST_LIMIT:g})'
+        )
+        k = j + 1
+    return problems
