@@ -20,6 +20,8 @@ hundred cells.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 #: Cells of a full cost matrix computed without a corridor (about 16 MB of float32).
@@ -34,8 +36,32 @@ def local_costs(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return np.sqrt(np.einsum("ij,ij->i", diff, diff))
 
 
+@dataclass(frozen=True)
+class Pauses:
+    """Where the recording may pause although the reference does not: a reference frame with
+    ``rows[i]`` (a word boundary) matched with a recording frame with ``cols[j]`` (silence)
+    costs at most ``cost``, so that the path can rest on that boundary for a whole pause."""
+
+    rows: np.ndarray
+    cols: np.ndarray
+    cost: float
+
+    def halved(self) -> Pauses:
+        return Pauses(_halve_mask(self.rows), _halve_mask(self.cols), self.cost)
+
+
+def _halve_mask(mask: np.ndarray) -> np.ndarray:
+    n = len(mask) // 2 * 2
+    half = mask[:n:2] | mask[1:n:2]
+    return np.append(half, mask[n:]) if len(mask) % 2 else half
+
+
 def corridor_dtw(
-    x: np.ndarray, y: np.ndarray, lo: np.ndarray, hi: np.ndarray
+    x: np.ndarray,
+    y: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    pauses: Pauses | None = None,
 ) -> tuple[np.ndarray, float]:
     """The optimal warping path of ``(n, d)`` reference frames ``x`` against ``(m, d)``
     recording frames ``y`` within the corridor ``lo[i] ≤ j < hi[i]``.
@@ -50,6 +76,8 @@ def corridor_dtw(
     for i in range(n):
         a, b = int(lo[i]), int(hi[i])
         c = local_costs(x[i], y[a:b]).astype(np.float64)
+        if pauses is not None and pauses.rows[i]:
+            c = np.where(pauses.cols[a:b], np.minimum(c, pauses.cost), c)
         s = np.cumsum(c)
         if i == 0:
             acc[0, : b - a] = s
@@ -114,7 +142,12 @@ def _corridor_from(path: np.ndarray, n: int, m: int, radius: int) -> tuple[np.nd
 
 
 def dtw_path(
-    x: np.ndarray, y: np.ndarray, *, radius: int = RADIUS, band: float | None = None
+    x: np.ndarray,
+    y: np.ndarray,
+    *,
+    radius: int = RADIUS,
+    band: float | None = None,
+    pauses: Pauses | None = None,
 ) -> tuple[np.ndarray, float]:
     """Warping path ``(k, 2)`` of ``(n, d)`` frames ``x`` against ``(m, d)`` frames ``y`` and its
     cost, in memory proportional to ``(n + m) × radius`` (see the module docstring).
@@ -125,10 +158,11 @@ def dtw_path(
     n, m = len(x), len(y)
     if n * m <= FULL_CELLS or min(n, m) < 4 * radius:
         lo, hi = _band(n, m, band)
-        return corridor_dtw(x, y, lo, hi)
-    coarse, _ = dtw_path(_halve(x), _halve(y), radius=radius, band=band)
+        return corridor_dtw(x, y, lo, hi, pauses)
+    half = pauses.halved() if pauses is not None else None
+    coarse, _ = dtw_path(_halve(x), _halve(y), radius=radius, band=band, pauses=half)
     lo, hi = _corridor_from(coarse, n, m, radius)
-    return corridor_dtw(x, y, lo, hi)
+    return corridor_dtw(x, y, lo, hi, pauses)
 
 
 def _band(n: int, m: int, band: float | None) -> tuple[np.ndarray, np.ndarray]:

@@ -110,3 +110,31 @@ def normalize(x: np.ndarray) -> np.ndarray:
     """``(n, d)`` features less their mean, divided by their standard deviation (per column)."""
     x = np.asarray(x, dtype=np.float32)
     return ((x - x.mean(axis=0)) / (x.std(axis=0) + 1e-6)).astype(np.float32)
+
+
+def median_f0(samples: np.ndarray, rate: int, speech: np.ndarray, hop: float) -> float | None:
+    """Median fundamental frequency (Hz) of the voiced frames among ``speech`` (``(n_frames,)``
+    bool at ``hop`` s), by the peak of the normalized autocorrelation of 40 ms windows within
+    70–400 Hz; None when too few frames are voiced (a peak above 0.5)."""
+    x = np.asarray(samples, dtype=np.float32)
+    step = round(hop * rate)
+    win = round(0.04 * rate)
+    frames = np.flatnonzero(speech)
+    if len(frames) > 400:  # a sample of the speech is enough for a median
+        frames = frames[:: len(frames) // 400]
+    starts = frames * step - win // 2
+    starts = starts[(starts >= 0) & (starts + win <= len(x))]
+    if len(starts) < 5:
+        return None
+    seg = x[starts[:, None] + np.arange(win)[None, :]]
+    seg = seg - seg.mean(axis=1, keepdims=True)
+    spec = rfft(seg, n=2 * win, axis=1)
+    ac = np.fft.irfft(np.abs(spec) ** 2, axis=1)[:, :win]
+    ac /= np.maximum(ac[:, :1], 1e-12)
+    lo, hi = int(rate / 400), int(rate / 70)
+    lag = lo + np.argmax(ac[:, lo:hi], axis=1)
+    peak = ac[np.arange(len(lag)), lag]
+    voiced = peak > 0.5
+    if voiced.sum() < 5:
+        return None
+    return float(np.median(rate / lag[voiced]))

@@ -36,7 +36,12 @@ STATES = 3
 
 
 def refine_phones(
-    phones: list[Phone], samples: np.ndarray, rate: int, duration: float, *, passes: int = PASSES
+    phones: list[Phone],
+    samples: np.ndarray,
+    rate: int,
+    duration: float,
+    *,
+    passes: int | None = None,
 ) -> list[Phone]:
     """Better boundaries for ``phones`` (covering ``(n,)`` float ``samples`` at ``rate`` Hz from
     0 to ``duration`` s); the phones, their order and visemes stay. See the module docstring."""
@@ -52,11 +57,11 @@ def refine_phones(
     )
     bounds = _to_frames([p.start for p in phones], n)
     win = max(1, round(WINDOW / HOP))
-    for _ in range(passes):
+    for _ in range(PASSES if passes is None else passes):
         state_start = _split(bounds, per, n)
         means, inv_var = _models(x, state_start, label, klass)
         lo, hi = _windows(bounds, per, owner, win, n)
-        found = _viterbi(x, means, inv_var, lo, hi)
+        found = _viterbi(x, means, inv_var, lo, hi, is_pause[owner])
         if found is None:
             break
         bounds = found[np.searchsorted(owner, np.arange(len(phones)))]
@@ -139,44 +144,63 @@ def _windows(bounds, per, owner, win, n):
     return lo, hi
 
 
-def _viterbi(x, means, inv_var, lo, hi):
-    """Start frame of each state on the best path, or None when the windows allow none."""
-    n_states = len(means)
-    prev_d = None
-    prev_lo = prev_hi = 0
+def _viterbi(x, means, inv_var, lo, hi, optional):
+    """Start frame of each state on the best path (a skipped optional state starts where the
+    next one does), or None when the windows allow no path."""
+    n_states, n = len(means), len(x)
+    # D of the two previous states (a virtual state -1 ends at frame -1 with cost 0)
+    prev = [(np.zeros(1), -1, 0), None]  # (D over [a, b), a, b) of state s-1 and s-2
+    prev_skippable = [False, False]
     entries = []
     for s in range(n_states):
         a, b = int(lo[s]), int(hi[s])
         diff = x[a:b] - means[s]
         c = (diff * diff) @ inv_var
         cs = np.cumsum(c, dtype=np.float64)
-        if s == 0:
-            d = cs.copy()
-            entry = np.zeros(b - a, np.int64)
-        else:
-            # D[s-1, t-1] for t in [a, b)
-            come = np.full(b - a, np.inf)
-            t0, t1 = max(a, prev_lo + 1), min(b, prev_hi + 1)
-            if t1 > t0:
-                come[t0 - a : t1 - a] = prev_d[t0 - 1 - prev_lo : t1 - 1 - prev_lo]
-            vals = come + c - cs
-            run = np.minimum.accumulate(vals)
-            d = cs + run
-            pos = np.where(vals <= run, np.arange(b - a), 0)
-            entry = a + np.maximum.accumulate(pos)
-        entries.append((a, entry))
-        prev_d, prev_lo, prev_hi = d, a, b
-    n = len(x)
-    if prev_hi != n or not np.isfinite(prev_d[-1]):
+        come = _ended_before(prev[0], a, b)
+        skip = np.zeros(b - a, bool)
+        if prev_skippable[0] and prev[1] is not None:
+            other = _ended_before(prev[1], a, b)
+            skip = other < come
+            come = np.minimum(come, other)
+        vals = come + c - cs
+        run = np.minimum.accumulate(vals)
+        d = cs + run
+        pos = np.where(vals <= run, np.arange(b - a), 0)
+        entries.append((a, a + np.maximum.accumulate(pos), skip))
+        prev = [(d, a, b), prev[0]]
+        prev_skippable = [bool(optional[s]), prev_skippable[0]]
+    # the end: the last state, or the one before a skippable last state
+    last = n_states - 1
+    end_cost = prev[0][0][-1] if prev[0][2] == n else np.inf
+    if optional[last] and prev[1] is not None and prev[1][2] == n and prev[1][0][-1] < end_cost:
+        last, end_cost = n_states - 2, prev[1][0][-1]
+    if not np.isfinite(end_cost):
         return None
-    starts = np.empty(n_states, np.int64)
-    t = n - 1
-    for s in range(n_states - 1, -1, -1):
-        a, entry = entries[s]
+    starts = np.full(n_states, n, np.int64)
+    t, s = n - 1, last
+    while s >= 0:
+        a, entry, skip = entries[s]
         if not a <= t < a + len(entry):
             return None
-        starts[s] = entry[t - a]
-        t = starts[s] - 1
-    if starts[0] != 0:
+        k = int(entry[t - a])
+        starts[s] = k
+        step = 2 if skip[k - a] else 1
+        if step == 2:
+            starts[s - 1] = k
+        s -= step
+        t = k - 1
+    if t != -1:
         return None
     return starts
+
+
+def _ended_before(state, a: int, b: int) -> np.ndarray:
+    """``(b - a,)``: the cost of a state having ended at frame ``t - 1``, for ``t`` in
+    ``[a, b)`` (``inf`` outside its window)."""
+    d, pa, pb = state
+    out = np.full(b - a, np.inf)
+    t0, t1 = max(a, pa + 1), min(b, pb + 1)
+    if t1 > t0:
+        out[t0 - a : t1 - a] = d[t0 - 1 - pa : t1 - 1 - pa]
+    return out
