@@ -37,9 +37,19 @@ FINE_HOP = 0.005
 DEFAULT_RATE = 175
 #: A frame is speech when its energy is within this many dB of the loud frames (90th percentile).
 SPEECH_DB = 30.0
-#: Mean warping cost of a word above which the recording does not match it (measured: a
-#: different voice of the same text costs 2.5–4.5 a word; a wrong word 6 and more).
-WORD_COST_LIMIT = 5.5
+#: A word whose warping cost is this many times a typical word's (the utterance's first quartile)
+#: (and at least
+#: LOCAL_MIN) does not match the recording (measured: the words of a right transcript cost at
+#: most 1.5 times the median for espeak-ng's other voices and festival's; 5-3 words replaced
+#: cost 2-3.5 times the median for espeak-ng's voices, 1.1-1.4 times for festival's).
+LOCAL_RATIO = 1.6
+LOCAL_MIN = 4.0
+#: A single word is reported only above this many times a typical word's cost (another accent
+#: says single words differently: en-gb's "are" and "go" cost up to 2.9 times).
+SINGLE_RATIO = 3.5
+#: Median word cost above which nothing matches (measured: right transcripts 1.6-5.9, wrong
+#: ones 5.2-7.1, noise 6.6, a tone 7.0).
+GLOBAL_COST = 6.1
 
 
 @dataclass(frozen=True)
@@ -192,7 +202,8 @@ def align(
     marks = [Mark(m.name, _carry(m.time, ref.phonemes, phones)) for m in ref.marks]
     # the optional pauses at word boundaries that the recording did not make
     phones = [p for p in phones if p.duration > 0 or p.phoneme not in PAUSES]
-    return Alignment(phones, words, marks, used_rate, voice, _problems(words))
+    voiced = median_f0(rec, fs, rec_speech, HOP) is not None
+    return Alignment(phones, words, marks, used_rate, voice, _problems(words, voiced))
 
 
 class _Warp:
@@ -317,10 +328,25 @@ def _words(ref, ssml: str, phones: list[Phone], warp: _Warp) -> list[AlignedWord
     return out
 
 
-def _problems(words: list[AlignedWord]) -> list[str]:
-    """Runs of words whose warping cost says the recording does not match the transcript."""
-    bad = [w.cost > WORD_COST_LIMIT for w in words]
+def _problems(words: list[AlignedWord], voiced: bool) -> list[str]:
+    """Where the recording does not match the transcript, from the words' warping costs: a run
+    of words costing :data:`LOCAL_RATIO` times the utterance's median (and at least
+    :data:`LOCAL_MIN`), or a median above :data:`GLOBAL_COST` (nowhere a match)."""
     problems = []
+    if not voiced:
+        problems.append("the recording has almost no voiced sound: is it speech?")
+    if not words:
+        return problems
+    costs = np.array([w.cost for w in words])
+    median = float(np.median(costs))
+    typical = float(np.percentile(costs, 25))  # robust to a transcript half wrong
+    if median > GLOBAL_COST:
+        problems.append(
+            f"the recording does not match the transcript anywhere (median word alignment cost "
+            f"{median:.1f}, above {GLOBAL_COST:g}): is it the right text, and speech?"
+        )
+        return problems
+    bad = (costs > LOCAL_RATIO * typical) & (costs > LOCAL_MIN)
     k = 0
     while k < len(words):
         if not bad[k]:
@@ -329,14 +355,16 @@ def _problems(words: list[AlignedWord]) -> list[str]:
         j = k
         while j + 1 < len(words) and bad[j + 1]:
             j += 1
-        first, last = words[k], words[j]
-        names = " ".join(w.text for w in words[k : j + 1] if w.text) or f"{j - k + 1} word(s)"
-        if len(names) > 60:
-            names = names[:59] + "…"
-        cost = max(w.cost for w in words[k : j + 1])
-        problems.append(
-            f"the recording does not match the transcript at {first.start:.2f}–{last.end:.2f} s "
-            f'("{names}": alignment cost up to {cost:.1f}, above the limit {WORD_COST_LIMIT:g})'
-        )
+        run = words[k : j + 1]
+        worst = float(costs[k : j + 1].max())
+        if len(run) >= 2 or worst > SINGLE_RATIO * typical:
+            names = " ".join(w.text for w in run if w.text) or f"{len(run)} word(s)"
+            if len(names) > 60:
+                names = names[:59] + "…"
+            problems.append(
+                f"the alignment breaks down at {run[0].start:.2f}–{run[-1].end:.2f} s "
+                f'("{names}": word alignment cost up to {worst:.1f}, a typical word\'s '
+                f"{typical:.1f}): does the recording say these words?"
+            )
         k = j + 1
     return problems
