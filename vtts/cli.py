@@ -905,7 +905,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="timings from another engine: Polly speech marks or a "
         "'start end phoneme' table (needs --audio)",
     )
-    sy.add_argument("--audio", help="the WAV that --phonemes describes")
+    sy.add_argument(
+        "--audio", help="the speech that --phonemes describes (WAV, FLAC, OGG, MP3, M4A …)"
+    )
     sy.add_argument("--seed", type=_seed, default=0, help="seed of the autonomous behaviour")
     sy.add_argument(
         "--no-autonomous",

@@ -59,9 +59,9 @@ def prepare_utterance(
     language = voice.split("-")[0] if voice else "en"
     if phonemes is not None:
         if audio is None:
-            raise SpeechError("--phonemes needs the speech itself: give --audio FILE.wav too")
+            raise SpeechError("--phonemes needs the speech itself: give --audio FILE too")
         pf = read_phoneme_file(phonemes, language=language)
-        samples, sr = _read_wav(Path(audio))
+        samples, sr = _read_audio(Path(audio))
         phones = [TimedPhone(p.start, p.end, p.viseme, p.phoneme) for p in pf.phones]
         marks = [(m.name, m.time) for m in pf.marks]
         utt = Utterance(bt, samples, sr, phones, bt.bookmarks)
@@ -113,21 +113,14 @@ def _place_marks(utt: Utterance, marks: list[tuple[str, float]], *, fallback: bo
             k += 1
 
 
-def _read_wav(path: Path) -> tuple[np.ndarray, int]:
-    import soundfile as sf
+def _read_audio(path: Path) -> tuple[np.ndarray, int]:
+    """``(n,)`` int16 mono samples of any audio file :func:`~vtts.speech.audio.read_audio`
+    reads, at a rate the MP4's AAC encoder takes: the file's own when it is one, else the next
+    higher one up to 48 kHz."""
+    from vtts.speech.audio import AAC_RATES, read_audio, resample, to_int16
 
-    from vtts.limits import MAX_DURATION_S, LimitError
-
-    try:
-        # the length first: a 1 MB FLAC of silence decodes to ten hours (and a timeline as long)
-        info = sf.info(str(path))
-        if not info.frames <= MAX_DURATION_S * info.samplerate:
-            raise LimitError(
-                f"the audio lasts {info.frames / max(info.samplerate, 1):g} s, more than the "
-                f"limit of {MAX_DURATION_S:g} s",
-                file=str(path),
-            )
-        data, sr = sf.read(str(path), dtype="int16", always_2d=True)
-    except (RuntimeError, OSError) as e:
-        raise SpeechError(f"cannot read audio: {e}", file=str(path)) from None
-    return data.mean(axis=1).astype(np.int16), int(sr)
+    samples, sr = read_audio(path)
+    if sr not in AAC_RATES:
+        to = min([r for r in AAC_RATES if r >= sr] + [48000])
+        samples, sr = resample(samples, sr, to), to
+    return to_int16(samples), sr
