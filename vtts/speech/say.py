@@ -8,7 +8,7 @@ returns what the timeline needs. It knows nothing about models or rendering.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +16,7 @@ import numpy as np
 from vtts.animate.timeline import TimedPhone
 from vtts.errors import SpeechError, VttsWarning
 from vtts.speech.bookmarks import Bookmark, BookmarkedText, parse_bookmarks
+from vtts.speech.timings import TimedWord, write_timings
 
 
 @dataclass
@@ -25,6 +26,7 @@ class Utterance:
     audio      ``(n,)`` int16 samples (mono) at ``rate`` Hz
     phones     the phones with their MPEG-4 visemes, in the audio's clock (s)
     bookmarks  the text's bookmarks with ``time`` set (s)
+    words      the spoken words with their start and end (s), when the source gives them
     """
 
     text: BookmarkedText
@@ -32,6 +34,7 @@ class Utterance:
     rate: int
     phones: list[TimedPhone]
     bookmarks: list[Bookmark]
+    words: list[TimedWord] = field(default_factory=list)
 
     @property
     def duration(self) -> float:
@@ -64,16 +67,23 @@ def prepare_utterance(
         samples, sr = _read_audio(Path(audio))
         phones = [TimedPhone(p.start, p.end, p.viseme, p.phoneme) for p in pf.phones]
         marks = [(m.name, m.time) for m in pf.marks]
-        utt = Utterance(bt, samples, sr, phones, bt.bookmarks)
+        utt = Utterance(bt, samples, sr, phones, bt.bookmarks, list(pf.words))
         _place_marks(utt, marks, fallback=True)
         return utt
     from vtts.speech.tts import synthesize
 
     speech = synthesize(bt.ssml(), voice=voice, rate=rate, pitch=pitch)
     phones = [TimedPhone(p.start, p.end, p.viseme, p.phoneme) for p in speech.phonemes]
-    utt = Utterance(bt, np.asarray(speech.audio), int(speech.rate), phones, bt.bookmarks)
+    words = [TimedWord(w.start, w.end, w.text) for w in speech.words if w.end is not None]
+    utt = Utterance(bt, np.asarray(speech.audio), int(speech.rate), phones, bt.bookmarks, words)
     _place_marks(utt, [(m.name, m.time) for m in speech.marks], fallback=False)
     return utt
+
+
+def write_utterance_timings(path: str | Path, utt: Utterance) -> None:
+    """``--timings-out``: the utterance's words and phones as a table
+    (:mod:`vtts.speech.timings`), written atomically."""
+    write_timings(path, utt.phones, utt.words)
 
 
 def _place_marks(utt: Utterance, marks: list[tuple[str, float]], *, fallback: bool) -> None:
