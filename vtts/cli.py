@@ -517,6 +517,7 @@ def _speak_and_set_up(args, text: str, models: list, known: set[str]):
             prepare_utterance,
             text,
             known=known,
+            engine=args.engine,
             voice=args.voice,
             rate=args.rate,
             pitch=args.pitch,
@@ -901,7 +902,18 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sy.add_argument("--file", help="read the text from a file instead")
     _models_flag(sy)
-    sy.add_argument("--voice", default="en-us", help="espeak-ng voice (see vtts voices)")
+    sy.add_argument(
+        "--engine",
+        choices=("espeak", "festival"),
+        default="espeak",
+        help="speech synthesizer: espeak-ng (default) or festival's HTS voice "
+        "(Debian festival, festvox-us-slt-hts)",
+    )
+    sy.add_argument(
+        "--voice",
+        help="espeak-ng voice (default en-us; see vtts voices), or with --engine festival a "
+        "festival voice (default cmu_us_slt_arctic_hts)",
+    )
     sy.add_argument("--rate", type=int, help="speaking rate in words per minute")
     sy.add_argument("--pitch", type=int, help="pitch 0-99")
     sy.add_argument(

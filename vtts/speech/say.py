@@ -1,8 +1,9 @@
 """From bookmarked text to an utterance: audio, timed visemes and bookmark times.
 
-``prepare_utterance`` runs the bookmark parser, then either espeak-ng (its own phoneme and mark
-events, in the audio's clock) or another engine's timings (``--phonemes FILE`` with a WAV), and
-returns what the timeline needs. It knows nothing about models or rendering.
+``prepare_utterance`` runs the bookmark parser, then a speech engine (espeak-ng, with its own
+phoneme, word and mark events, or festival, with its utterance structure, both in the audio's
+clock) or another engine's timings (``--phonemes FILE`` with its audio), and returns what the
+timeline needs. It knows nothing about models or rendering.
 """
 
 from __future__ import annotations
@@ -46,23 +47,30 @@ class Utterance:
 def prepare_utterance(
     text: str,
     *,
-    voice: str = "en-us",
+    engine: str = "espeak",
+    voice: str | None = None,
     rate: int | None = None,
     pitch: int | None = None,
     phonemes: str | Path | None = None,
     audio: str | Path | None = None,
     known: set[str] | None = None,
 ) -> Utterance:
-    """Parse ``text`` and synthesize it with espeak-ng, or take the timings from ``phonemes``
-    (an Amazon Polly speech-marks file or a ``start end phoneme`` table) with the WAV ``audio``.
-    ``known``: the expressions the models have tables for (for the unknown-name message)."""
+    """Parse ``text`` and synthesize it with ``engine`` (:data:`ENGINES`: ``"espeak"``, the
+    default, or ``"festival"``), or take the timings from ``phonemes`` (Amazon Polly speech
+    marks, a ``start end phoneme`` table or ``--timings-out`` table) with the audio file
+    ``audio``. ``voice`` is the engine's (espeak-ng's ``en-us`` or festival's
+    ``cmu_us_slt_arctic_hts`` when None); ``rate`` in words per minute and ``pitch`` 0–99 as for
+    espeak-ng. ``known``: the expressions the models have tables for (for the unknown-name
+    message)."""
     from vtts.speech.phonemes import read_phoneme_file
 
+    if engine not in ENGINES:
+        raise SpeechError(f"unknown speech engine {engine!r}; known: {', '.join(ENGINES)}")
     bt = parse_bookmarks(text, known)
-    language = voice.split("-")[0] if voice else "en"
     if phonemes is not None:
         if audio is None:
             raise SpeechError("--phonemes needs the speech itself: give --audio FILE too")
+        language = voice.split("-")[0] if voice else "en"
         pf = read_phoneme_file(phonemes, language=language)
         samples, sr = _read_audio(Path(audio))
         phones = [TimedPhone(p.start, p.end, p.viseme, p.phoneme) for p in pf.phones]
@@ -70,14 +78,42 @@ def prepare_utterance(
         utt = Utterance(bt, samples, sr, phones, bt.bookmarks, list(pf.words))
         _place_marks(utt, marks, fallback=True)
         return utt
-    from vtts.speech.tts import synthesize
-
-    speech = synthesize(bt.ssml(), voice=voice, rate=rate, pitch=pitch)
+    speech, marks = ENGINES[engine](bt, voice, rate, pitch)
     phones = [TimedPhone(p.start, p.end, p.viseme, p.phoneme) for p in speech.phonemes]
     words = [TimedWord(w.start, w.end, w.text) for w in speech.words if w.end is not None]
     utt = Utterance(bt, np.asarray(speech.audio), int(speech.rate), phones, bt.bookmarks, words)
-    _place_marks(utt, [(m.name, m.time) for m in speech.marks], fallback=False)
+    _place_marks(utt, marks, fallback=False)
     return utt
+
+
+def _espeak(bt: BookmarkedText, voice: str | None, rate: int | None, pitch: int | None):
+    """espeak-ng: SSML with a ``<mark name="bK"/>`` per bookmark, its mark events."""
+    from vtts.speech.tts import synthesize
+
+    speech = synthesize(bt.ssml(), voice=voice or "en-us", rate=rate, pitch=pitch)
+    return speech, [(m.name, m.time) for m in speech.marks]
+
+
+def _festival(bt: BookmarkedText, voice: str | None, rate: int | None, pitch: int | None):
+    """festival: the plain text and each bookmark's position in it (marks at word starts)."""
+    from vtts.speech import festival
+
+    positions = []
+    at = 0
+    for piece in bt.pieces:
+        if isinstance(piece, str):
+            at += len(piece)
+        else:
+            positions.append(at)
+    speech = festival.synthesize(
+        bt.text, marks=positions, voice=voice or festival.DEFAULT_VOICE, rate=rate, pitch=pitch
+    )
+    return speech, [(f"b{m.name}", m.time) for m in speech.marks]
+
+
+#: Speech engines by name: each takes the bookmarked text, voice, rate and pitch and returns a
+#: :class:`vtts.speech.tts.Speech` and the bookmarks' times as ``("bK", s)`` pairs.
+ENGINES = {"espeak": _espeak, "festival": _festival}
 
 
 def write_utterance_timings(path: str | Path, utt: Utterance) -> None:
