@@ -90,6 +90,29 @@ def test_words_and_bookmarks(utterance) -> None:
     assert spoken == ["th", "r", "iy"]
 
 
+def test_long_text_is_spoken_in_utterances_of_a_few_sentences(monkeypatch) -> None:
+    assert festival._chunks("Hi. Bob is here! Mary, too.\n\nYes", 5) == [
+        "Hi. Bob is here! ",
+        "Mary, too.\n\n",
+        "Yes",
+    ]
+    assert festival._chunks("a b c d e f g h i j k", 8) == ["a b c d ", "e f g h ", "i j k"]
+    assert festival._chunks("Short.", 300) == ["Short."]
+    monkeypatch.setattr(festival, "CHUNK_CHARS", 8)
+    text = "Bob is here. Mary is there."
+    one = synthesize(text, marks=[text.index("Mary")])
+    assert [w.text for w in one.words] == ["Bob", "is", "here", "Mary", "is", "there"]
+    assert one.marks[0].time == one.words[3].start
+    assert one.words[2].end < one.words[3].start  # a pause: the second utterance's
+    for a, b in zip(one.phonemes, one.phonemes[1:], strict=False):
+        assert a.end == pytest.approx(b.start, abs=1e-9) and a.start < a.end
+    assert one.phonemes[-1].end == pytest.approx(one.duration)
+    # the chunks' audio joined: the second utterance's phones are where its sound is
+    m = next(p for p in one.phonemes if p.phoneme == "m")
+    i = int(m.start * one.rate)
+    assert np.abs(one.audio[i - 3200 : i - 1600]).max() < 1500  # the pause before Mary
+
+
 def test_rate_and_pitch() -> None:
     slow = synthesize("Hello there.", rate=120)
     fast = synthesize("Hello there.", rate=240)
