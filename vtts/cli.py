@@ -517,6 +517,7 @@ def _speak_and_set_up(args, text: str, models: list, known: set[str]):
             prepare_utterance,
             text,
             known=known,
+            engine=args.engine,
             voice=args.voice,
             rate=args.rate,
             pitch=args.pitch,
@@ -544,11 +545,13 @@ def cmd_say(args: argparse.Namespace) -> int:
     from vtts.fap import write_fap
     from vtts.limits import MAX_TEXT_BYTES, read_bytes_capped
     from vtts.render import PngSequenceWriter, VideoWriter, progress, write_wav
+    from vtts.speech.say import write_utterance_timings
 
-    if not (args.output or args.gltf or args.png_dir or args.fap_out or args.wav_out or args.web):
+    written = (args.output, args.gltf, args.png_dir, args.web, args.fap_out, args.wav_out)
+    if not any(written) and not args.timings_out:
         raise RenderError(
-            "nothing to write: give -o OUT.mp4 (or OUT.glb), --png-dir, --web, --fap-out or "
-            "--wav-out"
+            "nothing to write: give -o OUT.mp4 (or OUT.glb), --png-dir, --web, --fap-out, "
+            "--wav-out or --timings-out"
         )
     if not 0 < args.fps <= 240:
         raise RenderError(f"--fps must be within 0–240, got {args.fps:g}")
@@ -625,8 +628,10 @@ def cmd_say(args: argparse.Namespace) -> int:
         write_fap(timeline_stream(timelines[0], models[0].name), args.fap_out)
     if args.wav_out:
         write_wav(args.wav_out, utt.audio, utt.rate)
+    if args.timings_out:
+        write_utterance_timings(args.timings_out, utt)
     if not args.quiet:
-        written = (args.output, args.gltf, args.png_dir, args.web, args.fap_out, args.wav_out)
+        written = (*written, args.timings_out)
         outputs = [str(p) for p in written if p]
         print(f"wrote {', '.join(outputs)}: {utt.duration:.2f} s, {n} frames at {args.fps:g} fps")
     return 0
@@ -897,7 +902,18 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sy.add_argument("--file", help="read the text from a file instead")
     _models_flag(sy)
-    sy.add_argument("--voice", default="en-us", help="espeak-ng voice (see vtts voices)")
+    sy.add_argument(
+        "--engine",
+        choices=("espeak", "festival"),
+        default="espeak",
+        help="speech synthesizer: espeak-ng (default) or festival's HTS voice "
+        "(Debian festival, festvox-us-slt-hts)",
+    )
+    sy.add_argument(
+        "--voice",
+        help="espeak-ng voice (default en-us; see vtts voices), or with --engine festival a "
+        "festival voice (default cmu_us_slt_arctic_hts)",
+    )
     sy.add_argument("--rate", type=int, help="speaking rate in words per minute")
     sy.add_argument("--pitch", type=int, help="pitch 0-99")
     sy.add_argument(
@@ -905,7 +921,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="timings from another engine: Polly speech marks or a "
         "'start end phoneme' table (needs --audio)",
     )
-    sy.add_argument("--audio", help="the WAV that --phonemes describes")
+    sy.add_argument(
+        "--audio", help="the speech that --phonemes describes (WAV, FLAC, OGG, MP3, M4A …)"
+    )
     sy.add_argument("--seed", type=_seed, default=0, help="seed of the autonomous behaviour")
     sy.add_argument(
         "--no-autonomous",
@@ -915,6 +933,10 @@ def build_parser() -> argparse.ArgumentParser:
     sy.add_argument("--fps", type=float, default=30.0, help="frame rate (default 30)")
     sy.add_argument("--fap-out", help="also write the FAP stream (.fap)")
     sy.add_argument("--wav-out", help="also write the speech (.wav)")
+    sy.add_argument(
+        "--timings-out",
+        help="also write the word and phone timings (.tsv: kind start end label viseme)",
+    )
     sy.add_argument("--png-dir", help="also (or only) write lossless PNG frames into this folder")
     sy.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     _web_flag(sy)
@@ -1089,7 +1111,7 @@ def _view_flags(p: argparse.ArgumentParser) -> None:
 
 
 #: Options that name files a command writes, and files or folders it reads.
-_OUTPUT_OPTIONS = ("output", "fap_out", "wav_out")
+_OUTPUT_OPTIONS = ("output", "fap_out", "wav_out", "timings_out")
 _INPUT_OPTIONS = ("stream", "video", "audio", "file", "phonemes", "input")
 
 
