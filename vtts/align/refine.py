@@ -31,6 +31,8 @@ WINDOW = 0.06
 PASSES = 2
 #: Weight of the viseme class's mean against a phoneme's own frames, in frames.
 SHRINK = 8.0
+#: Shortest pause, s: a stop's closure is silent too, and belongs to the stop.
+MIN_PAUSE = 0.08
 #: States of a phone (a pause has one).
 STATES = 3
 
@@ -45,6 +47,30 @@ def refine_phones(
 ) -> list[Phone]:
     """Better boundaries for ``phones`` (covering ``(n,)`` float ``samples`` at ``rate`` Hz from
     0 to ``duration`` s); the phones, their order and visemes stay. See the module docstring."""
+    # consecutive pauses (espeak-ng ends with two) are one optional state
+    keep = [k for k, p in enumerate(phones) if not (k and _pause(p) and _pause(phones[k - 1]))]
+    starts = _refined_starts([phones[k] for k in keep], samples, rate, passes)
+    full = np.empty(len(phones))
+    for j, k in enumerate(keep):
+        full[k] = starts[j]
+        # the pauses merged into phone k are empty, at the end of it
+        stop = keep[j + 1] if j + 1 < len(keep) else len(phones)
+        full[k + 1 : stop] = starts[j + 1] if j + 1 < len(keep) else duration
+    full = np.minimum(np.maximum.accumulate(full), duration)
+    full[0] = 0.0
+    ends = np.append(full[1:], duration)
+    return [
+        Phone(float(s), float(e), p.phoneme, p.viseme, p.ipa)
+        for p, s, e in zip(phones, full, ends, strict=True)
+    ]
+
+
+def _pause(p: Phone) -> bool:
+    return p.phoneme in PAUSES
+
+
+def _refined_starts(phones: list[Phone], samples, rate: int, passes: int | None) -> np.ndarray:
+    """Start (s) of each phone after the passes; see :func:`refine_phones`."""
     x = mfcc(samples, rate, HOP)
     n = len(x)
     is_pause = np.array([p.phoneme in PAUSES for p in phones])
@@ -61,18 +87,12 @@ def refine_phones(
         state_start = _split(bounds, per, n)
         means, inv_var = _models(x, state_start, label, klass)
         lo, hi = _windows(bounds, per, owner, win, n)
-        found = _viterbi(x, means, inv_var, lo, hi, is_pause[owner])
+        shortest = np.where(is_pause[owner], max(1, round(MIN_PAUSE / HOP)), 1)
+        found = _viterbi(x, means, inv_var, lo, hi, is_pause[owner], shortest)
         if found is None:
             break
         bounds = found[np.searchsorted(owner, np.arange(len(phones)))]
-    starts = bounds * HOP
-    starts[0] = 0.0
-    starts = np.minimum(starts, duration)
-    ends = np.append(starts[1:], duration)
-    return [
-        Phone(float(s), float(e), p.phoneme, p.viseme, p.ipa)
-        for p, s, e in zip(phones, starts, ends, strict=True)
-    ]
+    return bounds * HOP
 
 
 def _labels(phones: list[Phone], owner: np.ndarray, sub: np.ndarray) -> np.ndarray:
@@ -144,7 +164,7 @@ def _windows(bounds, per, owner, win, n):
     return lo, hi
 
 
-def _viterbi(x, means, inv_var, lo, hi, optional):
+def _viterbi(x, means, inv_var, lo, hi, optional, min_frames):
     """Start frame of each state on the best path (a skipped optional state starts where the
     next one does), or None when the windows allow no path."""
     n_states, n = len(means), len(x)
@@ -165,9 +185,14 @@ def _viterbi(x, means, inv_var, lo, hi, optional):
             come = np.minimum(come, other)
         vals = come + c - cs
         run = np.minimum.accumulate(vals)
+        pos = a + np.maximum.accumulate(np.where(vals <= run, np.arange(b - a), 0))
+        # at least min_frames[s] frames: the state ending at t entered at k <= t - L + 1
+        shift = int(min_frames[s]) - 1
+        if shift:
+            run = np.concatenate([np.full(min(shift, b - a), np.inf), run[: max(b - a - shift, 0)]])
+            pos = np.concatenate([np.full(min(shift, b - a), a), pos[: max(b - a - shift, 0)]])
         d = cs + run
-        pos = np.where(vals <= run, np.arange(b - a), 0)
-        entries.append((a, a + np.maximum.accumulate(pos), skip))
+        entries.append((a, pos, skip))
         prev = [(d, a, b), prev[0]]
         prev_skippable = [bool(optional[s]), prev_skippable[0]]
     # the end: the last state, or the one before a skippable last state
