@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from vtts.align.dtw import Pauses, dtw_path
-from vtts.align.features import ANALYSIS_RATE, MIN_RATE, log_mel, median_f0, mfcc, resample
+from vtts.align.features import ANALYSIS_RATE, MIN_RATE, cepstra, log_mel, median_f0, resample
 from vtts.errors import SpeechError
 from vtts.speech.phonemes import PAUSES, Mark, Phone
 
@@ -125,7 +125,7 @@ def align(
     ssml: str,
     *,
     voice: str = "en-us",
-    match_rate: bool = True,
+    match_rate: bool = False,
     refine: bool = True,
 ) -> Alignment:
     """Align the SSML transcript ``ssml`` to ``(n,)`` mono ``samples`` at ``rate`` Hz.
@@ -148,7 +148,9 @@ def align(
         raise SpeechError(f"the recording lasts {duration:.3f} s: too short to align")
     fs = min(ANALYSIS_RATE, int(rate))
     rec = resample(samples, int(rate), fs)
-    rec_db = log_mel(rec, fs, HOP)
+    # one analysis at the refinement's step; every second frame is the warping's
+    fine_db = log_mel(rec, fs, FINE_HOP)
+    rec_db = fine_db[:: round(HOP / FINE_HOP)]
     if float(np.abs(rec).max(initial=0.0)) < 1e-4:
         raise SpeechError("the recording is silent: there is no speech to align")
     rec_speech = speech_frames(rec_db)
@@ -175,14 +177,14 @@ def align(
         first = ref.phonemes[0]
         ref.phonemes.insert(0, Phone(0.0, 0.0, "_", 0))
         ref.phonemes[1] = Phone(0.0, first.end, first.phoneme, first.viseme, first.ipa)
-    ref_audio = resample(ref.audio / 32768.0, ref.rate, fs)
+    ref_db = log_mel(resample(ref.audio / 32768.0, ref.rate, fs), fs, HOP)
     # silence anchoring: only the spans from the first to the last speech frame (and a margin)
     # are warped, so that leading and trailing pauses of any length cost nothing
-    ref_span = _speech_span(speech_frames(log_mel(ref_audio, fs, HOP)))
+    ref_span = _speech_span(speech_frames(ref_db))
     rec_span = _speech_span(rec_speech)
     step = round(HOP * fs)
-    ref_x = mfcc(ref_audio[ref_span[0] * step : ref_span[1] * step], fs, HOP)
-    rec_x = mfcc(rec[rec_span[0] * step : rec_span[1] * step], fs, HOP)
+    ref_x = cepstra(ref_db[ref_span[0] : ref_span[1]])
+    rec_x = cepstra(rec_db[rec_span[0] : rec_span[1]])
     ref_t0, rec_t0 = ref_span[0] * step / fs, rec_span[0] * step / fs
     boundaries = _word_boundaries(ref, ref_t0, len(ref_x))
     rows = np.zeros(len(ref_x), bool)
@@ -197,7 +199,7 @@ def align(
     if refine:
         from vtts.align.refine import refine_phones
 
-        phones = refine_phones(phones, rec, fs, duration)
+        phones = refine_phones(phones, fine_db, FINE_HOP, duration)
     words = _words(ref, ssml, phones, warp)
     marks = [Mark(m.name, _carry(m.time, ref.phonemes, phones)) for m in ref.marks]
     # the optional pauses at word boundaries that the recording did not make
@@ -217,6 +219,7 @@ class _Warp:
         diff = ref_x[path[:, 0]] - rec_x[path[:, 1]]
         self.cost = np.sqrt(np.einsum("ij,ij->i", diff, diff))
         self.rows = path[:, 0]
+        self.cumcost = np.concatenate([[0.0], np.cumsum(self.cost)])
         counts = np.bincount(path[:, 0], minlength=n)
         # each reference frame maps to the middle of the recording frames it was matched with
         self.target = np.bincount(path[:, 0], weights=path[:, 1], minlength=n) / counts
@@ -235,8 +238,8 @@ class _Warp:
     def mean_cost(self, t0: float, t1: float) -> float:
         """Mean local cost of the path cells whose reference frame lies in ``[t0, t1)`` s."""
         f0, f1 = (t0 - self.ref_t0) / HOP, (t1 - self.ref_t0) / HOP
-        sel = (self.rows >= f0) & (self.rows < f1)
-        return float(self.cost[sel].mean()) if sel.any() else 0.0
+        a, b = np.searchsorted(self.rows, f0), np.searchsorted(self.rows, f1)
+        return float((self.cumcost[b] - self.cumcost[a]) / (b - a)) if b > a else 0.0
 
 
 def _word_boundaries(ref, ref_t0: float, n: int) -> dict[int, float]:
@@ -257,9 +260,11 @@ def _inserted_pauses(ref, boundaries, path, silent, ref_t0, rec_t0) -> dict[int,
     """Pauses of the recording where the reference has none: the path resting on a word
     boundary over at least :data:`MIN_PAUSE` s of silence. Each becomes a zero-length ``_`` in
     ``ref.phonemes`` (before the word); returns its index → (start, end) in the recording (s)."""
+    rows = path[:, 0]  # non-decreasing
     found: list[tuple[float, tuple | None]] = []
-    for b, t in boundaries.items():
-        cols = path[(path[:, 0] >= b - 1) & (path[:, 0] <= b), 1]
+    for b, t in sorted(boundaries.items()):
+        i0, i1 = np.searchsorted(rows, b - 1), np.searchsorted(rows, b, side="right")
+        cols = path[i0:i1, 1]
         cols = cols[silent[cols]]
         span = None
         if len(cols):
@@ -269,14 +274,21 @@ def _inserted_pauses(ref, boundaries, path, silent, ref_t0, rec_t0) -> dict[int,
             if len(run) * HOP >= MIN_PAUSE:
                 span = (rec_t0 + run[0] * HOP, rec_t0 + (run[-1] + 1) * HOP)
         found.append((t, span))
+    # one pass: every word boundary gets a zero-length pause before its first phone
+    starts = np.array([p.start for p in ref.phonemes])
+    at = np.searchsorted(starts, np.array([t for t, _ in found]) - 1e-9)
+    phones: list[Phone] = []
     out: dict[int, tuple] = {}
-    for t, span in sorted(found, key=lambda f: -f[0]):
-        starts = [p.start for p in ref.phonemes]
-        k = int(np.searchsorted(starts, t - 1e-9))
-        ref.phonemes.insert(k, Phone(t, t, "_", 0))
-        out = {(j + 1 if j >= k else j): v for j, v in out.items()}
-        if span is not None:
-            out[k] = span
+    j = 0
+    for k, p in enumerate(ref.phonemes):
+        while j < len(found) and at[j] == k:
+            t, span = found[j]
+            if span is not None:
+                out[len(phones)] = span
+            phones.append(Phone(t, t, "_", 0))
+            j += 1
+        phones.append(p)
+    ref.phonemes[:] = phones
     return out
 
 

@@ -71,38 +71,43 @@ def corridor_dtw(
     ``(k, 2)`` int pairs ``(i, j)`` from ``(0, 0)`` to ``(n-1, m-1)``, and its total cost.
     """
     n, m = len(x), len(y)
-    width = int((hi - lo).max())
-    acc = np.full((n, width), np.inf, dtype=np.float64)
+    # the rows side by side in one flat array: a wide spot (a long pause) costs only itself
+    offsets = np.concatenate([[0], np.cumsum(hi - lo)])
+    acc = np.empty(int(offsets[-1]), dtype=np.float64)
     for i in range(n):
         a, b = int(lo[i]), int(hi[i])
         c = local_costs(x[i], y[a:b]).astype(np.float64)
         if pauses is not None and pauses.rows[i]:
             c = np.where(pauses.cols[a:b], np.minimum(c, pauses.cost), c)
         s = np.cumsum(c)
+        row = acc[offsets[i] : offsets[i + 1]]
         if i == 0:
-            acc[0, : b - a] = s
+            row[:] = s
             continue
         pa, pb = int(lo[i - 1]), int(hi[i - 1])
         prev = np.full(b - a + 1, np.inf)  # D[i-1, a-1 .. b-1]
         s0, s1 = max(pa, a - 1), min(pb, b)
         if s1 > s0:
-            prev[s0 - (a - 1) : s1 - (a - 1)] = acc[i - 1, s0 - pa : s1 - pa]
+            prev[s0 - (a - 1) : s1 - (a - 1)] = acc[
+                offsets[i - 1] + s0 - pa : offsets[i - 1] + s1 - pa
+            ]
         best = np.minimum(prev[1:], prev[:-1]) + c  # A[j]
-        acc[i, : b - a] = s + np.minimum.accumulate(best - s)
-    total = float(acc[n - 1, m - 1 - int(lo[n - 1])])
-    return _backtrack(acc, lo, hi), total
+        row[:] = s + np.minimum.accumulate(best - s)
+    total = float(acc[offsets[n - 1] + m - 1 - int(lo[n - 1])])
+    return _backtrack(acc, offsets, lo, hi), total
 
 
-def _backtrack(acc: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    n = acc.shape[0]
+def _backtrack(acc: np.ndarray, offsets: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    n = len(lo)
     i, j = n - 1, int(hi[n - 1]) - 1
     path = [(i, j)]
     inf = np.inf
+    lo_l, hi_l, off_l = lo.tolist(), hi.tolist(), offsets.tolist()
 
     def at(r: int, col: int) -> float:
-        if r < 0 or col < lo[r] or col >= hi[r]:
+        if r < 0 or col < lo_l[r] or col >= hi_l[r]:
             return inf
-        return acc[r, col - lo[r]]
+        return acc[off_l[r] + col - lo_l[r]]
 
     while i > 0 or j > 0:
         diag, up, left = at(i - 1, j - 1), at(i - 1, j), at(i, j - 1)

@@ -99,7 +99,12 @@ def mfcc(samples: np.ndarray, rate: int, hop: float, *, with_deltas: bool = True
     """``(n_frames, 2 * N_CEPS)`` (or ``N_CEPS`` without deltas) float32 features: cepstra
     c0–c12 of the log-mel energies, mean and variance normalized over the utterance, then their
     deltas. Frame ``k`` is centred on ``k * hop`` s."""
-    ceps = dct(log_mel(samples, rate, hop), type=2, norm="ortho", axis=1)[:, :N_CEPS]
+    return cepstra(log_mel(samples, rate, hop), with_deltas=with_deltas)
+
+
+def cepstra(db: np.ndarray, *, with_deltas: bool = True) -> np.ndarray:
+    """:func:`mfcc` of ``(n_frames, N_MELS)`` log-mel energies already computed."""
+    ceps = dct(db, type=2, norm="ortho", axis=1)[:, :N_CEPS]
     ceps = normalize(ceps)
     if not with_deltas:
         return ceps

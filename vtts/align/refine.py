@@ -20,11 +20,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from vtts.align.features import mfcc
+from vtts.align.features import cepstra
 from vtts.speech.phonemes import PAUSES, Phone
 
-#: Frame step, s.
-HOP = 0.005
 #: How far a phone may move from where the warping put it, s.
 WINDOW = 0.06
 #: Passes of re-estimation and Viterbi.
@@ -39,17 +37,18 @@ STATES = 3
 
 def refine_phones(
     phones: list[Phone],
-    samples: np.ndarray,
-    rate: int,
+    db: np.ndarray,
+    hop: float,
     duration: float,
     *,
     passes: int | None = None,
 ) -> list[Phone]:
-    """Better boundaries for ``phones`` (covering ``(n,)`` float ``samples`` at ``rate`` Hz from
-    0 to ``duration`` s); the phones, their order and visemes stay. See the module docstring."""
+    """Better boundaries for ``phones`` (covering the recording from 0 to ``duration`` s), given
+    its ``(n_frames, N_MELS)`` log-mel energies ``db`` every ``hop`` s (frame ``k`` centred on
+    ``k * hop``); the phones, their order and visemes stay. See the module docstring."""
     # consecutive pauses (espeak-ng ends with two) are one optional state
     keep = [k for k, p in enumerate(phones) if not (k and _pause(p) and _pause(phones[k - 1]))]
-    starts = _refined_starts([phones[k] for k in keep], samples, rate, passes)
+    starts = _refined_starts([phones[k] for k in keep], cepstra(db), hop, passes)
     full = np.empty(len(phones))
     for j, k in enumerate(keep):
         full[k] = starts[j]
@@ -69,9 +68,9 @@ def _pause(p: Phone) -> bool:
     return p.phoneme in PAUSES
 
 
-def _refined_starts(phones: list[Phone], samples, rate: int, passes: int | None) -> np.ndarray:
-    """Start (s) of each phone after the passes; see :func:`refine_phones`."""
-    x = mfcc(samples, rate, HOP)
+def _refined_starts(phones: list[Phone], x: np.ndarray, hop: float, passes: int | None):
+    """``(n_phones,)`` start (s) of each phone after the passes over ``(n, d)`` features ``x``
+    every ``hop`` s; see :func:`refine_phones`."""
     n = len(x)
     is_pause = np.array([p.phoneme in PAUSES for p in phones])
     per = np.where(is_pause, 1, STATES)
@@ -81,18 +80,18 @@ def _refined_starts(phones: list[Phone], samples, rate: int, passes: int | None)
     klass = np.array(
         [(phones[k].viseme or 0) * STATES + s for k, s in zip(owner, sub, strict=True)]
     )
-    bounds = _to_frames([p.start for p in phones], n)
-    win = max(1, round(WINDOW / HOP))
+    bounds = _to_frames([p.start for p in phones], n, hop)
+    win = max(1, round(WINDOW / hop))
     for _ in range(PASSES if passes is None else passes):
         state_start = _split(bounds, per, n)
         means, inv_var = _models(x, state_start, label, klass)
         lo, hi = _windows(bounds, per, owner, win, n)
-        shortest = np.where(is_pause[owner], max(1, round(MIN_PAUSE / HOP)), 1)
+        shortest = np.where(is_pause[owner], max(1, round(MIN_PAUSE / hop)), 1)
         found = _viterbi(x, means, inv_var, lo, hi, is_pause[owner], shortest)
         if found is None:
             break
         bounds = found[np.searchsorted(owner, np.arange(len(phones)))]
-    return bounds * HOP
+    return bounds * hop
 
 
 def _labels(phones: list[Phone], owner: np.ndarray, sub: np.ndarray) -> np.ndarray:
@@ -105,8 +104,8 @@ def _labels(phones: list[Phone], owner: np.ndarray, sub: np.ndarray) -> np.ndarr
     return out
 
 
-def _to_frames(times: list[float], n: int) -> np.ndarray:
-    f = np.round(np.asarray(times) / HOP).astype(np.int64)
+def _to_frames(times: list[float], n: int, hop: float) -> np.ndarray:
+    f = np.round(np.asarray(times) / hop).astype(np.int64)
     f = np.clip(np.maximum.accumulate(f), 0, n)
     f[0] = 0
     return f
