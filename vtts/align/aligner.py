@@ -142,7 +142,7 @@ def align(
     if samples.ndim != 1:
         raise SpeechError(f"the recording must be mono samples (n,), got shape {samples.shape}")
     if samples.dtype.kind in "iu":
-        samples = samples.astype(np.float32) / 32768.0
+        samples = samples.astype(np.float32) / np.float32(32768)
     duration = len(samples) / rate
     if duration < 0.1:
         raise SpeechError(f"the recording lasts {duration:.3f} s: too short to align")
@@ -166,7 +166,9 @@ def align(
         raise SpeechError("the transcript has nothing to say: no phones to align")
     used_rate = DEFAULT_RATE
     if match_rate:
-        ref_db = log_mel(resample(ref.audio / 32768.0, ref.rate, fs), fs, HOP)
+        ref_db = log_mel(
+            resample(ref.audio.astype(np.float32) / np.float32(32768), ref.rate, fs), fs, HOP
+        )
         ratio = speech_frames(ref_db).sum() / max(rec_speech.sum(), 1)
         wanted = int(np.clip(round(DEFAULT_RATE * ratio), 80, 450))
         if abs(wanted - DEFAULT_RATE) > 0.05 * DEFAULT_RATE:
@@ -177,7 +179,9 @@ def align(
         first = ref.phonemes[0]
         ref.phonemes.insert(0, Phone(0.0, 0.0, "_", 0))
         ref.phonemes[1] = Phone(0.0, first.end, first.phoneme, first.viseme, first.ipa)
-    ref_db = log_mel(resample(ref.audio / 32768.0, ref.rate, fs), fs, HOP)
+    ref_db = log_mel(
+        resample(ref.audio.astype(np.float32) / np.float32(32768), ref.rate, fs), fs, HOP
+    )
     # silence anchoring: only the spans from the first to the last speech frame (and a margin)
     # are warped, so that leading and trailing pauses of any length cost nothing
     ref_span = _speech_span(speech_frames(ref_db))

@@ -39,7 +39,19 @@ def resample(samples: np.ndarray, rate: int, target: int) -> np.ndarray:
     if rate == target:
         return x
     g = gcd(int(rate), int(target))
-    return resample_poly(x, target // g, rate // g).astype(np.float32)
+    # in blocks of about 30 s: resample_poly works in float64 (10 minutes would take 100 MB)
+    up, down = target // g, rate // g
+    block = down * (30 * rate // down)
+    if len(x) <= 2 * block:
+        return resample_poly(x, up, down).astype(np.float32)
+    pad = down * (rate // (10 * down) + 1)  # 0.1 s of context on each side hides the block edges
+    out = []
+    for a in range(0, len(x), block):
+        lo, hi = max(a - pad, 0), min(a + block + pad, len(x))
+        y = resample_poly(x[lo:hi], up, down)
+        skip = (a - lo) * up // down
+        out.append(y[skip : skip + min(block, len(x) - a) * up // down].astype(np.float32))
+    return np.concatenate(out)
 
 
 @cache
