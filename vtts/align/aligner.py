@@ -98,6 +98,11 @@ def speech_frames(db: np.ndarray) -> np.ndarray:
 #: Median pitch above which the reference is spoken by espeak-ng's female variant, Hz.
 HIGH_VOICE_HZ = 160.0
 HIGH_VARIANT = "f2"
+#: Median word warping cost above which the refinement runs: the recording's voice is far from
+#: espeak-ng's (measured: festival's HTS voice 5.4-5.9, where refining takes the 90th percentile
+#: from 55 to 40 ms; espeak-ng's other voices 1.6-4.5, whose warping is within a few ms already
+#: and which the refinement's 5 ms states and pooled models only blur: 11 → 17 ms for en-us+f3).
+REFINE_ABOVE = 5.0
 #: Cost of matching a word boundary of the reference with silence of the recording.
 PAUSE_COST = 2.0
 #: Shortest pause of the recording that becomes a pause phone where the reference has none, s.
@@ -127,13 +132,16 @@ def align(
     voice: str = "en-us",
     match_rate: bool = False,
     refine: bool = True,
+    baseline: bool = False,
 ) -> Alignment:
     """Align the SSML transcript ``ssml`` to ``(n,)`` mono ``samples`` at ``rate`` Hz.
 
     ``voice``: the espeak-ng voice that phonemizes and speaks the reference (its language must be
     the recording's). ``match_rate``: speak the reference again at the recording's rate;
-    ``refine``: the Viterbi refinement of :mod:`vtts.align.refine`. Raises :class:`SpeechError`
-    for a recording that is too short, silent or sampled too low.
+    ``refine``: the Viterbi refinement of :mod:`vtts.align.refine`. ``baseline``: the plain
+    method of aeneas instead, for comparison (the voice as given, both signals warped whole, no
+    pauses of the recording's own, no refinement). Raises :class:`SpeechError` for a recording
+    that is too short, silent, not mono or sampled too low, and a transcript with no phones.
     """
     from vtts.speech.tts import synthesize
 
@@ -155,7 +163,7 @@ def align(
         raise SpeechError("the recording is silent: there is no speech to align")
     rec_speech = speech_frames(rec_db)
 
-    if "+" not in voice:
+    if "+" not in voice and not baseline:
         # a high voice is warped better against espeak-ng's female variant (measured: festival's
         # HTS voice, 170 Hz, 90th percentile 50 → 45 ms)
         f0 = median_f0(rec, fs, rec_speech, HOP)
@@ -184,27 +192,30 @@ def align(
     )
     # silence anchoring: only the spans from the first to the last speech frame (and a margin)
     # are warped, so that leading and trailing pauses of any length cost nothing
-    ref_span = _speech_span(speech_frames(ref_db))
-    rec_span = _speech_span(rec_speech)
+    ref_span = _speech_span(speech_frames(ref_db)) if not baseline else (0, len(ref_db))
+    rec_span = _speech_span(rec_speech) if not baseline else (0, len(rec_db))
     step = round(HOP * fs)
     ref_x = cepstra(ref_db[ref_span[0] : ref_span[1]])
     rec_x = cepstra(rec_db[rec_span[0] : rec_span[1]])
     ref_t0, rec_t0 = ref_span[0] * step / fs, rec_span[0] * step / fs
-    boundaries = _word_boundaries(ref, ref_t0, len(ref_x))
+    boundaries = _word_boundaries(ref, ref_t0, len(ref_x)) if not baseline else {}
     rows = np.zeros(len(ref_x), bool)
     for b in boundaries:
         rows[max(b - 1, 0) : b + 1] = True
     silent = ~rec_speech[rec_span[0] : rec_span[0] + len(rec_x)]
     silent = np.append(silent, np.ones(len(rec_x) - len(silent), bool))
-    path, _ = dtw_path(ref_x, rec_x, pauses=Pauses(rows, silent, PAUSE_COST))
+    pauses = Pauses(rows, silent, PAUSE_COST) if not baseline else None
+    path, _ = dtw_path(ref_x, rec_x, pauses=pauses)
     warp = _Warp(path, ref_x, rec_x, ref_t0, rec_t0)
     inserted = _inserted_pauses(ref, boundaries, path, silent, ref_t0, rec_t0)
     phones = _warped_phones(ref.phonemes, warp, duration, inserted)
-    if refine:
+    words = _words(ref, ssml, phones, warp)
+    far = bool(words) and float(np.median([w.cost for w in words])) > REFINE_ABOVE
+    if refine and far and not baseline:
         from vtts.align.refine import refine_phones
 
         phones = refine_phones(phones, fine_db, FINE_HOP, duration)
-    words = _words(ref, ssml, phones, warp)
+        words = _words(ref, ssml, phones, warp)
     marks = [Mark(m.name, _carry(m.time, ref.phonemes, phones)) for m in ref.marks]
     # the optional pauses at word boundaries that the recording did not make
     phones = [p for p in phones if p.duration > 0 or p.phoneme not in PAUSES]
