@@ -209,13 +209,13 @@ def align(
     warp = _Warp(path, ref_x, rec_x, ref_t0, rec_t0)
     inserted = _inserted_pauses(ref, boundaries, path, silent, ref_t0, rec_t0)
     phones = _warped_phones(ref.phonemes, warp, duration, inserted)
-    words = _words(ref, ssml, phones, warp)
+    words = _words(ref, phones, warp)
     far = bool(words) and float(np.median([w.cost for w in words])) > REFINE_ABOVE
     if refine and far and not baseline:
         from vtts.align.refine import refine_phones
 
         phones = refine_phones(phones, fine_db, FINE_HOP, duration)
-        words = _words(ref, ssml, phones, warp)
+        words = _words(ref, phones, warp)
     marks = [Mark(m.name, _carry(m.time, ref.phonemes, phones)) for m in ref.marks]
     # the optional pauses at word boundaries that the recording did not make
     phones = [p for p in phones if p.duration > 0 or p.phoneme not in PAUSES]
@@ -332,26 +332,21 @@ def _carry(t: float, ref: list[Phone], aligned: list[Phone]) -> float:
     return q.start + f * q.duration
 
 
-def _words(ref, ssml: str, phones: list[Phone], warp: _Warp) -> list[AlignedWord]:
-    """The reference's word events, carried to the recording through the aligned phones."""
-    from vtts.speech.tts import Speech
-
-    assert isinstance(ref, Speech)
+def _words(ref, phones: list[Phone], warp: _Warp) -> list[AlignedWord]:
+    """The reference's words (their first to last phone that is not a pause), carried to the
+    recording through the aligned phones, with their warping costs."""
     ref_starts = np.array([p.start for p in ref.phonemes])
     out: list[AlignedWord] = []
-    events = ref.words
-    for w, word in enumerate(events):
+    for word in ref.words:
+        end = word.end if word.end is not None else word.start
         k0 = int(np.searchsorted(ref_starts, word.start - 1e-9))
-        t_next = events[w + 1].start if w + 1 < len(events) else np.inf
-        k1 = int(np.searchsorted(ref_starts, t_next - 1e-9))
+        k1 = int(np.searchsorted(ref_starts, end - 1e-9))
         ks = [k for k in range(k0, k1) if ref.phonemes[k].phoneme not in PAUSES]
         if not ks:
             continue
         a, b = phones[ks[0]], phones[ks[-1]]
         cost = warp.mean_cost(ref.phonemes[ks[0]].start, ref.phonemes[ks[-1]].end)
-        out.append(
-            AlignedWord(a.start, b.end, ssml[word.position : word.position + word.length], cost)
-        )
+        out.append(AlignedWord(a.start, b.end, word.text, cost))
     return out
 
 
