@@ -21,14 +21,19 @@ VOWELS = frozenset({10, 11, 12, 13, 14})
 
 @dataclass
 class BoundaryErrors:
-    """``errors`` ``(k,)`` s: |aligned − true| of each matched boundary; ``bilabials`` ``(b,)``
+    """``signed`` ``(k,)`` s: aligned − true of each matched boundary (``errors`` its absolute
+    value); ``bilabials`` ``(b,)``
     bool: whether each matched p/b/m's centre falls in the same frame at ``fps`` as the truth's;
     ``matched`` and ``total``: boundaries compared and truth boundaries (speech only)."""
 
-    errors: np.ndarray
+    signed: np.ndarray
     bilabials: np.ndarray
     matched: int
     total: int
+
+    @property
+    def errors(self) -> np.ndarray:
+        return np.abs(self.signed)
 
     def summary(self) -> dict[str, float]:
         """median, p90 and worst error in ms, bilabial hit rate, matched fraction."""
@@ -39,6 +44,7 @@ class BoundaryErrors:
             "worst_ms": float(e.max()) if len(e) else float("nan"),
             "bilabial_hit": float(self.bilabials.mean()) if len(self.bilabials) else float("nan"),
             "matched": self.matched / max(self.total, 1),
+            "bias_ms": float(np.median(self.signed)) * 1000 if len(e) else float("nan"),
         }
 
 
@@ -62,9 +68,9 @@ def boundary_errors(aligned: list[Phone], truth: list[Phone], fps: float = 30.0)
     for block in sm.get_matching_blocks():
         for k in range(block.size):
             pa, pb = a[block.a + k], b[block.b + k]
-            errors.append(abs(pa.start - pb.start))
+            errors.append(pa.start - pb.start)
             if following[id(pb)]:
-                errors.append(abs(pa.end - pb.end))
+                errors.append(pa.end - pb.end)
             if pa.viseme == BILABIAL:
                 ca, cb = 0.5 * (pa.start + pa.end), 0.5 * (pb.start + pb.end)
                 bil.append(round(ca * fps) == round(cb * fps))
