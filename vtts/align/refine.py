@@ -155,8 +155,7 @@ def _windows(bounds, per, owner, win, n):
     hi = np.minimum(ends[owner] + win, n)
     # a state needs room for itself and the states before/after it
     idx = np.arange(len(owner))
-    lo = np.maximum(np.minimum(lo, n - (len(owner) - idx)), 0)
-    lo = np.maximum.accumulate(np.minimum(lo, idx * 0 + lo))
+    lo = np.maximum.accumulate(np.minimum(lo, n - (len(owner) - idx)).clip(0))
     hi = np.minimum.accumulate(np.maximum(hi, idx + 1)[::-1])[::-1]
     hi = np.maximum(hi, lo + 1)
     lo[0], hi[-1] = 0, n
