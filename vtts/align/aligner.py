@@ -3,19 +3,23 @@
 The method (measured in ``docs/speech.md``, "Lip-sync for recorded speech"):
 
 1. **Reference.** espeak-ng speaks the transcript (the same SSML with one ``<mark/>`` per
-   bookmark that ``vtts say`` sends it), which gives its phones, words and marks in its own clock.
-   Its speaking rate is then matched to the recording's (the speech-to-pause ratio of both is
-   measured from their energies) and it speaks again, so that the warping has less to do.
-2. **Warping.** MFCC features of both (:mod:`vtts.align.features`) are aligned by dynamic time
-   warping in bounded memory (:mod:`vtts.align.dtw`); espeak's own phone times are carried to the
-   recording through the warping path (the method of the ``aeneas`` aligner).
-3. **Refinement** (:mod:`vtts.align.refine`): the recording's frames under each phone now give
-   models of *this* voice's phones; a Viterbi pass of the phone sequence over the recording with
-   those models, at a finer frame step and within a window around the warped boundaries, moves
-   each boundary to where this voice's spectrum actually changes. Repeated twice.
-4. **Check.** Each word's warping cost (the mean distance of the frames the path matched) says
-   how well the recording and the transcript agree there; a run of words far above what a
-   different voice costs is reported as a warning naming the words and their time.
+   bookmark that ``vtts say`` sends it), which gives its phones, words and marks in its own clock;
+   a high voice (median pitch above :data:`HIGH_VOICE_HZ`) is compared with espeak-ng's female
+   variant. (Speaking it again at the recording's rate, ``match_rate``, measured no better.)
+2. **Silence anchoring.** Only the spans from the first to the last speech frame of each are
+   warped; the clean reference is raised to the recording's noise floor.
+3. **Warping.** MFCC features of both (:mod:`vtts.align.features`) are aligned by dynamic time
+   warping in bounded memory (:mod:`vtts.align.dtw`), where a word boundary of the reference may
+   rest on a pause of the recording cheaply; espeak's own phone times are carried to the
+   recording through the warping path (the method of the ``aeneas`` aligner), and a pause the
+   path rested on becomes a pause phone.
+4. **Refinement** (:mod:`vtts.align.refine`), for a voice far from espeak-ng's: the recording's
+   frames under each phone give models of *this* voice's phones; a Viterbi pass of the phone
+   sequence over the recording with those models, at a finer frame step and within a window
+   around the warped boundaries, moves each boundary to where this voice's spectrum changes.
+5. **Check.** Each word's warping cost (the mean distance of the frames the path matched) says
+   how well the recording and the transcript agree there; runs of words far above a typical
+   word are reported as problems naming the words and their time.
 """
 
 from __future__ import annotations
@@ -39,18 +43,18 @@ DEFAULT_RATE = 175
 SPEECH_DB = 30.0
 #: ... and this many dB above the quietest frames (the room's noise).
 ABOVE_NOISE_DB = 8.0
-#: A word whose warping cost is this many times a typical word's (the utterance's first quartile)
-#: (and at least
-#: LOCAL_MIN) does not match the recording (measured: the words of a right transcript cost at
-#: most 1.5 times the median for espeak-ng's other voices and festival's; 5-3 words replaced
-#: cost 2-3.5 times the median for espeak-ng's voices, 1.1-1.4 times for festival's).
+#: A run of words whose warping cost is this many times a typical word's (the utterance's first
+#: quartile), and at least LOCAL_MIN, does not match the recording (measured: the words of a
+#: right transcript cost at most 1.5 times a typical one for espeak-ng's other voices and
+#: festival's; 3-5 words replaced cost 2-3.5 times for espeak-ng's voices, 1.1-1.4 times for
+#: festival's, which is not detected).
 LOCAL_RATIO = 1.6
 LOCAL_MIN = 4.0
 #: A single word is reported only above this many times a typical word's cost (another accent
 #: says single words differently: en-gb's "are" and "go" cost up to 2.9 times).
 SINGLE_RATIO = 3.5
-#: Median word cost above which nothing matches (measured: right transcripts 1.6-5.9, wrong
-#: ones 5.2-7.1, noise 6.6, a tone 7.0).
+#: Median word cost above which nothing matches (measured: right transcripts 1.6-5.8, wholly
+#: wrong ones 5.0-6.7, white noise 7.0, a tone 6.9).
 GLOBAL_COST = 6.1
 
 

@@ -8,7 +8,10 @@ over every occurrence of the same phoneme, shrunk towards the mean of its viseme
 has few frames. With one diagonal variance for all, the cost of a frame in a state is its
 squared Mahalanobis distance to the mean. The best left-to-right path through the states,
 every state at least one frame, each within :data:`WINDOW` s of where the warping put its phone,
-gives new boundaries; the models are re-estimated from them and the pass repeated.
+gives new boundaries; the models are re-estimated from them and the pass repeated. Pauses are
+optional states (the aligner puts an empty one at every word boundary, where a speaker may
+pause): the path may skip one, and takes it for at least :data:`MIN_PAUSE` s (shorter silences
+are the closures of stops, which belong to the stop). Consecutive pauses are one state.
 
 The recursion runs over states, each a vectorized step over its window of frames (as the rows
 of :mod:`vtts.align.dtw`): ``D[s, t] = c[s, t] + min(D[s, t-1], D[s-1, t-1])`` is
