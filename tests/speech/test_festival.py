@@ -139,6 +139,23 @@ def test_missing_voice_and_program(monkeypatch) -> None:
         synthesize("Hi")
 
 
+@pytest.mark.parametrize(
+    "attack",
+    [
+        '{q}) (system "touch {f}") ("',
+        '\\{q}) (system "touch {f}") ;',
+        '\n(system "touch {f}")\n',
+        '\'(system "touch {f}")',
+    ],
+)
+def test_text_cannot_escape_its_scheme_string(tmp_path: Path, attack: str) -> None:
+    marker = tmp_path / "pwned"
+    text = "Say " + attack.format(q='"', f=marker) + " done"
+    speech = synthesize(text)
+    assert not marker.exists()
+    assert speech.words[0].text == "Say" and speech.words[-1].text == "done"
+
+
 def test_say_engine_festival_end_to_end(tmp_path: Path) -> None:
     out, tsv = tmp_path / "f.mp4", tmp_path / "f.tsv"
     exe = Path(sys.executable).with_name("vtts")
@@ -152,3 +169,9 @@ def test_say_engine_festival_end_to_end(tmp_path: Path) -> None:
     rows = [ln.split("\t") for ln in tsv.read_text().splitlines()[1:]]
     assert [r[3] for r in rows if r[0] == "word"] == ["Bob", "is", "here"]
     assert [r[3] for r in rows if r[0] == "phone"][:3] == ["pau", "b", "aa"]
+    # an espeak-ng voice is no festival voice
+    cmd = [str(exe), "say", "Hi", "--engine", "festival", "--voice", "en-gb", "--model", str(HEAD)]
+    r = subprocess.run([*cmd, "--timings-out", str(tmp_path / "x.tsv")], capture_output=True,
+                       text=True, timeout=300)  # fmt: skip
+    assert r.returncode == 1 and "invalid festival voice 'en-gb'" in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr and not (tmp_path / "x.tsv").exists()
