@@ -53,6 +53,20 @@ def test_phones_cover_the_audio_without_overlap(utterance) -> None:
     assert all(p.phoneme in PHONE_SET for p in u.phones)
 
 
+def test_pauses_are_silent_and_vowels_loud(utterance) -> None:
+    # festival's segment times are the truth for its audio (what an aligner is measured with)
+    u = utterance
+    x = u.audio.astype(np.float64)
+
+    def rms(p) -> float:
+        return float(np.sqrt(np.mean(x[int(p.start * u.rate) : int(p.end * u.rate)] ** 2)))
+
+    vowels = [rms(p) for p in u.phones if p.viseme >= 10]
+    pauses = [rms(p) for p in u.phones if p.phoneme == "pau"]
+    assert len(pauses) >= 3  # the start, after "Bob." and after "Maybe we meet at 3 pm,"
+    assert max(pauses) < 0.1 * np.median(vowels) and min(vowels) > 0.25 * np.median(vowels)
+
+
 def test_bilabials_are_viseme_1_and_the_lips_close_in_the_audio(utterance) -> None:
     u = utterance
     bilabials = [p for p in u.phones if p.phoneme in ("p", "b", "m")]
