@@ -53,6 +53,20 @@ def test_phones_cover_the_audio_without_overlap(utterance) -> None:
     assert all(p.phoneme in PHONE_SET for p in u.phones)
 
 
+def test_pauses_are_silent_and_vowels_loud(utterance) -> None:
+    # festival's segment times are the truth for its audio (what an aligner is measured with)
+    u = utterance
+    x = u.audio.astype(np.float64)
+
+    def rms(p) -> float:
+        return float(np.sqrt(np.mean(x[int(p.start * u.rate) : int(p.end * u.rate)] ** 2)))
+
+    vowels = [rms(p) for p in u.phones if p.viseme >= 10]
+    pauses = [rms(p) for p in u.phones if p.phoneme == "pau"]
+    assert len(pauses) >= 3  # the start, after "Bob." and after "Maybe we meet at 3 pm,"
+    assert max(pauses) < 0.1 * np.median(vowels) and min(vowels) > 0.25 * np.median(vowels)
+
+
 def test_bilabials_are_viseme_1_and_the_lips_close_in_the_audio(utterance) -> None:
     u = utterance
     bilabials = [p for p in u.phones if p.phoneme in ("p", "b", "m")]
@@ -139,6 +153,23 @@ def test_missing_voice_and_program(monkeypatch) -> None:
         synthesize("Hi")
 
 
+@pytest.mark.parametrize(
+    "attack",
+    [
+        '{q}) (system "touch {f}") ("',
+        '\\{q}) (system "touch {f}") ;',
+        '\n(system "touch {f}")\n',
+        '\'(system "touch {f}")',
+    ],
+)
+def test_text_cannot_escape_its_scheme_string(tmp_path: Path, attack: str) -> None:
+    marker = tmp_path / "pwned"
+    text = "Say " + attack.format(q='"', f=marker) + " done"
+    speech = synthesize(text)
+    assert not marker.exists()
+    assert speech.words[0].text == "Say" and speech.words[-1].text == "done"
+
+
 def test_say_engine_festival_end_to_end(tmp_path: Path) -> None:
     out, tsv = tmp_path / "f.mp4", tmp_path / "f.tsv"
     exe = Path(sys.executable).with_name("vtts")
@@ -152,3 +183,9 @@ def test_say_engine_festival_end_to_end(tmp_path: Path) -> None:
     rows = [ln.split("\t") for ln in tsv.read_text().splitlines()[1:]]
     assert [r[3] for r in rows if r[0] == "word"] == ["Bob", "is", "here"]
     assert [r[3] for r in rows if r[0] == "phone"][:3] == ["pau", "b", "aa"]
+    # an espeak-ng voice is no festival voice
+    cmd = [str(exe), "say", "Hi", "--engine", "festival", "--voice", "en-gb", "--model", str(HEAD)]
+    r = subprocess.run([*cmd, "--timings-out", str(tmp_path / "x.tsv")], capture_output=True,
+                       text=True, timeout=300)  # fmt: skip
+    assert r.returncode == 1 and "invalid festival voice 'en-gb'" in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr and not (tmp_path / "x.tsv").exists()

@@ -136,6 +136,7 @@ def synthesize(
         try:
             proc = subprocess.run(
                 [exe, "-b", str(script)],
+                stdin=subprocess.DEVNULL,
                 capture_output=True,
                 timeout=60 + len(text) / 20,
                 cwd=folder,
