@@ -333,14 +333,15 @@ def _background(args: argparse.Namespace, video: bool):
 
 
 def _renderer(args: argparse.Namespace, models, supersample: int = 1, video: bool = False):
+    from vtts import warm
     from vtts.errors import RenderError
-    from vtts.render import Camera, FaceRenderer
+    from vtts.render import Camera
 
     if args.camera and args.viewpoint:
         raise RenderError("--camera and --viewpoint both choose the camera: give one of them")
     camera = Camera.parse(args.camera) if args.camera else None
     background = _background(args, video)
-    return FaceRenderer(
+    return warm.renderer(
         models,
         size=_size(args.size),
         camera=camera,
@@ -353,8 +354,8 @@ def _renderer(args: argparse.Namespace, models, supersample: int = 1, video: boo
 
 def cmd_render(args: argparse.Namespace) -> int:
     """Render one pose of one or more models to a PNG."""
-    from vtts.face import load_model
     from vtts.render import write_png
+    from vtts.warm import load_model  # kept between the jobs of vtts batch
 
     _background(args, video=False)  # a bad color fails before the models load
     request = _pose_request(args)
@@ -373,9 +374,9 @@ def cmd_play(args: argparse.Namespace) -> int:
     head translation moves each model by that many of its own ES units."""
     from vtts.animate.fapstream import model_roots, stream_params, warn_ignored
     from vtts.errors import RenderError
-    from vtts.face import load_model
     from vtts.fap.cli_coding import read_stream
     from vtts.render import PngSequenceWriter, VideoWriter, progress
+    from vtts.warm import load_model  # kept between the jobs of vtts batch
 
     if not args.output and not args.png_dir and not args.web and not args.gltf:
         raise RenderError(
@@ -540,10 +541,10 @@ def cmd_say(args: argparse.Namespace) -> int:
 
     from vtts.animate.timeline import build_timeline, timeline_stream
     from vtts.errors import BookmarkError, RenderError
-    from vtts.face import load_model
     from vtts.fap import write_fap
     from vtts.limits import MAX_TEXT_BYTES, read_bytes_capped
     from vtts.render import PngSequenceWriter, VideoWriter, progress, write_wav
+    from vtts.warm import load_model  # kept between the jobs of vtts batch
 
     if not (args.output or args.gltf or args.png_dir or args.fap_out or args.wav_out or args.web):
         raise RenderError(
@@ -1168,6 +1169,12 @@ def main(argv: list[str] | None = None) -> int:
     if threading.current_thread() is threading.main_thread():
         for sig in (signal.SIGTERM, signal.SIGHUP):
             signal.signal(sig, _terminate_as_interrupt)
+    return execute(args)
+
+
+def execute(args: argparse.Namespace) -> int:
+    """Run the command ``args`` (from :func:`build_parser`) as ``vtts`` does: its exit status,
+    with bad input printed on stderr as one clear message (``vtts batch`` runs its jobs so)."""
     try:
         with reported_warnings(), _url_roots(args):
             _check_io(args)
