@@ -821,6 +821,23 @@ def cmd_models(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_batch(args: argparse.Namespace) -> int:
+    """Run the say/play/render jobs of a .jsonl file on Ray workers (:func:`vtts.batch.run`),
+    or with --dry-run only check every line."""
+    from vtts.batch import read_jobs, run
+
+    if args.dry_run:
+        checked = read_jobs(args.jobs, args.out)
+        for e in checked.errors:
+            print_error(e)
+        n = len(checked.jobs)
+        print(f"{args.jobs}: {n} valid job{'s' if n != 1 else ''}, {len(checked.errors)} bad")
+        return 1 if checked.errors else 0
+    report = run(args.jobs, args.out, args.workers, args.address, show_progress=True)
+    print(f"batch: {report.summary()}")
+    return 0 if report.ok else 1
+
+
 def _miap_of(key: str):
     from vtts.face import Miap
 
@@ -981,6 +998,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     an.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     an.set_defaults(func=cmd_analyze)
+
+    ba = sub.add_parser("batch", help="run many say/play/render jobs on Ray workers")
+    ba.add_argument("jobs", metavar="JOBS.jsonl", help="one job per line (docs/batch.md)")
+    ba.add_argument("--out", required=True, metavar="DIR", help="the outputs' folder")
+    ba.add_argument("--workers", type=int, metavar="N", help="workers (default: one per CPU)")
+    ba.add_argument("--address", help="an existing Ray cluster (default: a local one)")
+    ba.add_argument("--dry-run", action="store_true", help="check every line, render nothing")
+    ba.set_defaults(func=cmd_batch)
 
     vo = sub.add_parser("voices", help="list espeak-ng voices")
     vo.add_argument("language", nargs="?", help="only voices of this language (e.g. en)")
