@@ -825,10 +825,19 @@ def cmd_batch(args: argparse.Namespace) -> int:
     """Run the say/play/render jobs of a .jsonl file on Ray workers (:func:`vtts.batch.run`),
     or with --dry-run only check every line."""
     from vtts.batch import read_jobs, run
+    from vtts.batch.jobs import JobError, preflight
 
     if args.dry_run:
         checked = read_jobs(args.jobs, args.out)
-        for e in checked.errors:
+        models: dict = {}
+        for job in list(checked.jobs):
+            try:
+                preflight(job, models)
+            except JobError as e:
+                e.file, e.line = args.jobs, job.line
+                checked.errors.append(e)
+                checked.jobs.remove(job)
+        for e in sorted(checked.errors, key=lambda e: e.line or 0):
             print_error(e)
         n = len(checked.jobs)
         print(f"{args.jobs}: {n} valid job{'s' if n != 1 else ''}, {len(checked.errors)} bad")

@@ -126,6 +126,24 @@ def test_dry_run_reports_bad_lines_with_their_numbers(tmp_path, capsys):
     assert cli.main(["batch", str(path), "--out", str(tmp_path / "out"), "--dry-run"]) == 0
 
 
+def test_dry_run_checks_heads_inputs_and_bookmarks_without_rendering(tmp_path, capsys):
+    ok = {"id": "a", "say": "Hi <smile>.", "model": "cybatt", "output": "a.mp4"}
+    lines = [
+        ok,
+        {**ok, "id": "b", "say": "Hello <frown> you.", "output": "b.mp4"},
+        {**ok, "id": "c", "model": "nobody", "output": "c.mp4"},
+        {"id": "d", "play": str(tmp_path / "none.fap"), "model": "cybatt", "output": "d.mp4"},
+    ]
+    path = _jobs_file(tmp_path, [json.dumps(x) for x in lines])
+    assert cli.main(["batch", str(path), "--out", str(tmp_path / "out"), "--dry-run"]) == 1
+    out, err = capsys.readouterr()
+    assert "1 valid job, 3 bad" in out
+    errors = err.splitlines()
+    assert errors[0].startswith(f"{path}:2: error: vtts say: column 7: unknown bookmark <frown>")
+    assert errors[1].startswith(f"{path}:3: error: vtts say: no model 'nobody'")
+    assert errors[2] == f"{path}:4: error: vtts play: {tmp_path / 'none.fap'}: no such file"
+
+
 def test_the_manifest_knows_finished_jobs(tmp_path):
     job = parse_job({"id": "a", "say": "Hi.", "model": "cybatt", "output": "x/a.mp4"}, tmp_path)
     (tmp_path / "x").mkdir()

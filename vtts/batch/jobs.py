@@ -302,3 +302,41 @@ def as_jobs(jobs: Iterable, out_dir: str | os.PathLike[str]) -> JobsFile:
             e.line = n
             errors.append(e)
     return JobsFile(check_unique(out, errors), errors)
+
+
+#: Options of a job that name a file it reads.
+INPUT_FILES = ("file", "stream", "audio", "phonemes")
+
+
+def preflight(job: Job, models: dict | None = None) -> None:
+    """What can be checked of ``job`` without running it, beyond its options: the files it
+    reads are there, its heads load, and a ``say`` text's bookmarks are ones its heads know.
+    ``models`` keeps loaded heads between calls. Raises :class:`JobError` with the message the
+    command would give."""
+    from vtts.face import load_model
+    from vtts.limits import MAX_TEXT_BYTES, read_bytes_capped
+    from vtts.speech.bookmarks import parse_bookmarks
+
+    models = {} if models is None else models
+    args = parse_argv(job.argv)
+    try:
+        for key in INPUT_FILES:
+            name = getattr(args, key, None)
+            if name and not Path(name).is_file():
+                raise VttsError("no such file", file=name)
+        heads = []
+        for m in args.model:
+            key = (m, tuple(args.url_root or ()))
+            if key not in models:
+                models[key] = load_model(m, url_root=args.url_root)
+            heads.append(models[key])
+        if job.command == "say":
+            text = args.text
+            if args.file:
+                raw = read_bytes_capped(args.file, MAX_TEXT_BYTES, what="text")
+                text = raw.decode("utf-8", errors="replace")
+            known = {x.name for h in heads for x in h.tables.adts if x.kind == "expression"}
+            parse_bookmarks(text or "", known)
+    except VttsError as e:
+        where = e.location()
+        raise JobError(f"vtts {job.command}: {where + ': ' if where else ''}{e.message}") from None

@@ -284,6 +284,8 @@ class _Bar:
 
     def started(self) -> None:
         self.t0 = time.perf_counter()
+        if self.progress is not None:
+            self.progress.update(self.task, description="batch")
         self._update()
 
     def done(self) -> None:
@@ -337,7 +339,7 @@ def _bar(total: int, show: bool) -> Iterator[_Bar]:
     )
 
     columns = (
-        TextColumn("batch"),
+        TextColumn("{task.description}"),
         BarColumn(),
         MofNCompleteColumn(),
         TextColumn("{task.fields[rate]} jobs/min"),
@@ -348,5 +350,5 @@ def _bar(total: int, show: bool) -> Iterator[_Bar]:
     )
     with Progress(*columns, console=console, transient=True) as prog:
         bar.progress = prog
-        bar.task = prog.add_task("batch", total=total, rate="0.0", failed=0)
+        bar.task = prog.add_task("starting workers", total=total, rate="0.0", failed=0)
         yield bar
