@@ -65,6 +65,8 @@ def test_render_and_play_jobs(tmp_path):
         ({"render": "yes", "model": "cybatt", "output": "a.png"}, "'render' takes true"),
         ({"play": 3, "model": "cybatt", "output": "a.mp4"}, "'play' takes the .fap"),
         ({"id": "", "say": "x", "output": "a.mp4"}, "'id' is a string of 1 to"),
+        ({"say": "x", "output": "a.mp4", "file": "a\x00b"}, "'file' holds a NUL character"),
+        ({"say": "a\x00", "output": "a.mp4"}, "'say' holds a NUL character"),
     ],
 )
 def test_bad_jobs_say_what_is_wrong(tmp_path, spec, message):
@@ -91,13 +93,15 @@ def test_a_jobs_file_reports_each_bad_line_and_keeps_the_good_ones(tmp_path):
             json.dumps({**ok, "id": "c"}),  # the same output again
             json.dumps({**ok, "id": "d", "output": "d.mp4", "fps": "fast"}),
             json.dumps({**ok, "id": "e", "output": "e.mp4"}),
+            "[" * 100_000,  # deeper than the JSON reader's recursion
         ],
     )
     checked = read_jobs(path, tmp_path / "out")
     assert [j.id for j in checked.jobs] == ["a", "e"]
     assert [j.line for j in checked.jobs] == [1, 7]
     found = [(e.line, e.message) for e in checked.errors]
-    assert [line for line, _ in found] == [3, 4, 5, 6]
+    assert [line for line, _ in found] == [3, 4, 5, 6, 8]
+    assert found[4][1] == "not a job: its JSON is nested too deeply"
     assert found[0][1].startswith("not JSON")
     assert checked.errors[0].column is not None
     assert found[1][1] == "id 'a' is also the id on line 1"

@@ -135,6 +135,16 @@ def _values(key: str, value, action: argparse.Action) -> list[str]:
     return words
 
 
+def _has_nul(value) -> bool:
+    if isinstance(value, str):
+        return "\x00" in value
+    if isinstance(value, list):
+        return any(_has_nul(v) for v in value)
+    if isinstance(value, dict):
+        return any(_has_nul(k) or _has_nul(v) for k, v in value.items())
+    return False
+
+
 def job_digest(spec: dict) -> str:
     """The SHA-256 of a job as written (keys sorted): the manifest's way to tell a changed job."""
     text = json.dumps(spec, sort_keys=True, ensure_ascii=False, separators=(",", ":"))
@@ -155,6 +165,8 @@ def parse_job(spec, out_dir: str | os.PathLike[str], line: int | None = None) ->
     argv: list[str] = [command]
     outputs: list[str] = []
     for key, value in spec.items():
+        if _has_nul(value):
+            raise JobError(f"'{key}' holds a NUL character, which no command line can")
         if key in ("id", command) or value is None:
             continue
         action = options.get(key)
@@ -278,6 +290,8 @@ def read_jobs(path: str | os.PathLike[str], out_dir: str | os.PathLike[str]) -> 
                 spec = json.loads(text)
             except json.JSONDecodeError as e:
                 raise JobError(f"not JSON: {e.msg}", column=e.colno) from None
+            except RecursionError:
+                raise JobError("not a job: its JSON is nested too deeply") from None
             jobs.append(parse_job(spec, out_dir, line=n))
         except JobError as e:
             e.file, e.line = name, n
