@@ -55,6 +55,7 @@ def test_render_and_play_jobs(tmp_path):
         ({"say": "x", "output": "/tmp/a.mp4"}, "give a relative path"),
         ({"say": "x", "output": "../a.mp4"}, "leaves the batch's folder"),
         ({"say": "x", "output": "a.mp4", "sise": "1x1"}, "vtts say has no option 'sise'"),
+        ({"say": "x", "output": "./manifest.jsonl"}, "manifest.jsonl is the batch's own"),
         ({"say": "x", "output": "a.mp4", "help": True}, "has no option 'help'"),
         ({"say": "x", "output": "a.mp4", "seed": -1}, "argument --seed: -1 must be within"),
         ({"say": "x", "output": "a.mp4", "layout": "ring"}, "invalid choice: 'ring'"),
@@ -108,6 +109,15 @@ def test_a_jobs_file_reports_each_bad_line_and_keeps_the_good_ones(tmp_path):
     assert found[2][1] == "'a.mp4' is also written by line 1"
     assert "argument --fps: invalid float value: 'fast'" in found[3][1]
     assert checked.errors[0].location().startswith(f"{path}:3:")
+
+
+def test_a_job_may_not_write_the_jobs_file(tmp_path):
+    path = _jobs_file(tmp_path, [json.dumps({"say": "x", "model": "cybatt", "wav_out": "j.wav"})])
+    path = path.rename(tmp_path / "j.wav")
+    checked = read_jobs(path, tmp_path)
+    assert (
+        not checked.jobs and checked.errors[0].message == "an output of this job is the jobs file"
+    )
 
 
 def test_library_jobs_are_checked_as_lines_are(tmp_path):

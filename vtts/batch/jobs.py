@@ -30,6 +30,8 @@ COMMANDS = ("say", "play", "render")
 #: Options that name what a job writes: files, and folders (every file in them).
 OUTPUT_FILES = ("output", "fap_out", "wav_out")
 OUTPUT_FOLDERS = ("png_dir", "web")
+#: The batch's own files in its folder (:mod:`vtts.batch.manifest`), which no job may write.
+RESERVED = ("manifest.jsonl", "failures.jsonl")
 #: Options a job may not give: the batch runs its jobs quietly.
 _NOT_OPTIONS = ("help", "quiet", "command", "func", "gltf")
 #: The most characters of a job id, and of a job line.
@@ -114,6 +116,8 @@ def _inside(path: str, key: str) -> str:
     parts = [x for x in p.parts if x != "."]
     if ".." in parts or not parts:
         raise JobError(f"'{key}': {path!r} leaves the batch's folder (--out)")
+    if len(parts) == 1 and parts[0] in RESERVED:
+        raise JobError(f"'{key}': {parts[0]} is the batch's own record in its folder")
     return "/".join(parts)
 
 
@@ -297,6 +301,12 @@ def read_jobs(path: str | os.PathLike[str], out_dir: str | os.PathLike[str]) -> 
             e.file, e.line = name, n
             errors.append(e)
     jobs = check_unique(jobs, errors, name)
+    for job in list(jobs):
+        if any(Path(out_dir, o).resolve() == Path(path).resolve() for o in job.outputs):
+            errors.append(
+                JobError("an output of this job is the jobs file", file=name, line=job.line)
+            )
+            jobs.remove(job)
     errors.sort(key=lambda e: e.line or 0)
     return JobsFile(jobs, errors)
 
