@@ -15,7 +15,9 @@ import collections
 import contextlib
 import logging
 import os
+import shutil
 import sys
+import tempfile
 import time
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
@@ -151,7 +153,7 @@ def _ray():
     return ray
 
 
-def _start(ray, workers: int | None, address: str | None) -> int:
+def _start(ray, workers: int | None, address: str | None, temp_dir: str) -> int:
     """Start a local Ray instance of ``workers`` CPUs, or join the cluster at ``address``;
     returns how many workers to make."""
     options = dict(
@@ -164,8 +166,10 @@ def _start(ray, workers: int | None, address: str | None) -> int:
         if address:
             ray.init(address=address, **options)
         else:
+            # on the loopback interface only, with its sockets and logs in a folder of this
+            # batch (not the /tmp/ray that another user's Ray may own)
             local = workers or os.cpu_count() or 1
-            ray.init(num_cpus=local, **options)
+            ray.init(num_cpus=local, _node_ip_address="127.0.0.1", _temp_dir=temp_dir, **options)
     except Exception as e:
         where = f"the Ray cluster at {address}" if address else "a local Ray instance"
         raise BatchError(f"cannot start {where}: {e}") from None
@@ -186,7 +190,12 @@ def _run_on_ray(
 ) -> None:
     ray = _ray()
     t0 = time.perf_counter()
-    n = _start(ray, workers, address)
+    temp_dir = tempfile.mkdtemp(prefix="vtts-ray-")
+    try:
+        n = _start(ray, workers, address, temp_dir)
+    except BaseException:
+        shutil.rmtree(temp_dir, ignore_errors=True)
+        raise
     try:
         n = min(n, len(todo))
         report.workers = n
@@ -248,6 +257,7 @@ def _run_on_ray(
     finally:
         with contextlib.suppress(Exception):
             ray.shutdown()
+        shutil.rmtree(temp_dir, ignore_errors=True)
 
 
 def _first_line(e: BaseException) -> str:
