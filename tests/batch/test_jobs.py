@@ -5,12 +5,19 @@ jobs are finished."""
 from __future__ import annotations
 
 import json
+import time
 
 import pytest
 
 from vtts import cli
 from vtts.batch.jobs import JobError, as_jobs, parse_argv, parse_job, read_jobs
-from vtts.batch.manifest import Manifest, OutputFile, output_files, write_failures
+from vtts.batch.manifest import (
+    Manifest,
+    OutputFile,
+    output_files,
+    read_failures,
+    write_failures,
+)
 
 
 def test_a_job_is_the_command_line_with_its_outputs_under_the_folder(tmp_path):
@@ -200,5 +207,10 @@ def test_folder_outputs_count_every_file(tmp_path):
 def test_failures_file_is_replaced_and_removed_when_none(tmp_path):
     path = write_failures(tmp_path, [{"id": "a", "error": "error: x"}])
     assert json.loads(path.read_text()) == {"id": "a", "error": "error: x"}
+    assert read_failures(tmp_path) == {"a": {"id": "a", "error": "error: x"}}
+    stamp = path.stat().st_mtime_ns
+    time.sleep(0.01)
+    write_failures(tmp_path, [{"id": "a", "error": "error: x"}])
+    assert path.stat().st_mtime_ns == stamp  # the same failures: the file is left as it was
     write_failures(tmp_path, [])
     assert not path.exists()

@@ -1,7 +1,7 @@
 """vtts batch on a local Ray instance: 10 short jobs on 2 workers, one with an unknown bookmark,
 one whose worker is killed (SIGKILL) while it writes the video. The other 9 outputs are complete
 and byte-identical to the single command's, the bad job is in failures.jsonl with the command's
-message, the killed one ran again on a new worker; a re-run redoes no finished job."""
+message, the killed one ran again on a new worker; a re-run does nothing."""
 
 from __future__ import annotations
 
@@ -130,11 +130,13 @@ def test_batch_on_local_ray(tmp_path):
     )
     assert failures[0]["error"] == bad.stderr.rstrip("\n")
 
+    assert failures[0]["kind"] == "input"
+
+    # a re-run does nothing: the 9 are finished, the bad job's line is unchanged
     before = {p.name: p.stat().st_mtime_ns for p in out.iterdir()}
     again = _batch(jobs, out)
-    assert again.returncode == 1  # the bad job fails again
+    assert again.returncode == 1  # the batch is still not complete
     assert "0 jobs done, 1 failed, 9 already done" in again.stdout, again.stdout
-    after = {p.name: p.stat().st_mtime_ns for p in out.iterdir()}
-    for name in before:
-        if name != "failures.jsonl":
-            assert after[name] == before[name], name
+    assert "1 failed job not run again" in again.stdout and "start-up" not in again.stdout
+    assert f"q{BAD}: error: column 7: unknown bookmark <frown>" in again.stderr
+    assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()} == before

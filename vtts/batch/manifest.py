@@ -117,11 +117,35 @@ class Manifest:
 
 
 def write_failures(out_dir: str | os.PathLike[str], failures: list[dict]) -> Path:
-    """``DIR/failures.jsonl``: one line per failed job (written whole each time, atomically);
-    removed when there is none."""
+    """``DIR/failures.jsonl``: one line per failed job (written whole, atomically, when it
+    changed); removed when there is none."""
     path = Path(out_dir) / FAILURES
     if not failures:
         path.unlink(missing_ok=True)
         return path
-    write_text(path, "".join(json.dumps(f, ensure_ascii=False) + "\n" for f in failures))
+    text = "".join(json.dumps(f, ensure_ascii=False) + "\n" for f in failures)
+    try:
+        if path.read_text(encoding="utf-8") == text:
+            return path
+    except (OSError, UnicodeDecodeError):
+        pass
+    write_text(path, text)
     return path
+
+
+def read_failures(out_dir: str | os.PathLike[str]) -> dict[str, dict]:
+    """The failed jobs ``DIR/failures.jsonl`` records, by id (bad lines, which have none, and
+    lines that do not read are left out)."""
+    try:
+        text = (Path(out_dir) / FAILURES).read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return {}
+    out = {}
+    for line in text.splitlines():
+        try:
+            entry = json.loads(line)
+        except json.JSONDecodeError:
+            continue
+        if isinstance(entry, dict) and isinstance(entry.get("id"), str):
+            out[entry["id"]] = entry
+    return out

@@ -4,7 +4,8 @@ The driver (this process) checks the jobs, skips those the manifest says are fin
 the workers — :class:`~vtts.batch.worker.JobRunner` as Ray actors, one CPU each — and hands each
 idle worker the next job. A worker keeps its heads, EGL context and renderers from job to job.
 A job whose command fails is recorded in ``DIR/failures.jsonl`` with the message the command
-printed, and the others go on; a worker that dies (killed, out of memory, a crash in a native
+printed, and the others go on (a re-run does not run it again while its line is unchanged and
+failures.jsonl has it); a worker that dies (killed, out of memory, a crash in a native
 library) is replaced by a new one and its job given again, at most :data:`RETRIES` times.
 Finished jobs go into ``DIR/manifest.jsonl`` as they finish.
 """
@@ -24,7 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from vtts.batch.jobs import Job, JobError, JobsFile, as_jobs, read_jobs
-from vtts.batch.manifest import Manifest, write_failures
+from vtts.batch.manifest import Manifest, read_failures, write_failures
 from vtts.batch.worker import JobResult, JobRunner
 from vtts.errors import VttsError
 
@@ -44,7 +45,10 @@ class BatchReport:
 
     ``done``: the jobs run to completion in this run; ``skipped``: ids of jobs the manifest
     had as finished; ``failures``: one dict per failed job or bad line, as written to
-    ``failures.jsonl`` (``id``, ``line``, ``error``: the message, ``attempts``);
+    ``failures.jsonl`` (``id``, ``line``, ``error``: the message, ``attempts``, ``kind``:
+    ``input`` when the command refused its input, ``crash`` when its workers died, ``internal``
+    for a bug; ``digest``: the job's); ``unchanged``: ids of jobs that failed on their input in
+    an earlier run, not run again (their line is unchanged);
     ``seconds``: the whole run's wall time; ``startup_seconds``: the engine's fixed cost (Ray
     started or joined, the workers made and warmed up: pyrender, the EGL context);
     ``workers``: how many ran; ``restarts``: workers replaced after dying.
@@ -54,6 +58,7 @@ class BatchReport:
     done: list[JobResult] = field(default_factory=list)
     skipped: list[str] = field(default_factory=list)
     failures: list[dict] = field(default_factory=list)
+    unchanged: list[str] = field(default_factory=list)
     seconds: float = 0.0
     startup_seconds: float = 0.0
     workers: int = 0
@@ -72,6 +77,12 @@ class BatchReport:
             f"{n} job{'s' if n != 1 else ''} done, {len(self.failures)} failed, "
             f"{len(self.skipped)} already done; {self.seconds:.1f} s"
         )
+        if self.unchanged:
+            k = len(self.unchanged)
+            text += (
+                f"; {k} failed job{'s' if k != 1 else ''} not run again (unchanged since the "
+                "last run: change the line, or remove it from failures.jsonl, to retry)"
+            )
         if n:
             text += (
                 f" ({n / work * 60:.1f} jobs/min on {self.workers} worker"
@@ -124,17 +135,23 @@ def run(
     report.failures = [_bad_line(e) for e in parsed.errors]
     out.mkdir(parents=True, exist_ok=True)
     manifest = Manifest(out)
+    before = read_failures(out)
     todo = []
     for job in parsed.jobs:
+        failed = before.get(job.id)
         if manifest.finished(job):
             report.skipped.append(job.id)
+        elif failed and failed.get("digest") == job.digest and failed.get("kind") == "input":
+            # the command refused this very job: running it again would say the same
+            report.unchanged.append(job.id)
+            report.failures.append({**failed, "line": job.line})
         else:
             todo.append(job)
     write_failures(out, report.failures)
-    if todo:
-        with _bar(len(todo), show_progress) as bar:
-            for job in report.failures:
-                bar.failed(job)
+    with _bar(len(todo), show_progress and bool(todo)) as bar:
+        for entry in report.failures:
+            bar.failed(entry, counted=False, show=show_progress)
+        if todo:
             _run_on_ray(todo, out, manifest, report, workers, address, retries, bar)
     report.seconds = time.perf_counter() - t0
     write_failures(out, report.failures)
@@ -235,11 +252,12 @@ def _run_on_ray(
                     if attempt <= retries:
                         queue.appendleft((job, attempt + 1))
                         continue
-                    _fail(report, out, bar, job, attempt, _crash_message(attempt, e))
+                    _fail(report, out, bar, job, attempt, _crash_message(attempt, e), "crash")
                     continue
                 except ray.exceptions.RayError as e:
                     idle.append(actor)
-                    _fail(report, out, bar, job, attempt, f"error: {_first_line(e)}\n")
+                    message = f"error: {_first_line(e)}\n"
+                    _fail(report, out, bar, job, attempt, message, "internal")
                     continue
                 idle.append(actor)
                 if result.ok:
@@ -253,7 +271,8 @@ def _run_on_ray(
                     report.done.append(result)
                     bar.done()
                 else:
-                    _fail(report, out, bar, job, attempt, result.message)
+                    kind = "internal" if result.internal else "input"
+                    _fail(report, out, bar, job, attempt, result.message, kind)
     finally:
         with contextlib.suppress(Exception):
             ray.shutdown()
@@ -272,8 +291,17 @@ def _crash_message(attempts: int, e: BaseException) -> str:
     )
 
 
-def _fail(report: BatchReport, out: Path, bar, job: Job, attempts: int, message: str) -> None:
-    entry = {"id": job.id, "line": job.line, "error": message.rstrip("\n"), "attempts": attempts}
+def _fail(
+    report: BatchReport, out: Path, bar, job: Job, attempts: int, message: str, kind: str
+) -> None:
+    entry = {
+        "id": job.id,
+        "line": job.line,
+        "error": message.rstrip("\n"),
+        "attempts": attempts,
+        "kind": kind,
+        "digest": job.digest,
+    }
     report.failures.append(entry)
     write_failures(out, report.failures)
     bar.failed(entry)
@@ -302,10 +330,12 @@ class _Bar:
         self.n_done += 1
         self._update()
 
-    def failed(self, entry: dict) -> None:
-        if entry.get("attempts") is not None:  # a job that ran (a bad line counts no job)
+    def failed(self, entry: dict, counted: bool = True, show: bool | None = None) -> None:
+        """A failure: shown (``show``, default: as the bar is), ``counted`` among the jobs of
+        the bar."""
+        if counted:
             self.n_failed += 1
-        if self.show:
+        if self.show if show is None else show:
             lines = entry["error"].splitlines() or [""]
             text = next((x for x in lines if "error:" in x), lines[0])
             if entry["id"] is not None:  # a bad line's message names its line
