@@ -27,9 +27,16 @@ from vtts.errors import VttsError
 
 #: The commands a job may run.
 COMMANDS = ("say", "play", "render")
-#: Options that name what a job writes: files, and folders (every file in them).
+#: Options that name what a job writes: files (these, the commands' own list of outputs, and
+#: every ``--*-out`` option), and folders (every file in them).
 OUTPUT_FILES = ("output", "fap_out", "wav_out")
 OUTPUT_FOLDERS = ("png_dir", "web")
+
+
+def _is_output_file(dest: str) -> bool:
+    from vtts import cli
+
+    return dest in OUTPUT_FILES or dest.endswith("_out") or dest in cli._OUTPUT_OPTIONS
 #: The batch's own files in its folder (:mod:`vtts.batch.manifest`), which no job may write.
 RESERVED = ("manifest.jsonl", "failures.jsonl")
 #: Options a job may not give: the batch runs its jobs quietly.
@@ -177,7 +184,7 @@ def parse_job(spec, out_dir: str | os.PathLike[str], line: int | None = None) ->
         if action is None:
             known = ", ".join(sorted({a.dest for a in options.values()}))
             raise JobError(f"vtts {command} has no option '{key}' (it has: id, {known})")
-        if action.dest in OUTPUT_FILES + OUTPUT_FOLDERS:
+        if action.dest in OUTPUT_FOLDERS or _is_output_file(action.dest):
             if not isinstance(value, str):
                 raise JobError(f"'{key}' takes a path, got {json.dumps(value)}")
             rel = _inside(value, key)
