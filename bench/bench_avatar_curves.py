@@ -4,10 +4,9 @@ The utterance is ``make demo``'s (``samples/texts/welcome.txt``, espeak-ng's def
 the timeline ``vtts say`` builds for ``cybatt`` with its default seed). Each format is timed in
 process with the timeline built (median of five runs of
 :func:`vtts.avatar.curves.write_curves`, from the parameter track and the phones to a renamed
-JSON file; the slowest run of ``arkit`` is the first, which imports SciPy's optimizer). A
-second case times ``arkit`` for a stream of low-level FAPs only (the Xface joy file
-of ``samples/fap/``, as ``vtts play`` reads it at 30 fps), where every distinct frame is a bounded
-least-squares problem.
+JSON file). A second case times ``arkit`` for a stream of low-level FAPs only (the Xface joy file
+of ``samples/fap/``, as ``vtts play`` reads it at 30 fps), where the lips' FAPs make bounded
+least-squares problems (:mod:`vtts.avatar.boxls`).
 
 Target (issue 18 asks for the figure; the target is ours): each format ≤ 0.5 s for the demo, so
 that the curves add little to a ``vtts say`` that takes seconds.

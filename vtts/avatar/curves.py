@@ -13,9 +13,12 @@ timed phones. Four formats (:data:`FORMATS`), all JSON:
       they contribute ``weight × recipe`` (viseme 10 at 0.6 gives ``jawOpen`` 0.42);
     - the **low-level FAPs** are displacements: the table read backwards says which FAPs each
       ARKit shape moves (:meth:`~vtts.avatar.arkit.RecipeTable.fap_content`, ``M``), and the
-      weights ``w`` are the bounded least-squares solution of ``min ‖S⁻¹(M w − f)‖²`` with
-      ``0 ≤ w ≤ 1`` (SciPy's ``lsq_linear``, BVLS), ``S`` being each FAP's amplitude in the
-      table so that a FAP's error counts in its own scale. Negative FAP values find their
+      weights ``w`` are the bounded least-squares solution of ``min ‖S⁻¹(M w − f)‖² + λ‖w‖²``
+      with ``0 ≤ w ≤ 1`` (:data:`RIDGE` λ), ``S`` being each FAP's amplitude in the table so
+      that a FAP's error counts in its own scale. The problem splits into independent blocks
+      (the upper lip's FAPs and shapes, the left eyelid's, …) of at most five shapes, each
+      solved exactly for all frames at once (:func:`vtts.avatar.boxls.box_lstsq`). Negative
+      FAP values find their
       shapes through the negative rows (``raise_l_cornerlip`` < 0 is ``mouthFrownLeft``); FAPs
       without a row (head rotation, ears, pupils, eyeball thrust, most of the tongue) are left
       out. Every shape's own FAP motion gives that shape back exactly.
@@ -49,6 +52,7 @@ import numpy as np
 
 from vtts.atomic import write_text
 from vtts.avatar.arkit import ARKIT_NAMES, OCULUS_VISEMES, RecipeTable, recipes
+from vtts.avatar.boxls import box_lstsq
 from vtts.avatar.sapi import sapi_viseme
 from vtts.errors import AvatarError
 from vtts.face.miap import EXPRESSION_BASE, N_PARAMS, VISEME_BASE
@@ -56,8 +60,9 @@ from vtts.face.miap import EXPRESSION_BASE, N_PARAMS, VISEME_BASE
 #: Digits kept in the weights and in the event times (ms) of the JSON.
 WEIGHT_DIGITS = 4
 TIME_DIGITS = 1
-#: Ridge weight of the least squares (in squared recipe amplitudes): shrinks a weight by about
-#: 0.002 %.
+#: Ridge weight of the least squares (in squared recipe amplitudes): picks the least motion where
+#: shapes cancel or look alike (eyeLookIn against eyeLookOut: 0.3 of one rather than 0.8 of it
+#: and 0.5 of the other); shrinks a weight by about 0.002 %.
 RIDGE = 1e-6
 
 
@@ -100,27 +105,9 @@ def _blocks(content: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
     return sorted(blocks, key=lambda b: b[0][0])
 
 
-def _separable(a: np.ndarray) -> bool:
-    """True for a block of one FAP whose shapes move it in different directions (a blink and
-    eyeWide, eyeLookIn and eyeLookOut), or of one shape: solved in closed form."""
-    if a.shape[1] == 1:
-        return True
-    return a.shape[0] == 1 and (a > 0).sum() <= 1 and (a < 0).sum() <= 1
-
-
-def _solve_separable(a: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """``(n, c)`` weights of a :func:`_separable` block ``a (r, c)`` for every frame of
-    ``f (n, r)``: each shape alone, ridge included, clipped to 0–1 (the shapes of a one-FAP
-    block never act together, as they move the FAP in opposite directions)."""
-    gain = a / (np.sum(a * a, axis=0) + RIDGE)
-    return np.clip(f @ gain, 0.0, 1.0)
-
-
 def arkit_weights(params: np.ndarray, table: RecipeTable | None = None) -> np.ndarray:
     """``(n, 52) float64`` ARKit weights 0–1 (:data:`ARKIT_NAMES` order) of ``(n, N_PARAMS)``
     parameter vectors; the inversion is in the module documentation."""
-    from scipy.optimize import lsq_linear
-
     p = _params(params)
     table = recipes() if table is None else table
     content = table.fap_content()
@@ -128,20 +115,10 @@ def arkit_weights(params: np.ndarray, table: RecipeTable | None = None) -> np.nd
     out = np.zeros((p.shape[0], len(ARKIT_NAMES)))
     for rows, cols in _blocks(content):
         a = content[np.ix_(rows, cols)] / scale[rows, None]
-        # a small ridge picks the least motion where shapes cancel or look alike (eyeLookIn
-        # against eyeLookOut: 0.3 of one rather than 0.8 of it and 0.5 of the other)
-        a = np.vstack([a, np.sqrt(RIDGE) * np.eye(len(cols))])
         f = p[:, rows] / scale[rows]
-        if _separable(a[: len(rows)]):
-            out[:, cols] = _solve_separable(a[: len(rows)], f)
-            continue
-        solved: dict[bytes, np.ndarray] = {}
-        for i in np.flatnonzero(np.any(f != 0, axis=1)):
-            key = f[i].tobytes()  # held FAP values repeat: solve each distinct frame once
-            if key not in solved:
-                b = np.concatenate([f[i], np.zeros(len(cols))])
-                solved[key] = lsq_linear(a, b, bounds=(0.0, 1.0), method="bvls").x
-            out[i, cols] = solved[key]
+        moving = np.any(f != 0, axis=1)
+        if moving.any():
+            out[np.ix_(moving, cols)] = box_lstsq(a, f[moving], RIDGE)
     out += p[:, VISEME_BASE : VISEME_BASE + 15] @ table.viseme_matrix()
     out += p[:, EXPRESSION_BASE : EXPRESSION_BASE + 7] @ table.expression_matrix()
     return np.clip(out, 0.0, 1.0)
