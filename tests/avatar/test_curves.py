@@ -186,6 +186,9 @@ def test_frame_formats_and_writing(tmp_path):
     assert data["names"] == list(ARKIT_NAMES) and data["fps"] == FPS
     assert len(data["frames"]) == 4 and all(len(f) == 52 for f in data["frames"])
     assert data["frames"][0][ARKIT_INDEX["jawOpen"]] == 0.5
+    assert data["head_rotation"] == [[0.0, 0.0, 0.0]] * 4
+    p[1, 47:50] = [10000, -5000, 2000]  # head_pitch, head_yaw, head_roll in AU
+    assert curves("arkit", p, FPS)["head_rotation"][1] == [0.1, -0.05, 0.02]
     ocu = curves("oculus", p, FPS)
     assert ocu["names"] == list(OCULUS_VISEMES) and ocu["frames"][0][0] == 1.0
     assert [p.name for p in tmp_path.iterdir()] == ["c.json"]  # no temporary left

@@ -40,6 +40,8 @@ def test_say_arkit(said):
     assert max(col["jawOpen"]) > 0.3  # the vowels open the jaw
     assert max(col["mouthClose"]) > 0.1 and max(col["mouthPressLeft"]) > 0.4  # b, p
     assert all(0 <= w <= 1 for f in frames for w in f)
+    head = a["head_rotation"]  # the autonomous head motion, in radians
+    assert len(head) == len(frames) and 0 < max(abs(x) for h in head for x in h) < 0.3
 
 
 def test_say_oculus(said):

@@ -6,8 +6,9 @@ speech or from FAP 1, expression weights 1–6 from the bookmarks or from FAP 2)
 timed phones. Four formats (:data:`FORMATS`), all JSON:
 
 ``arkit``
-    ``{"names": [52 ARKit names], "fps": F, "frames": [[52 weights 0–1], …]}``, one row per frame
-    (:func:`arkit_weights`). The recipe table (:mod:`vtts.avatar.arkit`) is inverted in two parts:
+    ``{"names": [52 ARKit names], "fps": F, "frames": [[52 weights 0–1], …], "head_rotation":
+    [[pitch, yaw, roll], …]}``, one row per frame (:func:`arkit_weights`, :func:`head_rotation`,
+    radians). The recipe table (:mod:`vtts.avatar.arkit`) is inverted in two parts:
 
     - the **visemes and expressions** are weights of MIAPs that the table gives as ARKit sums, so
       they contribute ``weight × recipe`` (viseme 10 at 0.6 gives ``jawOpen`` 0.42);
@@ -56,10 +57,12 @@ from vtts.avatar.boxls import box_lstsq
 from vtts.avatar.sapi import sapi_viseme
 from vtts.errors import AvatarError
 from vtts.face.miap import EXPRESSION_BASE, N_PARAMS, VISEME_BASE
+from vtts.fap import AU
 
-#: Digits kept in the weights and in the event times (ms) of the JSON.
+#: Digits kept in the weights, the event times (ms) and the head's angles (rad) of the JSON.
 WEIGHT_DIGITS = 4
 TIME_DIGITS = 1
+HEAD_DIGITS = 5
 #: Ridge weight of the least squares (in squared recipe amplitudes): picks the least motion where
 #: shapes cancel or look alike (eyeLookIn against eyeLookOut: 0.3 of one rather than 0.8 of it
 #: and 0.5 of the other); shrinks a weight by about 0.002 %.
@@ -206,8 +209,19 @@ def _frames(names: Sequence[str], fps: float, weights: np.ndarray) -> dict:
     }
 
 
+def head_rotation(params: np.ndarray) -> np.ndarray:
+    """``(n, 3) float64`` the head's pitch, yaw and roll in radians (FAPs 48–50, AU · 10⁻⁵):
+    pitch > 0 nods down, yaw > 0 turns to the face's left, roll > 0 tilts to its right, as
+    MPEG-4 defines them. ARKit gives the head as the face anchor's transform, not as
+    blendshapes, so the ``arkit`` curves carry it beside the weights."""
+    p = _params(params)
+    return p[:, 47:50] * AU
+
+
 def _arkit(params, fps, phones) -> dict:
-    return _frames(ARKIT_NAMES, fps, arkit_weights(params))
+    out = _frames(ARKIT_NAMES, fps, arkit_weights(params))
+    out["head_rotation"] = np.round(head_rotation(params), HEAD_DIGITS).tolist()
+    return out
 
 
 def _oculus(params, fps, phones) -> dict:
