@@ -205,3 +205,39 @@ def test_formats_and_errors():
         curves("arkit", np.full((1, N_PARAMS), np.nan), FPS)
     with pytest.raises(AvatarError, match="frame rate"):
         curves("oculus", frames(), 0)
+
+
+def _personalities():
+    """The bundled heads' recipes (models/src/personalities.py): visemes and expressions as FAP
+    values, what the modeler dialled in."""
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "models" / "src" / "personalities.py"
+    spec = importlib.util.spec_from_file_location("_vtts_personalities", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # as an import would: its dataclasses look it up
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.parametrize("head", ["cybatt", "lotta"])
+def test_the_table_agrees_with_itself_on_the_bundled_heads(head):
+    """A bundled head's viseme or expression, given as its FAP values, comes out of the FAP rows
+    close to the table's own row for it (cosine of the 52 weights): the FAP amplitudes and the
+    viseme/expression rows tell one story."""
+    heads = _personalities()
+    visemes = getattr(heads, f"{head}_visemes")()
+    expressions = getattr(heads, f"{head}_expressions")()
+    t = recipes()
+    names = ["joy", "sadness", "anger", "fear", "disgust", "surprise"]
+    cases = [(t.viseme(v), visemes[v], 0.85) for v in range(1, 15)]
+    cases += [(t.expression(e), expressions[n], 0.75) for e, n in enumerate(names, start=1)]
+    for row, recipe, least in cases:
+        p = frames()
+        for k, value in recipe.faps.items():
+            p[0, k - 1] = value
+        got, want = arkit_weights(p)[0], row.vector()
+        cosine = got @ want / np.linalg.norm(got) / np.linalg.norm(want)
+        assert cosine >= least, (row.kind, row.number, round(cosine, 2))
