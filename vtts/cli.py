@@ -441,13 +441,13 @@ def cmd_play(args: argparse.Namespace) -> int:
 
 def _check_curves(args: argparse.Namespace) -> None:
     """``--curves FORMAT`` names a format and goes with ``--curves-out`` (before any work)."""
-    from vtts.avatar.curves import check_format
+    from vtts.avatar.curves import DEFAULT_FORMAT, check_format
     from vtts.errors import AvatarError
 
     if args.curves is not None and not args.curves_out:
         raise AvatarError("--curves FORMAT says how to write --curves-out FILE: give that too")
     if args.curves_out:
-        args.curves = check_format(args.curves or "arkit")
+        args.curves = check_format(args.curves or DEFAULT_FORMAT)
 
 
 def _write_curves(args: argparse.Namespace, stream=None, params=None, phones=None) -> None:
