@@ -333,14 +333,15 @@ def _background(args: argparse.Namespace, video: bool):
 
 
 def _renderer(args: argparse.Namespace, models, supersample: int = 1, video: bool = False):
+    from vtts import warm
     from vtts.errors import RenderError
-    from vtts.render import Camera, FaceRenderer
+    from vtts.render import Camera
 
     if args.camera and args.viewpoint:
         raise RenderError("--camera and --viewpoint both choose the camera: give one of them")
     camera = Camera.parse(args.camera) if args.camera else None
     background = _background(args, video)
-    return FaceRenderer(
+    return warm.renderer(
         models,
         size=_size(args.size),
         camera=camera,
@@ -353,8 +354,8 @@ def _renderer(args: argparse.Namespace, models, supersample: int = 1, video: boo
 
 def cmd_render(args: argparse.Namespace) -> int:
     """Render one pose of one or more models to a PNG."""
-    from vtts.face import load_model
     from vtts.render import write_png
+    from vtts.warm import load_model  # kept between the jobs of vtts batch
 
     _background(args, video=False)  # a bad color fails before the models load
     request = _pose_request(args)
@@ -373,9 +374,9 @@ def cmd_play(args: argparse.Namespace) -> int:
     head translation moves each model by that many of its own ES units."""
     from vtts.animate.fapstream import model_roots, stream_params, warn_ignored
     from vtts.errors import RenderError
-    from vtts.face import load_model
     from vtts.fap.cli_coding import read_stream
     from vtts.render import PngSequenceWriter, VideoWriter, progress
+    from vtts.warm import load_model  # kept between the jobs of vtts batch
 
     if not (args.output or args.png_dir or args.web or args.gltf or args.curves_out):
         raise RenderError(
@@ -570,10 +571,10 @@ def cmd_say(args: argparse.Namespace) -> int:
 
     from vtts.animate.timeline import build_timeline, timeline_stream
     from vtts.errors import BookmarkError, RenderError
-    from vtts.face import load_model
     from vtts.fap import write_fap
     from vtts.limits import MAX_TEXT_BYTES, read_bytes_capped
     from vtts.render import PngSequenceWriter, VideoWriter, progress, write_wav
+    from vtts.warm import load_model  # kept between the jobs of vtts batch
 
     wanted = (args.output, args.gltf, args.png_dir, args.fap_out, args.wav_out, args.web)
     if not any(wanted) and not args.curves_out:
@@ -854,6 +855,32 @@ def cmd_models(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_batch(args: argparse.Namespace) -> int:
+    """Run the say/play/render jobs of a .jsonl file on Ray workers (:func:`vtts.batch.run`),
+    or with --dry-run only check every line."""
+    from vtts.batch import read_jobs, run
+    from vtts.batch.jobs import JobError, preflight
+
+    if args.dry_run:
+        checked = read_jobs(args.jobs, args.out)
+        models: dict = {}
+        for job in list(checked.jobs):
+            try:
+                preflight(job, models)
+            except JobError as e:
+                e.file, e.line = args.jobs, job.line
+                checked.errors.append(e)
+                checked.jobs.remove(job)
+        for e in sorted(checked.errors, key=lambda e: e.line or 0):
+            print_error(e)
+        n = len(checked.jobs)
+        print(f"{args.jobs}: {n} valid job{'s' if n != 1 else ''}, {len(checked.errors)} bad")
+        return 1 if checked.errors else 0
+    report = run(args.jobs, args.out, args.workers, args.address, show_progress=True)
+    print(f"batch: {report.summary()}")
+    return 0 if report.ok else 1
+
+
 def _miap_of(key: str):
     from vtts.face import Miap
 
@@ -1016,6 +1043,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     an.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     an.set_defaults(func=cmd_analyze)
+
+    ba = sub.add_parser("batch", help="run many say/play/render jobs on Ray workers")
+    ba.add_argument("jobs", metavar="JOBS.jsonl", help="one job per line (docs/batch.md)")
+    ba.add_argument("--out", required=True, metavar="DIR", help="the outputs' folder")
+    ba.add_argument("--workers", type=int, metavar="N", help="workers (default: one per CPU)")
+    ba.add_argument("--address", help="an existing Ray cluster (default: a local one)")
+    ba.add_argument("--dry-run", action="store_true", help="check every line, render nothing")
+    ba.set_defaults(func=cmd_batch)
 
     vo = sub.add_parser("voices", help="list espeak-ng voices")
     vo.add_argument("language", nargs="?", help="only voices of this language (e.g. en)")
@@ -1218,6 +1253,12 @@ def main(argv: list[str] | None = None) -> int:
     if threading.current_thread() is threading.main_thread():
         for sig in (signal.SIGTERM, signal.SIGHUP):
             signal.signal(sig, _terminate_as_interrupt)
+    return execute(args)
+
+
+def execute(args: argparse.Namespace) -> int:
+    """Run the command ``args`` (from :func:`build_parser`) as ``vtts`` does: its exit status,
+    with bad input printed on stderr as one clear message (``vtts batch`` runs its jobs so)."""
     try:
         with reported_warnings(), _url_roots(args):
             _check_io(args)
