@@ -548,6 +548,7 @@ def _speak_and_set_up(args, text: str, models: list, known: set[str]):
             prepare_utterance,
             text,
             known=known,
+            engine=args.engine,
             voice=args.voice,
             rate=args.rate,
             pitch=args.pitch,
@@ -574,13 +575,14 @@ def cmd_say(args: argparse.Namespace) -> int:
     from vtts.fap import write_fap
     from vtts.limits import MAX_TEXT_BYTES, read_bytes_capped
     from vtts.render import PngSequenceWriter, VideoWriter, progress, write_wav
+    from vtts.speech.say import write_utterance_timings
     from vtts.warm import load_model  # kept between the jobs of vtts batch
 
-    wanted = (args.output, args.gltf, args.png_dir, args.fap_out, args.wav_out, args.web)
-    if not any(wanted) and not args.curves_out:
+    written = (args.output, args.gltf, args.png_dir, args.web, args.fap_out, args.wav_out)
+    if not any(written) and not args.curves_out and not args.timings_out:
         raise RenderError(
             "nothing to write: give -o OUT.mp4 (or OUT.glb), --png-dir, --web, --fap-out, "
-            "--wav-out or --curves-out"
+            "--wav-out, --timings-out or --curves-out"
         )
     if not 0 < args.fps <= 240:
         raise RenderError(f"--fps must be within 0–240, got {args.fps:g}")
@@ -658,10 +660,11 @@ def cmd_say(args: argparse.Namespace) -> int:
         write_fap(timeline_stream(timelines[0], models[0].name), args.fap_out)
     if args.wav_out:
         write_wav(args.wav_out, utt.audio, utt.rate)
+    if args.timings_out:
+        write_utterance_timings(args.timings_out, utt)
     _write_curves(args, params=timelines[0].params, phones=utt.phones)
     if not args.quiet:
-        written = (args.output, args.gltf, args.png_dir, args.web, args.fap_out, args.wav_out)
-        written += (args.curves_out,)
+        written = (*written, args.timings_out, args.curves_out)
         outputs = [str(p) for p in written if p]
         print(f"wrote {', '.join(outputs)}: {utt.duration:.2f} s, {n} frames at {args.fps:g} fps")
     return 0
@@ -959,7 +962,18 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sy.add_argument("--file", help="read the text from a file instead")
     _models_flag(sy)
-    sy.add_argument("--voice", default="en-us", help="espeak-ng voice (see vtts voices)")
+    sy.add_argument(
+        "--engine",
+        choices=("espeak", "festival"),
+        default="espeak",
+        help="speech synthesizer: espeak-ng (default) or festival's HTS voice "
+        "(Debian festival, festvox-us-slt-hts)",
+    )
+    sy.add_argument(
+        "--voice",
+        help="espeak-ng voice (default en-us; see vtts voices), or with --engine festival a "
+        "festival voice (default cmu_us_slt_arctic_hts)",
+    )
     sy.add_argument("--rate", type=int, help="speaking rate in words per minute")
     sy.add_argument("--pitch", type=int, help="pitch 0-99")
     sy.add_argument(
@@ -967,7 +981,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="timings from another engine: Polly speech marks or a "
         "'start end phoneme' table (needs --audio)",
     )
-    sy.add_argument("--audio", help="the WAV that --phonemes describes")
+    sy.add_argument(
+        "--audio", help="the speech that --phonemes describes (WAV, FLAC, OGG, MP3, M4A …)"
+    )
     sy.add_argument("--seed", type=_seed, default=0, help="seed of the autonomous behaviour")
     sy.add_argument(
         "--no-autonomous",
@@ -977,6 +993,10 @@ def build_parser() -> argparse.ArgumentParser:
     sy.add_argument("--fps", type=float, default=30.0, help="frame rate (default 30)")
     sy.add_argument("--fap-out", help="also write the FAP stream (.fap)")
     sy.add_argument("--wav-out", help="also write the speech (.wav)")
+    sy.add_argument(
+        "--timings-out",
+        help="also write the word and phone timings (.tsv: kind start end label viseme)",
+    )
     _curves_flags(sy)
     sy.add_argument("--png-dir", help="also (or only) write lossless PNG frames into this folder")
     sy.add_argument("--quiet", action="store_true", help="no progress bar or summary")
@@ -1174,7 +1194,7 @@ def _view_flags(p: argparse.ArgumentParser) -> None:
 
 
 #: Options that name files a command writes, and files or folders it reads.
-_OUTPUT_OPTIONS = ("output", "fap_out", "wav_out", "curves_out")
+_OUTPUT_OPTIONS = ("output", "fap_out", "wav_out", "timings_out", "curves_out")
 _INPUT_OPTIONS = ("stream", "video", "audio", "file", "phonemes", "input")
 
 
