@@ -207,7 +207,6 @@ class _Importer:
         gn = self.asset.doc.nodes[index]
         local = self.asset.local_matrix(index)
         t, r, s = _trs(local)
-        name = self.unique(gn.name, f"node{index}")
         children: list[Node] = []
         if gn.mesh is not None:
             mesh = self.asset.mesh(gn.mesh)
@@ -225,6 +224,8 @@ class _Importer:
                 children += (
                     [self._eye_wrap(shapes, eye, self.world[index], start)] if eye else shapes
                 )
+        # named after the meshes below it: a mesh keeps its own name as its IndexedFaceSet's DEF
+        name = self.unique(gn.name, f"node{index}")
         for c in gn.children or []:
             children.append(self._transform(c, skinned))
         fields: dict = {"children": children}
