@@ -177,8 +177,13 @@ def arkit_avatar_gltf(model: FaceModel, table: RecipeTable | None = None, *,
     return doc
 
 
-def write_arkit_avatar(path: str | os.PathLike[str], model: FaceModel,
-                       table: RecipeTable | None = None, *, oculus: bool = True) -> Path:  # fmt: skip
+def write_arkit_avatar(
+    path: str | os.PathLike[str],
+    model: FaceModel,
+    table: RecipeTable | None = None,
+    *,
+    oculus: bool = True,
+) -> Path:
     """Write ``model`` as an ARKit-blendshape ``.glb`` (see the module docstring), atomically.
     Returns the path."""
     from vtts.atomic import atomic_path
