@@ -452,42 +452,55 @@ class _Importer:
                 mid = fs.points[i] + fs.targets[shape][i] / 2
                 fp[point] = (fs.name, int(np.argmin(np.linalg.norm(fs.points - mid, axis=1))))
         corners = {}
-        for point, shapes in (("8.3", ("mouthSmileLeft", "mouthStretchLeft")),
-                              ("8.4", ("mouthSmileRight", "mouthStretchRight"))):  # fmt: skip
+        corner_shapes = (("8.3", ("mouthSmileLeft", "mouthStretchLeft"), 1.0),
+                         ("8.4", ("mouthSmileRight", "mouthStretchRight"), -1.0))  # fmt: skip
+        for point, shapes, side in corner_shapes:
             for shape in shapes:
                 b = most(shape)
                 if b is not None:
-                    fp[point] = (b[0].name, b[1])
-                    corners[point] = b[0].points[b[1]]
+                    # the corner: the outermost of the vertices the shape moves nearly as much as
+                    # its most moved one (the lips' inner and outer corners move alike)
+                    fs, _, top = b
+                    mag = np.linalg.norm(fs.targets[shape], axis=1)
+                    strong = np.flatnonzero(mag >= 0.7 * top)
+                    i = int(strong[np.argmax(side * fs.points[strong, 0])])
+                    fp[point] = (fs.name, i)
+                    corners[point] = fs.points[i]
                     break
-        if len(corners) == 2:
+        if len(corners) == 2 and fp["8.3"][0] == fp["8.4"][0]:
             fs = next(f for f in self.face_sets if f.name == fp["8.3"][0])
             mid = (corners["8.3"] + corners["8.4"]) / 2
             width = abs(corners["8.3"][0] - corners["8.4"][0])
-            near = np.flatnonzero(
-                (np.abs(fs.points[:, 0] - mid[0]) < 0.1 * width)
-                & (np.abs(fs.points[:, 1] - mid[1]) < 0.15 * width)
-            )  # fmt: skip
+            x, y, z = fs.points[:, 0], fs.points[:, 1], fs.points[:, 2]
+            midline = np.abs(x - mid[0]) < 0.08 * width
+            # the inner upper lip's middle: on the midline, in front of the corners, at their
+            # height (a closed mouth's line)
+            near = np.flatnonzero(midline & (z >= mid[2]) & (np.abs(y - mid[1]) < 0.15 * width))
             if near.size:
-                fp["2.2"] = (fs.name, int(near[np.argmax(fs.points[near, 2])]))
-            sneer = [most("noseSneerLeft"), most("noseSneerRight")]
-            lows = [s[0].points[np.flatnonzero(np.linalg.norm(s[0].targets[k], axis=1) > 0)]
-                    for s, k in zip(sneer, ("noseSneerLeft", "noseSneerRight"), strict=True)
-                    if s is not None]  # fmt: skip
-            if lows:
-                y = min(float(p[:, 1].min()) for p in lows if len(p))
-                band = np.flatnonzero(
-                    (np.abs(fs.points[:, 0] - mid[0]) < 0.1 * width)
-                    & (np.abs(fs.points[:, 1] - y) < 0.1 * width)
-                )  # fmt: skip
-                if band.size:
-                    fp["9.15"] = (fs.name, int(band[np.argmax(fs.points[band, 2])]))
+                i = near[np.lexsort((-z[near], np.round(np.abs(y[near] - mid[1]) / width, 3)))][0]
+                fp["2.2"] = (fs.name, int(i))
+                # the bottom of the nose: the midline point between the nose's tip (the
+                # frontmost midline point above the mouth, below the eyes) and the upper lip
+                # that lies deepest behind the straight line from one to the other (the
+                # profile's concave corner where the nose's underside meets the philtrum)
+                eyes_y = max(p[1] for p in (corners["8.3"], corners["8.4"])) + width
+                if "3.5" in fp:
+                    e = next(f for f in self.face_sets if f.name == fp["3.5"][0])
+                    eyes_y = e.points[fp["3.5"][1], 1]
+                above = np.flatnonzero(midline & (y > y[i] + 0.05 * width) & (y < eyes_y))
+                if above.size:
+                    tip = above[np.argmax(z[above])]
+                    between = np.flatnonzero(midline & (y > y[i] + 0.05 * width) & (y < y[tip]))
+                    if between.size:
+                        t = (y[between] - y[i]) / (y[tip] - y[i])
+                        behind = z[i] + t * (z[tip] - z[i]) - z[between]
+                        fp["9.15"] = (fs.name, int(between[np.argmax(behind)]))
         needed = ("3.1", "3.3", "3.5", "3.6", "9.15", "2.2", "8.3", "8.4")
         missing = [p for p in needed if p not in fp]
         if missing:
             warnings.warn(VttsWarning(
                 f"feature points {', '.join(missing)} not found through the morph targets "
-                "(eyeBlink*, mouthSmile*/mouthStretch*, noseSneer*, eye meshes): the model has "
+                "(eyeBlink*, mouthSmile*/mouthStretch*, eye meshes): the model has "
                 "no FAPUs of its own", file=self.asset.file), stacklevel=3)  # fmt: skip
         return fp
 
