@@ -377,14 +377,16 @@ def cmd_play(args: argparse.Namespace) -> int:
     from vtts.fap.cli_coding import read_stream
     from vtts.render import PngSequenceWriter, VideoWriter, progress
 
-    if not args.output and not args.png_dir and not args.web and not args.gltf:
+    if not (args.output or args.png_dir or args.web or args.gltf or args.curves_out):
         raise RenderError(
-            "nothing to write: give -o OUT.mp4 (or OUT.glb), --png-dir DIR and/or --web DIR"
+            "nothing to write: give -o OUT.mp4 (or OUT.glb), --png-dir DIR, --web DIR and/or "
+            "--curves-out FILE"
         )
     if not 0 < args.fps <= 240:
         raise RenderError(f"--fps must be within 0–240, got {args.fps:g}")
     _background(args, video=bool(args.output))
     _check_web(args)
+    _check_curves(args)
     stream = read_stream(args.stream)
     models = [load_model(m) for m in args.model]
     tracks, played = [], []
@@ -401,8 +403,9 @@ def cmd_play(args: argparse.Namespace) -> int:
     if args.gltf:
         _write_gltf(args, models, tracks, roots)
     if not args.output and not args.png_dir:
+        _write_curves(args, stream)
         if not args.quiet:
-            outputs = " and ".join(str(p) for p in (args.gltf, args.web) if p)
+            outputs = " and ".join(str(p) for p in (args.gltf, args.web, args.curves_out) if p)
             print(f"wrote {outputs}: {n} frames at {args.fps:g} fps ({n / args.fps:.2f} s)")
         return 0
     with contextlib.ExitStack() as stack:
@@ -428,10 +431,37 @@ def cmd_play(args: argparse.Namespace) -> int:
             for sink in sinks:
                 sink.write(frame)
             bar.advance()
-    outputs = " and ".join(str(p) for p in (args.output, args.gltf, args.png_dir, args.web) if p)
+    _write_curves(args, stream)
+    written = (args.output, args.gltf, args.png_dir, args.web, args.curves_out)
+    outputs = " and ".join(str(p) for p in written if p)
     if not args.quiet:
         print(f"wrote {outputs}: {n} frames at {args.fps:g} fps ({n / args.fps:.2f} s)")
     return 0
+
+
+def _check_curves(args: argparse.Namespace) -> None:
+    """``--curves FORMAT`` names a format and goes with ``--curves-out`` (before any work)."""
+    from vtts.avatar.curves import check_format
+    from vtts.errors import AvatarError
+
+    if args.curves is not None and not args.curves_out:
+        raise AvatarError("--curves FORMAT says how to write --curves-out FILE: give that too")
+    if args.curves_out:
+        args.curves = check_format(args.curves or "arkit")
+
+
+def _write_curves(args: argparse.Namespace, stream=None, params=None, phones=None) -> None:
+    """``--curves-out FILE`` of say (the first model's timeline and the phones) and play (the
+    stream itself, every FAP, viseme and expression it sets): :mod:`vtts.avatar.curves`."""
+    if not args.curves_out:
+        return
+    from vtts.animate.fapstream import stream_params
+    from vtts.avatar.curves import write_curves
+    from vtts.face.miap import all_miaps
+
+    if params is None:
+        params = stream_params(stream, all_miaps(), fps=args.fps).params
+    write_curves(args.curves_out, args.curves, params, args.fps, phones)
 
 
 def _write_gltf(args: argparse.Namespace, models, params, roots=None) -> None:
@@ -545,15 +575,17 @@ def cmd_say(args: argparse.Namespace) -> int:
     from vtts.limits import MAX_TEXT_BYTES, read_bytes_capped
     from vtts.render import PngSequenceWriter, VideoWriter, progress, write_wav
 
-    if not (args.output or args.gltf or args.png_dir or args.fap_out or args.wav_out or args.web):
+    wanted = (args.output, args.gltf, args.png_dir, args.fap_out, args.wav_out, args.web)
+    if not any(wanted) and not args.curves_out:
         raise RenderError(
-            "nothing to write: give -o OUT.mp4 (or OUT.glb), --png-dir, --web, --fap-out or "
-            "--wav-out"
+            "nothing to write: give -o OUT.mp4 (or OUT.glb), --png-dir, --web, --fap-out, "
+            "--wav-out or --curves-out"
         )
     if not 0 < args.fps <= 240:
         raise RenderError(f"--fps must be within 0–240, got {args.fps:g}")
     _background(args, video=bool(args.output))
     _check_web(args)
+    _check_curves(args)
     text = args.text
     if args.file:
         try:
@@ -625,8 +657,10 @@ def cmd_say(args: argparse.Namespace) -> int:
         write_fap(timeline_stream(timelines[0], models[0].name), args.fap_out)
     if args.wav_out:
         write_wav(args.wav_out, utt.audio, utt.rate)
+    _write_curves(args, params=timelines[0].params, phones=utt.phones)
     if not args.quiet:
         written = (args.output, args.gltf, args.png_dir, args.web, args.fap_out, args.wav_out)
+        written += (args.curves_out,)
         outputs = [str(p) for p in written if p]
         print(f"wrote {', '.join(outputs)}: {utt.duration:.2f} s, {n} frames at {args.fps:g} fps")
     return 0
@@ -880,6 +914,7 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--fps", type=float, default=30.0, help="output frame rate (default 30)")
     pl.add_argument("--png-dir", help="also (or only) write lossless PNG frames into this folder")
     pl.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    _curves_flags(pl)
     _web_flag(pl)
     _view_flags(pl)
     pl.add_argument("-o", "--output", help="output .mp4, or an animated .glb/.gltf")
@@ -915,6 +950,7 @@ def build_parser() -> argparse.ArgumentParser:
     sy.add_argument("--fps", type=float, default=30.0, help="frame rate (default 30)")
     sy.add_argument("--fap-out", help="also write the FAP stream (.fap)")
     sy.add_argument("--wav-out", help="also write the speech (.wav)")
+    _curves_flags(sy)
     sy.add_argument("--png-dir", help="also (or only) write lossless PNG frames into this folder")
     sy.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     _web_flag(sy)
@@ -989,6 +1025,20 @@ def build_parser() -> argparse.ArgumentParser:
 
     register(sub)
     return p
+
+
+def _curves_flags(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--curves-out",
+        metavar="FILE",
+        help="also write the animation as another engine's curves (JSON, see --curves)",
+    )
+    p.add_argument(
+        "--curves",
+        metavar="FORMAT",
+        help="format of --curves-out: arkit (52 blendshape weights per frame, the default), "
+        "oculus (15 viseme weights per frame), azure (viseme events), talkinghead",
+    )
 
 
 def _models_flag(p: argparse.ArgumentParser) -> None:
@@ -1089,7 +1139,7 @@ def _view_flags(p: argparse.ArgumentParser) -> None:
 
 
 #: Options that name files a command writes, and files or folders it reads.
-_OUTPUT_OPTIONS = ("output", "fap_out", "wav_out")
+_OUTPUT_OPTIONS = ("output", "fap_out", "wav_out", "curves_out")
 _INPUT_OPTIONS = ("stream", "video", "audio", "file", "phonemes", "input")
 
 
