@@ -64,6 +64,9 @@ MAX_RENDER_PIXELS = 3840 * 2160
 
 #: The most elements (vertices, indices) one glTF accessor may hold.
 MAX_ACCESSOR_COUNT = 50_000_000
+#: The most morph targets one glTF mesh primitive may have (an ARKit avatar has 52, with the
+#: Oculus visemes 67; each target is a copy of the mesh's positions in memory).
+MAX_MORPH_TARGETS = 1024
 
 
 class LimitError(VttsError):
