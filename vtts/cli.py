@@ -378,14 +378,16 @@ def cmd_play(args: argparse.Namespace) -> int:
     from vtts.render import PngSequenceWriter, VideoWriter, progress
     from vtts.warm import load_model  # kept between the jobs of vtts batch
 
-    if not args.output and not args.png_dir and not args.web and not args.gltf:
+    if not (args.output or args.png_dir or args.web or args.gltf or args.curves_out):
         raise RenderError(
-            "nothing to write: give -o OUT.mp4 (or OUT.glb), --png-dir DIR and/or --web DIR"
+            "nothing to write: give -o OUT.mp4 (or OUT.glb), --png-dir DIR, --web DIR and/or "
+            "--curves-out FILE"
         )
     if not 0 < args.fps <= 240:
         raise RenderError(f"--fps must be within 0–240, got {args.fps:g}")
     _background(args, video=bool(args.output))
     _check_web(args)
+    _check_curves(args)
     stream = read_stream(args.stream)
     models = [load_model(m) for m in args.model]
     tracks, played = [], []
@@ -402,8 +404,9 @@ def cmd_play(args: argparse.Namespace) -> int:
     if args.gltf:
         _write_gltf(args, models, tracks, roots)
     if not args.output and not args.png_dir:
+        _write_curves(args, stream)
         if not args.quiet:
-            outputs = " and ".join(str(p) for p in (args.gltf, args.web) if p)
+            outputs = " and ".join(str(p) for p in (args.gltf, args.web, args.curves_out) if p)
             print(f"wrote {outputs}: {n} frames at {args.fps:g} fps ({n / args.fps:.2f} s)")
         return 0
     with contextlib.ExitStack() as stack:
@@ -429,10 +432,37 @@ def cmd_play(args: argparse.Namespace) -> int:
             for sink in sinks:
                 sink.write(frame)
             bar.advance()
-    outputs = " and ".join(str(p) for p in (args.output, args.gltf, args.png_dir, args.web) if p)
+    _write_curves(args, stream)
+    written = (args.output, args.gltf, args.png_dir, args.web, args.curves_out)
+    outputs = " and ".join(str(p) for p in written if p)
     if not args.quiet:
         print(f"wrote {outputs}: {n} frames at {args.fps:g} fps ({n / args.fps:.2f} s)")
     return 0
+
+
+def _check_curves(args: argparse.Namespace) -> None:
+    """``--curves FORMAT`` names a format and goes with ``--curves-out`` (before any work)."""
+    from vtts.avatar.curves import DEFAULT_FORMAT, check_format
+    from vtts.errors import AvatarError
+
+    if args.curves is not None and not args.curves_out:
+        raise AvatarError("--curves FORMAT says how to write --curves-out FILE: give that too")
+    if args.curves_out:
+        args.curves = check_format(args.curves or DEFAULT_FORMAT)
+
+
+def _write_curves(args: argparse.Namespace, stream=None, params=None, phones=None) -> None:
+    """``--curves-out FILE`` of say (the first model's timeline and the phones) and play (the
+    stream itself, every FAP, viseme and expression it sets): :mod:`vtts.avatar.curves`."""
+    if not args.curves_out:
+        return
+    from vtts.animate.fapstream import stream_params
+    from vtts.avatar.curves import write_curves
+    from vtts.face.miap import all_miaps
+
+    if params is None:
+        params = stream_params(stream, all_miaps(), fps=args.fps).params
+    write_curves(args.curves_out, args.curves, params, args.fps, phones)
 
 
 def _write_gltf(args: argparse.Namespace, models, params, roots=None) -> None:
@@ -518,6 +548,7 @@ def _speak_and_set_up(args, text: str, models: list, known: set[str]):
             prepare_utterance,
             text,
             known=known,
+            engine=args.engine,
             voice=args.voice,
             rate=args.rate,
             pitch=args.pitch,
@@ -544,17 +575,20 @@ def cmd_say(args: argparse.Namespace) -> int:
     from vtts.fap import write_fap
     from vtts.limits import MAX_TEXT_BYTES, read_bytes_capped
     from vtts.render import PngSequenceWriter, VideoWriter, progress, write_wav
+    from vtts.speech.say import write_utterance_timings
     from vtts.warm import load_model  # kept between the jobs of vtts batch
 
-    if not (args.output or args.gltf or args.png_dir or args.fap_out or args.wav_out or args.web):
+    written = (args.output, args.gltf, args.png_dir, args.web, args.fap_out, args.wav_out)
+    if not any(written) and not args.curves_out and not args.timings_out:
         raise RenderError(
-            "nothing to write: give -o OUT.mp4 (or OUT.glb), --png-dir, --web, --fap-out or "
-            "--wav-out"
+            "nothing to write: give -o OUT.mp4 (or OUT.glb), --png-dir, --web, --fap-out, "
+            "--wav-out, --timings-out or --curves-out"
         )
     if not 0 < args.fps <= 240:
         raise RenderError(f"--fps must be within 0–240, got {args.fps:g}")
     _background(args, video=bool(args.output))
     _check_web(args)
+    _check_curves(args)
     text = args.text
     if args.file:
         try:
@@ -626,8 +660,11 @@ def cmd_say(args: argparse.Namespace) -> int:
         write_fap(timeline_stream(timelines[0], models[0].name), args.fap_out)
     if args.wav_out:
         write_wav(args.wav_out, utt.audio, utt.rate)
+    if args.timings_out:
+        write_utterance_timings(args.timings_out, utt)
+    _write_curves(args, params=timelines[0].params, phones=utt.phones)
     if not args.quiet:
-        written = (args.output, args.gltf, args.png_dir, args.web, args.fap_out, args.wav_out)
+        written = (*written, args.timings_out, args.curves_out)
         outputs = [str(p) for p in written if p]
         print(f"wrote {', '.join(outputs)}: {utt.duration:.2f} s, {n} frames at {args.fps:g} fps")
     return 0
@@ -907,6 +944,7 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--fps", type=float, default=30.0, help="output frame rate (default 30)")
     pl.add_argument("--png-dir", help="also (or only) write lossless PNG frames into this folder")
     pl.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    _curves_flags(pl)
     _web_flag(pl)
     _view_flags(pl)
     pl.add_argument("-o", "--output", help="output .mp4, or an animated .glb/.gltf")
@@ -924,7 +962,18 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sy.add_argument("--file", help="read the text from a file instead")
     _models_flag(sy)
-    sy.add_argument("--voice", default="en-us", help="espeak-ng voice (see vtts voices)")
+    sy.add_argument(
+        "--engine",
+        choices=("espeak", "festival"),
+        default="espeak",
+        help="speech synthesizer: espeak-ng (default) or festival's HTS voice "
+        "(Debian festival, festvox-us-slt-hts)",
+    )
+    sy.add_argument(
+        "--voice",
+        help="espeak-ng voice (default en-us; see vtts voices), or with --engine festival a "
+        "festival voice (default cmu_us_slt_arctic_hts)",
+    )
     sy.add_argument("--rate", type=int, help="speaking rate in words per minute")
     sy.add_argument("--pitch", type=int, help="pitch 0-99")
     sy.add_argument(
@@ -932,7 +981,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="timings from another engine: Polly speech marks or a "
         "'start end phoneme' table (needs --audio)",
     )
-    sy.add_argument("--audio", help="the WAV that --phonemes describes")
+    sy.add_argument(
+        "--audio", help="the speech that --phonemes describes (WAV, FLAC, OGG, MP3, M4A …)"
+    )
     sy.add_argument("--seed", type=_seed, default=0, help="seed of the autonomous behaviour")
     sy.add_argument(
         "--no-autonomous",
@@ -942,6 +993,11 @@ def build_parser() -> argparse.ArgumentParser:
     sy.add_argument("--fps", type=float, default=30.0, help="frame rate (default 30)")
     sy.add_argument("--fap-out", help="also write the FAP stream (.fap)")
     sy.add_argument("--wav-out", help="also write the speech (.wav)")
+    sy.add_argument(
+        "--timings-out",
+        help="also write the word and phone timings (.tsv: kind start end label viseme)",
+    )
+    _curves_flags(sy)
     sy.add_argument("--png-dir", help="also (or only) write lossless PNG frames into this folder")
     sy.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     _web_flag(sy)
@@ -1024,6 +1080,20 @@ def build_parser() -> argparse.ArgumentParser:
 
     register(sub)
     return p
+
+
+def _curves_flags(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--curves-out",
+        metavar="FILE",
+        help="also write the animation as another engine's curves (JSON, see --curves)",
+    )
+    p.add_argument(
+        "--curves",
+        metavar="FORMAT",
+        help="format of --curves-out: arkit (52 blendshape weights per frame, the default), "
+        "oculus (15 viseme weights per frame), azure (viseme events), talkinghead",
+    )
 
 
 def _models_flag(p: argparse.ArgumentParser) -> None:
@@ -1124,7 +1194,7 @@ def _view_flags(p: argparse.ArgumentParser) -> None:
 
 
 #: Options that name files a command writes, and files or folders it reads.
-_OUTPUT_OPTIONS = ("output", "fap_out", "wav_out")
+_OUTPUT_OPTIONS = ("output", "fap_out", "wav_out", "timings_out", "curves_out")
 _INPUT_OPTIONS = ("stream", "video", "audio", "file", "phonemes", "input")
 
 

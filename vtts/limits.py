@@ -39,6 +39,11 @@ MAX_FAP_VALUE = 1e6
 
 #: The longest animation, in seconds (an utterance, a FAP file, a decoded stream).
 MAX_DURATION_S = 3600.0
+#: The longest audio file ``vtts say --audio`` reads (30 minutes: 330 MB of float samples at
+#: 48 kHz), checked before decoding where the file states its length and while decoding.
+MAX_AUDIO_S = 1800.0
+#: The highest sample rate of an audio file, Hz.
+MAX_AUDIO_RATE = 192_000
 #: The most frames of one animation (an hour at 60 Hz).
 MAX_FRAMES = 216_000
 #: Frame rates a FAP file or stream may declare, in frames per second (with the duration limit,
@@ -59,6 +64,9 @@ MAX_RENDER_PIXELS = 3840 * 2160
 
 #: The most elements (vertices, indices) one glTF accessor may hold.
 MAX_ACCESSOR_COUNT = 50_000_000
+#: The most morph targets one glTF mesh primitive may have (an ARKit avatar has 52, with the
+#: Oculus visemes 67; each target is a copy of the mesh's positions in memory).
+MAX_MORPH_TARGETS = 1024
 
 
 class LimitError(VttsError):

@@ -1,0 +1,378 @@
+"""Reading glTF avatars (vtts.avatar.reader): quantized, strided and sparse accessors, Draco and
+meshopt compression, KTX2 textures dropped with a warning, and clear errors for broken or hostile
+files. Every file is built by hand in the test (tests/avatar/avatar_helpers.py)."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pygltflib as gl
+import pytest
+from avatar_helpers import (
+    BYTE,
+    FLOAT,
+    SHORT,
+    UINT,
+    USHORT,
+    Builder,
+    grid,
+    moves,
+    simple_avatar,
+)
+
+from vtts.avatar.importer import import_avatar
+from vtts.avatar.reader import GltfAsset
+from vtts.errors import AvatarError, VttsWarning
+from vtts.face import Miap
+from vtts.limits import MAX_ACCESSOR_COUNT, MAX_MORPH_TARGETS
+
+
+def rotated(faces: np.ndarray) -> np.ndarray:
+    """Each triangle rotated to start at its smallest index (the winding kept)."""
+    k = np.argmin(faces, axis=1)
+    return np.stack([np.roll(f, -i) for f, i in zip(faces, k, strict=True)])
+
+
+def read_mesh(path):
+    return GltfAsset(path).mesh(0)
+
+
+def test_a_float_avatar_reads_back_exactly(tmp_path):
+    path = simple_avatar(tmp_path / "a.glb")
+    (prim,) = read_mesh(path).primitives
+    pos, faces = grid()
+    assert np.allclose(prim.positions, pos) and np.array_equal(prim.faces, faces)
+    assert np.allclose(prim.targets[0], moves(len(pos), 1))
+
+
+@pytest.mark.parametrize(
+    "ctype,normalized,scale",
+    [(SHORT, False, 1 / 1000), (USHORT, False, 1 / 1000), (BYTE, True, 0.5), (SHORT, True, 0.5)],
+    ids=["int16", "uint16", "int8-normalized", "int16-normalized"],
+)
+def test_quantized_positions_and_targets(tmp_path, ctype, normalized, scale):
+    """KHR_mesh_quantization: integer positions (unnormalized, their scale in the node, or
+    normalized) and normalized 8-bit morph targets."""
+    pos, faces = grid()
+    pos = pos + 0.5  # within 0–1: unsigned types too
+    b = Builder()
+    if normalized:
+        limit = 127 if ctype == BYTE else 32767
+        stored = np.round(pos / 2 * limit)  # value = stored / limit, times the node's 2
+        node_scale = [2.0, 2.0, 2.0]
+    else:
+        stored = np.round(pos * 1000)
+        node_scale = [scale] * 3
+    p = b.accessor(stored, ctype, normalized=normalized)
+    delta = moves(len(pos), 3, (0.0, -0.5, 0.0))
+    t = b.accessor(np.round(delta * 127), BYTE, normalized=True)
+    idx = b.accessor(faces.reshape(-1), USHORT)
+    mesh = b.mesh({"POSITION": p}, idx, [{"POSITION": t}], ["jawOpen"])
+    b.doc.extensionsUsed = b.doc.extensionsRequired = ["KHR_mesh_quantization"]
+    b.node(name="Head", mesh=mesh, scale=node_scale)
+    path = b.save(tmp_path / "q.glb")
+    (prim,) = read_mesh(path).primitives
+    want = stored / (127 if ctype == BYTE else 32767) if normalized else stored
+    assert np.allclose(prim.positions, want)
+    assert np.allclose(prim.targets[0], np.round(delta * 127) / 127)
+    avatar = import_avatar(path)
+    head = avatar.scene.node("Head")
+    assert np.allclose(head["scale"], node_scale)  # the dequantization stays in the node
+
+
+@pytest.mark.parametrize("stride", [16, 14, 252])
+def test_strided_positions_are_read(tmp_path, stride):
+    """Interleaved or padded elements: any byteStride from the element size to 252 is read (14 is
+    not a multiple of 4, as glTF wants, but nothing stops reading it)."""
+    pos, faces = grid()
+    b = Builder()
+    p = b.accessor(pos, FLOAT, stride=stride)
+    idx = b.accessor(faces.reshape(-1), UINT)
+    b.node(mesh=b.mesh({"POSITION": p}, idx, [], []))
+    (prim,) = read_mesh(b.save(tmp_path / "s.glb")).primitives
+    assert np.allclose(prim.positions, pos)
+
+
+@pytest.mark.parametrize(
+    "stride,message",
+    [(-12, "byteStride -12 is not positive"), (8, "byteStride 8 is smaller than one element"),
+     (256, "byteStride 256 is more than glTF's 252")],
+)  # fmt: skip
+def test_bad_strides_are_clear_errors(tmp_path, stride, message):
+    pos, faces = grid()
+    b = Builder()
+    p = b.accessor(pos)
+    b.doc.bufferViews[b.doc.accessors[p].bufferView].byteStride = stride
+    b.node(mesh=b.mesh({"POSITION": p}, None, [], []))
+    path = b.save(tmp_path / "bad.glb")
+    with pytest.raises(AvatarError, match=message) as e:
+        import_avatar(path)
+    assert e.value.file == str(path)
+
+
+def test_sparse_targets(tmp_path):
+    pos, faces = grid()
+    b = Builder()
+    p = b.accessor(pos)
+    idx_view = b.view(np.array([2, 7], np.uint16).tobytes())
+    val_view = b.view(np.array([[0, 0.1, 0], [0, 0.2, 0]], np.float32).tobytes())
+    b.doc.accessors.append(gl.Accessor(
+        componentType=FLOAT, count=len(pos), type="VEC3",
+        sparse=gl.Sparse(count=2, indices=gl.AccessorSparseIndices(bufferView=idx_view,
+                                                                   componentType=USHORT),
+                         values=gl.AccessorSparseValues(bufferView=val_view))))  # fmt: skip
+    t = len(b.doc.accessors) - 1
+    b.node(mesh=b.mesh({"POSITION": p}, b.accessor(faces.reshape(-1), USHORT),
+                       [{"POSITION": t}], ["mouthClose"]))  # fmt: skip
+    (prim,) = read_mesh(b.save(tmp_path / "sp.glb")).primitives
+    want = np.zeros((len(pos), 3))
+    want[2, 1], want[7, 1] = 0.1, 0.2
+    assert np.allclose(prim.targets[0], want)
+
+
+def test_draco_compressed_mesh(tmp_path):
+    import DracoPy
+
+    pos, faces = grid(6)
+    data = DracoPy.encode(pos.astype(np.float32), faces.astype(np.uint32), preserve_order=True,
+                          quantization_bits=16)  # fmt: skip
+    b = Builder()
+    view = b.view(data)
+    position_id = next(a["unique_id"] for a in DracoPy.decode(data).attributes
+                       if a["attribute_type"] == 0)  # fmt: skip
+    b.doc.accessors.append(gl.Accessor(componentType=FLOAT, count=len(pos), type="VEC3",
+                                       min=[-0.5, -0.5, 0], max=[0.5, 0.5, 0]))  # fmt: skip
+    p = len(b.doc.accessors) - 1
+    b.doc.accessors.append(gl.Accessor(componentType=UINT, count=faces.size, type="SCALAR"))
+    idx = len(b.doc.accessors) - 1
+    t = b.accessor(moves(len(pos), 4))
+    ext = {"KHR_draco_mesh_compression": {"bufferView": view,
+                                          "attributes": {"POSITION": position_id}}}  # fmt: skip
+    b.node(name="Head", mesh=b.mesh({"POSITION": p}, idx, [{"POSITION": t}], ["jawOpen"],
+                                    extensions=ext))  # fmt: skip
+    b.doc.extensionsUsed = b.doc.extensionsRequired = ["KHR_draco_mesh_compression"]
+    (prim,) = read_mesh(b.save(tmp_path / "d.glb")).primitives
+    decoded = prim.positions[prim.faces]
+    assert np.allclose(np.sort(decoded.reshape(-1, 3), axis=0),
+                       np.sort(pos[faces].reshape(-1, 3), axis=0), atol=1e-4)  # fmt: skip
+    assert np.allclose(prim.positions, pos, atol=1e-4)  # the order kept (preserve_order)
+
+
+def test_broken_draco_data_is_a_clear_error(tmp_path):
+    b = Builder()
+    view = b.view(b"not draco at all")
+    b.doc.accessors.append(gl.Accessor(componentType=FLOAT, count=3, type="VEC3"))
+    ext = {"KHR_draco_mesh_compression": {"bufferView": view, "attributes": {"POSITION": 0}}}
+    b.node(mesh=b.mesh({"POSITION": 0}, None, [], [], extensions=ext))
+    with pytest.raises(AvatarError, match="KHR_draco_mesh_compression.*cannot decode"):
+        import_avatar(b.save(tmp_path / "d.glb"))
+
+
+@pytest.mark.parametrize("extension", ["EXT_meshopt_compression", "KHR_meshopt_compression"])
+def test_meshopt_compressed_buffer_views(tmp_path, extension):
+    """EXT_meshopt_compression: vertex attributes and triangle indices decoded by the meshoptimizer
+    package; the bufferViews' own buffer is a fallback without data."""
+    import meshoptimizer
+
+    pos, faces = grid(6)
+    b = Builder()
+    b.doc.buffers.append(gl.Buffer(byteLength=10**6, extensions={extension: {"fallback": True}}))
+    vdata = meshoptimizer.encode_vertex_buffer(pos.astype(np.float32))
+    idata = meshoptimizer.encode_index_buffer(faces.reshape(-1).astype(np.uint32),
+                                              vertex_count=len(pos))  # fmt: skip
+    views = []
+    for data, count, stride, mode in ((vdata, len(pos), 12, "ATTRIBUTES"),
+                                      (idata, faces.size, 4, "TRIANGLES")):  # fmt: skip
+        off = b.doc.bufferViews[b.view(data)].byteOffset
+        b.doc.bufferViews.append(
+            gl.BufferView(
+                buffer=1,
+                byteOffset=0,
+                byteLength=count * stride,
+                byteStride=stride if mode == "ATTRIBUTES" else None,
+                extensions={
+                    extension: {
+                        "buffer": 0,
+                        "byteOffset": off,
+                        "byteLength": len(data),
+                        "byteStride": stride,
+                        "count": count,
+                        "mode": mode,
+                    }
+                },
+            )
+        )
+        views.append(len(b.doc.bufferViews) - 1)
+    p = b.accessor(pos, view=views[0])
+    b.doc.accessors.append(gl.Accessor(bufferView=views[1], componentType=UINT,
+                                       count=faces.size, type="SCALAR"))  # fmt: skip
+    b.node(mesh=b.mesh({"POSITION": p}, len(b.doc.accessors) - 1, [], []))
+    b.doc.extensionsUsed = b.doc.extensionsRequired = [extension]
+    (prim,) = read_mesh(b.save(tmp_path / "m.glb")).primitives
+    assert np.allclose(prim.positions, pos)
+    # the index codec keeps every triangle and its winding, but may start it at another corner
+    assert np.array_equal(rotated(prim.faces), rotated(faces))
+
+
+def test_a_ktx2_texture_is_dropped_with_a_warning(tmp_path):
+    pos, faces = grid()
+    b = Builder()
+    p = b.accessor(pos)
+    uv = b.accessor(pos[:, :2] + 0.5)
+    ktx2 = b"\xabKTX 20\xbb\r\n\x1a\n" + bytes(64)
+    b.doc.images.append(gl.Image(bufferView=b.view(ktx2), mimeType="image/ktx2"))
+    b.doc.textures.append(gl.Texture(extensions={"KHR_texture_basisu": {"source": 0}}))
+    b.doc.materials.append(gl.Material(pbrMetallicRoughness=gl.PbrMetallicRoughness(
+        baseColorTexture=gl.TextureInfo(index=0))))  # fmt: skip
+    b.doc.extensionsUsed = b.doc.extensionsRequired = ["KHR_texture_basisu"]
+    b.node(
+        name="Head",
+        mesh=b.mesh(
+            {"POSITION": p, "TEXCOORD_0": uv},
+            b.accessor(faces.reshape(-1), USHORT),
+            [],
+            [],
+            material=0,
+        ),
+    )
+    path = b.save(tmp_path / "k.glb")
+    with pytest.warns(VttsWarning, match="KTX2/Basis Universal.*untextured"):
+        avatar = import_avatar(path)
+    assert avatar.scene.find("ImageTexture") == [] and avatar.images == {}
+    assert avatar.scene.find("IndexedFaceSet")  # the mesh is there
+
+
+def test_a_png_texture_is_kept(tmp_path):
+    import io
+
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.new("RGB", (4, 4), (200, 10, 10)).save(buf, format="PNG")
+    pos, faces = grid()
+    b = Builder()
+    p = b.accessor(pos)
+    uv = b.accessor(pos[:, :2] + 0.5)
+    b.doc.images.append(gl.Image(bufferView=b.view(buf.getvalue()), mimeType="image/png"))
+    b.doc.textures.append(gl.Texture(source=0))
+    b.doc.materials.append(gl.Material(pbrMetallicRoughness=gl.PbrMetallicRoughness(
+        baseColorTexture=gl.TextureInfo(index=0))))  # fmt: skip
+    b.node(
+        name="Head",
+        mesh=b.mesh(
+            {"POSITION": p, "TEXCOORD_0": uv},
+            b.accessor(faces.reshape(-1), USHORT),
+            [],
+            [],
+            material=0,
+        ),
+    )
+    avatar = import_avatar(b.save(tmp_path / "t.glb"))
+    files = avatar.write(tmp_path / "out.wrl")
+    assert [f.name for f in files] == ["out.wrl", "out.adt", "out-tex0.png"]
+    assert files[2].read_bytes() == buf.getvalue()
+    (tex,) = avatar.scene.find("ImageTexture")
+    assert list(tex["url"]) == ["image0"]  # the scene keeps its key; the file says out-tex0.png
+    assert 'url "out-tex0.png"' in files[0].read_text() or "out-tex0.png" in files[0].read_text()
+
+
+# ---- errors -----------------------------------------------------------------------------------
+
+
+def test_an_unknown_required_extension_is_named(tmp_path):
+    b = Builder()
+    b.doc.extensionsRequired = ["EXT_something_new"]
+    b.node(mesh=b.mesh({"POSITION": b.accessor(grid()[0])}, None, [], []))
+    with pytest.raises(AvatarError, match="requires the glTF extension EXT_something_new"):
+        import_avatar(b.save(tmp_path / "x.glb"))
+
+
+def test_a_hostile_accessor_count_is_refused_before_allocating(tmp_path):
+    b = Builder()
+    p = b.accessor(grid()[0])
+    b.doc.accessors[p].count = 10**12
+    b.node(mesh=b.mesh({"POSITION": p}, None, [], []))
+    with pytest.raises(AvatarError, match=f"more than the limit of {MAX_ACCESSOR_COUNT}"):
+        import_avatar(b.save(tmp_path / "x.glb"))
+
+
+def test_too_many_morph_targets_are_refused(tmp_path):
+    pos, _ = grid()
+    b = Builder()
+    p = b.accessor(pos)
+    t = b.accessor(np.zeros_like(pos))
+    b.node(mesh=b.mesh({"POSITION": p}, None, [{"POSITION": t}] * (MAX_MORPH_TARGETS + 1), []))
+    with pytest.raises(AvatarError, match=f"more than the limit of {MAX_MORPH_TARGETS}"):
+        import_avatar(b.save(tmp_path / "x.glb"))
+
+
+def test_an_accessor_past_its_buffer_is_refused(tmp_path):
+    b = Builder()
+    p = b.accessor(grid()[0])
+    b.doc.accessors[p].count = 1000
+    b.node(mesh=b.mesh({"POSITION": p}, None, [], []))
+    with pytest.raises(AvatarError, match="reach past the end of bufferView"):
+        import_avatar(b.save(tmp_path / "x.glb"))
+
+
+def test_a_triangle_naming_a_missing_vertex_is_refused(tmp_path):
+    b = Builder()
+    p = b.accessor(grid()[0])
+    b.node(mesh=b.mesh({"POSITION": p}, b.accessor(np.array([0, 1, 99]), USHORT), [], []))
+    with pytest.raises(AvatarError, match="names vertex 99"):
+        import_avatar(b.save(tmp_path / "x.glb"))
+
+
+def test_a_node_cycle_is_refused(tmp_path):
+    b = Builder()
+    b.node(name="a", children=[1], mesh=b.mesh({"POSITION": b.accessor(grid()[0])}, None, [], []))
+    b.node(name="b", children=[0])
+    with pytest.raises(AvatarError, match="its own ancestor"):
+        import_avatar(b.save(tmp_path / "x.glb", roots=[0]))
+
+
+@pytest.mark.parametrize(
+    "content,message",
+    [(b"glTF\x02\x00\x00\x00garbage", "not a readable glTF file"),
+     (b"{not json", "not a readable glTF file"),
+     (b'{"asset": {"version": "1.0"}}', "only glTF 2.x")],
+)  # fmt: skip
+def test_files_that_are_not_gltf(tmp_path, content, message):
+    path = tmp_path / "x.glb"
+    path.write_bytes(content)
+    with pytest.raises(AvatarError, match=message):
+        import_avatar(path)
+
+
+def test_a_file_without_meshes(tmp_path):
+    b = Builder()
+    b.node(name="empty")
+    with pytest.raises(AvatarError, match="no triangle mesh"):
+        import_avatar(b.save(tmp_path / "x.glb"))
+
+
+def test_points_primitives_are_skipped_with_a_warning(tmp_path):
+    pos, faces = grid()
+    b = Builder()
+    p = b.accessor(pos)
+    b.node(mesh=b.mesh({"POSITION": p}, b.accessor(faces.reshape(-1), USHORT), [], []))
+    b.doc.meshes[0].primitives.append(gl.Primitive(attributes=gl.Attributes(POSITION=p), mode=0))
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        avatar = import_avatar(b.save(tmp_path / "x.glb"))
+    assert any("POINTS primitives are not drawn" in str(x.message) for x in w)
+    assert len(avatar.scene.find("IndexedFaceSet")) == 1
+
+
+def test_fap_tables_follow_the_recipe(tmp_path):
+    """jawOpen moving one vertex by 0.1 makes open_jaw's table 0.1 / 1000 per unit (the recipe:
+    open_jaw at +1000 looks like jawOpen at 1)."""
+    from vtts.avatar.arkit import recipes
+
+    avatar = import_avatar(simple_avatar(tmp_path / "a.glb", ["jawOpen"]))
+    row = recipes().fap(3, 1)
+    (table,) = avatar.tables.adts[Miap("fap", 3)].meshes
+    assert table.borders.tolist() == [0.0, row.amplitude]
+    assert table.vertices.tolist() == [1]
+    assert np.allclose(table.displacements[0, 0], [0, -0.1 * row.shapes["jawOpen"] / 1000, 0])
