@@ -42,6 +42,17 @@ def test_a_job_is_the_command_line_with_its_outputs_under_the_folder(tmp_path):
     assert args.func is cli.cmd_say
 
 
+def test_every_out_option_is_an_output_under_the_folder(tmp_path):
+    job = parse_job(
+        {"say": "Hi.", "model": "cybatt", "timings_out": "t/a.tsv", "curves-out": "a.json"},
+        tmp_path,
+    )
+    assert job.outputs == ("t/a.tsv", "a.json")
+    args = parse_argv(job.argv)
+    assert args.timings_out == str(tmp_path / "t/a.tsv")
+    assert args.curves_out == str(tmp_path / "a.json")
+
+
 def test_render_and_play_jobs(tmp_path):
     render = parse_job(
         {"render": True, "model": "lotta", "expression": "joy", "output": "a.png"}, tmp_path
