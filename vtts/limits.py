@@ -26,6 +26,8 @@ MAX_CACHE_ENTRY_BYTES = 1 << 30
 MAX_TEXT_BYTES = 64 << 20
 #: A FAP bitstream (``.fbs``): an hour at 30 Hz with every FAP is well under this.
 MAX_FBS_BYTES = 64 << 20
+#: A ``vtts batch`` jobs file (a million jobs of 250 bytes).
+MAX_JOBS_BYTES = 256 << 20
 #: A glTF or GLB file (with its buffers).
 MAX_GLTF_BYTES = 512 << 20
 

@@ -225,3 +225,12 @@ def test_failures_file_is_replaced_and_removed_when_none(tmp_path):
     assert path.stat().st_mtime_ns == stamp  # the same failures: the file is left as it was
     write_failures(tmp_path, [])
     assert not path.exists()
+
+
+def test_a_jobs_file_larger_than_the_cap_is_refused(tmp_path, monkeypatch):
+    path = _jobs_file(tmp_path, [json.dumps({"say": "Hi.", "model": "cybatt", "output": "a.mp4"})])
+    monkeypatch.setattr("vtts.limits.MAX_JOBS_BYTES", 16)
+    with pytest.raises(JobError, match="larger than the limit"):
+        read_jobs(path, tmp_path)
+    with pytest.raises(JobError, match="cannot read the jobs"):
+        read_jobs(tmp_path / "none.jsonl", tmp_path)

@@ -280,9 +280,13 @@ def read_jobs(path: str | os.PathLike[str], out_dir: str | os.PathLike[str]) -> 
     """The jobs of a ``.jsonl`` file (blank lines skipped), each checked by :func:`parse_job`;
     a bad line becomes a :class:`JobError` with its line (and, for bad JSON, column) instead of
     stopping the others. Raises :class:`JobError` when the file cannot be read."""
+    from vtts.limits import MAX_JOBS_BYTES, LimitError, read_bytes_capped
+
     name = os.fspath(path)
     try:
-        data = Path(path).read_bytes()
+        data = read_bytes_capped(path, MAX_JOBS_BYTES, what="the jobs file")
+    except LimitError as e:
+        raise JobError(e.message, file=name) from None
     except OSError as e:
         raise JobError(f"cannot read the jobs: {e.strerror or e}", file=name) from None
     jobs: list[Job] = []
