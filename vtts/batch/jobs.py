@@ -37,6 +37,8 @@ def _is_output_file(dest: str) -> bool:
     from vtts import cli
 
     return dest in OUTPUT_FILES or dest.endswith("_out") or dest in cli._OUTPUT_OPTIONS
+
+
 #: The batch's own files in its folder (:mod:`vtts.batch.manifest`), which no job may write.
 RESERVED = ("manifest.jsonl", "failures.jsonl")
 #: Options a job may not give: the batch runs its jobs quietly.
