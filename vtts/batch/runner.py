@@ -207,7 +207,8 @@ def _run_on_ray(
 ) -> None:
     ray = _ray()
     t0 = time.perf_counter()
-    temp_dir = tempfile.mkdtemp(prefix="vtts-ray-")
+    # short: Ray's Unix sockets live in it (a socket path has at most 107 characters)
+    temp_dir = tempfile.mkdtemp(prefix="vtts-ray-", dir="/tmp" if os.path.isdir("/tmp") else None)
     try:
         n = _start(ray, workers, address, temp_dir)
     except BaseException:
