@@ -4,6 +4,7 @@ bundled ffmpeg, stereo mixed to mono, resampling, the length limit and clear err
 
 from __future__ import annotations
 
+import io
 import subprocess
 import sys
 from pathlib import Path
@@ -180,3 +181,18 @@ def test_say_muxes_an_mp3_into_the_mp4(tmp_path: Path, files: dict[str, Path]) -
     assert r.returncode == 0, r.stderr
     info = probe_media(out)
     assert info.audio_rate == RATE and info.duration_audio == pytest.approx(SECONDS, abs=0.07)
+
+
+@pytest.mark.parametrize("claimed", [0, 100, 8000, 20000])
+def test_flac_whose_header_states_another_length(tmp_path: Path, claimed: int) -> None:
+    # STREAMINFO's 36-bit sample count: 0 means unknown; the decoder may trust it or not
+    buf = io.BytesIO()
+    x = (0.5 * np.sin(np.arange(8000) * 0.1)).astype(np.float32)
+    sf.write(buf, x, 8000, format="FLAC", subtype="PCM_16")
+    data = bytearray(buf.getvalue())
+    bits = int.from_bytes(data[18:26], "big") & ~((1 << 36) - 1) | claimed
+    data[18:26] = bits.to_bytes(8, "big")
+    (tmp_path / "c.flac").write_bytes(bytes(data))
+    samples, rate = read_audio(tmp_path / "c.flac")
+    assert rate == 8000 and samples.size in (claimed, 8000)
+    assert np.allclose(samples[:100], x[:100], atol=1e-3)

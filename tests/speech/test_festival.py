@@ -53,6 +53,20 @@ def test_phones_cover_the_audio_without_overlap(utterance) -> None:
     assert all(p.phoneme in PHONE_SET for p in u.phones)
 
 
+def test_pauses_are_silent_and_vowels_loud(utterance) -> None:
+    # festival's segment times are the truth for its audio (what an aligner is measured with)
+    u = utterance
+    x = u.audio.astype(np.float64)
+
+    def rms(p) -> float:
+        return float(np.sqrt(np.mean(x[int(p.start * u.rate) : int(p.end * u.rate)] ** 2)))
+
+    vowels = [rms(p) for p in u.phones if p.viseme >= 10]
+    pauses = [rms(p) for p in u.phones if p.phoneme == "pau"]
+    assert len(pauses) >= 3  # the start, after "Bob." and after "Maybe we meet at 3 pm,"
+    assert max(pauses) < 0.1 * np.median(vowels) and min(vowels) > 0.25 * np.median(vowels)
+
+
 def test_bilabials_are_viseme_1_and_the_lips_close_in_the_audio(utterance) -> None:
     u = utterance
     bilabials = [p for p in u.phones if p.phoneme in ("p", "b", "m")]
@@ -90,6 +104,29 @@ def test_words_and_bookmarks(utterance) -> None:
     assert spoken == ["th", "r", "iy"]
 
 
+def test_long_text_is_spoken_in_utterances_of_a_few_sentences(monkeypatch) -> None:
+    assert festival._chunks("Hi. Bob is here! Mary, too.\n\nYes", 5) == [
+        "Hi. Bob is here! ",
+        "Mary, too.\n\n",
+        "Yes",
+    ]
+    assert festival._chunks("a b c d e f g h i j k", 8) == ["a b c d ", "e f g h ", "i j k"]
+    assert festival._chunks("Short.", 300) == ["Short."]
+    monkeypatch.setattr(festival, "CHUNK_CHARS", 8)
+    text = "Bob is here. Mary is there."
+    one = synthesize(text, marks=[text.index("Mary")])
+    assert [w.text for w in one.words] == ["Bob", "is", "here", "Mary", "is", "there"]
+    assert one.marks[0].time == one.words[3].start
+    assert one.words[2].end < one.words[3].start  # a pause: the second utterance's
+    for a, b in zip(one.phonemes, one.phonemes[1:], strict=False):
+        assert a.end == pytest.approx(b.start, abs=1e-9) and a.start < a.end
+    assert one.phonemes[-1].end == pytest.approx(one.duration)
+    # the chunks' audio joined: the second utterance's phones are where its sound is
+    m = next(p for p in one.phonemes if p.phoneme == "m")
+    i = int(m.start * one.rate)
+    assert np.abs(one.audio[i - 3200 : i - 1600]).max() < 1500  # the pause before Mary
+
+
 def test_rate_and_pitch() -> None:
     slow = synthesize("Hello there.", rate=120)
     fast = synthesize("Hello there.", rate=240)
@@ -116,6 +153,23 @@ def test_missing_voice_and_program(monkeypatch) -> None:
         synthesize("Hi")
 
 
+@pytest.mark.parametrize(
+    "attack",
+    [
+        '{q}) (system "touch {f}") ("',
+        '\\{q}) (system "touch {f}") ;',
+        '\n(system "touch {f}")\n',
+        '\'(system "touch {f}")',
+    ],
+)
+def test_text_cannot_escape_its_scheme_string(tmp_path: Path, attack: str) -> None:
+    marker = tmp_path / "pwned"
+    text = "Say " + attack.format(q='"', f=marker) + " done"
+    speech = synthesize(text)
+    assert not marker.exists()
+    assert speech.words[0].text == "Say" and speech.words[-1].text == "done"
+
+
 def test_say_engine_festival_end_to_end(tmp_path: Path) -> None:
     out, tsv = tmp_path / "f.mp4", tmp_path / "f.tsv"
     exe = Path(sys.executable).with_name("vtts")
@@ -129,3 +183,9 @@ def test_say_engine_festival_end_to_end(tmp_path: Path) -> None:
     rows = [ln.split("\t") for ln in tsv.read_text().splitlines()[1:]]
     assert [r[3] for r in rows if r[0] == "word"] == ["Bob", "is", "here"]
     assert [r[3] for r in rows if r[0] == "phone"][:3] == ["pau", "b", "aa"]
+    # an espeak-ng voice is no festival voice
+    cmd = [str(exe), "say", "Hi", "--engine", "festival", "--voice", "en-gb", "--model", str(HEAD)]
+    r = subprocess.run([*cmd, "--timings-out", str(tmp_path / "x.tsv")], capture_output=True,
+                       text=True, timeout=300)  # fmt: skip
+    assert r.returncode == 1 and "invalid festival voice 'en-gb'" in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr and not (tmp_path / "x.tsv").exists()

@@ -1,7 +1,7 @@
 """Fuzzing what ``vtts say --phonemes FILE --audio WAV`` reads (issue 21): Polly speech marks
-(JSON lines), ``start end phoneme`` tables and the WAV. Whatever the bytes, the only exception is
-SpeechError (or LimitError) naming the file; what is accepted has phones in order with visemes,
-within the duration limit.
+(JSON lines), ``start end phoneme`` tables, ``--timings-out`` tables (issue 19) and the audio.
+Whatever the bytes, the only exception is SpeechError (or LimitError) naming the file; what is
+accepted has phones in order with visemes, within the duration limit.
 """
 
 from __future__ import annotations
@@ -51,7 +51,13 @@ ARPABET = """# alphabet: arpabet
 0.3 0.52 OW1
 """
 IPA = "# alphabet: ipa\n0 0.1 h\n0.1 0.2 ə\n0.2 0.3 ˈloʊ\n"
-CORPUS = [POLLY, TABLE, ARPABET, IPA]
+TIMINGS = """kind	start	end	label	viseme
+phone	0.0000	0.0120	_	0
+word	0.0120	0.3059	Hello	-
+phone	0.0120	0.0630	h	5
+phone	0.0630	0.3059	oU	13
+"""
+CORPUS = [POLLY, TABLE, ARPABET, IPA, TIMINGS]
 
 FUZZ = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -75,6 +81,7 @@ def read_or_speech_error(path: Path, data: bytes) -> PhonemeFile | None:
         assert math.isfinite(p.start) and 0 <= p.start <= p.end <= MAX_DURATION_S
         assert p.viseme is not None and 0 <= p.viseme <= 14
     assert all(0 <= m.time <= MAX_DURATION_S for m in pf.marks)
+    assert all(0 <= w.start <= w.end <= MAX_DURATION_S for w in pf.words)
     return pf
 
 

@@ -6,15 +6,17 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import pytest
 
 from vtts.animate.timeline import TimedPhone
-from vtts.errors import SpeechError
+from vtts.errors import SpeechError, VttsWarning
 from vtts.limits import LimitError
+from vtts.render import write_wav
 from vtts.speech.phonemes import read_phoneme_file
-from vtts.speech.say import prepare_utterance
+from vtts.speech.say import prepare_utterance, write_utterance_timings
 from vtts.speech.timings import HEADER, TimedWord, format_timings, word_ends
 
 HEAD = Path(__file__).parents[1] / "data" / "models" / "head.wrl"
@@ -98,6 +100,23 @@ def test_say_writes_timings_and_reads_them_back(tmp_path: Path) -> None:
     r = vtts("say", TEXT, "--model", str(HEAD), "--phonemes", str(tsv), "--audio", str(wav),
              "--timings-out", str(tsv))  # fmt: skip
     assert r.returncode == 1 and "also an input" in r.stderr
+
+
+def test_reused_timings_place_bookmarks_at_their_words(tmp_path: Path, espeak_utterance) -> None:
+    utt = espeak_utterance
+    tsv, wav = tmp_path / "t.tsv", tmp_path / "t.wav"
+    write_utterance_timings(tsv, utt)
+    write_wav(wav, utt.audio, utt.rate)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no "placed in proportion" warning
+        again = prepare_utterance(TEXT, phonemes=tsv, audio=wav)
+    times = [b.time for b in again.bookmarks]
+    assert times == [again.words[1].start, again.words[9].start]
+    assert times == pytest.approx([b.time for b in utt.bookmarks], abs=0.03)
+    # words that are not the text's: the rough placement, said
+    with pytest.warns(VttsWarning, match="in proportion"):
+        other = prepare_utterance("One <blink> two three four.", phonemes=tsv, audio=wav)
+    assert other.bookmarks[0].time == pytest.approx(other.duration * 4 / len(other.text.text))
 
 
 def test_polly_word_marks_become_words(tmp_path: Path) -> None:

@@ -8,6 +8,7 @@ timeline needs. It knows nothing about models or rendering.
 
 from __future__ import annotations
 
+import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -138,12 +139,15 @@ def _place_marks(utt: Utterance, marks: list[tuple[str, float]], *, fallback: bo
             f"the synthesizer reported no time for {len(missing)} bookmark(s) "
             f"(<{missing[0].written}> at column {missing[0].column})"
         )
-    # Another engine's file without marks: place each bookmark at the same fraction of the audio
-    # as of the text (a rough estimate; say so).
+    if _place_at_words(utt):
+        return
+    # Another engine's file without marks or words: place each bookmark at the same fraction of
+    # the audio as of the text (a rough estimate; say so).
     warnings.warn(
         VttsWarning(
-            "the phoneme file gives no mark times (SSML marks named b0, b1, …): bookmarks are "
-            "placed in proportion to their position in the text"
+            "the phoneme file gives no mark times (SSML marks named b0, b1, …) and no words "
+            "matching the text's: bookmarks are placed in proportion to their position in the "
+            "text"
         ),
         stacklevel=3,
     )
@@ -157,6 +161,31 @@ def _place_marks(utt: Utterance, marks: list[tuple[str, float]], *, fallback: bo
             if piece.time is None:
                 piece.time = utt.duration * pos / total
             k += 1
+
+
+_TEXT_WORD = re.compile(r"\S*\w\S*")
+
+
+def _place_at_words(utt: Utterance) -> bool:
+    """Bookmarks without a time at the start of the word after them, when the file's words
+    (Polly's word marks, a ``--timings-out`` table) are the text's, one for one: the end of the
+    last word for a bookmark after every word. False, and nothing placed, when they are not."""
+    if not utt.words:
+        return False
+    count = 0
+    before: list[int] = []  # for each bookmark, the words of the text before it
+    for piece in utt.text.pieces:
+        if isinstance(piece, str):
+            count += len(_TEXT_WORD.findall(piece))
+        else:
+            before.append(count)
+    if count != len(utt.words):
+        return False
+    words = sorted(utt.words, key=lambda w: w.start)
+    for b, n in zip(utt.bookmarks, before, strict=True):
+        if b.time is None:
+            b.time = words[n].start if n < len(words) else words[-1].end
+    return True
 
 
 def _read_audio(path: Path) -> tuple[np.ndarray, int]:
