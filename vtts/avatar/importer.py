@@ -245,7 +245,7 @@ class _Importer:
     def _eye_wrap(self, shapes: list[Node], side: str, world: np.ndarray, start: int) -> Node:
         """The eyeball's shapes in a Transform centred on it, rotated by FAPs 23–26."""
         pts = np.concatenate([fs.points for fs in self.face_sets[start:]] or [np.zeros((1, 3))])
-        centre = (pts.min(axis=0) + pts.max(axis=0)) / 2
+        centre = eyeball_centre(pts)
         name = self.unique(f"{side[0].upper()}_EYE_ROTATION", "eye")
         lin = world[:3, :3]
         self.eye_transforms[side] = (name, np.linalg.inv(lin) if abs(np.linalg.det(lin)) > 1e-30
@@ -503,6 +503,26 @@ class _Importer:
                 "(eyeBlink*, mouthSmile*/mouthStretch*, eye meshes): the model has "
                 "no FAPUs of its own", file=self.asset.file), stacklevel=3)  # fmt: skip
         return fp
+
+
+def eyeball_centre(points: np.ndarray) -> np.ndarray:
+    """``(3,)`` the centre an eyeball turns about: of the sphere that best fits its ``points``
+    ``(n, 3)`` (least squares), since an eye mesh is often only the front of a sphere, whose
+    bounding box's centre lies too far forward; the bounding box's centre when no sphere fits
+    (too few points, or a radius beyond the mesh's size)."""
+    box = (points.min(axis=0) + points.max(axis=0)) / 2
+    size = float(np.ptp(points, axis=0).max()) if len(points) else 0.0
+    if len(points) < 4 or not size > 0:
+        return box
+    a = np.c_[2 * points, np.ones(len(points))]
+    b = (points**2).sum(axis=1)
+    sol, *_ = np.linalg.lstsq(a, b, rcond=None)
+    centre = sol[:3]
+    radius2 = sol[3] + centre @ centre
+    if not (np.isfinite(sol).all() and 0 < radius2 <= size**2 and
+            np.linalg.norm(centre - box) <= size):  # fmt: skip
+        return box
+    return centre
 
 
 def _combine(shapes, targets: dict[str, np.ndarray]) -> np.ndarray | None:
