@@ -376,3 +376,81 @@ def test_fap_tables_follow_the_recipe(tmp_path):
     assert table.borders.tolist() == [0.0, row.amplitude]
     assert table.vertices.tolist() == [1]
     assert np.allclose(table.displacements[0, 0], [0, -0.1 * row.shapes["jawOpen"] / 1000, 0])
+
+
+# ---- node tree, skins, eyes -------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "name,side",
+    [("EyeLeft", "left"), ("LeftEye", "left"), ("eye_L", "left"), ("Eye.R", "right"),
+     ("L_EYEBALL", "left"), ("eyeball_right", "right"), ("EYE_R", "right"), ("Eye", None),
+     ("eyelash_L", None), ("EyelidLeft", None), ("Eyebrow.L", None), ("Head", None)],
+)  # fmt: skip
+def test_eye_names(name, side):
+    from vtts.avatar.importer import _eye_side
+
+    assert _eye_side(name) == side
+
+
+def _sphere(n: int = 8, radius: float = 0.1):
+    """The front half of a sphere around the origin: positions, triangles."""
+    th, ph = np.meshgrid(np.linspace(0, np.pi / 2, n), np.linspace(0, 2 * np.pi, n))
+    pos = radius * np.c_[(np.sin(th) * np.cos(ph)).ravel(), (np.sin(th) * np.sin(ph)).ravel(),
+                         np.cos(th).ravel()]  # fmt: skip
+    faces = [
+        (r * n + c, r * n + c + 1, (r + 1) * n + c) for r in range(n - 1) for c in range(n - 1)
+    ]
+    return pos, np.array(faces)
+
+
+def test_a_nested_eye_turns_about_its_centre_in_the_heads_axes(tmp_path):
+    """An eye node under a parent turned 90° about z: its Transform's rotation axes are the head's
+    y (yaw) and x (pitch) axes written in the eye's own frame, its centre the sphere's centre."""
+    pos, faces = _sphere()
+    b = Builder()
+    eye = b.mesh({"POSITION": b.accessor(pos)}, b.accessor(faces.reshape(-1), USHORT), [], [],
+                 name="EyeMesh")  # fmt: skip
+    b.node(name="Eye_L", mesh=eye, translation=[0.3, 0.2, 0.0])
+    quarter = [0.0, 0.0, np.sin(np.pi / 4), np.cos(np.pi / 4)]  # 90° about z
+    b.node(name="Head", children=[0], rotation=quarter)
+    avatar = import_avatar(b.save(tmp_path / "e.glb", roots=[1]))
+    assert avatar.eyes == ["left"]
+    tables = avatar.tables
+    (yaw,) = tables.adts[Miap("fap", 23)].transforms
+    (pitch,) = tables.adts[Miap("fap", 25)].transforms
+    assert yaw.node == pitch.node == "L_EYE_ROTATION"
+    # the head's y axis is the eye frame's -x after a 90° turn about z; its x axis the frame's y
+    assert np.allclose(yaw.neutral[:3], [1, 0, 0], atol=1e-6) or np.allclose(
+        yaw.neutral[:3], [-1, 0, 0], atol=1e-6)  # fmt: skip
+    assert np.allclose(np.abs(pitch.neutral[:3]), [0, 1, 0], atol=1e-6)
+    centre = avatar.scene.node("L_EYE_ROTATION")["center"]
+    assert np.allclose(centre, 0, atol=1e-6)  # the sphere's centre, not the half's box
+    assert Miap("fap", 24) not in tables.adts  # no right eye
+
+
+def test_a_skinned_mesh_is_posed_at_its_rest_pose(tmp_path):
+    """A skinned eye mesh bound to a joint named LeftEye: its vertices go through the joint's world
+    matrix times its inverse bind matrix, and it sits at the top of the scene."""
+    pos, faces = _sphere()
+    b = Builder()
+    p = b.accessor(pos)
+    joints = b.accessor(np.zeros((len(pos), 4)), USHORT)
+    weights = b.accessor(np.c_[np.ones(len(pos)), np.zeros((len(pos), 3))])
+    mesh = b.mesh({"POSITION": p, "JOINTS_0": joints, "WEIGHTS_0": weights},
+                  b.accessor(faces.reshape(-1), USHORT), [], [], name="Eyes")  # fmt: skip
+    ibm = np.eye(4)
+    ibm[:3, 3] = [0.0, -1.0, 0.0]  # bound where the joint stood at y = 1
+    b.doc.accessors.append(gl.Accessor(
+        bufferView=b.view(ibm.T.astype(np.float32).tobytes()), componentType=FLOAT, count=1,
+        type="MAT4"))  # fmt: skip
+    b.node(name="LeftEye", translation=[0.3, 1.2, 0.0])  # the joint, 0.2 above its bind pose
+    b.node(name="Body", mesh=mesh, skin=0, translation=[5.0, 5.0, 5.0])  # ignored (glTF)
+    b.doc.skins.append(gl.Skin(joints=[0], inverseBindMatrices=len(b.doc.accessors) - 1))
+    avatar = import_avatar(b.save(tmp_path / "s.glb", roots=[0, 1]))
+    assert avatar.eyes == ["left"]
+    points = avatar.scene.node("Eyes")["coord"]["point"]
+    want = pos + [0.3, 0.2, 0.0]  # (the pole and the seam's copies joined into one point each)
+    gap = np.linalg.norm(points[:, None] - want[None], axis=2)
+    assert gap.min(axis=0).max() < 1e-6 and gap.min(axis=1).max() < 1e-6
+    assert avatar.scene.roots[-1].name == "L_EYE_ROTATION"  # at the top, outside Body
