@@ -454,3 +454,59 @@ def test_a_skinned_mesh_is_posed_at_its_rest_pose(tmp_path):
     gap = np.linalg.norm(points[:, None] - want[None], axis=2)
     assert gap.min(axis=0).max() < 1e-6 and gap.min(axis=1).max() < 1e-6
     assert avatar.scene.roots[-1].name == "L_EYE_ROTATION"  # at the top, outside Body
+
+
+# ---- .gltf with files beside it ---------------------------------------------------------------
+
+
+def _gltf_with_files(folder, image_name: str = "skin.png", buffer_uri: str = "mesh.bin"):
+    """A JSON .gltf whose buffer and PNG image are files beside it."""
+    import io
+
+    from PIL import Image
+
+    pos, faces = grid()
+    b = Builder()
+    p = b.accessor(pos)
+    uv = b.accessor(pos[:, :2] + 0.5)
+    idx = b.accessor(faces.reshape(-1), USHORT)
+    buf = io.BytesIO()
+    Image.new("RGB", (4, 4), (10, 200, 10)).save(buf, format="PNG")
+    (folder / image_name).write_bytes(buf.getvalue())
+    b.doc.images.append(gl.Image(uri=image_name))
+    b.doc.textures.append(gl.Texture(source=0))
+    b.doc.materials.append(gl.Material(pbrMetallicRoughness=gl.PbrMetallicRoughness(
+        baseColorTexture=gl.TextureInfo(index=0))))  # fmt: skip
+    b.node(name="Head", mesh=b.mesh({"POSITION": p, "TEXCOORD_0": uv}, idx, [], [], material=0))
+    b.doc.scenes = [gl.Scene(nodes=[0])]
+    (folder / "mesh.bin").write_bytes(bytes(b.blob))
+    b.doc.buffers = [gl.Buffer(uri=buffer_uri, byteLength=len(b.blob))]
+    path = folder / "avatar.gltf"
+    path.write_text(b.doc.gltf_to_json(), encoding="utf-8")
+    return path, buf.getvalue()
+
+
+def test_a_gltf_with_its_buffer_and_image_beside_it(tmp_path):
+    path, png = _gltf_with_files(tmp_path)
+    with pytest.warns(VttsWarning, match="static scene"):
+        avatar = import_avatar(path)
+    assert [p.name for p in avatar.sources] == ["mesh.bin", "skin.png"]
+    assert list(avatar.images.values())[0].data == png
+
+
+def test_a_buffer_outside_the_files_folder_is_refused(tmp_path):
+    (tmp_path / "inner").mkdir()
+    path, _ = _gltf_with_files(tmp_path / "inner", buffer_uri="../mesh.bin")
+    (tmp_path / "mesh.bin").write_bytes((tmp_path / "inner" / "mesh.bin").read_bytes())
+    with pytest.raises(AvatarError, match="not a file inside the glTF file's folder"):
+        import_avatar(path)
+
+
+def test_adi_import_never_writes_over_the_avatars_own_image(tmp_path, capsys):
+    from adt_tools.cli import main as adi
+
+    path, png = _gltf_with_files(tmp_path, image_name="out-tex0.png")
+    assert adi(["import", str(path), "-o", str(tmp_path / "out.wrl")]) == 1
+    assert "also an input" in capsys.readouterr().err
+    assert (tmp_path / "out-tex0.png").read_bytes() == png
+    assert not (tmp_path / "out.wrl").exists()

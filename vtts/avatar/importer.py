@@ -72,6 +72,19 @@ class ImportedAvatar:
     unknown: list[str] = field(default_factory=list)
     found: list[str] = field(default_factory=list)
     eyes: list[str] = field(default_factory=list)
+    sources: list[Path] = field(default_factory=list)
+
+    def texture_names(self, path: str | Path) -> dict[str, str]:
+        """The file name each image is written to beside ``path``: ``PATH-tex0.png`` …"""
+        stem = Path(path).stem
+        return {key: f"{stem}-tex{i}.{'jpg' if img.format == 'jpeg' else 'png'}"
+                for i, (key, img) in enumerate(self.images.items())}  # fmt: skip
+
+    def outputs(self, path: str | Path) -> list[Path]:
+        """The files :meth:`write` writes for ``path``."""
+        wrl = Path(path)
+        return [wrl, wrl.with_suffix(".adt"),
+                *(wrl.with_name(n) for n in self.texture_names(wrl).values())]  # fmt: skip
 
     def write(self, path: str | Path) -> list[Path]:
         """Write ``PATH.wrl``, ``PATH.adt`` and the textures (``PATH-tex0.png`` …) beside each
@@ -83,16 +96,13 @@ class ImportedAvatar:
         wrl = Path(path)
         if wrl.suffix.lower() != ".wrl":
             raise AvatarError(f"the output must be a .wrl file, got {str(path)!r}")
-        stem = wrl.stem
-        renamed: dict[str, str] = {}
-        for i, (key, img) in enumerate(self.images.items()):
-            renamed[key] = f"{stem}-tex{i}.{'jpg' if img.format == 'jpeg' else 'png'}"
+        renamed = self.texture_names(wrl)
         for node in self.scene.find("ImageTexture"):
             url = list(node["url"])
             if url and url[0] in renamed:
                 node.fields["url"] = [renamed[url[0]]]
         text = dumps(self.scene, comment="imported from glTF by adi import")
-        paths = [wrl, wrl.with_suffix(".adt"), *(wrl.with_name(n) for n in renamed.values())]
+        paths = self.outputs(wrl)
         with contextlib.ExitStack() as stack:
             tmp = [stack.enter_context(atomic_path(p)) for p in paths]
             tmp[0].write_text(text, encoding="utf-8")
@@ -186,8 +196,13 @@ class _Importer:
         scene = Scene(statements=[info, *top], defs=dict(self.defs), path=None)
         tables = self._tables()
         tables.feature_points = self._feature_points()
+        if not self.found:
+            warnings.warn(VttsWarning(
+                "no morph target is an ARKit blendshape or an Oculus viseme: the model imports "
+                "without animation tables (a static scene)", file=self.asset.file),
+                stacklevel=3)  # fmt: skip
         return ImportedAvatar(scene, tables, self.images, self.unknown, sorted(self.found),
-                              sorted(self.eye_transforms))  # fmt: skip
+                              sorted(self.eye_transforms), list(self.asset.sources))  # fmt: skip
 
     def _world(self, index: int, parent: np.ndarray, depth: int, path: set[int]) -> None:
         if depth > MAX_DEPTH:

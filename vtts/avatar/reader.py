@@ -174,6 +174,8 @@ class GltfAsset:
                 f"cannot read (it reads {', '.join(sorted(SUPPORTED_REQUIRED))})",
                 file=self.file,
             )
+        #: the files besides ``path`` that were read (buffers and images a ``.gltf`` names)
+        self.sources: list[Path] = []
         self._buffers: dict[int, bytes] = {}
         self._meshopt: dict[int, bytes] = {}
         self._meshes: dict[int, Mesh] = {}
@@ -228,6 +230,7 @@ class GltfAsset:
         found = resolve_url([unquote(uri)], self.path.parent)
         if found is None:
             raise self.error(f"{what}: '{uri}' is not a file inside the glTF file's folder")
+        self.sources.append(Path(found))
         try:
             return read_bytes_capped(found, limit, what=what)
         except OSError as e:
