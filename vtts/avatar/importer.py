@@ -42,7 +42,7 @@ import numpy as np
 from vtts.avatar.arkit import OCULUS_VISEMES, RecipeTable, recipes
 from vtts.avatar.names import match_names, name_key
 from vtts.avatar.reader import GltfAsset, Image, Material, Primitive
-from vtts.errors import AvatarError, VttsWarning
+from vtts.errors import AvatarError, VttsError, VttsWarning
 from vtts.face.adt import Adt, AnimationTables, MeshTable, TransformTable
 from vtts.face.miap import Miap
 from vtts.fap import AU
@@ -134,7 +134,19 @@ def import_avatar(path: str | Path, *, table: RecipeTable | None = None) -> Impo
     docstring). ``table``: the recipe table (default: vtts's, :func:`vtts.avatar.recipes`).
     Raises :class:`~vtts.errors.AvatarError` for a file that cannot be imported; warns
     (:class:`~vtts.errors.VttsWarning`) about unknown target names and dropped textures."""
-    return _Importer(GltfAsset(path), table or recipes()).run()
+    asset = GltfAsset(path)
+    try:
+        return _Importer(asset, table or recipes()).run()
+    except VttsError as e:
+        e.file = e.file or asset.file
+        raise
+    except (TypeError, AttributeError, KeyError, IndexError, ValueError, OverflowError) as e:
+        # a property of the wrong JSON type somewhere the reader takes the file's word for it
+        raise AvatarError(
+            f"malformed glTF: a property has the wrong type or value ({type(e).__name__}: "
+            f"{str(e)[:200]})",
+            file=asset.file,
+        ) from None
 
 
 class _Importer:

@@ -188,12 +188,12 @@ class GltfAsset:
 
     def item(self, items: list | None, index: Any, what: str) -> Any:
         """``items[index]`` for a glTF index: an integer (not a bool) within the array."""
-        if (
-            isinstance(index, bool)
-            or not isinstance(index, int)
-            or not 0 <= index < len(items or [])
-        ):
+        if not isinstance(items, list):
+            items = []
+        if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < len(items):
             raise self.error(f"{what} {index!r} does not exist")
+        if items[index] is None or isinstance(items[index], (str, int, float, list)):
+            raise self.error(f"{what} {index} is not a glTF object")
         return items[index]
 
     # ---- buffers ------------------------------------------------------------------------------
@@ -438,6 +438,8 @@ class GltfAsset:
 
     def _primitive(self, p, label: str, mode: int) -> Primitive:
         attrs = _attributes(p.attributes)
+        if attrs is None:
+            raise self.error(f"{label}: attributes must be an object")
         draco = _extension(p, DRACO)
         decoded: dict[str, np.ndarray] = {}
         faces = None
@@ -482,8 +484,12 @@ class GltfAsset:
         if len(targets) > MAX_MORPH_TARGETS:
             raise self.error(f"{label} has {len(targets)} morph targets, more than the limit of "
                              f"{MAX_MORPH_TARGETS} (vtts.limits)")  # fmt: skip
+        if not isinstance(targets, list):
+            raise self.error(f"{label}: targets must be a list")
         for ti, t in enumerate(targets):
             ta = _attributes(t)
+            if ta is None:
+                raise self.error(f"{label}: morph target {ti} must be an object")
             if "POSITION" not in ta:
                 out.targets.append(np.zeros((v, 3)))
                 continue
@@ -706,14 +712,17 @@ def _extension(obj: Any, *names: str) -> Any:
     return None
 
 
-def _attributes(attributes: Any) -> dict[str, Any]:
-    """A primitive's or target's attributes as ``{name: accessor index}``."""
+def _attributes(attributes: Any) -> dict[str, Any] | None:
+    """A primitive's or target's attributes as ``{name: accessor index}`` (None when they are not
+    an object)."""
     if attributes is None:
         return {}
     if isinstance(attributes, dict):
         items = attributes.items()
-    else:
+    elif hasattr(attributes, "__dict__") and not isinstance(attributes, type):
         items = ((k, getattr(attributes, k)) for k in vars(attributes))
+    else:
+        return None
     return {k: v for k, v in items if v is not None}
 
 
