@@ -510,3 +510,52 @@ def test_adi_import_never_writes_over_the_avatars_own_image(tmp_path, capsys):
     assert "also an input" in capsys.readouterr().err
     assert (tmp_path / "out-tex0.png").read_bytes() == png
     assert not (tmp_path / "out.wrl").exists()
+
+
+def test_meshopt_octahedral_filter_on_normals(tmp_path):
+    """A meshopt ATTRIBUTES view with the OCTAHEDRAL filter: 4-byte elements (x, y on the
+    octahedron, the scale K, w) decode to normalized int8 normals; (0, 0, 127) is +z."""
+    import meshoptimizer
+
+    pos, faces = grid()
+    n = len(pos)
+    raw = np.tile(np.array([0, 0, 127, 0], np.int8), (n, 1))
+    raw[0] = [127, 0, 127, 0]  # x at the octahedron's corner: the normal +x
+    data = meshoptimizer.encode_vertex_buffer(raw.view(np.uint8).reshape(n, 4).view(np.float32))
+    b = Builder()
+    b.doc.buffers.append(
+        gl.Buffer(byteLength=n * 4, extensions={"EXT_meshopt_compression": {"fallback": True}})
+    )
+    off = b.doc.bufferViews[b.view(data)].byteOffset
+    b.doc.bufferViews.append(gl.BufferView(
+        buffer=1, byteLength=n * 4, byteStride=4,
+        extensions={"EXT_meshopt_compression": {"buffer": 0, "byteOffset": off,
+                    "byteLength": len(data), "byteStride": 4, "count": n, "mode": "ATTRIBUTES",
+                    "filter": "OCTAHEDRAL"}}))  # fmt: skip
+    normals = b.accessor(np.zeros((n, 3)), BYTE, normalized=True, view=len(b.doc.bufferViews) - 1)
+    b.doc.accessors[normals].min = b.doc.accessors[normals].max = None
+    p = b.accessor(pos)
+    b.node(mesh=b.mesh({"POSITION": p, "NORMAL": normals}, b.accessor(faces.reshape(-1), USHORT),
+                       [], []))  # fmt: skip
+    b.doc.extensionsUsed = b.doc.extensionsRequired = ["EXT_meshopt_compression"]
+    (prim,) = read_mesh(b.save(tmp_path / "o.glb")).primitives
+    assert np.allclose(prim.normals[1:], [0, 0, 1], atol=1e-2)
+    assert np.allclose(prim.normals[0], [1, 0, 0], atol=1e-2)
+
+
+def test_an_unknown_meshopt_filter_is_named(tmp_path):
+    import meshoptimizer
+
+    pos, _ = grid()
+    data = meshoptimizer.encode_vertex_buffer(pos.astype(np.float32))
+    b = Builder()
+    off = b.doc.bufferViews[b.view(data)].byteOffset
+    b.doc.bufferViews.append(gl.BufferView(
+        buffer=0, byteLength=len(pos) * 12,
+        extensions={"EXT_meshopt_compression": {"buffer": 0, "byteOffset": off,
+                    "byteLength": len(data), "byteStride": 12, "count": len(pos),
+                    "mode": "ATTRIBUTES", "filter": "SQUASH"}}))  # fmt: skip
+    p = b.accessor(pos, view=len(b.doc.bufferViews) - 1)
+    b.node(mesh=b.mesh({"POSITION": p}, None, [], []))
+    with pytest.raises(AvatarError, match="unknown filter 'SQUASH'"):
+        import_avatar(b.save(tmp_path / "f.glb"))
