@@ -559,3 +559,46 @@ def test_an_unknown_meshopt_filter_is_named(tmp_path):
     b.node(mesh=b.mesh({"POSITION": p}, None, [], []))
     with pytest.raises(AvatarError, match="unknown filter 'SQUASH'"):
         import_avatar(b.save(tmp_path / "f.glb"))
+
+
+def test_texture_coordinates_set_and_transform(tmp_path):
+    """The base color texture's texCoord (TEXCOORD_1 here) and its KHR_texture_transform
+    (offset, rotation, scale) are applied before v is flipped into VRML's t."""
+    import io
+
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.new("RGB", (4, 4), (200, 10, 10)).save(buf, format="PNG")
+    pos, faces = grid()
+    b = Builder()
+    p = b.accessor(pos)
+    uv0 = b.accessor(np.zeros((len(pos), 2)))
+    uv = pos[:, :2] + 0.5
+    uv1 = b.accessor(uv)
+    b.doc.images.append(gl.Image(bufferView=b.view(buf.getvalue()), mimeType="image/png"))
+    b.doc.textures.append(gl.Texture(source=0))
+    info = gl.TextureInfo(index=0, texCoord=1, extensions={"KHR_texture_transform": {
+        "offset": [0.5, 0.25], "scale": [2.0, 1.0], "rotation": float(np.pi / 2)}})  # fmt: skip
+    b.doc.materials.append(gl.Material(pbrMetallicRoughness=gl.PbrMetallicRoughness(
+        baseColorTexture=info)))  # fmt: skip
+    b.doc.extensionsUsed = ["KHR_texture_transform"]
+    b.node(
+        name="Head",
+        mesh=b.mesh(
+            {"POSITION": p, "TEXCOORD_0": uv0, "TEXCOORD_1": uv1},
+            b.accessor(faces.reshape(-1), USHORT),
+            [],
+            [],
+            material=0,
+        ),
+    )
+    avatar = import_avatar(b.save(tmp_path / "t.glb"))
+    (ifs,) = avatar.scene.find("IndexedFaceSet")
+    st = np.asarray(ifs["texCoord"]["point"])
+    # scaled, then turned by pi/2 as the extension's GLSL turns it ((u, v) -> (-v, u)), then
+    # offset
+    su, sv = 2.0 * uv[:, 0], 1.0 * uv[:, 1]
+    want_u = -sv + 0.5
+    want_v = su + 0.25
+    assert np.allclose(st, np.c_[want_u, 1.0 - want_v], atol=1e-6)

@@ -352,8 +352,10 @@ class _Importer:
             n = np.where(norm > 0, n / np.where(norm > 0, norm, 1), [0.0, 0.0, 1.0])
             fields["normal"] = self.node("Normal", vector=np.round(n, 6) + 0.0)
             fields["normalIndex"] = vertex_index
-        if prim.uv is not None and material.image is not None:
-            st = np.c_[prim.uv[:, 0], 1.0 - prim.uv[:, 1]]
+        uv = prim.uv1 if material.texcoord == 1 else prim.uv
+        if uv is not None and material.image is not None:
+            uv = np.c_[uv, np.ones(len(uv))] @ material.uv_transform.T
+            st = np.c_[uv[:, 0], 1.0 - uv[:, 1]]
             fields["texCoord"] = self.node("TextureCoordinate", point=np.round(st, 7) + 0.0)
             fields["texCoordIndex"] = vertex_index
         if prim.colors is not None:
