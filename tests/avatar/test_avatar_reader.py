@@ -602,3 +602,24 @@ def test_texture_coordinates_set_and_transform(tmp_path):
     want_u = -sv + 0.5
     want_v = su + 0.25
     assert np.allclose(st, np.c_[want_u, 1.0 - want_v], atol=1e-6)
+
+
+def test_the_file_size_is_capped(tmp_path, monkeypatch):
+    import vtts.avatar.reader as reader
+    from vtts.limits import LimitError
+
+    path = simple_avatar(tmp_path / "a.glb")
+    monkeypatch.setattr(reader, "MAX_GLTF_BYTES", 100)
+    with pytest.raises(LimitError, match="larger than the limit of 100 bytes") as e:
+        GltfAsset(path)
+    assert e.value.file == str(path)
+
+
+def test_an_avatar_must_be_gltf_by_name(tmp_path):
+    path = tmp_path / "a.obj"
+    path.write_text("v 0 0 0\n", encoding="utf-8")
+    with pytest.raises(AvatarError, match=r"a \.glb or \.gltf file, not \.obj"):
+        import_avatar(path)
+    (tmp_path / "x.glb").mkdir()
+    with pytest.raises(AvatarError, match="is a folder"):
+        import_avatar(tmp_path / "x.glb")
