@@ -14,9 +14,11 @@ extras="${1:-test}"
 # (llvmpipe): libegl1 + libegl-mesa0 (the EGL vendor), libgl1 (PyOpenGL loads libGL.so.1 for
 # desktop GL), libgl1-mesa-dri (the llvmpipe driver). chromium: the web player's tests and benchmark
 # load it in headless Chromium (vtts.export.browser). nodejs and npm: the Khronos glTF-Validator the
-# tests check exported .glb/.gltf files with (tools/node/).
+# tests check exported .glb/.gltf files with (tools/node/). festival and festvox-us-slt-hts: the
+# second voice, `vtts say --engine festival` (an HTS voice whose utterance structure gives its own
+# phone and word times), and test material for the forced aligner.
 deb_packages=(espeak-ng libespeak-ng1 libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri libgles2 chromium
-  nodejs npm)
+  nodejs npm festival festvox-us-slt-hts)
 
 # node and npm installed another way count too (NodeSource's nodejs package carries npm and
 # conflicts with Debian's npm package)

@@ -333,14 +333,15 @@ def _background(args: argparse.Namespace, video: bool):
 
 
 def _renderer(args: argparse.Namespace, models, supersample: int = 1, video: bool = False):
+    from vtts import warm
     from vtts.errors import RenderError
-    from vtts.render import Camera, FaceRenderer
+    from vtts.render import Camera
 
     if args.camera and args.viewpoint:
         raise RenderError("--camera and --viewpoint both choose the camera: give one of them")
     camera = Camera.parse(args.camera) if args.camera else None
     background = _background(args, video)
-    return FaceRenderer(
+    return warm.renderer(
         models,
         size=_size(args.size),
         camera=camera,
@@ -353,8 +354,8 @@ def _renderer(args: argparse.Namespace, models, supersample: int = 1, video: boo
 
 def cmd_render(args: argparse.Namespace) -> int:
     """Render one pose of one or more models to a PNG."""
-    from vtts.face import load_model
     from vtts.render import write_png
+    from vtts.warm import load_model  # kept between the jobs of vtts batch
 
     _background(args, video=False)  # a bad color fails before the models load
     request = _pose_request(args)
@@ -373,9 +374,9 @@ def cmd_play(args: argparse.Namespace) -> int:
     head translation moves each model by that many of its own ES units."""
     from vtts.animate.fapstream import model_roots, stream_params, warn_ignored
     from vtts.errors import RenderError
-    from vtts.face import load_model
     from vtts.fap.cli_coding import read_stream
     from vtts.render import PngSequenceWriter, VideoWriter, progress
+    from vtts.warm import load_model  # kept between the jobs of vtts batch
 
     if not (args.output or args.png_dir or args.web or args.gltf or args.curves_out):
         raise RenderError(
@@ -441,13 +442,13 @@ def cmd_play(args: argparse.Namespace) -> int:
 
 def _check_curves(args: argparse.Namespace) -> None:
     """``--curves FORMAT`` names a format and goes with ``--curves-out`` (before any work)."""
-    from vtts.avatar.curves import check_format
+    from vtts.avatar.curves import DEFAULT_FORMAT, check_format
     from vtts.errors import AvatarError
 
     if args.curves is not None and not args.curves_out:
         raise AvatarError("--curves FORMAT says how to write --curves-out FILE: give that too")
     if args.curves_out:
-        args.curves = check_format(args.curves or "arkit")
+        args.curves = check_format(args.curves or DEFAULT_FORMAT)
 
 
 def _write_curves(args: argparse.Namespace, stream=None, params=None, phones=None) -> None:
@@ -547,6 +548,7 @@ def _speak_and_set_up(args, text: str, models: list, known: set[str]):
             prepare_utterance,
             text,
             known=known,
+            engine=args.engine,
             voice=args.voice,
             rate=args.rate,
             pitch=args.pitch,
@@ -570,16 +572,17 @@ def cmd_say(args: argparse.Namespace) -> int:
 
     from vtts.animate.timeline import build_timeline, timeline_stream
     from vtts.errors import BookmarkError, RenderError
-    from vtts.face import load_model
     from vtts.fap import write_fap
     from vtts.limits import MAX_TEXT_BYTES, read_bytes_capped
     from vtts.render import PngSequenceWriter, VideoWriter, progress, write_wav
+    from vtts.speech.say import write_utterance_timings
+    from vtts.warm import load_model  # kept between the jobs of vtts batch
 
-    wanted = (args.output, args.gltf, args.png_dir, args.fap_out, args.wav_out, args.web)
-    if not any(wanted) and not args.curves_out:
+    written = (args.output, args.gltf, args.png_dir, args.web, args.fap_out, args.wav_out)
+    if not any(written) and not args.curves_out and not args.timings_out:
         raise RenderError(
             "nothing to write: give -o OUT.mp4 (or OUT.glb), --png-dir, --web, --fap-out, "
-            "--wav-out or --curves-out"
+            "--wav-out, --timings-out or --curves-out"
         )
     if not 0 < args.fps <= 240:
         raise RenderError(f"--fps must be within 0–240, got {args.fps:g}")
@@ -657,10 +660,11 @@ def cmd_say(args: argparse.Namespace) -> int:
         write_fap(timeline_stream(timelines[0], models[0].name), args.fap_out)
     if args.wav_out:
         write_wav(args.wav_out, utt.audio, utt.rate)
+    if args.timings_out:
+        write_utterance_timings(args.timings_out, utt)
     _write_curves(args, params=timelines[0].params, phones=utt.phones)
     if not args.quiet:
-        written = (args.output, args.gltf, args.png_dir, args.web, args.fap_out, args.wav_out)
-        written += (args.curves_out,)
+        written = (*written, args.timings_out, args.curves_out)
         outputs = [str(p) for p in written if p]
         print(f"wrote {', '.join(outputs)}: {utt.duration:.2f} s, {n} frames at {args.fps:g} fps")
     return 0
@@ -854,6 +858,32 @@ def cmd_models(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_batch(args: argparse.Namespace) -> int:
+    """Run the say/play/render jobs of a .jsonl file on Ray workers (:func:`vtts.batch.run`),
+    or with --dry-run only check every line."""
+    from vtts.batch import read_jobs, run
+    from vtts.batch.jobs import JobError, preflight
+
+    if args.dry_run:
+        checked = read_jobs(args.jobs, args.out)
+        models: dict = {}
+        for job in list(checked.jobs):
+            try:
+                preflight(job, models)
+            except JobError as e:
+                e.file, e.line = args.jobs, job.line
+                checked.errors.append(e)
+                checked.jobs.remove(job)
+        for e in sorted(checked.errors, key=lambda e: e.line or 0):
+            print_error(e)
+        n = len(checked.jobs)
+        print(f"{args.jobs}: {n} valid job{'s' if n != 1 else ''}, {len(checked.errors)} bad")
+        return 1 if checked.errors else 0
+    report = run(args.jobs, args.out, args.workers, args.address, show_progress=True)
+    print(f"batch: {report.summary()}")
+    return 0 if report.ok else 1
+
+
 def _miap_of(key: str):
     from vtts.face import Miap
 
@@ -932,7 +962,18 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sy.add_argument("--file", help="read the text from a file instead")
     _models_flag(sy)
-    sy.add_argument("--voice", default="en-us", help="espeak-ng voice (see vtts voices)")
+    sy.add_argument(
+        "--engine",
+        choices=("espeak", "festival"),
+        default="espeak",
+        help="speech synthesizer: espeak-ng (default) or festival's HTS voice "
+        "(Debian festival, festvox-us-slt-hts)",
+    )
+    sy.add_argument(
+        "--voice",
+        help="espeak-ng voice (default en-us; see vtts voices), or with --engine festival a "
+        "festival voice (default cmu_us_slt_arctic_hts)",
+    )
     sy.add_argument("--rate", type=int, help="speaking rate in words per minute")
     sy.add_argument("--pitch", type=int, help="pitch 0-99")
     sy.add_argument(
@@ -940,7 +981,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="timings from another engine: Polly speech marks or a "
         "'start end phoneme' table (needs --audio)",
     )
-    sy.add_argument("--audio", help="the WAV that --phonemes describes")
+    sy.add_argument(
+        "--audio", help="the speech that --phonemes describes (WAV, FLAC, OGG, MP3, M4A …)"
+    )
     sy.add_argument("--seed", type=_seed, default=0, help="seed of the autonomous behaviour")
     sy.add_argument(
         "--no-autonomous",
@@ -950,6 +993,10 @@ def build_parser() -> argparse.ArgumentParser:
     sy.add_argument("--fps", type=float, default=30.0, help="frame rate (default 30)")
     sy.add_argument("--fap-out", help="also write the FAP stream (.fap)")
     sy.add_argument("--wav-out", help="also write the speech (.wav)")
+    sy.add_argument(
+        "--timings-out",
+        help="also write the word and phone timings (.tsv: kind start end label viseme)",
+    )
     _curves_flags(sy)
     sy.add_argument("--png-dir", help="also (or only) write lossless PNG frames into this folder")
     sy.add_argument("--quiet", action="store_true", help="no progress bar or summary")
@@ -1016,6 +1063,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     an.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     an.set_defaults(func=cmd_analyze)
+
+    ba = sub.add_parser("batch", help="run many say/play/render jobs on Ray workers")
+    ba.add_argument("jobs", metavar="JOBS.jsonl", help="one job per line (docs/batch.md)")
+    ba.add_argument("--out", required=True, metavar="DIR", help="the outputs' folder")
+    ba.add_argument("--workers", type=int, metavar="N", help="workers (default: one per CPU)")
+    ba.add_argument("--address", help="an existing Ray cluster (default: a local one)")
+    ba.add_argument("--dry-run", action="store_true", help="check every line, render nothing")
+    ba.set_defaults(func=cmd_batch)
 
     vo = sub.add_parser("voices", help="list espeak-ng voices")
     vo.add_argument("language", nargs="?", help="only voices of this language (e.g. en)")
@@ -1139,7 +1194,7 @@ def _view_flags(p: argparse.ArgumentParser) -> None:
 
 
 #: Options that name files a command writes, and files or folders it reads.
-_OUTPUT_OPTIONS = ("output", "fap_out", "wav_out", "curves_out")
+_OUTPUT_OPTIONS = ("output", "fap_out", "wav_out", "timings_out", "curves_out")
 _INPUT_OPTIONS = ("stream", "video", "audio", "file", "phonemes", "input")
 
 
@@ -1218,6 +1273,12 @@ def main(argv: list[str] | None = None) -> int:
     if threading.current_thread() is threading.main_thread():
         for sig in (signal.SIGTERM, signal.SIGHUP):
             signal.signal(sig, _terminate_as_interrupt)
+    return execute(args)
+
+
+def execute(args: argparse.Namespace) -> int:
+    """Run the command ``args`` (from :func:`build_parser`) as ``vtts`` does: its exit status,
+    with bad input printed on stderr as one clear message (``vtts batch`` runs its jobs so)."""
     try:
         with reported_warnings(), _url_roots(args):
             _check_io(args)

@@ -39,6 +39,11 @@ MAX_FAP_VALUE = 1e6
 
 #: The longest animation, in seconds (an utterance, a FAP file, a decoded stream).
 MAX_DURATION_S = 3600.0
+#: The longest audio file ``vtts say --audio`` reads (30 minutes: 330 MB of float samples at
+#: 48 kHz), checked before decoding where the file states its length and while decoding.
+MAX_AUDIO_S = 1800.0
+#: The highest sample rate of an audio file, Hz.
+MAX_AUDIO_RATE = 192_000
 #: The most frames of one animation (an hour at 60 Hz).
 MAX_FRAMES = 216_000
 #: Frame rates a FAP file or stream may declare, in frames per second (with the duration limit,

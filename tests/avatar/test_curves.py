@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -100,12 +101,29 @@ def test_visemes_and_expressions_are_their_recipes():
 
 
 def test_weights_are_clipped_to_one():
-    p = frames()
+    p = frames(2)
     p[0, 2] = 3000  # far beyond the table
     p[0, VISEME_BASE + 10] = 1.0
+    p[1, [3, 7, 8, 50, 54, 55]] = -1e300  # the whole upper lip, absurdly far
     w = arkit_weights(p)
     assert weight(w, "jawOpen")[0] == 1.0
+    assert weight(w, "mouthUpperUpLeft")[1] == weight(w, "mouthUpperUpRight")[1] == 1.0
     assert w.min() >= 0 and w.max() <= 1
+
+
+def test_a_table_with_large_blocks_is_solved_too():
+    """A table of one's own may tie more shapes to one FAP than box_lstsq visits."""
+    from vtts.avatar.arkit import parse_recipes
+
+    path = Path(__file__).resolve().parents[2] / "vtts" / "data" / "arkit_recipes.tsv"
+    names = ["mouthSmileLeft", "mouthSmileRight", "mouthDimpleLeft", "mouthDimpleRight",
+             "mouthLeft", "mouthRight", "mouthShrugUpper", "mouthClose", "cheekPuff"]  # fmt: skip
+    row = "fap\t64\t+\t100\t" + " ".join(f"{n}=0.1" for n in names) + "\tx\n"
+    table = parse_recipes(path.read_text(encoding="utf-8") + row)
+    p = frames()
+    p[0, 63] = 100  # bend_nose, now tied to nine shapes... and through them to the corners
+    w = arkit_weights(p, table)
+    assert w.min() >= 0 and w.max() <= 1 and w.sum() > 0
 
 
 def test_oculus_weights_and_silence():

@@ -53,7 +53,7 @@ import numpy as np
 
 from vtts.atomic import write_text
 from vtts.avatar.arkit import ARKIT_NAMES, OCULUS_VISEMES, RecipeTable, recipes
-from vtts.avatar.boxls import box_lstsq
+from vtts.avatar.boxls import MAX_UNKNOWNS, box_lstsq
 from vtts.avatar.sapi import sapi_viseme
 from vtts.errors import AvatarError
 from vtts.face.miap import EXPRESSION_BASE, N_PARAMS, VISEME_BASE
@@ -67,6 +67,8 @@ HEAD_DIGITS = 5
 #: shapes cancel or look alike (eyeLookIn against eyeLookOut: 0.3 of one rather than 0.8 of it
 #: and 0.5 of the other); shrinks a weight by about 0.002 %.
 RIDGE = 1e-6
+#: FAP values are bounded to this many table amplitudes before the least squares.
+FAR = 1e6
 
 
 @dataclass(frozen=True)
@@ -108,6 +110,16 @@ def _blocks(content: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
     return sorted(blocks, key=lambda b: b[0][0])
 
 
+def _lsq_linear(a: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """:func:`box_lstsq` for large blocks: SciPy's BVLS, one frame at a time."""
+    from scipy.optimize import lsq_linear
+
+    c = a.shape[1]
+    stacked = np.vstack([a, np.sqrt(RIDGE) * np.eye(c)])
+    rhs = np.hstack([f, np.zeros((f.shape[0], c))])
+    return np.stack([lsq_linear(stacked, b, bounds=(0.0, 1.0), method="bvls").x for b in rhs])
+
+
 def arkit_weights(params: np.ndarray, table: RecipeTable | None = None) -> np.ndarray:
     """``(n, 52) float64`` ARKit weights 0–1 (:data:`ARKIT_NAMES` order) of ``(n, N_PARAMS)``
     parameter vectors; the inversion is in the module documentation."""
@@ -118,10 +130,15 @@ def arkit_weights(params: np.ndarray, table: RecipeTable | None = None) -> np.nd
     out = np.zeros((p.shape[0], len(ARKIT_NAMES)))
     for rows, cols in _blocks(content):
         a = content[np.ix_(rows, cols)] / scale[rows, None]
-        f = p[:, rows] / scale[rows]
+        # far beyond the table every weight is at 1 or 0 anyway; the bound keeps squares finite
+        f = np.clip(p[:, rows] / scale[rows], -FAR, FAR)
         moving = np.any(f != 0, axis=1)
-        if moving.any():
+        if not moving.any():
+            continue
+        if len(cols) <= MAX_UNKNOWNS:
             out[np.ix_(moving, cols)] = box_lstsq(a, f[moving], RIDGE)
+        else:  # a table of one's own may tie more shapes together than the faces can visit
+            out[np.ix_(moving, cols)] = _lsq_linear(a, f[moving])
     out += p[:, VISEME_BASE : VISEME_BASE + 15] @ table.viseme_matrix()
     out += p[:, EXPRESSION_BASE : EXPRESSION_BASE + 7] @ table.expression_matrix()
     return np.clip(out, 0.0, 1.0)

@@ -58,6 +58,7 @@ from pathlib import Path
 from vtts.errors import SpeechError
 from vtts.limits import MAX_DURATION_S, MAX_TEXT_BYTES, LimitError, read_bytes_capped
 from vtts.resources import package_data
+from vtts.speech.timings import HEADER, TimedWord, word_ends
 
 #: The viseme of p, b and m: the lips close.
 BILABIAL = 1
@@ -115,14 +116,17 @@ class Mark:
 class PhonemeFile:
     """Timings from another speech engine (``--phonemes FILE``).
 
-    kind  ``"polly"`` (Amazon Polly speech marks, JSON lines) or ``"table"`` (``start end
-          phoneme`` lines)
+    kind   ``"polly"`` (Amazon Polly speech marks, JSON lines), ``"table"`` (``start end
+           phoneme`` lines) or ``"timings"`` (what ``say --timings-out`` writes)
+    words  the words with their times, when the file gives them (Polly's ``word`` marks, the
+           timings' ``word`` rows)
     """
 
     phones: list[Phone]
     marks: list[Mark] = field(default_factory=list)
     kind: str = "table"
     alphabet: str = "espeak-en"
+    words: list[TimedWord] = field(default_factory=list)
 
 
 # ---- the table -------------------------------------------------------------------------------
@@ -238,12 +242,16 @@ def read_phoneme_file(
 ) -> PhonemeFile:
     """Read timings made by another engine, to pair with its WAV.
 
-    Two formats, told apart by the first line that is not blank or a ``#`` comment:
+    Three formats, told apart by the first line that is not blank or a ``#`` comment:
 
     - **Amazon Polly speech marks** (JSON lines, ``{"time": ms, "type": …, "value": …}``):
       ``viseme`` entries become phones (a phone ends where the next begins; the last lasts until
-      ``duration`` when given, else :data:`LAST_PHONE_S`), ``ssml`` entries become marks;
-      ``word`` and ``sentence`` entries are skipped.
+      ``duration`` when given, else :data:`LAST_PHONE_S`), ``ssml`` entries become marks,
+      ``word`` entries words (ending with their last phone before the next word);
+      ``sentence`` entries are skipped.
+    - **timings** as ``say --timings-out`` writes them (:mod:`vtts.speech.timings`): the header
+      ``kind start end label viseme``, then ``phone`` rows (the viseme as written) and ``word``
+      rows.
     - **a table**: lines ``start end phoneme`` (seconds; the phoneme an espeak-ng name or IPA),
       lines ``mark TIME NAME`` for SSML mark times, ``#`` comments. A comment
       ``# alphabet: arpabet`` (or ``ipa``, ``polly``, ``espeak-en``) says how to read the
@@ -262,11 +270,17 @@ def read_phoneme_file(
         raise SpeechError("the phoneme file has no phones", file=str(path))
     if first.startswith("{"):
         result = _read_polly(lines, str(path), duration)
+    elif first.split() == list(HEADER):
+        result = _read_timings(lines, str(path))
     else:
         result = _read_table(lines, str(path), language)
     if not result.phones:
         raise SpeechError("the phoneme file has no phones", file=str(path))
-    last = max([p.end for p in result.phones] + [m.time for m in result.marks])
+    last = max(
+        [p.end for p in result.phones]
+        + [m.time for m in result.marks]
+        + [w.end for w in result.words]
+    )
     if last > MAX_DURATION_S:
         raise LimitError(
             f"the phonemes last until {last:g} s, more than the limit of {MAX_DURATION_S:g} s",
@@ -279,6 +293,7 @@ def _read_polly(lines: list[str], file: str, duration: float | None) -> PhonemeF
     polly = viseme_tables()["polly"]
     starts: list[tuple[float, str, int]] = []
     marks: list[Mark] = []
+    words: list[tuple[float, str]] = []
     for n, line in enumerate(lines, start=1):
         s = line.strip()
         if not s or s.startswith("#"):
@@ -321,6 +336,8 @@ def _read_polly(lines: list[str], file: str, duration: float | None) -> PhonemeF
             starts.append((seconds, value, polly[value]))
         elif kind == "ssml":
             marks.append(Mark(str(value), seconds))
+        elif kind == "word":
+            words.append((seconds, str(value)))
     phones = []
     for k, (start, value, vis) in enumerate(starts):
         if k + 1 < len(starts):
@@ -331,7 +348,7 @@ def _read_polly(lines: list[str], file: str, duration: float | None) -> PhonemeF
             end = start + LAST_PHONE_S
         phones.append(Phone(start, end, value, vis))
     marks.sort(key=lambda m: m.time)
-    return PhonemeFile(phones, marks, "polly", "polly")
+    return PhonemeFile(phones, marks, "polly", "polly", word_ends(words, phones))
 
 
 _ALPHABET_LINE = re.compile(r"#\s*alphabet\s*[:=]\s*(\S+)", re.IGNORECASE)
@@ -385,6 +402,57 @@ def _read_table(lines: list[str], file: str, language: str) -> PhonemeFile:
         phones.append(Phone(start, end, symbol, vis))
     marks.sort(key=lambda m: m.time)
     return PhonemeFile(phones, marks, "table", alphabet or "espeak-en")
+
+
+_VISEME_NAMES = frozenset(str(v) for v in range(15))
+
+
+def _read_timings(lines: list[str], file: str) -> PhonemeFile:
+    phones: list[Phone] = []
+    words: list[TimedWord] = []
+    header_seen = False
+    for n, line in enumerate(lines, start=1):
+        s = line.strip()
+        if not s or s.startswith("#"):
+            continue
+        fields = s.split("\t") if "\t" in s else s.split()
+        if not header_seen:  # the caller checked it
+            header_seen = True
+            continue
+        fields = [f.strip() for f in fields]
+        start = _number(fields[1]) if len(fields) == 5 else None
+        end = _number(fields[2]) if len(fields) == 5 else None
+        if (
+            len(fields) != 5
+            or fields[0] not in ("word", "phone")
+            or start is None
+            or end is None
+            or not 0 <= start <= end
+        ):
+            raise SpeechError(
+                "expected 'kind start end label viseme' with kind word or phone and "
+                f"0 <= start <= end (seconds), got {_short(s)}",
+                file=file,
+                line=n,
+            )
+        kind, label, vis = fields[0], fields[3], fields[4]
+        if kind == "word":
+            words.append(TimedWord(start, end, label))
+            continue
+        if vis not in _VISEME_NAMES:
+            raise SpeechError(
+                f"a phone's viseme must be 0–14, got {_short(vis)}", file=file, line=n
+            )
+        if phones and start < phones[-1].end - 1e-6:
+            raise SpeechError(
+                f"phones must follow each other: starts at {start:g} s before the previous "
+                f"phone ends ({phones[-1].end:g} s)",
+                file=file,
+                line=n,
+            )
+        phones.append(Phone(start, end, label, int(vis)))
+    words.sort(key=lambda w: w.start)
+    return PhonemeFile(phones, [], "timings", "timings", words)
 
 
 def _finite(x: float) -> bool:

@@ -1,14 +1,15 @@
 """From bookmarked text to an utterance: audio, timed visemes and bookmark times.
 
-``prepare_utterance`` runs the bookmark parser, then either espeak-ng (its own phoneme and mark
-events, in the audio's clock) or another engine's timings (``--phonemes FILE`` with a WAV), and
-returns what the timeline needs. It knows nothing about models or rendering.
+``prepare_utterance`` runs the bookmark parser, then a speech engine (espeak-ng, with its own
+phoneme, word and mark events, or festival, with its utterance structure, both in the audio's
+clock) or another engine's timings (``--phonemes FILE`` with its audio), and returns what the
+timeline needs. It knows nothing about models or rendering.
 """
 
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,7 @@ import numpy as np
 from vtts.animate.timeline import TimedPhone
 from vtts.errors import SpeechError, VttsWarning
 from vtts.speech.bookmarks import Bookmark, BookmarkedText, parse_bookmarks
+from vtts.speech.timings import TimedWord, write_timings
 
 
 @dataclass
@@ -25,6 +27,7 @@ class Utterance:
     audio      ``(n,)`` int16 samples (mono) at ``rate`` Hz
     phones     the phones with their MPEG-4 visemes, in the audio's clock (s)
     bookmarks  the text's bookmarks with ``time`` set (s)
+    words      the spoken words with their start and end (s), when the source gives them
     """
 
     text: BookmarkedText
@@ -32,6 +35,7 @@ class Utterance:
     rate: int
     phones: list[TimedPhone]
     bookmarks: list[Bookmark]
+    words: list[TimedWord] = field(default_factory=list)
 
     @property
     def duration(self) -> float:
@@ -43,37 +47,79 @@ class Utterance:
 def prepare_utterance(
     text: str,
     *,
-    voice: str = "en-us",
+    engine: str = "espeak",
+    voice: str | None = None,
     rate: int | None = None,
     pitch: int | None = None,
     phonemes: str | Path | None = None,
     audio: str | Path | None = None,
     known: set[str] | None = None,
 ) -> Utterance:
-    """Parse ``text`` and synthesize it with espeak-ng, or take the timings from ``phonemes``
-    (an Amazon Polly speech-marks file or a ``start end phoneme`` table) with the WAV ``audio``.
-    ``known``: the expressions the models have tables for (for the unknown-name message)."""
+    """Parse ``text`` and synthesize it with ``engine`` (:data:`ENGINES`: ``"espeak"``, the
+    default, or ``"festival"``), or take the timings from ``phonemes`` (Amazon Polly speech
+    marks, a ``start end phoneme`` table or ``--timings-out`` table) with the audio file
+    ``audio``. ``voice`` is the engine's (espeak-ng's ``en-us`` or festival's
+    ``cmu_us_slt_arctic_hts`` when None); ``rate`` in words per minute and ``pitch`` 0–99 as for
+    espeak-ng. ``known``: the expressions the models have tables for (for the unknown-name
+    message)."""
     from vtts.speech.phonemes import read_phoneme_file
 
+    if engine not in ENGINES:
+        raise SpeechError(f"unknown speech engine {engine!r}; known: {', '.join(ENGINES)}")
     bt = parse_bookmarks(text, known)
-    language = voice.split("-")[0] if voice else "en"
     if phonemes is not None:
         if audio is None:
-            raise SpeechError("--phonemes needs the speech itself: give --audio FILE.wav too")
+            raise SpeechError("--phonemes needs the speech itself: give --audio FILE too")
+        language = voice.split("-")[0] if voice else "en"
         pf = read_phoneme_file(phonemes, language=language)
-        samples, sr = _read_wav(Path(audio))
+        samples, sr = _read_audio(Path(audio))
         phones = [TimedPhone(p.start, p.end, p.viseme, p.phoneme) for p in pf.phones]
         marks = [(m.name, m.time) for m in pf.marks]
-        utt = Utterance(bt, samples, sr, phones, bt.bookmarks)
+        utt = Utterance(bt, samples, sr, phones, bt.bookmarks, list(pf.words))
         _place_marks(utt, marks, fallback=True)
         return utt
+    speech, marks = ENGINES[engine](bt, voice, rate, pitch)
+    phones = [TimedPhone(p.start, p.end, p.viseme, p.phoneme) for p in speech.phonemes]
+    words = [TimedWord(w.start, w.end, w.text) for w in speech.words if w.end is not None]
+    utt = Utterance(bt, np.asarray(speech.audio), int(speech.rate), phones, bt.bookmarks, words)
+    _place_marks(utt, marks, fallback=False)
+    return utt
+
+
+def _espeak(bt: BookmarkedText, voice: str | None, rate: int | None, pitch: int | None):
+    """espeak-ng: SSML with a ``<mark name="bK"/>`` per bookmark, its mark events."""
     from vtts.speech.tts import synthesize
 
-    speech = synthesize(bt.ssml(), voice=voice, rate=rate, pitch=pitch)
-    phones = [TimedPhone(p.start, p.end, p.viseme, p.phoneme) for p in speech.phonemes]
-    utt = Utterance(bt, np.asarray(speech.audio), int(speech.rate), phones, bt.bookmarks)
-    _place_marks(utt, [(m.name, m.time) for m in speech.marks], fallback=False)
-    return utt
+    speech = synthesize(bt.ssml(), voice=voice or "en-us", rate=rate, pitch=pitch)
+    return speech, [(m.name, m.time) for m in speech.marks]
+
+
+def _festival(bt: BookmarkedText, voice: str | None, rate: int | None, pitch: int | None):
+    """festival: the plain text and each bookmark's position in it (marks at word starts)."""
+    from vtts.speech import festival
+
+    positions = []
+    at = 0
+    for piece in bt.pieces:
+        if isinstance(piece, str):
+            at += len(piece)
+        else:
+            positions.append(at)
+    speech = festival.synthesize(
+        bt.text, marks=positions, voice=voice or festival.DEFAULT_VOICE, rate=rate, pitch=pitch
+    )
+    return speech, [(f"b{m.name}", m.time) for m in speech.marks]
+
+
+#: Speech engines by name: each takes the bookmarked text, voice, rate and pitch and returns a
+#: :class:`vtts.speech.tts.Speech` and the bookmarks' times as ``("bK", s)`` pairs.
+ENGINES = {"espeak": _espeak, "festival": _festival}
+
+
+def write_utterance_timings(path: str | Path, utt: Utterance) -> None:
+    """``--timings-out``: the utterance's words and phones as a table
+    (:mod:`vtts.speech.timings`), written atomically."""
+    write_timings(path, utt.phones, utt.words)
 
 
 def _place_marks(utt: Utterance, marks: list[tuple[str, float]], *, fallback: bool) -> None:
@@ -113,21 +159,14 @@ def _place_marks(utt: Utterance, marks: list[tuple[str, float]], *, fallback: bo
             k += 1
 
 
-def _read_wav(path: Path) -> tuple[np.ndarray, int]:
-    import soundfile as sf
+def _read_audio(path: Path) -> tuple[np.ndarray, int]:
+    """``(n,)`` int16 mono samples of any audio file :func:`~vtts.speech.audio.read_audio`
+    reads, at a rate the MP4's AAC encoder takes: the file's own when it is one, else the next
+    higher one up to 48 kHz."""
+    from vtts.speech.audio import AAC_RATES, read_audio, resample, to_int16
 
-    from vtts.limits import MAX_DURATION_S, LimitError
-
-    try:
-        # the length first: a 1 MB FLAC of silence decodes to ten hours (and a timeline as long)
-        info = sf.info(str(path))
-        if not info.frames <= MAX_DURATION_S * info.samplerate:
-            raise LimitError(
-                f"the audio lasts {info.frames / max(info.samplerate, 1):g} s, more than the "
-                f"limit of {MAX_DURATION_S:g} s",
-                file=str(path),
-            )
-        data, sr = sf.read(str(path), dtype="int16", always_2d=True)
-    except (RuntimeError, OSError) as e:
-        raise SpeechError(f"cannot read audio: {e}", file=str(path)) from None
-    return data.mean(axis=1).astype(np.int16), int(sr)
+    samples, sr = read_audio(path)
+    if sr not in AAC_RATES:
+        to = min([r for r in AAC_RATES if r >= sr] + [48000])
+        samples, sr = resample(samples, sr, to), to
+    return to_int16(samples), sr

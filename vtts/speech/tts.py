@@ -33,18 +33,20 @@ from __future__ import annotations
 import json
 import os
 import re
+import string
 import subprocess
 import sys
 import xml.parsers.expat
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cache
 from pathlib import Path
 from xml.sax.saxutils import escape as _xml_escape
+from xml.sax.saxutils import unescape as _xml_unescape
 
 import numpy as np
 
 from vtts.errors import SpeechError
-from vtts.speech.phonemes import Mark, Phone, viseme_of
+from vtts.speech.phonemes import PAUSES, Mark, Phone, viseme_of
 
 __all__ = ["Mark", "Phone", "Speech", "Voice", "Word", "escape", "synthesize", "voices"]
 
@@ -96,11 +98,22 @@ class Voice:
 
 @dataclass(frozen=True)
 class Word:
-    """A word event: ``start`` in s, ``position`` and ``length`` in characters of the input."""
+    """A spoken word: ``start`` and ``end`` in s, ``position`` and ``length`` in characters of
+    the input, ``text`` the input's characters there (XML entities decoded).
+
+    espeak-ng's word event comes up to a phone early (at the start of the last phone of the
+    previous word, sometimes), but every phone event carries the text position of its word: a
+    word spans from its first to its last phone that is not a pause. Words espeak speaks as
+    several (``123``) are one word; a word with no phones is left out. ``text`` is the
+    whitespace-delimited word of the input at ``position`` with the punctuation around it
+    stripped.
+    """
 
     start: float
     position: int
     length: int
+    end: float | None = None
+    text: str = ""
 
 
 @dataclass
@@ -113,7 +126,7 @@ class Speech:
               espeak-ng's IPA when it was asked for (non-English voices by default)
     marks     one per SSML ``<mark/>`` of the input, in document order, with its time (s); names
               may repeat
-    words     word events (start s, position in the input)
+    words     the spoken words (start and end s, position in the input)
     voice     the voice that spoke
     """
 
@@ -381,12 +394,49 @@ def _speech(header: dict, payload: bytes, doc: _Document) -> Speech:
     ipas = ipa if ipa is not None and len(ipa) == len(raw) else [None] * len(raw)
     phones = _phones(raw, ipas, n, rate, voice.language)
     marks = _marks(events, doc, phones, n, rate)
-    words = [
-        Word(min(e[3], n) / rate, doc.position(e[1]), e[2])
-        for e in events
-        if e[0] == EVENT_WORD and e[2] > 0
-    ]
-    return Speech(audio, rate, phones, marks, words, voice)
+    return Speech(audio, rate, phones, marks, _words(events, doc, n, rate), voice)
+
+
+def _words(events, doc: _Document, n: int, rate: int) -> list[Word]:
+    raw = sorted(
+        ((min(max(int(e[3]), 0), n), e[1], e[4]) for e in events if e[0] == EVENT_PHONEME),
+        key=lambda r: r[0],
+    )
+    spans: dict[int, list[int]] = {}  # text position → [first sample, last sample]
+    for j, (start, tp, name) in enumerate(raw):
+        end = raw[j + 1][0] if j + 1 < len(raw) else n
+        if end <= start or name in PAUSES or name.startswith("_"):
+            continue
+        span = spans.setdefault(tp, [start, end])
+        span[0], span[1] = min(span[0], start), max(span[1], end)
+    words: list[Word] = []
+    for e in events:
+        if e[0] != EVENT_WORD or e[2] <= 0 or e[1] not in spans:
+            continue
+        span = spans.pop(e[1])  # later events at the same position: the same word
+        pos = doc.position(e[1])
+        if words and words[-1].position == pos:  # "123": one hundred and / twenty three
+            words[-1] = replace(words[-1], end=span[1] / rate)
+            continue
+        words.append(Word(span[0] / rate, pos, e[2], span[1] / rate, _word_at(doc.source, pos)))
+    return words
+
+
+_WORD_EDGE = string.punctuation.replace("&", "").replace("'", "") + "\u201c\u201d\u2018\u2019"
+
+
+def _word_at(source: str, pos: int) -> str:
+    """The word of the SSML ``source`` around ``pos``: the run of characters without spaces and
+    tags, entities decoded, punctuation around it stripped (espeak-ng's word positions point
+    into entities, and its lengths count them oddly)."""
+    start = pos
+    while start > 0 and not source[start - 1].isspace() and source[start - 1] != ">":
+        start -= 1
+    end = pos
+    while end < len(source) and not source[end].isspace() and source[end] != "<":
+        end += 1
+    text = _xml_unescape(source[start:end], {"&quot;": '"', "&apos;": "'"})
+    return text.strip(_WORD_EDGE) or text
 
 
 def _phones(raw, ipas, n: int, rate: int, language: str) -> list[Phone]:
