@@ -623,3 +623,27 @@ def test_an_avatar_must_be_gltf_by_name(tmp_path):
     (tmp_path / "x.glb").mkdir()
     with pytest.raises(AvatarError, match="is a folder"):
         import_avatar(tmp_path / "x.glb")
+
+
+def test_an_animated_mesh_in_a_turned_frame_is_placed_in_the_scenes_frame(tmp_path):
+    """A Z-up rig: the face mesh under a node turned -90° about x. Its points and its tables are
+    written in the scene's y-up frame (FAPs and FAPUs are defined on those axes), the node stays
+    in the tree; a static mesh in the same frame keeps its local coordinates."""
+    pos, faces = grid()
+    b = Builder()
+    p = b.accessor(pos)
+    down_in_z = moves(len(pos), 1, (0.0, 0.0, -0.1))  # "down" in a Z-up frame
+    face = b.mesh({"POSITION": p}, b.accessor(faces.reshape(-1), USHORT),
+                  [{"POSITION": b.accessor(down_in_z)}], ["jawOpen"], name="Face")  # fmt: skip
+    static = b.mesh({"POSITION": p}, b.accessor(faces.reshape(-1), USHORT), [], [], name="Hat")
+    b.node(name="FaceNode", mesh=face)
+    b.node(name="HatNode", mesh=static)
+    s = np.sin(np.pi / 4)
+    b.node(name="Armature", children=[0, 1], rotation=[-s, 0.0, 0.0, s])
+    avatar = import_avatar(b.save(tmp_path / "z.glb", roots=[2]))
+    turn = np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]])  # -90° about x: z -> y, y -> -z
+    assert np.allclose(avatar.scene.node("Face")["coord"]["point"], pos @ turn.T, atol=1e-6)
+    (table,) = avatar.tables.adts[Miap("fap", 3)].meshes
+    assert np.allclose(table.displacements[0, 0], [0, -0.1 / 1000, 0])
+    assert np.allclose(avatar.scene.node("Hat")["coord"]["point"], pos)
+    assert "Armature" in avatar.scene.defs and "HatNode" in avatar.scene.defs

@@ -245,6 +245,14 @@ class _Importer:
                 shapes = self._shapes(mesh, gn, eye, skin=gn.skin)
                 skinned.append(self._eye_wrap(shapes, eye, np.eye(4), start) if eye else
                                self.node("Group", children=shapes))  # fmt: skip
+            elif _turned(self.world[index]) and match_names(mesh.target_names)[0]:
+                # an animated mesh in a turned frame (a Z-up rig under a turning node) is placed
+                # in the scene's frame: FAPs and FAPUs are defined on the face's y-up, z-forward
+                # axes, and vtts measures them in the mesh's own coordinates
+                start = len(self.face_sets)
+                shapes = self._shapes(mesh, gn, eye, bake=self.world[index])
+                skinned.append(self._eye_wrap(shapes, eye, np.eye(4), start) if eye else
+                               self.node("Group", children=shapes))  # fmt: skip
             else:
                 start = len(self.face_sets)
                 shapes = self._shapes(mesh, gn, eye, world=self.world[index])
@@ -280,7 +288,8 @@ class _Importer:
         return self.node("Transform", name, center=centre, rotation=np.array([0.0, 1, 0, 0]),
                          children=shapes)  # fmt: skip
 
-    def _shapes(self, mesh, gn, eye: str | None, *, world=None, skin=None) -> list[Node]:
+    def _shapes(self, mesh, gn, eye: str | None, *, world=None, skin=None,
+                bake=None) -> list[Node]:  # fmt: skip
         matched, unknown = match_names(mesh.target_names)
         for u in unknown:
             if u not in self.unknown:
@@ -293,6 +302,12 @@ class _Importer:
             where = world if world is not None else np.eye(4)
             if skin is not None:
                 positions, targets, normals = self._skinned(prim, skin)
+            elif bake is not None:
+                lin = bake[:3, :3]
+                positions = positions @ lin.T + bake[:3, 3]
+                targets = [d @ lin.T for d in targets]
+                if normals is not None:
+                    normals = normals @ np.linalg.inv(lin)  # the inverse transpose, row vectors
             name = self.unique(f"{mesh.name or gn.name or 'mesh'}_{pi}" if len(mesh.primitives) > 1
                                else (mesh.name or gn.name), "mesh")  # fmt: skip
             used = [(matched[t], d) for t, d in zip(mesh.target_names, targets, strict=True)
@@ -443,12 +458,19 @@ class _Importer:
     # ---- feature points -----------------------------------------------------------------------
 
     def _feature_points(self) -> dict[str, tuple[str, int]]:
-        """The FAPU feature points found through the targets (none when a part is missing)."""
+        """The FAPU feature points found through the targets (none when a part is missing),
+        searched in the scene's coordinates (y up, the face towards +z, as glTF has it) whatever
+        the meshes' own frames are."""
         fp: dict[str, tuple[str, int]] = {}
+        sets = []
+        for f in self.face_sets:
+            lin, shift = f.world[:3, :3], f.world[:3, 3]
+            moved = {k: d @ lin.T for k, d in f.targets.items()}
+            sets.append(_FaceSet(f.name, f.points @ lin.T + shift, moved, f.eye, f.world))
 
         def most(shape: str) -> tuple[_FaceSet, int, float] | None:
             best = None
-            for fs in self.face_sets:
+            for fs in sets:
                 d = fs.targets.get(shape)
                 if d is None or fs.eye:
                     continue
@@ -470,7 +492,7 @@ class _Importer:
                 fp["3.3"] = (fs.name, int(j))
         for side, point, shape in (("left", "3.5", "eyeBlinkLeft"),
                                    ("right", "3.6", "eyeBlinkRight")):  # fmt: skip
-            eye = [fs for fs in self.face_sets if fs.eye == side]
+            eye = [fs for fs in sets if fs.eye == side]
             if eye:
                 fs = eye[0]
                 fp[point] = (fs.name, int(np.argmax(fs.points[:, 2])))
@@ -497,7 +519,7 @@ class _Importer:
                     corners[point] = fs.points[i]
                     break
         if len(corners) == 2 and fp["8.3"][0] == fp["8.4"][0]:
-            fs = next(f for f in self.face_sets if f.name == fp["8.3"][0])
+            fs = next(f for f in sets if f.name == fp["8.3"][0])
             mid = (corners["8.3"] + corners["8.4"]) / 2
             width = abs(corners["8.3"][0] - corners["8.4"][0])
             x, y, z = fs.points[:, 0], fs.points[:, 1], fs.points[:, 2]
@@ -514,7 +536,7 @@ class _Importer:
                 # profile's concave corner where the nose's underside meets the philtrum)
                 eyes_y = max(p[1] for p in (corners["8.3"], corners["8.4"])) + width
                 if "3.5" in fp:
-                    e = next(f for f in self.face_sets if f.name == fp["3.5"][0])
+                    e = next(f for f in sets if f.name == fp["3.5"][0])
                     eyes_y = e.points[fp["3.5"][1], 1]
                 above = np.flatnonzero(midline & (y > y[i] + 0.05 * width) & (y < eyes_y))
                 if above.size:
@@ -552,6 +574,14 @@ def eyeball_centre(points: np.ndarray) -> np.ndarray:
             np.linalg.norm(centre - box) <= size):  # fmt: skip
         return box
     return centre
+
+
+def _turned(world: np.ndarray) -> bool:
+    """Whether a world matrix does more than scale uniformly and shift (it turns, mirrors or
+    stretches)."""
+    lin = world[:3, :3]
+    k = abs(float(np.linalg.det(lin))) ** (1 / 3)
+    return not (k > 0 and np.allclose(lin, k * np.eye(3), atol=1e-9 * max(k, 1.0)))
 
 
 def _combine(shapes, targets: dict[str, np.ndarray]) -> np.ndarray | None:
