@@ -160,7 +160,8 @@ class _Importer:
         self.images: dict[str, Image] = {}
         self.unknown: list[str] = []
         self.found: set[str] = set()
-        self.eye_transforms: dict[str, tuple[str, np.ndarray]] = {}  # side -> (DEF, R world->local)
+        # side -> [(DEF name, world-to-local rotation)]: an eye may be several meshes (a cornea)
+        self.eye_transforms: dict[str, list[tuple[str, np.ndarray]]] = {}
         self.world: dict[int, np.ndarray] = {}
         self.materials: dict[int | None, Node] = {}
 
@@ -187,10 +188,10 @@ class _Importer:
         for r in roots:
             self._world(r, np.eye(4), 0, set())
         top: list[Node] = []
-        skinned: list[Node] = []
+        top_level: list[Node] = []  # skinned meshes, and animated ones in turned frames
         for r in roots:
-            top.append(self._transform(r, skinned))
-        top += skinned
+            top.append(self._transform(r, top_level))
+        top += top_level
         if not self.face_sets:
             raise AvatarError("the file holds no triangle mesh to import", file=self.asset.file)
         if self.unknown:
@@ -230,7 +231,7 @@ class _Importer:
             self.asset.item(self.asset.doc.nodes, c, f"node {index}: child node")
             self._world(c, m, depth + 1, path | {index})
 
-    def _transform(self, index: int, skinned: list[Node]) -> Node:
+    def _transform(self, index: int, top_level: list[Node]) -> Node:
         gn = self.asset.doc.nodes[index]
         local = self.asset.local_matrix(index)
         t, r, s = _trs(local)
@@ -243,7 +244,7 @@ class _Importer:
                 eye = eye or (_eye_side(joints[0]) if len(joints) == 1 else None)
                 start = len(self.face_sets)
                 shapes = self._shapes(mesh, gn, eye, skin=gn.skin)
-                skinned.append(self._eye_wrap(shapes, eye, np.eye(4), start) if eye else
+                top_level.append(self._eye_wrap(shapes, eye, np.eye(4), start) if eye else
                                self.node("Group", children=shapes))  # fmt: skip
             elif _turned(self.world[index]) and match_names(mesh.target_names)[0]:
                 # an animated mesh in a turned frame (a Z-up rig under a turning node) is placed
@@ -251,7 +252,7 @@ class _Importer:
                 # axes, and vtts measures them in the mesh's own coordinates
                 start = len(self.face_sets)
                 shapes = self._shapes(mesh, gn, eye, bake=self.world[index])
-                skinned.append(self._eye_wrap(shapes, eye, np.eye(4), start) if eye else
+                top_level.append(self._eye_wrap(shapes, eye, np.eye(4), start) if eye else
                                self.node("Group", children=shapes))  # fmt: skip
             else:
                 start = len(self.face_sets)
@@ -262,7 +263,7 @@ class _Importer:
         # named after the meshes below it: a mesh keeps its own name as its IndexedFaceSet's DEF
         name = self.unique(gn.name, f"node{index}")
         for c in gn.children or []:
-            children.append(self._transform(c, skinned))
+            children.append(self._transform(c, top_level))
         fields: dict = {"children": children}
         if np.any(t != 0):
             fields["translation"] = t
@@ -283,8 +284,8 @@ class _Importer:
         centre = eyeball_centre(pts)
         name = self.unique(f"{side[0].upper()}_EYE_ROTATION", "eye")
         lin = world[:3, :3]
-        self.eye_transforms[side] = (name, np.linalg.inv(lin) if abs(np.linalg.det(lin)) > 1e-30
-                                     else np.eye(3))  # fmt: skip
+        to_local = np.linalg.inv(lin) if abs(np.linalg.det(lin)) > 1e-30 else np.eye(3)
+        self.eye_transforms.setdefault(side, []).append((name, to_local))
         return self.node("Transform", name, center=centre, rotation=np.array([0.0, 1, 0, 0]),
                          children=shapes)  # fmt: skip
 
@@ -439,7 +440,9 @@ class _Importer:
                 d = _combine(self.table.expression(e).shapes, fs.targets)
                 if d is not None:
                     _add_mesh(adt(Miap("expression", e)), fs.name, [(1.0, d)], tol)
-        for side, (name, to_local) in self.eye_transforms.items():
+        for side, name, to_local in (
+            (side, n, r) for side, items in self.eye_transforms.items() for n, r in items
+        ):
             yaw, pitch = EYE_FAPS[side]
             for number, axis in ((yaw, (0.0, 1.0, 0.0)), (pitch, (1.0, 0.0, 0.0))):
                 a = to_local @ np.array(axis)
