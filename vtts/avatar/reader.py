@@ -164,8 +164,8 @@ class GltfAsset:
                 doc = GLTF2.gltf_from_json(data.decode("utf-8"))
         except Exception as e:  # pygltflib raises json, struct, type and value errors alike
             raise AvatarError(f"not a readable glTF file: {_short(e)}", file=self.file) from None
-        if doc is None or not isinstance(getattr(doc, "asset", None), object):
-            raise AvatarError("not a readable glTF file", file=self.file)
+        if doc is None or getattr(doc, "asset", None) is None:
+            raise AvatarError("not a readable glTF file: no asset", file=self.file)
         version = str(getattr(doc.asset, "version", "") or "")
         if not version.startswith("2."):
             raise AvatarError(f"only glTF 2.x is read, this file is version {version or '?'}",
