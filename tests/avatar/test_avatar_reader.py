@@ -647,3 +647,37 @@ def test_an_animated_mesh_in_a_turned_frame_is_placed_in_the_scenes_frame(tmp_pa
     assert np.allclose(table.displacements[0, 0], [0, -0.1 / 1000, 0])
     assert np.allclose(avatar.scene.node("Hat")["coord"]["point"], pos)
     assert "Armature" in avatar.scene.defs and "HatNode" in avatar.scene.defs
+
+
+def test_a_webp_texture_is_converted_to_png(tmp_path):
+    """EXT_texture_webp: the WebP image (Pillow decodes it) is written as PNG."""
+    import io
+
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.new("RGB", (8, 8), (10, 20, 200)).save(buf, format="WEBP", lossless=True)
+    pos, faces = grid()
+    b = Builder()
+    p = b.accessor(pos)
+    uv = b.accessor(pos[:, :2] + 0.5)
+    b.doc.images.append(gl.Image(bufferView=b.view(buf.getvalue()), mimeType="image/webp"))
+    b.doc.textures.append(gl.Texture(extensions={"EXT_texture_webp": {"source": 0}}))
+    b.doc.materials.append(gl.Material(pbrMetallicRoughness=gl.PbrMetallicRoughness(
+        baseColorTexture=gl.TextureInfo(index=0))))  # fmt: skip
+    b.doc.extensionsUsed = b.doc.extensionsRequired = ["EXT_texture_webp"]
+    b.node(
+        name="Head",
+        mesh=b.mesh(
+            {"POSITION": p, "TEXCOORD_0": uv},
+            b.accessor(faces.reshape(-1), USHORT),
+            [],
+            [],
+            material=0,
+        ),
+    )
+    avatar = import_avatar(b.save(tmp_path / "w.glb"))
+    (img,) = avatar.images.values()
+    assert img.format == "png"
+    with Image.open(io.BytesIO(img.data)) as im:
+        assert im.format == "PNG" and im.convert("RGB").getpixel((3, 3)) == (10, 20, 200)
