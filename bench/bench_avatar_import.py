@@ -4,10 +4,10 @@ the import animates like the head it came from.
 The avatar is the bundled ``cybatt`` written as an ARKit-blendshape ``.glb`` by
 :func:`vtts.export.avatar.write_arkit_avatar`: its face mesh has 5,150 vertices and 51 morph
 targets (the ARKit shapes its tables can show and the 14 Oculus visemes; the 52nd target of the
-file, ``tongueOut``, moves only the tongue), plus hair, mouth, teeth, tongue and eyeballs. The import is timed in process
-(:func:`vtts.avatar.importer.import_avatar` and writing ``.wrl``/``.adt``/texture; median of three)
-and as the command ``adi import`` (startup and the check that loads the result included; median of
-three).
+file, ``tongueOut``, moves only the tongue), plus hair, mouth, teeth, tongue and eyeballs. The
+import is timed in process (:func:`vtts.avatar.importer.import_avatar` and writing
+``.wrl``/``.adt``/texture; median of three) and as the command ``adi import`` (startup and the
+check that loads the result included; median of three).
 
 The round trip: ``vtts say`` of a short sentence without autonomous motion on cybatt and on the
 import, the same frames compared (PSNR over the whole frame; frames at rest are identical, so the
