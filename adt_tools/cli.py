@@ -100,8 +100,8 @@ def cmd_import(args: argparse.Namespace) -> int:
     check_outputs([out, out.with_suffix(".adt")], [args.avatar])
     with reported_warnings():
         avatar = import_avatar(args.avatar)
-        textures = [out.with_name(f"{out.stem}-tex{i}.png") for i in range(len(avatar.images))]
-        check_outputs([out, out.with_suffix(".adt"), *textures], [args.avatar])
+        # a .gltf's own buffers and images beside it must survive too (me-tex0.png)
+        check_outputs(avatar.outputs(out), [args.avatar, *avatar.sources])
         files = avatar.write(out)
         model = load_model(out)  # what every vtts command will load: checked here
     kinds = {"fap": 0, "viseme": 0, "expression": 0}

@@ -67,6 +67,21 @@ def test_vtts_and_adi_accept_the_import(files, capsys):
     assert f"OK {wrl}" in out and "70 MIAPs" in out
 
 
+def test_other_commands_take_the_import(files, tmp_path):
+    """render, pose, play (a real FAP file) and the glTF export run on the import as on any
+    head."""
+    _, wrl = files
+    m = str(wrl)
+    assert vtts(["render", "--model", m, "--expression", "joy", "--viseme", "10", "--size",
+                 "96x80", "-o", str(tmp_path / "still.png")]) == 0  # fmt: skip
+    assert vtts(["pose", "--model", m, "--fap", "3=500,23=20000", "-o",
+                 str(tmp_path / "posed.wrl")]) == 0  # fmt: skip
+    fap = Path(__file__).parents[1] / "data" / "fap" / "xface-happy-for.fap"
+    assert vtts(["play", str(fap), "--model", m, "--size", "64x48", "-o",
+                 str(tmp_path / "play.glb")]) == 0  # fmt: skip
+    assert (tmp_path / "still.png").stat().st_size > 0 and (tmp_path / "play.glb").is_file()
+
+
 def test_the_import_has_tables_for_faps_visemes_and_expressions(files):
     model = load_model(files[1])
     kinds = [m.kind for m in model.miaps]

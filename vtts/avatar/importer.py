@@ -42,7 +42,7 @@ import numpy as np
 from vtts.avatar.arkit import OCULUS_VISEMES, RecipeTable, recipes
 from vtts.avatar.names import match_names, name_key
 from vtts.avatar.reader import GltfAsset, Image, Material, Primitive
-from vtts.errors import AvatarError, VttsWarning
+from vtts.errors import AvatarError, VttsError, VttsWarning
 from vtts.face.adt import Adt, AnimationTables, MeshTable, TransformTable
 from vtts.face.miap import Miap
 from vtts.fap import AU
@@ -72,6 +72,19 @@ class ImportedAvatar:
     unknown: list[str] = field(default_factory=list)
     found: list[str] = field(default_factory=list)
     eyes: list[str] = field(default_factory=list)
+    sources: list[Path] = field(default_factory=list)
+
+    def texture_names(self, path: str | Path) -> dict[str, str]:
+        """The file name each image is written to beside ``path``: ``PATH-tex0.png`` …"""
+        stem = Path(path).stem
+        return {key: f"{stem}-tex{i}.{'jpg' if img.format == 'jpeg' else 'png'}"
+                for i, (key, img) in enumerate(self.images.items())}  # fmt: skip
+
+    def outputs(self, path: str | Path) -> list[Path]:
+        """The files :meth:`write` writes for ``path``."""
+        wrl = Path(path)
+        return [wrl, wrl.with_suffix(".adt"),
+                *(wrl.with_name(n) for n in self.texture_names(wrl).values())]  # fmt: skip
 
     def write(self, path: str | Path) -> list[Path]:
         """Write ``PATH.wrl``, ``PATH.adt`` and the textures (``PATH-tex0.png`` …) beside each
@@ -83,16 +96,13 @@ class ImportedAvatar:
         wrl = Path(path)
         if wrl.suffix.lower() != ".wrl":
             raise AvatarError(f"the output must be a .wrl file, got {str(path)!r}")
-        stem = wrl.stem
-        renamed: dict[str, str] = {}
-        for i, (key, img) in enumerate(self.images.items()):
-            renamed[key] = f"{stem}-tex{i}.{'jpg' if img.format == 'jpeg' else 'png'}"
+        renamed = self.texture_names(wrl)
         for node in self.scene.find("ImageTexture"):
             url = list(node["url"])
             if url and url[0] in renamed:
                 node.fields["url"] = [renamed[url[0]]]
         text = dumps(self.scene, comment="imported from glTF by adi import")
-        paths = [wrl, wrl.with_suffix(".adt"), *(wrl.with_name(n) for n in renamed.values())]
+        paths = self.outputs(wrl)
         with contextlib.ExitStack() as stack:
             tmp = [stack.enter_context(atomic_path(p)) for p in paths]
             tmp[0].write_text(text, encoding="utf-8")
@@ -124,7 +134,19 @@ def import_avatar(path: str | Path, *, table: RecipeTable | None = None) -> Impo
     docstring). ``table``: the recipe table (default: vtts's, :func:`vtts.avatar.recipes`).
     Raises :class:`~vtts.errors.AvatarError` for a file that cannot be imported; warns
     (:class:`~vtts.errors.VttsWarning`) about unknown target names and dropped textures."""
-    return _Importer(GltfAsset(path), table or recipes()).run()
+    asset = GltfAsset(path)
+    try:
+        return _Importer(asset, table or recipes()).run()
+    except VttsError as e:
+        e.file = e.file or asset.file
+        raise
+    except (TypeError, AttributeError, KeyError, IndexError, ValueError, OverflowError) as e:
+        # a property of the wrong JSON type somewhere the reader takes the file's word for it
+        raise AvatarError(
+            f"malformed glTF: a property has the wrong type or value ({type(e).__name__}: "
+            f"{str(e)[:200]})",
+            file=asset.file,
+        ) from None
 
 
 class _Importer:
@@ -138,7 +160,8 @@ class _Importer:
         self.images: dict[str, Image] = {}
         self.unknown: list[str] = []
         self.found: set[str] = set()
-        self.eye_transforms: dict[str, tuple[str, np.ndarray]] = {}  # side -> (DEF, R world->local)
+        # side -> [(DEF name, world-to-local rotation)]: an eye may be several meshes (a cornea)
+        self.eye_transforms: dict[str, list[tuple[str, np.ndarray]]] = {}
         self.world: dict[int, np.ndarray] = {}
         self.materials: dict[int | None, Node] = {}
 
@@ -165,10 +188,10 @@ class _Importer:
         for r in roots:
             self._world(r, np.eye(4), 0, set())
         top: list[Node] = []
-        skinned: list[Node] = []
+        top_level: list[Node] = []  # skinned meshes, and animated ones in turned frames
         for r in roots:
-            top.append(self._transform(r, skinned))
-        top += skinned
+            top.append(self._transform(r, top_level))
+        top += top_level
         if not self.face_sets:
             raise AvatarError("the file holds no triangle mesh to import", file=self.asset.file)
         if self.unknown:
@@ -186,8 +209,13 @@ class _Importer:
         scene = Scene(statements=[info, *top], defs=dict(self.defs), path=None)
         tables = self._tables()
         tables.feature_points = self._feature_points()
+        if not self.found:
+            warnings.warn(VttsWarning(
+                "no morph target is an ARKit blendshape or an Oculus viseme: the model imports "
+                "without animation tables (a static scene)", file=self.asset.file),
+                stacklevel=3)  # fmt: skip
         return ImportedAvatar(scene, tables, self.images, self.unknown, sorted(self.found),
-                              sorted(self.eye_transforms))  # fmt: skip
+                              sorted(self.eye_transforms), list(self.asset.sources))  # fmt: skip
 
     def _world(self, index: int, parent: np.ndarray, depth: int, path: set[int]) -> None:
         if depth > MAX_DEPTH:
@@ -203,7 +231,7 @@ class _Importer:
             self.asset.item(self.asset.doc.nodes, c, f"node {index}: child node")
             self._world(c, m, depth + 1, path | {index})
 
-    def _transform(self, index: int, skinned: list[Node]) -> Node:
+    def _transform(self, index: int, top_level: list[Node]) -> Node:
         gn = self.asset.doc.nodes[index]
         local = self.asset.local_matrix(index)
         t, r, s = _trs(local)
@@ -216,7 +244,15 @@ class _Importer:
                 eye = eye or (_eye_side(joints[0]) if len(joints) == 1 else None)
                 start = len(self.face_sets)
                 shapes = self._shapes(mesh, gn, eye, skin=gn.skin)
-                skinned.append(self._eye_wrap(shapes, eye, np.eye(4), start) if eye else
+                top_level.append(self._eye_wrap(shapes, eye, np.eye(4), start) if eye else
+                               self.node("Group", children=shapes))  # fmt: skip
+            elif _turned(self.world[index]) and match_names(mesh.target_names)[0]:
+                # an animated mesh in a turned frame (a Z-up rig under a turning node) is placed
+                # in the scene's frame: FAPs and FAPUs are defined on the face's y-up, z-forward
+                # axes, and vtts measures them in the mesh's own coordinates
+                start = len(self.face_sets)
+                shapes = self._shapes(mesh, gn, eye, bake=self.world[index])
+                top_level.append(self._eye_wrap(shapes, eye, np.eye(4), start) if eye else
                                self.node("Group", children=shapes))  # fmt: skip
             else:
                 start = len(self.face_sets)
@@ -227,7 +263,7 @@ class _Importer:
         # named after the meshes below it: a mesh keeps its own name as its IndexedFaceSet's DEF
         name = self.unique(gn.name, f"node{index}")
         for c in gn.children or []:
-            children.append(self._transform(c, skinned))
+            children.append(self._transform(c, top_level))
         fields: dict = {"children": children}
         if np.any(t != 0):
             fields["translation"] = t
@@ -245,15 +281,16 @@ class _Importer:
     def _eye_wrap(self, shapes: list[Node], side: str, world: np.ndarray, start: int) -> Node:
         """The eyeball's shapes in a Transform centred on it, rotated by FAPs 23–26."""
         pts = np.concatenate([fs.points for fs in self.face_sets[start:]] or [np.zeros((1, 3))])
-        centre = (pts.min(axis=0) + pts.max(axis=0)) / 2
+        centre = eyeball_centre(pts)
         name = self.unique(f"{side[0].upper()}_EYE_ROTATION", "eye")
         lin = world[:3, :3]
-        self.eye_transforms[side] = (name, np.linalg.inv(lin) if abs(np.linalg.det(lin)) > 1e-30
-                                     else np.eye(3))  # fmt: skip
+        to_local = np.linalg.inv(lin) if abs(np.linalg.det(lin)) > 1e-30 else np.eye(3)
+        self.eye_transforms.setdefault(side, []).append((name, to_local))
         return self.node("Transform", name, center=centre, rotation=np.array([0.0, 1, 0, 0]),
                          children=shapes)  # fmt: skip
 
-    def _shapes(self, mesh, gn, eye: str | None, *, world=None, skin=None) -> list[Node]:
+    def _shapes(self, mesh, gn, eye: str | None, *, world=None, skin=None,
+                bake=None) -> list[Node]:  # fmt: skip
         matched, unknown = match_names(mesh.target_names)
         for u in unknown:
             if u not in self.unknown:
@@ -266,6 +303,12 @@ class _Importer:
             where = world if world is not None else np.eye(4)
             if skin is not None:
                 positions, targets, normals = self._skinned(prim, skin)
+            elif bake is not None:
+                lin = bake[:3, :3]
+                positions = positions @ lin.T + bake[:3, 3]
+                targets = [d @ lin.T for d in targets]
+                if normals is not None:
+                    normals = normals @ np.linalg.inv(lin)  # the inverse transpose, row vectors
             name = self.unique(f"{mesh.name or gn.name or 'mesh'}_{pi}" if len(mesh.primitives) > 1
                                else (mesh.name or gn.name), "mesh")  # fmt: skip
             used = [(matched[t], d) for t, d in zip(mesh.target_names, targets, strict=True)
@@ -325,8 +368,10 @@ class _Importer:
             n = np.where(norm > 0, n / np.where(norm > 0, norm, 1), [0.0, 0.0, 1.0])
             fields["normal"] = self.node("Normal", vector=np.round(n, 6) + 0.0)
             fields["normalIndex"] = vertex_index
-        if prim.uv is not None and material.image is not None:
-            st = np.c_[prim.uv[:, 0], 1.0 - prim.uv[:, 1]]
+        uv = prim.uv1 if material.texcoord == 1 else prim.uv
+        if uv is not None and material.image is not None:
+            uv = np.c_[uv, np.ones(len(uv))] @ material.uv_transform.T
+            st = np.c_[uv[:, 0], 1.0 - uv[:, 1]]
             fields["texCoord"] = self.node("TextureCoordinate", point=np.round(st, 7) + 0.0)
             fields["texCoordIndex"] = vertex_index
         if prim.colors is not None:
@@ -395,7 +440,9 @@ class _Importer:
                 d = _combine(self.table.expression(e).shapes, fs.targets)
                 if d is not None:
                     _add_mesh(adt(Miap("expression", e)), fs.name, [(1.0, d)], tol)
-        for side, (name, to_local) in self.eye_transforms.items():
+        for side, name, to_local in (
+            (side, n, r) for side, items in self.eye_transforms.items() for n, r in items
+        ):
             yaw, pitch = EYE_FAPS[side]
             for number, axis in ((yaw, (0.0, 1.0, 0.0)), (pitch, (1.0, 0.0, 0.0))):
                 a = to_local @ np.array(axis)
@@ -414,12 +461,19 @@ class _Importer:
     # ---- feature points -----------------------------------------------------------------------
 
     def _feature_points(self) -> dict[str, tuple[str, int]]:
-        """The FAPU feature points found through the targets (none when a part is missing)."""
+        """The FAPU feature points found through the targets (none when a part is missing),
+        searched in the scene's coordinates (y up, the face towards +z, as glTF has it) whatever
+        the meshes' own frames are."""
         fp: dict[str, tuple[str, int]] = {}
+        sets = []
+        for f in self.face_sets:
+            lin, shift = f.world[:3, :3], f.world[:3, 3]
+            moved = {k: d @ lin.T for k, d in f.targets.items()}
+            sets.append(_FaceSet(f.name, f.points @ lin.T + shift, moved, f.eye, f.world))
 
         def most(shape: str) -> tuple[_FaceSet, int, float] | None:
             best = None
-            for fs in self.face_sets:
+            for fs in sets:
                 d = fs.targets.get(shape)
                 if d is None or fs.eye:
                     continue
@@ -441,7 +495,7 @@ class _Importer:
                 fp["3.3"] = (fs.name, int(j))
         for side, point, shape in (("left", "3.5", "eyeBlinkLeft"),
                                    ("right", "3.6", "eyeBlinkRight")):  # fmt: skip
-            eye = [fs for fs in self.face_sets if fs.eye == side]
+            eye = [fs for fs in sets if fs.eye == side]
             if eye:
                 fs = eye[0]
                 fp[point] = (fs.name, int(np.argmax(fs.points[:, 2])))
@@ -468,7 +522,7 @@ class _Importer:
                     corners[point] = fs.points[i]
                     break
         if len(corners) == 2 and fp["8.3"][0] == fp["8.4"][0]:
-            fs = next(f for f in self.face_sets if f.name == fp["8.3"][0])
+            fs = next(f for f in sets if f.name == fp["8.3"][0])
             mid = (corners["8.3"] + corners["8.4"]) / 2
             width = abs(corners["8.3"][0] - corners["8.4"][0])
             x, y, z = fs.points[:, 0], fs.points[:, 1], fs.points[:, 2]
@@ -485,7 +539,7 @@ class _Importer:
                 # profile's concave corner where the nose's underside meets the philtrum)
                 eyes_y = max(p[1] for p in (corners["8.3"], corners["8.4"])) + width
                 if "3.5" in fp:
-                    e = next(f for f in self.face_sets if f.name == fp["3.5"][0])
+                    e = next(f for f in sets if f.name == fp["3.5"][0])
                     eyes_y = e.points[fp["3.5"][1], 1]
                 above = np.flatnonzero(midline & (y > y[i] + 0.05 * width) & (y < eyes_y))
                 if above.size:
@@ -503,6 +557,34 @@ class _Importer:
                 "(eyeBlink*, mouthSmile*/mouthStretch*, eye meshes): the model has "
                 "no FAPUs of its own", file=self.asset.file), stacklevel=3)  # fmt: skip
         return fp
+
+
+def eyeball_centre(points: np.ndarray) -> np.ndarray:
+    """``(3,)`` the centre an eyeball turns about: of the sphere that best fits its ``points``
+    ``(n, 3)`` (least squares), since an eye mesh is often only the front of a sphere, whose
+    bounding box's centre lies too far forward; the bounding box's centre when no sphere fits
+    (too few points, or a radius beyond the mesh's size)."""
+    box = (points.min(axis=0) + points.max(axis=0)) / 2
+    size = float(np.ptp(points, axis=0).max()) if len(points) else 0.0
+    if len(points) < 4 or not size > 0:
+        return box
+    a = np.c_[2 * points, np.ones(len(points))]
+    b = (points**2).sum(axis=1)
+    sol, *_ = np.linalg.lstsq(a, b, rcond=None)
+    centre = sol[:3]
+    radius2 = sol[3] + centre @ centre
+    if not (np.isfinite(sol).all() and 0 < radius2 <= size**2 and
+            np.linalg.norm(centre - box) <= size):  # fmt: skip
+        return box
+    return centre
+
+
+def _turned(world: np.ndarray) -> bool:
+    """Whether a world matrix does more than scale uniformly and shift (it turns, mirrors or
+    stretches)."""
+    lin = world[:3, :3]
+    k = abs(float(np.linalg.det(lin))) ** (1 / 3)
+    return not (k > 0 and np.allclose(lin, k * np.eye(3), atol=1e-9 * max(k, 1.0)))
 
 
 def _combine(shapes, targets: dict[str, np.ndarray]) -> np.ndarray | None:

@@ -79,7 +79,7 @@ class Primitive:
     positions  ``(v, 3) float64``  mesh-local coordinates
     faces      ``(m, 3) int64``    triangles (strips and fans turned into triangles)
     normals    ``(v, 3) float64`` or None
-    uv         ``(v, 2) float64`` TEXCOORD_0 (glTF's v runs down the image) or None
+    uv, uv1    ``(v, 2) float64`` TEXCOORD_0 and _1 (glTF's v runs down the image) or None
     colors     ``(v, 3) float64`` COLOR_0 (alpha dropped) or None
     targets    per morph target ``(v, 3) float64`` POSITION displacements
     joints     ``(v, 4) int64`` JOINTS_0 and ``weights`` ``(v, 4) float64`` WEIGHTS_0, or None
@@ -90,6 +90,7 @@ class Primitive:
     faces: np.ndarray
     normals: np.ndarray | None = None
     uv: np.ndarray | None = None
+    uv1: np.ndarray | None = None
     colors: np.ndarray | None = None
     targets: list[np.ndarray] = field(default_factory=list)
     joints: np.ndarray | None = None
@@ -110,8 +111,9 @@ class Mesh:
 @dataclass(eq=False)
 class Material:
     """A glTF material as VRML can show it: base color ``(4,)`` RGBA, emissive ``(3,)``,
-    roughness, double-sidedness, the base color texture's image index (None: untextured), and
-    whether it is unlit."""
+    roughness, double-sidedness, the base color texture's image index (None: untextured),
+    whether it is unlit, which texture coordinates it reads (``TEXCOORD_n``) and their
+    ``KHR_texture_transform`` as a ``(3, 3)`` matrix on ``(u, v, 1)``."""
 
     name: str | None
     base_color: np.ndarray
@@ -120,6 +122,8 @@ class Material:
     double_sided: bool
     image: int | None
     unlit: bool
+    texcoord: int = 0
+    uv_transform: np.ndarray = field(default_factory=lambda: np.eye(3))
 
 
 @dataclass(eq=False)
@@ -160,8 +164,8 @@ class GltfAsset:
                 doc = GLTF2.gltf_from_json(data.decode("utf-8"))
         except Exception as e:  # pygltflib raises json, struct, type and value errors alike
             raise AvatarError(f"not a readable glTF file: {_short(e)}", file=self.file) from None
-        if doc is None or not isinstance(getattr(doc, "asset", None), object):
-            raise AvatarError("not a readable glTF file", file=self.file)
+        if doc is None or getattr(doc, "asset", None) is None:
+            raise AvatarError("not a readable glTF file: no asset", file=self.file)
         version = str(getattr(doc.asset, "version", "") or "")
         if not version.startswith("2."):
             raise AvatarError(f"only glTF 2.x is read, this file is version {version or '?'}",
@@ -174,6 +178,8 @@ class GltfAsset:
                 f"cannot read (it reads {', '.join(sorted(SUPPORTED_REQUIRED))})",
                 file=self.file,
             )
+        #: the files besides ``path`` that were read (buffers and images a ``.gltf`` names)
+        self.sources: list[Path] = []
         self._buffers: dict[int, bytes] = {}
         self._meshopt: dict[int, bytes] = {}
         self._meshes: dict[int, Mesh] = {}
@@ -186,12 +192,12 @@ class GltfAsset:
 
     def item(self, items: list | None, index: Any, what: str) -> Any:
         """``items[index]`` for a glTF index: an integer (not a bool) within the array."""
-        if (
-            isinstance(index, bool)
-            or not isinstance(index, int)
-            or not 0 <= index < len(items or [])
-        ):
+        if not isinstance(items, list):
+            items = []
+        if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < len(items):
             raise self.error(f"{what} {index!r} does not exist")
+        if items[index] is None or isinstance(items[index], (str, int, float, list)):
+            raise self.error(f"{what} {index} is not a glTF object")
         return items[index]
 
     # ---- buffers ------------------------------------------------------------------------------
@@ -228,6 +234,7 @@ class GltfAsset:
         found = resolve_url([unquote(uri)], self.path.parent)
         if found is None:
             raise self.error(f"{what}: '{uri}' is not a file inside the glTF file's folder")
+        self.sources.append(Path(found))
         try:
             return read_bytes_capped(found, limit, what=what)
         except OSError as e:
@@ -435,6 +442,8 @@ class GltfAsset:
 
     def _primitive(self, p, label: str, mode: int) -> Primitive:
         attrs = _attributes(p.attributes)
+        if attrs is None:
+            raise self.error(f"{label}: attributes must be an object")
         draco = _extension(p, DRACO)
         decoded: dict[str, np.ndarray] = {}
         faces = None
@@ -458,8 +467,12 @@ class GltfAsset:
         positions = attr("POSITION", (3,))
         v = len(positions)
         out = Primitive(positions, np.zeros((0, 3), dtype=np.int64), material=p.material)
-        for name, width, slot in (("NORMAL", (3,), "normals"), ("TEXCOORD_0", (2,), "uv"),
-                                  ("COLOR_0", (3, 4), "colors")):  # fmt: skip
+        for name, width, slot in (
+            ("NORMAL", (3,), "normals"),
+            ("TEXCOORD_0", (2,), "uv"),
+            ("TEXCOORD_1", (2,), "uv1"),
+            ("COLOR_0", (3, 4), "colors"),
+        ):
             a = attr(name, width)
             if a is not None:
                 if len(a) != v:
@@ -479,8 +492,12 @@ class GltfAsset:
         if len(targets) > MAX_MORPH_TARGETS:
             raise self.error(f"{label} has {len(targets)} morph targets, more than the limit of "
                              f"{MAX_MORPH_TARGETS} (vtts.limits)")  # fmt: skip
+        if not isinstance(targets, list):
+            raise self.error(f"{label}: targets must be a list")
         for ti, t in enumerate(targets):
             ta = _attributes(t)
+            if ta is None:
+                raise self.error(f"{label}: morph target {ti} must be an object")
             if "POSITION" not in ta:
                 out.targets.append(np.zeros((v, 3)))
                 continue
@@ -549,13 +566,20 @@ class GltfAsset:
         base = np.array(_floats(getattr(pbr, "baseColorFactor", None), [1, 1, 1, 1], 4))
         rough = _floats([getattr(pbr, "roughnessFactor", None)], [1.0], 1)[0]
         emissive = np.array(_floats(m.emissiveFactor, [0, 0, 0], 3))
-        image = None
+        image, texcoord, transform = None, 0, np.eye(3)
         info = getattr(pbr, "baseColorTexture", None)
         if info is not None:
             image = self.texture_image(info.index)
+            texcoord = info.texCoord if info.texCoord in (0, 1) else 0
+            ext = _extension(info, "KHR_texture_transform")
+            if isinstance(ext, dict):
+                transform = _uv_transform(ext)
+                if isinstance(ext.get("texCoord"), int) and ext["texCoord"] in (0, 1):
+                    texcoord = ext["texCoord"]
         return Material(
             m.name, np.clip(base, 0, 1), np.clip(emissive, 0, 1), float(np.clip(rough, 0, 1)),
             bool(m.doubleSided), image, bool(_extension(m, "KHR_materials_unlit") is not None),
+            texcoord, transform,
         )  # fmt: skip
 
     def texture_image(self, index: Any) -> int | None:
@@ -703,14 +727,17 @@ def _extension(obj: Any, *names: str) -> Any:
     return None
 
 
-def _attributes(attributes: Any) -> dict[str, Any]:
-    """A primitive's or target's attributes as ``{name: accessor index}``."""
+def _attributes(attributes: Any) -> dict[str, Any] | None:
+    """A primitive's or target's attributes as ``{name: accessor index}`` (None when they are not
+    an object)."""
     if attributes is None:
         return {}
     if isinstance(attributes, dict):
         items = attributes.items()
-    else:
+    elif hasattr(attributes, "__dict__") and not isinstance(attributes, type):
         items = ((k, getattr(attributes, k)) for k in vars(attributes))
+    else:
+        return None
     return {k: v for k, v in items if v is not None}
 
 
@@ -722,6 +749,19 @@ def _target_names(mesh: Any) -> list[str]:
         if isinstance(extras, dict) and isinstance(extras.get("targetNames"), list):
             return [str(n) for n in extras["targetNames"]]
     return []
+
+
+def _uv_transform(ext: dict) -> np.ndarray:
+    """``(3, 3)`` the KHR_texture_transform matrix (translation · rotation · scale) on
+    ``(u, v, 1)``; bad values are left at their defaults."""
+    offset = _floats(ext.get("offset"), [0.0, 0.0], 2)
+    scale = _floats(ext.get("scale"), [1.0, 1.0], 2)
+    (rotation,) = _floats([ext.get("rotation")], [0.0], 1)
+    c, s = math.cos(rotation), math.sin(rotation)
+    t = np.array([[1, 0, offset[0]], [0, 1, offset[1]], [0, 0, 1]])
+    # the extension's GLSL: mat3(cos, sin, 0, -sin, cos, 0, 0, 0, 1), filled column by column
+    r = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    return t @ r @ np.diag([scale[0], scale[1], 1.0])
 
 
 def _triangles(idx: np.ndarray, mode: int) -> np.ndarray:
