@@ -451,9 +451,12 @@ def _check_curves(args: argparse.Namespace) -> None:
         args.curves = check_format(args.curves or DEFAULT_FORMAT)
 
 
-def _write_curves(args: argparse.Namespace, stream=None, params=None, phones=None) -> None:
-    """``--curves-out FILE`` of say (the first model's timeline and the phones) and play (the
-    stream itself, every FAP, viseme and expression it sets): :mod:`vtts.avatar.curves`."""
+def _write_curves(
+    args: argparse.Namespace, stream=None, params=None, phones=None, words=None
+) -> None:
+    """``--curves-out FILE`` of say (the first model's timeline, the phones and the words) and
+    play (the stream itself, every FAP, viseme and expression it sets; no words):
+    :mod:`vtts.avatar.curves`."""
     if not args.curves_out:
         return
     from vtts.animate.fapstream import stream_params
@@ -462,7 +465,7 @@ def _write_curves(args: argparse.Namespace, stream=None, params=None, phones=Non
 
     if params is None:
         params = stream_params(stream, all_miaps(), fps=args.fps).params
-    write_curves(args.curves_out, args.curves, params, args.fps, phones)
+    write_curves(args.curves_out, args.curves, params, args.fps, phones, words)
 
 
 def _write_gltf(args: argparse.Namespace, models, params, roots=None) -> None:
@@ -662,7 +665,7 @@ def cmd_say(args: argparse.Namespace) -> int:
         write_wav(args.wav_out, utt.audio, utt.rate)
     if args.timings_out:
         write_utterance_timings(args.timings_out, utt)
-    _write_curves(args, params=timelines[0].params, phones=utt.phones)
+    _write_curves(args, params=timelines[0].params, phones=utt.phones, words=utt.words)
     if not args.quiet:
         written = (*written, args.timings_out, args.curves_out)
         outputs = [str(p) for p in written if p]
