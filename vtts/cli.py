@@ -1219,9 +1219,11 @@ def _view_flags(p: argparse.ArgumentParser) -> None:
     )
 
 
-#: Options that name files a command writes, and files or folders it reads.
-_OUTPUT_OPTIONS = ("output", "fap_out", "wav_out", "timings_out", "curves_out")
-_INPUT_OPTIONS = ("stream", "video", "audio", "file", "phonemes", "input")
+#: Options (argparse ``dest`` names) that name files a command writes, which may replace no
+#: input nor each other (:func:`_check_io`; ``vtts batch`` keeps them inside its folder).
+OUTPUT_OPTIONS = ("output", "fap_out", "wav_out", "timings_out", "curves_out")
+#: Options that name files or folders a command reads.
+INPUT_OPTIONS = ("stream", "video", "audio", "file", "phonemes", "input")
 
 
 def _model_files(name: str) -> list[Path]:
@@ -1248,10 +1250,10 @@ def _check_io(args: argparse.Namespace) -> None:
     the command starts (:func:`vtts.atomic.check_outputs`)."""
     from vtts.atomic import check_outputs
 
-    outputs = [v for k in _OUTPUT_OPTIONS if (v := getattr(args, k, None))]
+    outputs = [v for k in OUTPUT_OPTIONS if (v := getattr(args, k, None))]
     if not outputs:
         return
-    inputs = [v for k in _INPUT_OPTIONS if (v := getattr(args, k, None))]
+    inputs = [v for k in INPUT_OPTIONS if (v := getattr(args, k, None))]
     models = getattr(args, "model", None) or []
     for m in [models] if isinstance(models, str) else models:
         inputs += _model_files(m)
