@@ -372,11 +372,8 @@ def cmd_render(args: argparse.Namespace) -> int:
 def cmd_play(args: argparse.Namespace) -> int:
     """Play a FAP stream on one or more models into an MP4 and/or a folder of PNGs; a stream's
     head translation moves each model by that many of its own ES units."""
-    from vtts.animate.fapstream import model_roots, stream_params, warn_ignored
     from vtts.errors import RenderError
-    from vtts.fap.cli_coding import read_stream
-    from vtts.render import PngSequenceWriter, VideoWriter, progress
-    from vtts.warm import load_model  # kept between the jobs of vtts batch
+    from vtts.speech.audio import read_for_mp4
 
     if not (args.output or args.png_dir or args.web or args.gltf or args.curves_out):
         raise RenderError(
@@ -388,6 +385,37 @@ def cmd_play(args: argparse.Namespace) -> int:
     _background(args, video=bool(args.output))
     _check_web(args)
     _check_curves(args)
+    # the sound of the MP4 and the web player: any format say --audio takes, as say muxes it
+    speech = read_for_mp4(args.audio) if args.audio and (args.output or args.web) else None
+    with _speech_wav(speech) as wav:
+        return _play(args, wav)
+
+
+@contextlib.contextmanager
+def _speech_wav(speech: tuple[np.ndarray, int] | None):
+    """``speech`` (``(n,)`` int16 samples, rate in Hz) as a temporary WAV, what the MP4 muxer
+    and the web player encode as AAC; None for no speech."""
+    if speech is None:
+        yield None
+        return
+    import tempfile
+
+    from vtts.render import write_wav
+
+    with tempfile.TemporaryDirectory(prefix="vtts-speech-") as tmp:
+        wav = Path(tmp) / "speech.wav"
+        write_wav(wav, *speech)
+        yield wav
+
+
+def _play(args: argparse.Namespace, audio: Path | None) -> int:
+    """The work of :func:`cmd_play` once its options are checked; ``audio`` is the speech as
+    a WAV (or None)."""
+    from vtts.animate.fapstream import model_roots, stream_params, warn_ignored
+    from vtts.fap.cli_coding import read_stream
+    from vtts.render import PngSequenceWriter, VideoWriter, progress
+    from vtts.warm import load_model  # kept between the jobs of vtts batch
+
     stream = read_stream(args.stream)
     models = [load_model(m) for m in args.model]
     tracks, played = [], []
@@ -400,7 +428,7 @@ def cmd_play(args: argparse.Namespace) -> int:
     # where the stream's head translation moves the heads (the renderer finds them in the video)
     roots = _stream_roots(args, models, played) if args.web or args.gltf else None
     if args.web:
-        _write_web(args, models, tracks, audio=args.audio, roots=roots)
+        _write_web(args, models, tracks, audio=audio, roots=roots)
     if args.gltf:
         _write_gltf(args, models, tracks, roots)
     if not args.output and not args.png_dir:
@@ -421,9 +449,7 @@ def cmd_play(args: argparse.Namespace) -> int:
         sinks = []
         if args.output:
             sinks.append(
-                stack.enter_context(
-                    VideoWriter(args.output, args.fps, renderer.size, audio=args.audio)
-                )
+                stack.enter_context(VideoWriter(args.output, args.fps, renderer.size, audio=audio))
             )
         if args.png_dir:
             sinks.append(stack.enter_context(PngSequenceWriter(args.png_dir)))
@@ -451,9 +477,12 @@ def _check_curves(args: argparse.Namespace) -> None:
         args.curves = check_format(args.curves or DEFAULT_FORMAT)
 
 
-def _write_curves(args: argparse.Namespace, stream=None, params=None, phones=None) -> None:
-    """``--curves-out FILE`` of say (the first model's timeline and the phones) and play (the
-    stream itself, every FAP, viseme and expression it sets): :mod:`vtts.avatar.curves`."""
+def _write_curves(
+    args: argparse.Namespace, stream=None, params=None, phones=None, words=None
+) -> None:
+    """``--curves-out FILE`` of say (the first model's timeline, the phones and the words) and
+    play (the stream itself, every FAP, viseme and expression it sets; no words):
+    :mod:`vtts.avatar.curves`."""
     if not args.curves_out:
         return
     from vtts.animate.fapstream import stream_params
@@ -462,7 +491,7 @@ def _write_curves(args: argparse.Namespace, stream=None, params=None, phones=Non
 
     if params is None:
         params = stream_params(stream, all_miaps(), fps=args.fps).params
-    write_curves(args.curves_out, args.curves, params, args.fps, phones)
+    write_curves(args.curves_out, args.curves, params, args.fps, phones, words)
 
 
 def _write_gltf(args: argparse.Namespace, models, params, roots=None) -> None:
@@ -568,7 +597,6 @@ def _speak_and_set_up(args, text: str, models: list, known: set[str]):
 
 def cmd_say(args: argparse.Namespace) -> int:
     """Speak bookmarked text with one or more models into an MP4 (and/or PNGs, WAV, FAP)."""
-    import tempfile
 
     from vtts.animate.timeline import build_timeline, timeline_stream
     from vtts.errors import BookmarkError, RenderError
@@ -629,9 +657,7 @@ def cmd_say(args: argparse.Namespace) -> int:
     n = timelines[0].n_frames
     if args.output or args.png_dir:
         with contextlib.ExitStack() as stack:
-            tmp = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="vtts-say-")))
-            wav = tmp / "speech.wav"
-            write_wav(wav, utt.audio, utt.rate)
+            wav = stack.enter_context(_speech_wav((utt.audio, utt.rate)))
             renderer = stack.enter_context(renderer)
             sinks = []
             if args.output:
@@ -651,9 +677,7 @@ def cmd_say(args: argparse.Namespace) -> int:
     if args.gltf:  # a glTF has no sound: --wav-out writes the speech beside it
         _write_gltf(args, models, [tl.params for tl in timelines])
     if args.web:
-        with tempfile.TemporaryDirectory(prefix="vtts-say-") as tmp:
-            wav = Path(tmp) / "speech.wav"
-            write_wav(wav, utt.audio, utt.rate)
+        with _speech_wav((utt.audio, utt.rate)) as wav:
             _write_web(args, models, [tl.params for tl in timelines], audio=wav)
     # the stream and the speech last: a say that fails on the way leaves them as they were
     if args.fap_out:
@@ -662,7 +686,7 @@ def cmd_say(args: argparse.Namespace) -> int:
         write_wav(args.wav_out, utt.audio, utt.rate)
     if args.timings_out:
         write_utterance_timings(args.timings_out, utt)
-    _write_curves(args, params=timelines[0].params, phones=utt.phones)
+    _write_curves(args, params=timelines[0].params, phones=utt.phones, words=utt.words)
     if not args.quiet:
         written = (*written, args.timings_out, args.curves_out)
         outputs = [str(p) for p in written if p]
@@ -940,7 +964,9 @@ def build_parser() -> argparse.ArgumentParser:
     pl = sub.add_parser("play", help="play a FAP stream on one or more models")
     pl.add_argument("stream", help="a .fap file or a coded .fbs stream")
     _models_flag(pl)
-    pl.add_argument("--audio", help="a WAV file to mux into the MP4 (as AAC)")
+    pl.add_argument(
+        "--audio", help="sound to mux into the MP4 and --web (WAV, FLAC, OGG, MP3, M4A …)"
+    )
     pl.add_argument("--fps", type=float, default=30.0, help="output frame rate (default 30)")
     pl.add_argument("--png-dir", help="also (or only) write lossless PNG frames into this folder")
     pl.add_argument("--quiet", action="store_true", help="no progress bar or summary")
@@ -1193,9 +1219,11 @@ def _view_flags(p: argparse.ArgumentParser) -> None:
     )
 
 
-#: Options that name files a command writes, and files or folders it reads.
-_OUTPUT_OPTIONS = ("output", "fap_out", "wav_out", "timings_out", "curves_out")
-_INPUT_OPTIONS = ("stream", "video", "audio", "file", "phonemes", "input")
+#: Options (argparse ``dest`` names) that name files a command writes, which may replace no
+#: input nor each other (:func:`_check_io`; ``vtts batch`` keeps them inside its folder).
+OUTPUT_OPTIONS = ("output", "fap_out", "wav_out", "timings_out", "curves_out")
+#: Options that name files or folders a command reads.
+INPUT_OPTIONS = ("stream", "video", "audio", "file", "phonemes", "input")
 
 
 def _model_files(name: str) -> list[Path]:
@@ -1222,10 +1250,10 @@ def _check_io(args: argparse.Namespace) -> None:
     the command starts (:func:`vtts.atomic.check_outputs`)."""
     from vtts.atomic import check_outputs
 
-    outputs = [v for k in _OUTPUT_OPTIONS if (v := getattr(args, k, None))]
+    outputs = [v for k in OUTPUT_OPTIONS if (v := getattr(args, k, None))]
     if not outputs:
         return
-    inputs = [v for k in _INPUT_OPTIONS if (v := getattr(args, k, None))]
+    inputs = [v for k in INPUT_OPTIONS if (v := getattr(args, k, None))]
     models = getattr(args, "model", None) or []
     for m in [models] if isinstance(models, str) else models:
         inputs += _model_files(m)

@@ -23,6 +23,7 @@ from vtts.avatar.curves import (
 from vtts.avatar.sapi import FROM_MPEG4, sapi_viseme
 from vtts.errors import AvatarError
 from vtts.face.miap import EXPRESSION_BASE, N_PARAMS, VISEME_BASE
+from vtts.speech.timings import TimedWord
 
 FPS = 25.0
 
@@ -180,6 +181,21 @@ def test_event_formats_from_phones():
         "vtimes": [0.0, 100.0, 300.0, 500.0],
         "vdurations": [100.0, 200.0, 200.0, 100.0],
     }
+
+
+def test_talkinghead_words():
+    """say's words become TalkingHead's words/wtimes/wdurations (ms, in time order); none is
+    an empty track, and no words at all (play) leaves the keys out."""
+    phones = [TimedPhone(0.1, 0.2, 1, "b"), TimedPhone(0.2, 0.3, 10, "A:")]
+    words = [TimedWord(0.4, 0.55, "up"), TimedWord(0.1, 0.3, "Bob")]
+    th = curves("talkinghead", frames(15), FPS, phones, words)
+    assert th["words"] == ["Bob", "up"]
+    assert th["wtimes"] == [100.0, 400.0] and th["wdurations"] == [200.0, 150.0]
+    assert th["visemes"] == ["sil", "PP", "aa", "sil"]
+    empty = curves("talkinghead", frames(15), FPS, phones, [])
+    assert empty["words"] == empty["wtimes"] == empty["wdurations"] == []
+    assert "words" not in curves("talkinghead", frames(15), FPS, phones)
+    assert "words" not in curves("azure", frames(15), FPS, phones, words)[0]
 
 
 def test_event_formats_from_the_viseme_track():

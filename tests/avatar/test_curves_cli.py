@@ -25,9 +25,12 @@ def said(tmp_path_factory) -> dict[str, object]:
             args += ["--curves", fmt]
         if fmt == "oculus":
             args += ["--fap-out", str(tmp / "said.fap")]
+        if fmt == "talkinghead":
+            args += ["--timings-out", str(tmp / "said.tsv")]
         assert main(args) == 0
         out[fmt] = json.loads(path.read_text())
     out["fap"] = tmp / "said.fap"
+    out["timings"] = (tmp / "said.tsv").read_text()
     return out
 
 
@@ -65,6 +68,19 @@ def test_say_events(said):
     assert set(th["vtimes"]) >= {t for t in times}
 
 
+def test_say_talkinghead_words(said):
+    """TalkingHead's word track is the utterance's words, as --timings-out writes them."""
+    th = said["talkinghead"]
+    assert th["words"] == ["Bob", "is", "up"]
+    rows = [line.split("\t") for line in said["timings"].splitlines()[1:]]
+    words = [(float(r[1]), float(r[2])) for r in rows if r[0] == "word"]
+    assert th["wtimes"] == pytest.approx([1000 * s for s, _ in words], abs=0.11)
+    assert th["wdurations"] == pytest.approx([1000 * (e - s) for s, e in words], abs=0.21)
+    assert th["wtimes"] == sorted(th["wtimes"]) and all(d > 0 for d in th["wdurations"])
+    # each word starts with a phone of its own, so with a viseme event
+    assert set(th["wtimes"]) <= set(th["vtimes"])
+
+
 def test_play_curves_from_a_stream(said, tmp_path, capsys):
     """play's curves come from the stream: the visemes of a said stream come back from FAP 1."""
     out = tmp_path / "th.json"
@@ -73,6 +89,7 @@ def test_play_curves_from_a_stream(said, tmp_path, capsys):
     assert f"wrote {out}" in capsys.readouterr().out
     th = json.loads(out.read_text())
     assert "PP" in th["visemes"] and th["vtimes"][0] == 0.0
+    assert "words" not in th and "wtimes" not in th  # a stream has no words
     out = tmp_path / "joy.json"
     assert main(["play", str(XFACE), "--model", "lotta", "--curves-out", str(out), "--quiet"]) == 0
     frames = json.loads(out.read_text())["frames"]

@@ -53,6 +53,15 @@ def test_every_out_option_is_an_output_under_the_folder(tmp_path):
     assert args.curves_out == str(tmp_path / "a.json")
 
 
+@pytest.mark.parametrize("dest", cli.OUTPUT_OPTIONS)
+def test_the_commands_outputs_are_a_jobs_outputs(tmp_path, dest):
+    """Every option the commands check as an output (``vtts.cli.OUTPUT_OPTIONS``) is kept in
+    the batch's folder."""
+    job = parse_job({"say": "Hi.", "model": "cybatt", dest: f"o/{dest}"}, tmp_path)
+    assert job.outputs == (f"o/{dest}",)
+    assert getattr(parse_argv(job.argv), dest) == str(tmp_path / "o" / dest)
+
+
 def test_render_and_play_jobs(tmp_path):
     render = parse_job(
         {"render": True, "model": "lotta", "expression": "joy", "output": "a.png"}, tmp_path

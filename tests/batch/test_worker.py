@@ -21,6 +21,13 @@ def runner():
     return JobRunner()
 
 
+def test_warm_up_loads_the_commands_and_the_drawing_pass(runner):
+    from vtts.render import renderer
+
+    seconds = runner.warm_up()
+    assert seconds >= 0 and renderer._DRAWING_PASS is not None
+
+
 def test_jobs_match_the_single_command_and_keep_the_renderer(tmp_path, runner):
     out = tmp_path / "out"
     jobs = [

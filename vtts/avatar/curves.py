@@ -32,9 +32,12 @@ timed phones. Four formats (:data:`FORMATS`), all JSON:
     ``[{"audio_offset_ms": T, "viseme_id": ID}, …]``: an event where the viseme changes, with the
     22 SAPI ids of Azure's speech service (:mod:`vtts.avatar.sapi`).
 ``talkinghead``
-    ``{"visemes": ["sil", "PP", …], "vtimes": [ms, …], "vdurations": [ms, …]}``: the viseme
-    track the TalkingHead browser avatar (met4citizen/TalkingHead, ``speakAudio``) plays with its
-    audio; its viseme names are the Oculus ones without the ``viseme_`` prefix.
+    ``{"words": ["Hello", …], "wtimes": [ms, …], "wdurations": [ms, …], "visemes": ["sil",
+    "PP", …], "vtimes": [ms, …], "vdurations": [ms, …]}``: the word and viseme tracks the
+    TalkingHead browser avatar (met4citizen/TalkingHead, ``speakAudio``) plays with its audio;
+    its viseme names are the Oculus ones without the ``viseme_`` prefix. The words are say's
+    (as written in the text, in the audio's clock; empty when a ``--phonemes`` file gives none);
+    play has no words, so its track leaves the three word keys out.
 
 The events of ``azure`` and ``talkinghead`` come from the phones when there are some (``vtts
 say``: the phones in the audio's clock, silence between them), else from the viseme track (``vtts
@@ -208,14 +211,27 @@ def azure_events(segments: Sequence[VisemeSegment]) -> list[dict]:
     return [{"audio_offset_ms": _ms(start), "viseme_id": k} for k, start, _ in events]
 
 
-def talkinghead_track(segments: Sequence[VisemeSegment]) -> dict:
-    """TalkingHead's ``{"visemes", "vtimes", "vdurations"}`` (names without ``viseme_``, ms)."""
+def _duration_ms(start: float, end: float) -> float:
+    # the difference of the rounded times, so that time + duration is the next event's time
+    return round(_ms(end) - _ms(start), TIME_DIGITS)
+
+
+def talkinghead_track(segments: Sequence[VisemeSegment], words: Sequence | None = None) -> dict:
+    """TalkingHead's ``{"words", "wtimes", "wdurations", "visemes", "vtimes", "vdurations"}``
+    (viseme names without ``viseme_``, times in ms). ``words``: objects with ``start``, ``end``
+    (s) and ``label``, such as :class:`~vtts.speech.timings.TimedWord`, in time order in the
+    track; None leaves the three word keys out (TalkingHead then shows no subtitles)."""
     events = _events(segments, lambda s: OCULUS_VISEMES[s.viseme].removeprefix("viseme_"))
-    return {
-        "visemes": [k for k, _, _ in events],
-        "vtimes": [_ms(start) for _, start, _ in events],
-        "vdurations": [round(_ms(end) - _ms(start), TIME_DIGITS) for _, start, end in events],
-    }
+    track: dict[str, list] = {}
+    if words is not None:
+        ordered = sorted(words, key=lambda w: w.start)
+        track["words"] = [str(w.label) for w in ordered]
+        track["wtimes"] = [_ms(w.start) for w in ordered]
+        track["wdurations"] = [_duration_ms(w.start, w.end) for w in ordered]
+    track["visemes"] = [k for k, _, _ in events]
+    track["vtimes"] = [_ms(start) for _, start, _ in events]
+    track["vdurations"] = [_duration_ms(start, end) for _, start, end in events]
+    return track
 
 
 def _frames(names: Sequence[str], fps: float, weights: np.ndarray) -> dict:
@@ -235,25 +251,25 @@ def head_rotation(params: np.ndarray) -> np.ndarray:
     return p[:, 47:50] * AU
 
 
-def _arkit(params, fps, phones) -> dict:
+def _arkit(params, fps, phones, words) -> dict:
     out = _frames(ARKIT_NAMES, fps, arkit_weights(params))
     out["head_rotation"] = np.round(head_rotation(params), HEAD_DIGITS).tolist()
     return out
 
 
-def _oculus(params, fps, phones) -> dict:
+def _oculus(params, fps, phones, words) -> dict:
     return _frames(OCULUS_VISEMES, fps, oculus_weights(params))
 
 
-def _azure(params, fps, phones) -> list:
+def _azure(params, fps, phones, words) -> list:
     return azure_events(viseme_segments(params, fps, phones))
 
 
-def _talkinghead(params, fps, phones) -> dict:
-    return talkinghead_track(viseme_segments(params, fps, phones))
+def _talkinghead(params, fps, phones, words) -> dict:
+    return talkinghead_track(viseme_segments(params, fps, phones), words)
 
 
-#: The curves formats and what makes each (params, fps, phones) → JSON value.
+#: The curves formats and what makes each (params, fps, phones, words) → JSON value.
 FORMATS: dict[str, Callable] = {
     "arkit": _arkit,
     "oculus": _oculus,
@@ -274,13 +290,21 @@ def check_format(name: str) -> str:
     return key
 
 
-def curves(fmt: str, params: np.ndarray, fps: float, phones: Sequence | None = None) -> dict | list:
+def curves(
+    fmt: str,
+    params: np.ndarray,
+    fps: float,
+    phones: Sequence | None = None,
+    words: Sequence | None = None,
+) -> dict | list:
     """The curves of ``params`` (``(n, N_PARAMS)`` at ``fps`` frames/s) in format ``fmt`` as a
-    JSON value; ``phones`` (say's timed phones) time the event formats."""
+    JSON value; ``phones`` (say's timed phones) time the event formats, ``words`` (say's
+    :class:`~vtts.speech.timings.TimedWord` list, possibly empty) give ``talkinghead`` its word
+    track (left out when None)."""
     maker = FORMATS[check_format(fmt)]
     if not (isinstance(fps, int | float) and np.isfinite(fps) and fps > 0):
         raise AvatarError(f"the frame rate must be finite and > 0, got {fps!r}")
-    return maker(params, float(fps), phones)
+    return maker(params, float(fps), phones, words)
 
 
 def write_curves(
@@ -289,7 +313,8 @@ def write_curves(
     params: np.ndarray,
     fps: float,
     phones: Sequence | None = None,
+    words: Sequence | None = None,
 ) -> None:
     """Write :func:`curves` to ``path`` as JSON, atomically."""
-    value = curves(fmt, params, fps, phones)
+    value = curves(fmt, params, fps, phones, words)
     write_text(path, json.dumps(value, separators=(",", ":")) + "\n")

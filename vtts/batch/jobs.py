@@ -36,7 +36,7 @@ OUTPUT_FOLDERS = ("png_dir", "web")
 def _is_output_file(dest: str) -> bool:
     from vtts import cli
 
-    return dest in OUTPUT_FILES or dest.endswith("_out") or dest in cli._OUTPUT_OPTIONS
+    return dest in OUTPUT_FILES or dest.endswith("_out") or dest in cli.OUTPUT_OPTIONS
 
 
 #: The batch's own files in its folder (:mod:`vtts.batch.manifest`), which no job may write.

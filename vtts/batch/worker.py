@@ -89,9 +89,9 @@ class JobRunner:
         in the first job; returns the seconds it took."""
         t0 = time.perf_counter()
         import vtts.cli  # noqa: F401
-        from vtts.render.renderer import _drawing_pass
+        from vtts.render import warm_up
 
-        _drawing_pass()
+        warm_up()
         return time.perf_counter() - t0
 
     def run(self, job: Job, out_dir: str) -> JobResult:
