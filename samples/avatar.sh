@@ -10,6 +10,6 @@ mkdir -p out/avatar
 from vtts.export.avatar import write_arkit_avatar
 write_arkit_avatar("out/avatar/lotta-arkit.glb", load_model("lotta"))'
 .venv/bin/adi import out/avatar/lotta-arkit.glb -o out/avatar/lotta-imported.wrl
-.venv/bin/adi show out/avatar/lotta-imported.wrl | head -n 4
+.venv/bin/adi show out/avatar/lotta-imported.wrl | sed -n 1,4p
 .venv/bin/vtts say "Hello <smile 2s>, I came in as an ARKit avatar. <blink>" \
   --model out/avatar/lotta-imported.wrl -o out/avatar/hello.mp4
