@@ -188,7 +188,7 @@ def _miap_of_file(path: Path) -> tuple[Miap, float]:
             Miap.parse(stem)
         except (FapError, ValueError):
             raise AdtError(
-                f"no MIAP given: {path.name} has no WorldInfo \"miap NAME AMPLITUDE\" string and "
+                f'no MIAP given: {path.name} has no WorldInfo "miap NAME AMPLITUDE" string and '
                 f"its name is not NAME@AMPLITUDE{path.suffix} (e.g. close_t_l_eyelid@1024"
                 f"{path.suffix}, viseme3@1{path.suffix})",
                 file=str(path),
@@ -547,8 +547,9 @@ class _GltfReader:
             raise self.error(f"bufferView {view_index} reaches past the end of its buffer")
         return data, start, view.byteLength, view.byteStride
 
-    def read(self, view_index: int, offset: int, count: int, ctype: int, ncomp: int,
-             what: str) -> np.ndarray:
+    def read(
+        self, view_index: int, offset: int, count: int, ctype: int, ncomp: int, what: str
+    ) -> np.ndarray:
         """``(count, ncomp)`` values of a (possibly strided) view region."""
         dtype = np.dtype(_COMPONENT_TYPES[ctype])
         data, start, length, stride = self.view_bytes(view_index)
@@ -565,7 +566,10 @@ class _GltfReader:
         if end > length:
             raise self.error(f"{what} reaches past the end of bufferView {view_index}")
         return np.ndarray(
-            (count, ncomp), dtype=dtype, buffer=data, offset=start + offset,
+            (count, ncomp),
+            dtype=dtype,
+            buffer=data,
+            offset=start + offset,
             strides=(stride, dtype.itemsize),
         ).copy()
 
@@ -575,14 +579,13 @@ class _GltfReader:
         acc = self.item(self.doc.accessors, index, f"{what}: accessor")
         ncomp = _COMPONENTS.get(acc.type)
         if ncomp is None or acc.componentType not in _COMPONENT_TYPES:
-            raise self.error(
-                f"{what}: accessor {index} has type {acc.type}/{acc.componentType}"
-            )
+            raise self.error(f"{what}: accessor {index} has type {acc.type}/{acc.componentType}")
         what = f"{what} (accessor {index})"
         counts = (("count", acc.count), ("sparse count", getattr(acc.sparse, "count", 0)))
         for name, count in counts:
-            if isinstance(count, bool) or not (isinstance(count, int)
-                                               and 0 <= count <= MAX_ACCESSOR_COUNT):
+            if isinstance(count, bool) or not (
+                isinstance(count, int) and 0 <= count <= MAX_ACCESSOR_COUNT
+            ):
                 raise self.error(
                     f"{what}: {name} {count!r} is not an integer within 0–{MAX_ACCESSOR_COUNT} "
                     "(vtts.limits)"
@@ -590,8 +593,9 @@ class _GltfReader:
         if acc.bufferView is None:
             values = np.zeros((acc.count, ncomp))
         else:
-            values = self.read(acc.bufferView, acc.byteOffset or 0, acc.count, acc.componentType,
-                               ncomp, what).astype(np.float64)
+            values = self.read(
+                acc.bufferView, acc.byteOffset or 0, acc.count, acc.componentType, ncomp, what
+            ).astype(np.float64)
         if acc.normalized and acc.componentType in _NORMALIZE:
             values = np.maximum(values / _NORMALIZE[acc.componentType], -1.0)
         sparse = acc.sparse
@@ -603,12 +607,26 @@ class _GltfReader:
                     f"{what}: sparse indices need a componentType of 5121, 5123 or 5125 "
                     "(unsigned integers), and sparse values"
                 )
-            idx = self.read(sparse.indices.bufferView, sparse.indices.byteOffset or 0,
-                            sparse.count, sparse.indices.componentType, 1,
-                            f"{what} sparse indices").reshape(-1).astype(np.int64)
-            vals = self.read(sparse.values.bufferView, sparse.values.byteOffset or 0,
-                             sparse.count, acc.componentType, ncomp,
-                             f"{what} sparse values").astype(np.float64)
+            idx = (
+                self.read(
+                    sparse.indices.bufferView,
+                    sparse.indices.byteOffset or 0,
+                    sparse.count,
+                    sparse.indices.componentType,
+                    1,
+                    f"{what} sparse indices",
+                )
+                .reshape(-1)
+                .astype(np.int64)
+            )
+            vals = self.read(
+                sparse.values.bufferView,
+                sparse.values.byteOffset or 0,
+                sparse.count,
+                acc.componentType,
+                ncomp,
+                f"{what} sparse values",
+            ).astype(np.float64)
             if acc.normalized and acc.componentType in _NORMALIZE:
                 vals = np.maximum(vals / _NORMALIZE[acc.componentType], -1.0)
             if idx.size and (idx.min() < 0 or idx.max() >= acc.count):
@@ -639,8 +657,11 @@ class _GltfReader:
                 for ti, t in enumerate(targets):
                     tpos = _attr(t, "POSITION")
                     n = len(bases[-1])
-                    delta = (np.zeros((n, 3)) if tpos is None
-                             else self.accessor(tpos, f"{label} morph target {ti} POSITION"))
+                    delta = (
+                        np.zeros((n, 3))
+                        if tpos is None
+                        else self.accessor(tpos, f"{label} morph target {ti} POSITION")
+                    )
                     if len(delta) != n:
                         raise self.error(
                             f"{label}, primitive {pi}: morph target {ti} has {len(delta)} "
@@ -682,8 +703,7 @@ class _GltfReader:
             return None, {}
         points = info.get("points")
         if points is not None and (
-            isinstance(points, bool) or not isinstance(points, int)
-            or not 0 <= points <= n_vertices
+            isinstance(points, bool) or not isinstance(points, int) or not 0 <= points <= n_vertices
         ):
             raise self.error(
                 f"{label}: extras.vtts.points must be an integer within 0–{n_vertices} (the "
@@ -696,9 +716,11 @@ class _GltfReader:
         pairs: dict[str, tuple[float, float]] = {}
         for tname, pair in zip(names, given if ok else [], strict=False):
             valid = (
-                isinstance(pair, list) and len(pair) == 2
+                isinstance(pair, list)
+                and len(pair) == 2
                 and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in pair)
-                and all(math.isfinite(v) for v in pair) and pair[0] != pair[1]
+                and all(math.isfinite(v) for v in pair)
+                and pair[0] != pair[1]
             )
             if not valid:
                 ok = False
@@ -831,12 +853,17 @@ def _map_gltf_mesh(
 ) -> str:
     # --node can only name the target of a file's single mesh
     single = node if len(meshes) == 1 else None
-    return _target_mesh(neutral, len(m.base), file=file, node=single, mesh_name=m.name,
-                        what=f"glTF mesh {m.name or '(unnamed)'}")
+    return _target_mesh(
+        neutral,
+        len(m.base),
+        file=file,
+        node=single,
+        mesh_name=m.name,
+        what=f"glTF mesh {m.name or '(unnamed)'}",
+    )
 
 
-def _check_base(m: GltfMesh, name: str, neutral_pts: np.ndarray, neutral: Scene,
-                file: str) -> None:
+def _check_base(m: GltfMesh, name: str, neutral_pts: np.ndarray, neutral: Scene, file: str) -> None:
     """Morph targets are displacements from the glTF base mesh: it must be the neutral pose, in
     the same vertex order (float32 storage allowed for)."""
     if not len(neutral_pts):
@@ -895,8 +922,11 @@ def build_tables(
         embedded = tables_from_scene(neutral, file=_scene_name(neutral))
     except VttsError as e:
         warnings.warn(
-            VttsWarning(f"the tables embedded in the neutral scene are ignored: {e.message}",
-                        file=e.file, line=e.line),
+            VttsWarning(
+                f"the tables embedded in the neutral scene are ignored: {e.message}",
+                file=e.file,
+                line=e.line,
+            ),
             stacklevel=2,
         )
         embedded = None

@@ -3,6 +3,7 @@
 ``adi build NEUTRAL.wrl DEFORMED... -o OUT`` compares deformed exports with the neutral model and
 writes the tables (a ``.adt`` file, or with ``--embed`` the neutral scene with FaceDefTables);
 ``adi fit PHOTO -o OUT.wrl`` makes a personalized head from one photograph;
+``adi import AVATAR.glb -o OUT.wrl`` makes one from an ARKit-blendshape glTF avatar;
 ``adi show FILE`` summarizes the tables of a ``.adt`` or a model ``.wrl``. Input errors are printed
 as ``FILE:LINE:COL: error: MESSAGE`` with exit status 1, never a traceback. See ``docs/adi.md``.
 """
@@ -76,6 +77,41 @@ def cmd_show(args: argparse.Namespace) -> int:
     with reported_warnings():
         lines = show(args.file)
     print("\n".join(lines))
+    return 0
+
+
+def cmd_import(args: argparse.Namespace) -> int:
+    """Import an ARKit-blendshape glTF avatar as a personalized model (.wrl + .adt + textures)."""
+    import time
+
+    from vtts.atomic import check_outputs
+    from vtts.avatar.importer import import_avatar
+    from vtts.face import load_model
+
+    t0 = time.perf_counter()
+    out = Path(args.output)
+    if out.suffix.lower() != ".wrl":
+        print(f"{out}: error: the output is a .wrl file (its .adt and textures go beside it)",
+              file=sys.stderr)  # fmt: skip
+        return 1
+    if not out.parent.is_dir():
+        print(f"{out.parent}: error: no such folder for the output", file=sys.stderr)
+        return 1
+    check_outputs([out, out.with_suffix(".adt")], [args.avatar])
+    with reported_warnings():
+        avatar = import_avatar(args.avatar)
+        # a .gltf's own buffers and images beside it must survive too (me-tex0.png)
+        check_outputs(avatar.outputs(out), [args.avatar, *avatar.sources])
+        files = avatar.write(out)
+        model = load_model(out)  # what every vtts command will load: checked here
+    kinds = {"fap": 0, "viseme": 0, "expression": 0}
+    for m in model.miaps:
+        kinds[m.kind] += 1
+    fapu = "FAPUs measured" if model.fapu is not None else "no FAPUs (feature points not found)"
+    print(f"wrote {', '.join(str(p) for p in files)}: {len(avatar.found)} ARKit/Oculus targets "
+          f"-> {kinds['fap']} FAPs, {kinds['viseme']} visemes, {kinds['expression']} "
+          f"expressions; eyes: {', '.join(avatar.eyes) or 'none'}; {fapu}; "
+          f"in {time.perf_counter() - t0:.1f} s")  # fmt: skip
     return 0
 
 
@@ -229,6 +265,19 @@ def build_parser() -> argparse.ArgumentParser:
         help="write landmarks, overlay and turned views and the figures here",
     )
     f.set_defaults(func=cmd_fit)
+
+    i = sub.add_parser(
+        "import",
+        help="a personalized model from an ARKit-blendshape glTF avatar",
+        description="Turn a glTF avatar (.glb/.gltf) with ARKit blendshapes (and Oculus visemes) "
+        "as morph targets into a personalized model: its meshes, textures and node tree become "
+        "OUT.wrl, its targets the tables in OUT.adt (each FAP, viseme and expression through "
+        "the recipe table, docs/avatars.md), eye meshes rotating Transforms, and the FAPUs are "
+        "measured on the mesh. Textures are written beside as OUT-texN.png/.jpg.",
+    )
+    i.add_argument("avatar", metavar="AVATAR", help="the .glb or .gltf avatar")
+    i.add_argument("-o", "--output", required=True, metavar="OUT.wrl", help="the model to write")
+    i.set_defaults(func=cmd_import)
 
     s = sub.add_parser("show", help="summarize the tables of a .adt or a model .wrl")
     s.add_argument("file", metavar="FILE")

@@ -26,8 +26,10 @@ def _plural(n: int, noun: str, plural: str | None = None) -> str:
 def describe_mesh(m: MeshTable, points: int | None = None) -> str:
     """``IndexedFaceSet FACE: 6 of 113 vertices, 2 intervals, borders 0 512 1024``."""
     n = m.vertices.size
-    verts = f"{n} of {_plural(points, 'vertex', 'vertices')}" if points is not None else (
-        _plural(n, "vertex", "vertices")
+    verts = (
+        f"{n} of {_plural(points, 'vertex', 'vertices')}"
+        if points is not None
+        else (_plural(n, "vertex", "vertices"))
     )
     return (
         f"IndexedFaceSet {m.node}: {verts}, {_plural(m.borders.size - 1, 'interval')}, "
@@ -42,9 +44,7 @@ def describe_transform(t: TransformTable) -> str:
             f"Transform {t.node}: rotation about {_nums(t.neutral[:3])} from "
             f"{format_number(t.neutral[3])} rad, {format_number(t.unit[0])} rad per unit"
         )
-    return (
-        f"Transform {t.node}: {t.field} from {_nums(t.neutral)}, {_nums(t.unit)} per unit"
-    )
+    return f"Transform {t.node}: {t.field} from {_nums(t.neutral)}, {_nums(t.unit)} per unit"
 
 
 def describe_tables(

@@ -44,6 +44,8 @@ def test_wheel_contains_grammars_models_and_both_packages(wheel):
     assert "vtts/data/landmarks/face_landmark.tflite" in names
     # adi fit: where the landmarks lie on FACE, and Candide-3 for the subdivision matrix
     assert "vtts/data/fit/face_landmarks.tsv" in names
+    # the ARKit recipe table (avatars in, curves out)
+    assert "vtts/data/arkit_recipes.tsv" in names
     assert "vtts/_data/models/src/candide3.wfm" in names
     # the web player (vtts say/play --web) and the three.js it ships, with three's licence
     for name in ("player.js", "index.html", "vendor/three.module.min.js", "vendor/LICENSE"):

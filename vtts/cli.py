@@ -333,14 +333,15 @@ def _background(args: argparse.Namespace, video: bool):
 
 
 def _renderer(args: argparse.Namespace, models, supersample: int = 1, video: bool = False):
+    from vtts import warm
     from vtts.errors import RenderError
-    from vtts.render import Camera, FaceRenderer
+    from vtts.render import Camera
 
     if args.camera and args.viewpoint:
         raise RenderError("--camera and --viewpoint both choose the camera: give one of them")
     camera = Camera.parse(args.camera) if args.camera else None
     background = _background(args, video)
-    return FaceRenderer(
+    return warm.renderer(
         models,
         size=_size(args.size),
         camera=camera,
@@ -353,8 +354,8 @@ def _renderer(args: argparse.Namespace, models, supersample: int = 1, video: boo
 
 def cmd_render(args: argparse.Namespace) -> int:
     """Render one pose of one or more models to a PNG."""
-    from vtts.face import load_model
     from vtts.render import write_png
+    from vtts.warm import load_model  # kept between the jobs of vtts batch
 
     _background(args, video=False)  # a bad color fails before the models load
     request = _pose_request(args)
@@ -371,20 +372,50 @@ def cmd_render(args: argparse.Namespace) -> int:
 def cmd_play(args: argparse.Namespace) -> int:
     """Play a FAP stream on one or more models into an MP4 and/or a folder of PNGs; a stream's
     head translation moves each model by that many of its own ES units."""
-    from vtts.animate.fapstream import model_roots, stream_params, warn_ignored
     from vtts.errors import RenderError
-    from vtts.face import load_model
-    from vtts.fap.cli_coding import read_stream
-    from vtts.render import PngSequenceWriter, VideoWriter, progress
+    from vtts.speech.audio import read_for_mp4
 
-    if not args.output and not args.png_dir and not args.web and not args.gltf:
+    if not (args.output or args.png_dir or args.web or args.gltf or args.curves_out):
         raise RenderError(
-            "nothing to write: give -o OUT.mp4 (or OUT.glb), --png-dir DIR and/or --web DIR"
+            "nothing to write: give -o OUT.mp4 (or OUT.glb), --png-dir DIR, --web DIR and/or "
+            "--curves-out FILE"
         )
     if not 0 < args.fps <= 240:
         raise RenderError(f"--fps must be within 0–240, got {args.fps:g}")
     _background(args, video=bool(args.output))
     _check_web(args)
+    _check_curves(args)
+    # the sound of the MP4 and the web player: any format say --audio takes, as say muxes it
+    speech = read_for_mp4(args.audio) if args.audio and (args.output or args.web) else None
+    with _speech_wav(speech) as wav:
+        return _play(args, wav)
+
+
+@contextlib.contextmanager
+def _speech_wav(speech: tuple[np.ndarray, int] | None):
+    """``speech`` (``(n,)`` int16 samples, rate in Hz) as a temporary WAV, what the MP4 muxer
+    and the web player encode as AAC; None for no speech."""
+    if speech is None:
+        yield None
+        return
+    import tempfile
+
+    from vtts.render import write_wav
+
+    with tempfile.TemporaryDirectory(prefix="vtts-speech-") as tmp:
+        wav = Path(tmp) / "speech.wav"
+        write_wav(wav, *speech)
+        yield wav
+
+
+def _play(args: argparse.Namespace, audio: Path | None) -> int:
+    """The work of :func:`cmd_play` once its options are checked; ``audio`` is the speech as
+    a WAV (or None)."""
+    from vtts.animate.fapstream import model_roots, stream_params, warn_ignored
+    from vtts.fap.cli_coding import read_stream
+    from vtts.render import PngSequenceWriter, VideoWriter, progress
+    from vtts.warm import load_model  # kept between the jobs of vtts batch
+
     stream = read_stream(args.stream)
     models = [load_model(m) for m in args.model]
     tracks, played = [], []
@@ -397,12 +428,13 @@ def cmd_play(args: argparse.Namespace) -> int:
     # where the stream's head translation moves the heads (the renderer finds them in the video)
     roots = _stream_roots(args, models, played) if args.web or args.gltf else None
     if args.web:
-        _write_web(args, models, tracks, audio=args.audio, roots=roots)
+        _write_web(args, models, tracks, audio=audio, roots=roots)
     if args.gltf:
         _write_gltf(args, models, tracks, roots)
     if not args.output and not args.png_dir:
+        _write_curves(args, stream)
         if not args.quiet:
-            outputs = " and ".join(str(p) for p in (args.gltf, args.web) if p)
+            outputs = " and ".join(str(p) for p in (args.gltf, args.web, args.curves_out) if p)
             print(f"wrote {outputs}: {n} frames at {args.fps:g} fps ({n / args.fps:.2f} s)")
         return 0
     with contextlib.ExitStack() as stack:
@@ -417,9 +449,7 @@ def cmd_play(args: argparse.Namespace) -> int:
         sinks = []
         if args.output:
             sinks.append(
-                stack.enter_context(
-                    VideoWriter(args.output, args.fps, renderer.size, audio=args.audio)
-                )
+                stack.enter_context(VideoWriter(args.output, args.fps, renderer.size, audio=audio))
             )
         if args.png_dir:
             sinks.append(stack.enter_context(PngSequenceWriter(args.png_dir)))
@@ -428,10 +458,40 @@ def cmd_play(args: argparse.Namespace) -> int:
             for sink in sinks:
                 sink.write(frame)
             bar.advance()
-    outputs = " and ".join(str(p) for p in (args.output, args.gltf, args.png_dir, args.web) if p)
+    _write_curves(args, stream)
+    written = (args.output, args.gltf, args.png_dir, args.web, args.curves_out)
+    outputs = " and ".join(str(p) for p in written if p)
     if not args.quiet:
         print(f"wrote {outputs}: {n} frames at {args.fps:g} fps ({n / args.fps:.2f} s)")
     return 0
+
+
+def _check_curves(args: argparse.Namespace) -> None:
+    """``--curves FORMAT`` names a format and goes with ``--curves-out`` (before any work)."""
+    from vtts.avatar.curves import DEFAULT_FORMAT, check_format
+    from vtts.errors import AvatarError
+
+    if args.curves is not None and not args.curves_out:
+        raise AvatarError("--curves FORMAT says how to write --curves-out FILE: give that too")
+    if args.curves_out:
+        args.curves = check_format(args.curves or DEFAULT_FORMAT)
+
+
+def _write_curves(
+    args: argparse.Namespace, stream=None, params=None, phones=None, words=None
+) -> None:
+    """``--curves-out FILE`` of say (the first model's timeline, the phones and the words) and
+    play (the stream itself, every FAP, viseme and expression it sets; no words):
+    :mod:`vtts.avatar.curves`."""
+    if not args.curves_out:
+        return
+    from vtts.animate.fapstream import stream_params
+    from vtts.avatar.curves import write_curves
+    from vtts.face.miap import all_miaps
+
+    if params is None:
+        params = stream_params(stream, all_miaps(), fps=args.fps).params
+    write_curves(args.curves_out, args.curves, params, args.fps, phones, words)
 
 
 def _write_gltf(args: argparse.Namespace, models, params, roots=None) -> None:
@@ -537,26 +597,26 @@ def _speak_and_set_up(args, text: str, models: list, known: set[str]):
 
 def cmd_say(args: argparse.Namespace) -> int:
     """Speak bookmarked text with one or more models into an MP4 (and/or PNGs, WAV, FAP)."""
-    import tempfile
 
     from vtts.animate.timeline import build_timeline, timeline_stream
     from vtts.errors import BookmarkError, RenderError
-    from vtts.face import load_model
     from vtts.fap import write_fap
     from vtts.limits import MAX_TEXT_BYTES, read_bytes_capped
     from vtts.render import PngSequenceWriter, VideoWriter, progress, write_wav
     from vtts.speech.say import write_utterance_timings
+    from vtts.warm import load_model  # kept between the jobs of vtts batch
 
     written = (args.output, args.gltf, args.png_dir, args.web, args.fap_out, args.wav_out)
-    if not any(written) and not args.timings_out:
+    if not any(written) and not args.curves_out and not args.timings_out:
         raise RenderError(
             "nothing to write: give -o OUT.mp4 (or OUT.glb), --png-dir, --web, --fap-out, "
-            "--wav-out or --timings-out"
+            "--wav-out, --timings-out or --curves-out"
         )
     if not 0 < args.fps <= 240:
         raise RenderError(f"--fps must be within 0–240, got {args.fps:g}")
     _background(args, video=bool(args.output))
     _check_web(args)
+    _check_curves(args)
     text = args.text
     if args.file:
         try:
@@ -597,9 +657,7 @@ def cmd_say(args: argparse.Namespace) -> int:
     n = timelines[0].n_frames
     if args.output or args.png_dir:
         with contextlib.ExitStack() as stack:
-            tmp = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="vtts-say-")))
-            wav = tmp / "speech.wav"
-            write_wav(wav, utt.audio, utt.rate)
+            wav = stack.enter_context(_speech_wav((utt.audio, utt.rate)))
             renderer = stack.enter_context(renderer)
             sinks = []
             if args.output:
@@ -619,9 +677,7 @@ def cmd_say(args: argparse.Namespace) -> int:
     if args.gltf:  # a glTF has no sound: --wav-out writes the speech beside it
         _write_gltf(args, models, [tl.params for tl in timelines])
     if args.web:
-        with tempfile.TemporaryDirectory(prefix="vtts-say-") as tmp:
-            wav = Path(tmp) / "speech.wav"
-            write_wav(wav, utt.audio, utt.rate)
+        with _speech_wav((utt.audio, utt.rate)) as wav:
             _write_web(args, models, [tl.params for tl in timelines], audio=wav)
     # the stream and the speech last: a say that fails on the way leaves them as they were
     if args.fap_out:
@@ -630,8 +686,9 @@ def cmd_say(args: argparse.Namespace) -> int:
         write_wav(args.wav_out, utt.audio, utt.rate)
     if args.timings_out:
         write_utterance_timings(args.timings_out, utt)
+    _write_curves(args, params=timelines[0].params, phones=utt.phones, words=utt.words)
     if not args.quiet:
-        written = (*written, args.timings_out)
+        written = (*written, args.timings_out, args.curves_out)
         outputs = [str(p) for p in written if p]
         print(f"wrote {', '.join(outputs)}: {utt.duration:.2f} s, {n} frames at {args.fps:g} fps")
     return 0
@@ -825,6 +882,32 @@ def cmd_models(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_batch(args: argparse.Namespace) -> int:
+    """Run the say/play/render jobs of a .jsonl file on Ray workers (:func:`vtts.batch.run`),
+    or with --dry-run only check every line."""
+    from vtts.batch import read_jobs, run
+    from vtts.batch.jobs import JobError, preflight
+
+    if args.dry_run:
+        checked = read_jobs(args.jobs, args.out)
+        models: dict = {}
+        for job in list(checked.jobs):
+            try:
+                preflight(job, models)
+            except JobError as e:
+                e.file, e.line = args.jobs, job.line
+                checked.errors.append(e)
+                checked.jobs.remove(job)
+        for e in sorted(checked.errors, key=lambda e: e.line or 0):
+            print_error(e)
+        n = len(checked.jobs)
+        print(f"{args.jobs}: {n} valid job{'s' if n != 1 else ''}, {len(checked.errors)} bad")
+        return 1 if checked.errors else 0
+    report = run(args.jobs, args.out, args.workers, args.address, show_progress=True)
+    print(f"batch: {report.summary()}")
+    return 0 if report.ok else 1
+
+
 def _miap_of(key: str):
     from vtts.face import Miap
 
@@ -881,10 +964,13 @@ def build_parser() -> argparse.ArgumentParser:
     pl = sub.add_parser("play", help="play a FAP stream on one or more models")
     pl.add_argument("stream", help="a .fap file or a coded .fbs stream")
     _models_flag(pl)
-    pl.add_argument("--audio", help="a WAV file to mux into the MP4 (as AAC)")
+    pl.add_argument(
+        "--audio", help="sound to mux into the MP4 and --web (WAV, FLAC, OGG, MP3, M4A …)"
+    )
     pl.add_argument("--fps", type=float, default=30.0, help="output frame rate (default 30)")
     pl.add_argument("--png-dir", help="also (or only) write lossless PNG frames into this folder")
     pl.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    _curves_flags(pl)
     _web_flag(pl)
     _view_flags(pl)
     pl.add_argument("-o", "--output", help="output .mp4, or an animated .glb/.gltf")
@@ -939,6 +1025,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--timings-out",
         help="also write the word and phone timings (.tsv: kind start end label viseme)",
     )
+    _curves_flags(sy)
     sy.add_argument("--png-dir", help="also (or only) write lossless PNG frames into this folder")
     sy.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     _web_flag(sy)
@@ -1005,6 +1092,14 @@ def build_parser() -> argparse.ArgumentParser:
     an.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     an.set_defaults(func=cmd_analyze)
 
+    ba = sub.add_parser("batch", help="run many say/play/render jobs on Ray workers")
+    ba.add_argument("jobs", metavar="JOBS.jsonl", help="one job per line (docs/batch.md)")
+    ba.add_argument("--out", required=True, metavar="DIR", help="the outputs' folder")
+    ba.add_argument("--workers", type=int, metavar="N", help="workers (default: one per CPU)")
+    ba.add_argument("--address", help="an existing Ray cluster (default: a local one)")
+    ba.add_argument("--dry-run", action="store_true", help="check every line, render nothing")
+    ba.set_defaults(func=cmd_batch)
+
     vo = sub.add_parser("voices", help="list espeak-ng voices")
     vo.add_argument("language", nargs="?", help="only voices of this language (e.g. en)")
     vo.set_defaults(func=cmd_voices)
@@ -1013,6 +1108,20 @@ def build_parser() -> argparse.ArgumentParser:
 
     register(sub)
     return p
+
+
+def _curves_flags(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--curves-out",
+        metavar="FILE",
+        help="also write the animation as another engine's curves (JSON, see --curves)",
+    )
+    p.add_argument(
+        "--curves",
+        metavar="FORMAT",
+        help="format of --curves-out: arkit (52 blendshape weights per frame, the default), "
+        "oculus (15 viseme weights per frame), azure (viseme events), talkinghead",
+    )
 
 
 def _models_flag(p: argparse.ArgumentParser) -> None:
@@ -1112,9 +1221,11 @@ def _view_flags(p: argparse.ArgumentParser) -> None:
     )
 
 
-#: Options that name files a command writes, and files or folders it reads.
-_OUTPUT_OPTIONS = ("output", "fap_out", "wav_out", "timings_out")
-_INPUT_OPTIONS = ("stream", "video", "audio", "file", "phonemes", "input")
+#: Options (argparse ``dest`` names) that name files a command writes, which may replace no
+#: input nor each other (:func:`_check_io`; ``vtts batch`` keeps them inside its folder).
+OUTPUT_OPTIONS = ("output", "fap_out", "wav_out", "timings_out", "curves_out")
+#: Options that name files or folders a command reads.
+INPUT_OPTIONS = ("stream", "video", "audio", "file", "phonemes", "input")
 
 
 def _model_files(name: str) -> list[Path]:
@@ -1141,10 +1252,10 @@ def _check_io(args: argparse.Namespace) -> None:
     the command starts (:func:`vtts.atomic.check_outputs`)."""
     from vtts.atomic import check_outputs
 
-    outputs = [v for k in _OUTPUT_OPTIONS if (v := getattr(args, k, None))]
+    outputs = [v for k in OUTPUT_OPTIONS if (v := getattr(args, k, None))]
     if not outputs:
         return
-    inputs = [v for k in _INPUT_OPTIONS if (v := getattr(args, k, None))]
+    inputs = [v for k in INPUT_OPTIONS if (v := getattr(args, k, None))]
     models = getattr(args, "model", None) or []
     for m in [models] if isinstance(models, str) else models:
         inputs += _model_files(m)
@@ -1192,6 +1303,12 @@ def main(argv: list[str] | None = None) -> int:
     if threading.current_thread() is threading.main_thread():
         for sig in (signal.SIGTERM, signal.SIGHUP):
             signal.signal(sig, _terminate_as_interrupt)
+    return execute(args)
+
+
+def execute(args: argparse.Namespace) -> int:
+    """Run the command ``args`` (from :func:`build_parser`) as ``vtts`` does: its exit status,
+    with bad input printed on stderr as one clear message (``vtts batch`` runs its jobs so)."""
     try:
         with reported_warnings(), _url_roots(args):
             _check_io(args)

@@ -80,6 +80,11 @@ class AdtError(ModelError):
     """An Animation Definition Table is invalid."""
 
 
+class AvatarError(VttsError):
+    """An avatar (ARKit blendshapes, Oculus visemes) or its curves cannot be read or written: a
+    bad recipe table, an unknown curves format, a blendshape name that is not ARKit's."""
+
+
 class VttsWarning(UserWarning):
     """A problem vtts works around (lenient parsing, FAPs a model cannot show); carries the same
     location attributes as :class:`VttsError`."""

@@ -26,6 +26,8 @@ MAX_CACHE_ENTRY_BYTES = 1 << 30
 MAX_TEXT_BYTES = 64 << 20
 #: A FAP bitstream (``.fbs``): an hour at 30 Hz with every FAP is well under this.
 MAX_FBS_BYTES = 64 << 20
+#: A ``vtts batch`` jobs file (a million jobs of 250 bytes).
+MAX_JOBS_BYTES = 256 << 20
 #: A glTF or GLB file (with its buffers).
 MAX_GLTF_BYTES = 512 << 20
 
@@ -64,6 +66,9 @@ MAX_RENDER_PIXELS = 3840 * 2160
 
 #: The most elements (vertices, indices) one glTF accessor may hold.
 MAX_ACCESSOR_COUNT = 50_000_000
+#: The most morph targets one glTF mesh primitive may have (an ARKit avatar has 52, with the
+#: Oculus visemes 67; each target is a copy of the mesh's positions in memory).
+MAX_MORPH_TARGETS = 1024
 
 
 class LimitError(VttsError):

@@ -115,7 +115,11 @@ def surface_point(points: np.ndarray, faces: np.ndarray, p: np.ndarray):
     w = np.clip(w, 0, None)
     w /= w.sum(axis=1, keepdims=True)
     q = np.einsum("ij,ijk->ik", w, points[cand])
-    best = int(np.argmin(np.linalg.norm(q - p, axis=1)))
+    d = np.linalg.norm(q - p, axis=1)
+    # a point on an edge or a vertex lies in several triangles at the same distance, to rounding
+    # that varies from run to run: of those, the triangle with the smallest vertex ids
+    ties = np.flatnonzero(d <= d.min() + 1e-9 * max(1.0, float(np.abs(p).max())))
+    best = int(ties[np.lexsort(np.sort(cand[ties], axis=1).T[::-1])[0]])
     return cand[best], w[best]
 
 

@@ -135,6 +135,18 @@ def test_the_deferred_pass_covers_the_heads():
         assert _drawing_pass().deferrable(r.scene)
 
 
+def test_warm_up_makes_the_pass_before_any_renderer(monkeypatch):
+    from vtts.render import renderer, warm_up
+    from vtts.render.deferred import DeferredPass
+
+    monkeypatch.setattr(renderer, "_DRAWING_PASS", None)  # as in a process that drew nothing
+    warm_up()
+    made = renderer._DRAWING_PASS
+    assert isinstance(made, DeferredPass)
+    warm_up()  # once is enough: every renderer shares it
+    assert renderer._DRAWING_PASS is made and _drawing_pass() is made
+
+
 @pytest.mark.parametrize("supersample", [1, 2])
 def test_animated_heads_match_pyrender(supersample):
     model = load_model("lotta")

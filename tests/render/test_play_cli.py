@@ -140,3 +140,55 @@ def test_play_and_check_accept_coded_streams(tmp_path):
     bad.write_bytes(fbs.read_bytes()[:40])
     r = vtts("check", str(bad))
     assert r.returncode == 1 and f"{bad}: error: byte " in r.stderr and "Traceback" not in r.stderr
+
+
+def _tone(path: Path, rate: int, channels: int, seconds: float = 1.5) -> Path:
+    """A 440 Hz tone (on the first channel) written by soundfile, or by ffmpeg for ``.mp3``."""
+    import soundfile as sf
+
+    from vtts.render.output import ffmpeg_exe
+
+    t = np.arange(int(rate * seconds)) / rate
+    x = np.zeros((t.size, channels), np.float32)
+    x[:, 0] = 0.4 * np.sin(2 * np.pi * 440 * t)
+    if path.suffix != ".mp3":
+        sf.write(path, x, rate)
+        return path
+    wav = path.with_suffix(".src.wav")
+    sf.write(wav, x, rate)
+    cmd = [ffmpeg_exe(), "-hide_banner", "-loglevel", "error", "-y", "-i", str(wav)]
+    subprocess.run([*cmd, "-c:a", "libmp3lame", str(path)], check=True, timeout=60)
+    return path
+
+
+@pytest.mark.parametrize(
+    ("name", "rate", "channels", "muxed_rate"),
+    [
+        ("speech.mp3", 44100, 1, 44100),  # not a WAV: read as say reads it
+        ("speech.flac", 20000, 2, 22050),  # stereo at a rate AAC does not take: as say muxes it
+    ],
+)
+def test_play_audio_takes_what_say_takes(tmp_path, capsys, name, rate, channels, muxed_rate):
+    from vtts.cli import main
+
+    audio = _tone(tmp_path / name, rate, channels)
+    out = tmp_path / "joy.mp4"
+    args = ["play", str(JOY), "--model", str(HEAD), "--audio", str(audio), "-o", str(out)]
+    assert main([*args, "--size", "96x80", "--fps", "10", "--quiet"]) == 0
+    info = probe_media(out)
+    assert info.audio_rate == muxed_rate and info.audio_channels == 1
+    assert info.duration_audio == pytest.approx(1.5, abs=0.06)
+    assert abs(info.frames - round(read_fap(JOY).duration * 10)) <= 1
+
+
+def test_play_audio_that_is_no_audio_names_the_file(tmp_path, capsys):
+    from vtts.cli import main
+
+    text = tmp_path / "notes.mp3"
+    text.write_text("not a sound\n")
+    out = tmp_path / "joy.mp4"
+    args = ["play", str(JOY), "--model", str(HEAD), "--audio", str(text), "-o", str(out)]
+    assert main(args) == 1
+    err = capsys.readouterr().err
+    assert f"{text}: error: not an audio file" in err and "Traceback" not in err
+    assert not out.exists()

@@ -17,8 +17,7 @@ from vtts.errors import SpeechError
 from vtts.limits import MAX_AUDIO_RATE, LimitError
 from vtts.render import probe_media
 from vtts.render.output import ffmpeg_exe
-from vtts.speech.audio import read_audio, resample, to_int16
-from vtts.speech.say import _read_audio
+from vtts.speech.audio import read_audio, read_for_mp4, resample, to_int16
 
 HEAD = Path(__file__).parents[1] / "data" / "models" / "head.wrl"
 RATE = 44100
@@ -97,10 +96,10 @@ def test_float_wav_beyond_full_scale_is_clipped_and_nan_silenced(tmp_path: Path)
     assert samples[:5].tolist() == [0.0, 1.0, -1.0, 0.0, 0.25]
 
 
-def test_say_reader_gives_int16_at_an_aac_rate(tmp_path: Path) -> None:
+def test_mp4_reader_gives_int16_at_an_aac_rate(tmp_path: Path) -> None:
     # 20 kHz is no AAC rate: the next higher one (22.05 kHz) is taken
     sf.write(tmp_path / "odd.wav", np.zeros(2000, np.float32), 20000)
-    samples, rate = _read_audio(tmp_path / "odd.wav")
+    samples, rate = read_for_mp4(tmp_path / "odd.wav")
     assert samples.dtype == np.int16 and rate == 22050 and abs(samples.size - 2205) <= 1
 
 

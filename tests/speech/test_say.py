@@ -50,7 +50,15 @@ def test_expressions_start_on_their_marks_frame(utterance):
     smile = utterance.bookmarks[0]
     w = tl.params[:, EXPRESSION_BASE + 1]
     first = int(np.flatnonzero(w > 0)[0])
-    assert abs(first - smile.time * 30) <= 1.0 + 1e-9
+    # the smile starts with "my", at its m (espeak-ng's own mark event is a phone earlier) …
+    m = next(p for p in utterance.phones if p.start == smile.time)
+    assert m.phoneme == "m"
+    # … and the smile, which opens the mouth, waits for the lips to open
+    assert 0 <= first - m.end * 30 <= 1.0
+    # without the closure it starts on the mark's frame
+    alone = build_timeline(model, [], utterance.bookmarks, utterance.duration, autonomous=False)
+    first = int(np.flatnonzero(alone.params[:, EXPRESSION_BASE + 1] > 0)[0])
+    assert 0 <= first - smile.time * 30 <= 1.0
 
 
 def test_say_writes_mp4_wav_and_fap_with_matching_durations(tmp_path):

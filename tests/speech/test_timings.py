@@ -64,14 +64,28 @@ def test_espeak_words_span_their_phones(espeak_utterance) -> None:
         assert len(inside) == (1 if p.viseme else len(inside)), p
         if p.viseme:
             assert inside
-    # the bookmarks' times are the starts of the words after them (espeak's mark event comes up to
-    # a phone early, like its word event)
+    # the bookmarks' times are the starts of the words after them (not espeak's mark events,
+    # which come up to a phone early, like its word events)
     smile, blink = utt.bookmarks
-    assert smile.time == pytest.approx(utt.words[1].start, abs=0.03)
-    assert blink.time == pytest.approx(utt.words[9].start, abs=0.03)
+    assert smile.time == utt.words[1].start and blink.time == utt.words[9].start
     # "my": m is bilabial
     m = next(p for p in utt.phones if p.start >= utt.words[1].start - 1e-9)
     assert m.phoneme == "m" and m.viseme == 1
+
+
+def test_a_bookmark_before_a_word_starts_at_its_first_phone() -> None:
+    """espeak-ng reports the mark in "my name <smile> is" 67 ms early, inside the m of "name";
+    the smile starts where the timings table says "is" starts, at its I."""
+    utt = prepare_utterance("my name <smile> is")
+    (smile,) = utt.bookmarks
+    assert [w.label for w in utt.words] == ["my", "name", "is"]
+    assert smile.time == utt.words[2].start
+    phone = next(p for p in utt.phones if p.start == smile.time)
+    assert phone.phoneme == "I"
+    before = [p for p in utt.phones if p.end <= smile.time]
+    assert before[-1].phoneme == "m" and before[-1].start >= utt.words[1].start
+    table = format_timings(utt.phones, utt.words).splitlines()
+    assert f"word\t{smile.time:.4f}\t{utt.words[2].end:.4f}\tis\t-" in table
 
 
 def test_say_writes_timings_and_reads_them_back(tmp_path: Path) -> None:

@@ -81,6 +81,32 @@ def test_mark_after_a_full_stop_is_not_lost():
     assert n.start <= s.marks[1].time <= n.end
 
 
+@pytest.mark.parametrize(
+    ("text", "word"),
+    [
+        ('Hi <mark name="a"/> there', "there"),
+        ('<mark name="a"/>Hi there', "Hi"),  # not 0: at the H, after the leading silence
+        ('Say <mark name="a"/> "hello" now', "hello"),  # an opening quote is not spoken
+        ('Then <mark name="x"/><mark name="a"/> now', "now"),  # nor another mark
+        ("One <mark name='a'/>(two) three", "two"),
+    ],
+)
+def test_a_mark_right_before_a_word_is_at_the_words_first_phone(text, word):
+    s = synthesize(text)
+    mark = next(m for m in s.marks if m.name == "a")
+    w = next(w for w in s.words if w.text == word)
+    assert mark.time == w.start
+    assert any(p.start == w.start and p.viseme for p in s.phonemes)
+
+
+def test_a_mark_before_a_pause_stays_before_it():
+    """A comma between the mark and the next word: the mark stays where espeak-ng puts it, at
+    the end of the word before, not after the pause."""
+    s = synthesize('One <mark name="a"/>, two')
+    one, two = s.words
+    assert s.marks[0].time == pytest.approx(one.end, abs=0.02) and s.marks[0].time < two.start - 0.1
+
+
 def test_mark_names_come_back_as_written():
     s = synthesize(
         "<speak>A <mark name='single'/> b <mark name=\"a&amp;b &lt;é&gt;\"/> c "

@@ -6,7 +6,8 @@
 - :func:`parse_color`, :func:`parse_background` — background colors as the commands write them;
 - :class:`VideoWriter`, :class:`PngSequenceWriter`, :func:`write_png`, :func:`write_wav` — outputs
   written to a temporary name and renamed when complete;
-- :func:`probe_media` — frame count and durations of an MP4; :func:`progress` — a progress bar.
+- :func:`probe_media` — frame count and durations of an MP4; :func:`progress` — a progress bar;
+- :func:`warm_up` — the process's OpenGL context and drawing pass made before the first frame.
 """
 
 from vtts.render.camera import (
@@ -27,7 +28,7 @@ from vtts.render.output import (
     write_png,
     write_wav,
 )
-from vtts.render.renderer import FaceRenderer, vertex_normals
+from vtts.render.renderer import FaceRenderer, vertex_normals, warm_up
 
 __all__ = [
     "Camera",
@@ -45,6 +46,7 @@ __all__ = [
     "vertex_normals",
     "viewpoint_fields",
     "viewpoints",
+    "warm_up",
     "write_png",
     "write_wav",
 ]

@@ -879,6 +879,13 @@ def _drawing_pass():
     return _DRAWING_PASS
 
 
+def warm_up() -> None:
+    """Create the process's offscreen OpenGL context and its drawing pass now rather than at
+    the first frame (EGL's start and the pass's shaders); every renderer of the process shares
+    them. A process that runs many commands (``vtts batch``'s workers) calls it once up front."""
+    _drawing_pass()
+
+
 def _rot_xy(ax: float, ay: float) -> np.ndarray:
     """A rotation about x by ``ax`` then about y by ``ay`` (radians), homogeneous."""
     from vtts.vrml import rotation_matrix

@@ -26,7 +26,7 @@ import numpy as np
 from vtts.errors import SpeechError
 from vtts.limits import MAX_AUDIO_RATE, MAX_AUDIO_S, LimitError
 
-__all__ = ["AAC_RATES", "read_audio", "resample", "to_int16"]
+__all__ = ["AAC_RATES", "read_audio", "read_for_mp4", "resample", "to_int16"]
 
 #: Sample rates ffmpeg's AAC encoder takes (Hz): the MP4 of ``vtts say`` needs one of them.
 AAC_RATES = frozenset(
@@ -69,6 +69,19 @@ def read_audio(path: str | os.PathLike[str], rate: int | None = None) -> tuple[n
         samples = resample(samples, native, rate)
         native = rate
     return samples, native
+
+
+def read_for_mp4(path: str | os.PathLike[str]) -> tuple[np.ndarray, int]:
+    """``(samples, rate)``: ``(n,)`` int16 mono samples of any audio file :func:`read_audio`
+    reads, at a rate the MP4's AAC encoder takes (:data:`AAC_RATES`): the file's own when it is
+    one, else the next higher one up to 48 kHz. What ``vtts say --audio`` and ``vtts play
+    --audio`` mux into the MP4 and the web player (written as a WAV first); errors as
+    :func:`read_audio`'s."""
+    samples, sr = read_audio(path)
+    if sr not in AAC_RATES:
+        to = min([r for r in AAC_RATES if r >= sr] + [48000])
+        samples, sr = resample(samples, sr, to), to
+    return to_int16(samples), sr
 
 
 def resample(samples: np.ndarray, rate: int, to: int) -> np.ndarray:

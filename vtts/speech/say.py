@@ -222,13 +222,7 @@ def _place_at_words(utt: Utterance) -> bool:
 
 
 def _read_audio(path: Path) -> tuple[np.ndarray, int]:
-    """``(n,)`` int16 mono samples of any audio file :func:`~vtts.speech.audio.read_audio`
-    reads, at a rate the MP4's AAC encoder takes: the file's own when it is one, else the next
-    higher one up to 48 kHz."""
-    from vtts.speech.audio import AAC_RATES, read_audio, resample, to_int16
+    """The speech of ``--audio`` (:func:`vtts.speech.audio.read_for_mp4`)."""
+    from vtts.speech.audio import read_for_mp4
 
-    samples, sr = read_audio(path)
-    if sr not in AAC_RATES:
-        to = min([r for r in AAC_RATES if r >= sr] + [48000])
-        samples, sr = resample(samples, sr, to), to
-    return to_int16(samples), sr
+    return read_for_mp4(path)

@@ -125,7 +125,9 @@ class Speech:
               ``phoneme`` is espeak-ng's name (``aI``), ``viseme`` its MPEG-4 viseme, ``ipa``
               espeak-ng's IPA when it was asked for (non-English voices by default)
     marks     one per SSML ``<mark/>`` of the input, in document order, with its time (s); names
-              may repeat
+              may repeat. A mark right before a word (only spaces, other marks or opening quotes
+              and brackets between) is at the word's first phone, as in ``words``; another at
+              espeak-ng's mark event
     words     the spoken words (start and end s, position in the input)
     voice     the voice that spoke
     """
@@ -393,8 +395,9 @@ def _speech(header: dict, payload: bytes, doc: _Document) -> Speech:
     raw = [(e[3], e[4]) for e in events if e[0] == EVENT_PHONEME]
     ipas = ipa if ipa is not None and len(ipa) == len(raw) else [None] * len(raw)
     phones = _phones(raw, ipas, n, rate, voice.language)
-    marks = _marks(events, doc, phones, n, rate)
-    return Speech(audio, rate, phones, marks, _words(events, doc, n, rate), voice)
+    words = _words(events, doc, n, rate)
+    marks = _marks(events, doc, phones, words, n, rate)
+    return Speech(audio, rate, phones, marks, words, voice)
 
 
 def _words(events, doc: _Document, n: int, rate: int) -> list[Word]:
@@ -457,7 +460,34 @@ def _phones(raw, ipas, n: int, rate: int, language: str) -> list[Phone]:
     return phones
 
 
-def _marks(events, doc: _Document, phones: list[Phone], n: int, rate: int) -> list[Mark]:
+#: What may stand between a mark and the word it comes right before: spaces, other marks and
+#: opening quotes or brackets, none of which is spoken.
+_BEFORE_WORD = re.compile(
+    r"""(?:\s|<(?:[\w.-]+:)?mark\b[^>]*>|&quot;|&apos;|["'\u201c\u2018\u00ab(\[\u00bf\u00a1])*"""
+)
+
+
+def _word_after(doc: _Document, k: int, words: list[Word]) -> Word | None:
+    """The spoken word that mark ``k`` stands right before in the text (only what
+    :data:`_BEFORE_WORD` allows between them), or None."""
+    end = doc.spans[k][3] - doc.prefix  # just after the mark's tag, in the caller's text
+    after = [w for w in words if w.position >= end]
+    if not after:
+        return None
+    word = min(after, key=lambda w: w.position)
+    reach = _BEFORE_WORD.match(doc.source, end).end()
+    # the word's position may be inside its token (after a quote, say): no space or tag before it
+    between = doc.source[reach : word.position]
+    return word if not any(c.isspace() or c == "<" for c in between) else None
+
+
+def _marks(
+    events, doc: _Document, phones: list[Phone], words: list[Word], n: int, rate: int
+) -> list[Mark]:
+    """Each mark's time: the first phone of the word it stands right before, where there is one
+    (espeak-ng's mark event comes up to a phone early, as its word event does: "my name <mark/>
+    is" is reported 67 ms before the ``I`` of "is"), else espeak-ng's mark event, else (a mark
+    espeak-ng lost) the next word's event."""
     if not doc.marks:
         return []
     reported: dict[int, int] = {}
@@ -469,17 +499,20 @@ def _marks(events, doc: _Document, phones: list[Phone], n: int, rate: int) -> li
                 continue
             if 0 <= k < len(doc.marks) and k not in reported:
                 reported[k] = int(e[3])
-    words = [(e[1] - 1, int(e[3])) for e in events if e[0] == EVENT_WORD and e[2] > 0]
+    word_events = [(e[1] - 1, int(e[3])) for e in events if e[0] == EVENT_WORD and e[2] > 0]
     speech_end = next((p.end for p in reversed(phones) if p.viseme != 0), 0.0)
     marks: list[Mark] = []
     previous = 0.0
     for k, name in enumerate(doc.marks):
-        if k in reported:
+        word = _word_after(doc, k, words)
+        if word is not None:
+            t = word.start
+        elif k in reported:
             t = reported[k] / rate
         else:
             # Lost by espeak (after a full stop): the next word after the mark's place.
             # (espeak's positions can be one too far, never too early: allow one character)
-            later = [s for pos, s in words if pos >= doc.mark_ends[k] - 1]
+            later = [s for pos, s in word_events if pos >= doc.mark_ends[k] - 1]
             after = [reported[j] for j in range(k + 1, len(doc.marks)) if j in reported]
             if later:
                 t = later[0] / rate
