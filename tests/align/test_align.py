@@ -120,6 +120,7 @@ def test_noise_is_reported() -> None:
         (np.ones(100, np.float32) * 0.1, 16000, "Hello.", "too short"),
         (np.ones(16000, np.float32) * 0.1, 16000, "<smile 1s>", "nothing to say"),
         (np.ones((16000, 2), np.float32) * 0.1, 16000, "Hello.", "mono"),
+        (np.ones(16000, np.float32) * 0.1, 16000, "Hello. " * 40, "cannot be this recording"),
     ],
 )
 def test_bad_input_is_a_clear_error(samples, rate, text, message) -> None:

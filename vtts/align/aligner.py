@@ -117,6 +117,8 @@ REFINE_ABOVE = 5.0
 PAUSE_COST = 2.0
 #: Shortest pause of the recording that becomes a pause phone where the reference has none, s.
 MIN_PAUSE = 0.05
+#: Largest ratio between the speech of the transcript (espeak-ng's) and of the recording.
+MAX_RATIO = 4.0
 #: Frames of pause kept on each side of the speech when warping.
 MARGIN = 5
 
@@ -200,6 +202,14 @@ def align(
     ref_db = log_mel(
         resample(ref.audio.astype(np.float32) / np.float32(32768), ref.rate, fs), fs, HOP
     )
+    spoken = speech_frames(ref_db).sum() * HOP
+    heard = max(rec_speech.sum(), 1) * HOP
+    if not 1 / MAX_RATIO <= spoken / heard <= MAX_RATIO:
+        raise SpeechError(
+            f"the transcript takes {spoken:.1f} s of speech to say and the recording holds "
+            f"{heard:.1f} s: more than {MAX_RATIO:g} times apart, it cannot be this recording's "
+            "transcript"
+        )
     # silence anchoring: only the spans from the first to the last speech frame (and a margin)
     # are warped, so that leading and trailing pauses of any length cost nothing
     ref_span = _speech_span(speech_frames(ref_db)) if not baseline else (0, len(ref_db))
