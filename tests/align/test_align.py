@@ -110,6 +110,11 @@ def test_noise_is_reported() -> None:
     noise = np.random.default_rng(1).normal(0, 0.1, 16000 * 3).astype(np.float32)
     found = align(noise, 16000, ssml("Hello there, how are you today?"))
     assert any("not match the transcript anywhere" in p for p in found.problems)
+    assert any("no voiced sound" in p for p in found.problems)
+    # coloured noise: its autocorrelation falls slowly from lag 0, which is no pitch either
+    pink = np.convolve(noise, np.ones(8) / 8, mode="same")
+    found = align(pink, 16000, ssml("Hello there, how are you today?"))
+    assert any("no voiced sound" in p for p in found.problems)
 
 
 @pytest.mark.parametrize(

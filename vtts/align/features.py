@@ -129,10 +129,15 @@ def normalize(x: np.ndarray) -> np.ndarray:
     return ((x - x.mean(axis=0)) / (x.std(axis=0) + 1e-6)).astype(np.float32)
 
 
+#: Fraction of the speech frames that must be voiced for a recording to have a pitch (speech:
+#: 0.5-0.8; white and coloured noise: under 0.1).
+MIN_VOICED = 0.2
+
+
 def median_f0(samples: np.ndarray, rate: int, speech: np.ndarray, hop: float) -> float | None:
     """Median fundamental frequency (Hz) of the voiced frames among ``speech`` (``(n_frames,)``
     bool at ``hop`` s), by the peak of the normalized autocorrelation of 40 ms windows within
-    70–400 Hz; None when too few frames are voiced (a peak above 0.5)."""
+    70–400 Hz; None when fewer than :data:`MIN_VOICED` of them are voiced (a peak above 0.5)."""
     x = np.asarray(samples, dtype=np.float32)
     step = round(hop * rate)
     win = round(0.04 * rate)
@@ -151,7 +156,9 @@ def median_f0(samples: np.ndarray, rate: int, speech: np.ndarray, hop: float) ->
     lo, hi = int(rate / 400), int(rate / 70)
     lag = lo + np.argmax(ac[:, lo:hi], axis=1)
     peak = ac[np.arange(len(lag)), lag]
-    voiced = peak > 0.5
-    if voiced.sum() < 5:
+    # a peak, not the slope of a noise's autocorrelation falling from lag 0 (coloured noise)
+    dip = np.array([ac[k, lo : lag[k] + 1].min() for k in range(len(lag))])
+    voiced = (peak > 0.5) & (lag > lo) & (peak - dip > 0.1)
+    if voiced.sum() < max(5, MIN_VOICED * len(voiced)):
         return None
     return float(np.median(rate / lag[voiced]))
