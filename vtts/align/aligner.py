@@ -175,12 +175,11 @@ def align(
         raise SpeechError("the recording is silent: there is no speech to align")
     rec_speech = speech_frames(rec_db)
 
-    if "+" not in voice and not baseline:
+    f0 = median_f0(rec, fs, rec_speech, HOP)  # None: hardly voiced, perhaps not speech
+    if "+" not in voice and not baseline and f0 is not None and f0 > HIGH_VOICE_HZ:
         # a high voice is warped better against espeak-ng's female variant (measured: festival's
         # HTS voice, 170 Hz, 90th percentile 50 → 45 ms)
-        f0 = median_f0(rec, fs, rec_speech, HOP)
-        if f0 is not None and f0 > HIGH_VOICE_HZ:
-            voice = f"{voice}+{HIGH_VARIANT}"
+        voice = f"{voice}+{HIGH_VARIANT}"
     ref = synthesize(ssml, voice=voice)
     if not any(p.phoneme not in PAUSES for p in ref.phonemes):
         raise SpeechError("the transcript has nothing to say: no phones to align")
@@ -241,8 +240,7 @@ def align(
     marks = [Mark(m.name, _carry(m.time, ref.phonemes, phones)) for m in ref.marks]
     # the optional pauses at word boundaries that the recording did not make
     phones = [p for p in phones if p.duration > 0 or p.phoneme not in PAUSES]
-    voiced = median_f0(rec, fs, rec_speech, HOP) is not None
-    return Alignment(phones, words, marks, used_rate, voice, _problems(words, voiced))
+    return Alignment(phones, words, marks, used_rate, voice, _problems(words, f0 is not None))
 
 
 def _masked(ref_db: np.ndarray, rec_db: np.ndarray) -> np.ndarray:
