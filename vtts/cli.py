@@ -1008,7 +1008,9 @@ def build_parser() -> argparse.ArgumentParser:
         "'start end phoneme' table (needs --audio)",
     )
     sy.add_argument(
-        "--audio", help="the speech that --phonemes describes (WAV, FLAC, OGG, MP3, M4A …)"
+        "--audio",
+        help="recorded speech of the text (WAV, FLAC, OGG, MP3, M4A …): the text is aligned to "
+        "it, or with --phonemes, the speech they describe",
     )
     sy.add_argument("--seed", type=_seed, default=0, help="seed of the autonomous behaviour")
     sy.add_argument(

@@ -63,10 +63,11 @@ def prepare_utterance(
     """Parse ``text`` and synthesize it with ``engine`` (:data:`ENGINES`: ``"espeak"``, the
     default, or ``"festival"``), or take the timings from ``phonemes`` (Amazon Polly speech
     marks, a ``start end phoneme`` table or ``--timings-out`` table) with the audio file
-    ``audio``. ``voice`` is the engine's (espeak-ng's ``en-us`` or festival's
-    ``cmu_us_slt_arctic_hts`` when None); ``rate`` in words per minute and ``pitch`` 0–99 as for
-    espeak-ng. ``known``: the expressions the models have tables for (for the unknown-name
-    message)."""
+    ``audio``; ``audio`` alone is a recording of the text, to which espeak-ng's phones of the
+    text are aligned (:mod:`vtts.align`). ``voice`` is the engine's (espeak-ng's ``en-us`` or
+    festival's ``cmu_us_slt_arctic_hts`` when None); ``rate`` in words per minute and
+    ``pitch`` 0–99 as for espeak-ng. ``known``: the expressions the models have tables for
+    (for the unknown-name message)."""
     from vtts.speech.phonemes import read_phoneme_file
 
     if engine not in ENGINES:
@@ -83,11 +84,43 @@ def prepare_utterance(
         utt = Utterance(bt, samples, sr, phones, bt.bookmarks, list(pf.words))
         _place_marks(utt, marks, fallback=True)
         return utt
+    if audio is not None:
+        if engine != "espeak":
+            raise SpeechError(
+                f"--audio without --phonemes aligns the text to the recording with espeak-ng's "
+                f"phonemizer; --engine {engine} does not apply"
+            )
+        if rate is not None or pitch is not None:
+            raise SpeechError(
+                "--rate and --pitch shape synthesized speech; a recording (--audio) keeps its own"
+            )
+        return _aligned(bt, Path(audio), voice)
     speech, marks = ENGINES[engine](bt, voice, rate, pitch)
     phones = [TimedPhone(p.start, p.end, p.viseme, p.phoneme) for p in speech.phonemes]
     words = [TimedWord(w.start, w.end, w.text) for w in speech.words if w.end is not None]
     utt = Utterance(bt, np.asarray(speech.audio), int(speech.rate), phones, bt.bookmarks, words)
     _place_marks(utt, marks, fallback=False)
+    return utt
+
+
+def _aligned(bt: BookmarkedText, audio: Path, voice: str | None) -> Utterance:
+    """``--audio`` without timings: the text's phones, words and bookmarks aligned to the
+    recording (:func:`vtts.align.align`); where the alignment breaks down is a warning."""
+    from vtts.align import align
+
+    samples, sr = _read_audio(audio)
+    try:
+        found = align(samples, sr, bt.ssml(), voice=voice or "en-us")
+    except SpeechError as e:
+        if e.file is None:
+            e.file = str(audio)
+        raise
+    for problem in found.problems:
+        warnings.warn(VttsWarning(problem, file=str(audio)), stacklevel=3)
+    phones = [TimedPhone(p.start, p.end, p.viseme or 0, p.phoneme) for p in found.phones]
+    words = [TimedWord(w.start, w.end, w.text) for w in found.words]
+    utt = Utterance(bt, samples, sr, phones, bt.bookmarks, words)
+    _place_marks(utt, [(m.name, m.time) for m in found.marks], fallback=False)
     return utt
 
 

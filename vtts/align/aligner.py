@@ -1,0 +1,414 @@
+"""Forced alignment of a transcript to recorded speech, through espeak-ng's synthesis of it.
+
+The method (measured in ``docs/speech.md``, "Lip-sync for recorded speech"):
+
+1. **Reference.** espeak-ng speaks the transcript (the same SSML with one ``<mark/>`` per
+   bookmark that ``vtts say`` sends it), which gives its phones, words and marks in its own clock;
+   a high voice (median pitch above :data:`HIGH_VOICE_HZ`) is compared with espeak-ng's female
+   variant. (Speaking it again at the recording's rate, ``match_rate``, measured no better.)
+2. **Silence anchoring.** Only the spans from the first to the last speech frame of each are
+   warped; the clean reference is raised to the recording's noise floor.
+3. **Warping.** MFCC features of both (:mod:`vtts.align.features`) are aligned by dynamic time
+   warping in bounded memory (:mod:`vtts.align.dtw`), where a word boundary of the reference may
+   rest on a pause of the recording cheaply; espeak's own phone times are carried to the
+   recording through the warping path (the method of the ``aeneas`` aligner), and a pause the
+   path rested on becomes a pause phone.
+4. **Refinement** (:mod:`vtts.align.refine`), for a voice far from espeak-ng's: the recording's
+   frames under each phone give models of *this* voice's phones; a Viterbi pass of the phone
+   sequence over the recording with those models, at a finer frame step and within a window
+   around the warped boundaries, moves each boundary to where this voice's spectrum changes.
+5. **Check.** Each word's warping cost (the mean distance of the frames the path matched) says
+   how well the recording and the transcript agree there; runs of words far above a typical
+   word are reported as problems naming the words and their time.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from vtts.align.dtw import Pauses, dtw_path
+from vtts.align.features import ANALYSIS_RATE, MIN_RATE, cepstra, log_mel, median_f0, resample
+from vtts.errors import SpeechError
+from vtts.speech.phonemes import PAUSES, Mark, Phone
+
+#: Frame step of the warping, s.
+HOP = 0.010
+#: Frame step of the refinement, s.
+FINE_HOP = 0.005
+#: espeak-ng's default speaking rate, words per minute.
+DEFAULT_RATE = 175
+#: A frame is speech when its energy is within this many dB of the loud frames (90th percentile).
+SPEECH_DB = 30.0
+#: ... and this many dB above the quietest frames (the room's noise).
+ABOVE_NOISE_DB = 8.0
+#: A run of words whose warping cost is this many times a typical word's (the utterance's first
+#: quartile), and at least LOCAL_MIN, does not match the recording (measured: the words of a
+#: right transcript cost at most 1.5 times a typical one for espeak-ng's other voices and
+#: festival's; 3-5 words replaced cost 2-3.5 times for espeak-ng's voices, 1.1-1.4 times for
+#: festival's, which is not detected).
+LOCAL_RATIO = 1.6
+LOCAL_MIN = 4.0
+#: A single word is reported only above this many times a typical word's cost (another accent
+#: says single words differently: en-gb's "are" and "go" cost up to 2.9 times).
+SINGLE_RATIO = 3.5
+#: Median word cost above which nothing matches (measured: right transcripts 1.6-5.8, wholly
+#: wrong ones 5.0-6.7, white noise 7.0, a tone 6.9).
+GLOBAL_COST = 6.1
+
+
+@dataclass(frozen=True)
+class AlignedWord:
+    """A word of the transcript in the recording's clock.
+
+    start, end  s (its first phone's start, its last phone's end, pauses left out)
+    text        the word as written
+    cost        the mean warping cost of its frames (lower is a better match)
+    """
+
+    start: float
+    end: float
+    text: str
+    cost: float
+
+
+@dataclass
+class Alignment:
+    """What :func:`align` returns.
+
+    phones    every phone of the reference, pauses included, in the recording's clock (s),
+              covering it from 0 to its end; ``viseme`` set
+    words     the words, in order
+    marks     one per ``<mark/>`` of the SSML, in document order, with its aligned time (s)
+    rate      the espeak-ng speaking rate the reference was made at, words per minute
+    voice     the espeak-ng voice that spoke the reference
+    problems  messages about where the alignment breaks down (empty when it holds)
+    """
+
+    phones: list[Phone]
+    words: list[AlignedWord]
+    marks: list[Mark]
+    rate: int
+    voice: str
+    problems: list[str] = field(default_factory=list)
+
+
+def speech_frames(db: np.ndarray) -> np.ndarray:
+    """``(n,)`` bool: frames of ``(n, n_mels)`` log-mel energies that hold speech (within
+    :data:`SPEECH_DB` of the loud frames)."""
+    energy = 10.0 * np.log10((10.0 ** (db / 10.0)).sum(axis=1))
+    # within SPEECH_DB of the loud frames, and clearly above the noise (the quietest frames)
+    floor = np.percentile(energy, 5) + ABOVE_NOISE_DB
+    return energy > max(
+        np.percentile(energy, 90) - SPEECH_DB, min(floor, np.percentile(energy, 50))
+    )
+
+
+#: Median pitch above which the reference is spoken by espeak-ng's female variant, Hz.
+HIGH_VOICE_HZ = 160.0
+HIGH_VARIANT = "f2"
+#: Median word warping cost above which the refinement runs: the recording's voice is far from
+#: espeak-ng's (measured: festival's HTS voice 5.4-5.9, where refining takes the 90th percentile
+#: from 55 to 40 ms; espeak-ng's other voices 1.6-4.5, whose warping is within a few ms already
+#: and which the refinement's 5 ms states and pooled models only blur: 11 → 17 ms for en-us+f3).
+REFINE_ABOVE = 5.0
+#: Cost of matching a word boundary of the reference with silence of the recording.
+PAUSE_COST = 2.0
+#: Shortest pause of the recording that becomes a pause phone where the reference has none, s.
+MIN_PAUSE = 0.05
+#: Frames of pause kept on each side of the speech when warping.
+MARGIN = 5
+
+
+def _speech_span(speech: np.ndarray) -> tuple[int, int]:
+    """Frames ``[a, b)`` from the first to the last speech frame, widened by :data:`MARGIN`."""
+    idx = np.flatnonzero(speech)
+    if len(idx) == 0:
+        return 0, len(speech)
+    return max(int(idx[0]) - MARGIN, 0), min(int(idx[-1]) + 1 + MARGIN, len(speech))
+
+
+def check_rate(rate: int, what: str = "the recording") -> None:
+    if not isinstance(rate, int | np.integer) or rate < MIN_RATE:
+        raise SpeechError(f"{what} is sampled at {rate} Hz; alignment needs at least {MIN_RATE} Hz")
+
+
+def align(
+    samples: np.ndarray,
+    rate: int,
+    ssml: str,
+    *,
+    voice: str = "en-us",
+    match_rate: bool = False,
+    refine: bool = True,
+    baseline: bool = False,
+) -> Alignment:
+    """Align the SSML transcript ``ssml`` to ``(n,)`` mono ``samples`` at ``rate`` Hz.
+
+    ``voice``: the espeak-ng voice that phonemizes and speaks the reference (its language must be
+    the recording's). ``match_rate``: speak the reference again at the recording's rate;
+    ``refine``: the Viterbi refinement of :mod:`vtts.align.refine`. ``baseline``: the plain
+    method of aeneas instead, for comparison (the voice as given, both signals warped whole, no
+    pauses of the recording's own, no refinement). Raises :class:`SpeechError` for a recording
+    that is too short, silent, not mono or sampled too low, and a transcript with no phones.
+    """
+    from vtts.speech.tts import synthesize
+
+    check_rate(int(rate))
+    samples = np.asarray(samples)
+    if samples.ndim != 1:
+        raise SpeechError(f"the recording must be mono samples (n,), got shape {samples.shape}")
+    if samples.dtype.kind in "iu":
+        samples = samples.astype(np.float32) / np.float32(32768)
+    duration = len(samples) / rate
+    if duration < 0.1:
+        raise SpeechError(f"the recording lasts {duration:.3f} s: too short to align")
+    fs = min(ANALYSIS_RATE, int(rate))
+    rec = resample(samples, int(rate), fs)
+    # one analysis at the refinement's step; every second frame is the warping's
+    fine_db = log_mel(rec, fs, FINE_HOP)
+    rec_db = fine_db[:: round(HOP / FINE_HOP)]
+    if float(np.abs(rec).max(initial=0.0)) < 1e-4:
+        raise SpeechError("the recording is silent: there is no speech to align")
+    rec_speech = speech_frames(rec_db)
+
+    if "+" not in voice and not baseline:
+        # a high voice is warped better against espeak-ng's female variant (measured: festival's
+        # HTS voice, 170 Hz, 90th percentile 50 → 45 ms)
+        f0 = median_f0(rec, fs, rec_speech, HOP)
+        if f0 is not None and f0 > HIGH_VOICE_HZ:
+            voice = f"{voice}+{HIGH_VARIANT}"
+    ref = synthesize(ssml, voice=voice)
+    if not any(p.phoneme not in PAUSES for p in ref.phonemes):
+        raise SpeechError("the transcript has nothing to say: no phones to align")
+    used_rate = DEFAULT_RATE
+    if match_rate:
+        ref_db = log_mel(
+            resample(ref.audio.astype(np.float32) / np.float32(32768), ref.rate, fs), fs, HOP
+        )
+        ratio = speech_frames(ref_db).sum() / max(rec_speech.sum(), 1)
+        wanted = int(np.clip(round(DEFAULT_RATE * ratio), 80, 450))
+        if abs(wanted - DEFAULT_RATE) > 0.05 * DEFAULT_RATE:
+            used_rate = wanted
+            ref = synthesize(ssml, voice=voice, rate=used_rate)
+    if ref.phonemes[0].phoneme not in PAUSES:
+        # the pause before the first word, which the recording may have and espeak may not
+        first = ref.phonemes[0]
+        ref.phonemes.insert(0, Phone(0.0, 0.0, "_", 0))
+        ref.phonemes[1] = Phone(0.0, first.end, first.phoneme, first.viseme, first.ipa)
+    ref_db = log_mel(
+        resample(ref.audio.astype(np.float32) / np.float32(32768), ref.rate, fs), fs, HOP
+    )
+    # silence anchoring: only the spans from the first to the last speech frame (and a margin)
+    # are warped, so that leading and trailing pauses of any length cost nothing
+    ref_span = _speech_span(speech_frames(ref_db)) if not baseline else (0, len(ref_db))
+    rec_span = _speech_span(rec_speech) if not baseline else (0, len(rec_db))
+    step = round(HOP * fs)
+    if not baseline:
+        ref_db = _masked(ref_db, rec_db)
+    ref_x = cepstra(ref_db[ref_span[0] : ref_span[1]])
+    rec_x = cepstra(rec_db[rec_span[0] : rec_span[1]])
+    ref_t0, rec_t0 = ref_span[0] * step / fs, rec_span[0] * step / fs
+    boundaries = _word_boundaries(ref, ref_t0, len(ref_x)) if not baseline else {}
+    rows = np.zeros(len(ref_x), bool)
+    for b in boundaries:
+        rows[max(b - 1, 0) : b + 1] = True
+    silent = ~rec_speech[rec_span[0] : rec_span[0] + len(rec_x)]
+    silent = np.append(silent, np.ones(len(rec_x) - len(silent), bool))
+    pauses = Pauses(rows, silent, PAUSE_COST) if not baseline else None
+    path, _ = dtw_path(ref_x, rec_x, pauses=pauses)
+    warp = _Warp(path, ref_x, rec_x, ref_t0, rec_t0)
+    inserted = _inserted_pauses(ref, boundaries, path, silent, ref_t0, rec_t0)
+    phones = _warped_phones(ref.phonemes, warp, duration, inserted)
+    words = _words(ref, phones, warp)
+    far = bool(words) and float(np.median([w.cost for w in words])) > REFINE_ABOVE
+    if refine and far and not baseline:
+        from vtts.align.refine import refine_phones
+
+        phones = refine_phones(phones, fine_db, FINE_HOP, duration)
+        words = _words(ref, phones, warp)
+    marks = [Mark(m.name, _carry(m.time, ref.phonemes, phones)) for m in ref.marks]
+    # the optional pauses at word boundaries that the recording did not make
+    phones = [p for p in phones if p.duration > 0 or p.phoneme not in PAUSES]
+    voiced = median_f0(rec, fs, rec_speech, HOP) is not None
+    return Alignment(phones, words, marks, used_rate, voice, _problems(words, voiced))
+
+
+def _masked(ref_db: np.ndarray, rec_db: np.ndarray) -> np.ndarray:
+    """The reference's log-mel energies raised to the recording's noise floor, band by band (its
+    10th percentile, relative to the loudest frame): espeak-ng's speech is clean, and where a
+    recording's noise hides the quiet parts, the reference must not show them either (measured:
+    festival's voice in white noise at 10 dB SNR, p90 80 → 70 ms, and no warning on the right
+    transcript where six of ten had one)."""
+    floor = np.percentile(rec_db, 10, axis=0) - rec_db.max()
+    return np.maximum(ref_db, ref_db.max() + floor).astype(np.float32)
+
+
+class _Warp:
+    """The warping path as a map from reference time to recording time, and its local costs."""
+
+    def __init__(
+        self, path: np.ndarray, ref_x: np.ndarray, rec_x: np.ndarray, ref_t0: float, rec_t0: float
+    ) -> None:
+        n = len(ref_x)
+        self.ref_t0, self.rec_t0 = ref_t0, rec_t0
+        diff = ref_x[path[:, 0]] - rec_x[path[:, 1]]
+        self.cost = np.sqrt(np.einsum("ij,ij->i", diff, diff))
+        self.rows = path[:, 0]
+        self.cumcost = np.concatenate([[0.0], np.cumsum(self.cost)])
+        counts = np.bincount(path[:, 0], minlength=n)
+        # each reference frame maps to the middle of the recording frames it was matched with
+        self.target = np.bincount(path[:, 0], weights=path[:, 1], minlength=n) / counts
+
+    def time(self, t: np.ndarray | float) -> np.ndarray:
+        """Reference times (s) → recording times (s)."""
+        frames = np.arange(len(self.target))
+        f = (np.asarray(t) - self.ref_t0) / HOP
+        inside = np.interp(f, frames, self.target) * HOP + self.rec_t0
+        # before and after the warped spans: the pauses, shifted
+        last = len(self.target) - 1
+        before = self.rec_t0 + f * HOP
+        after = self.rec_t0 + (self.target[-1] + (f - last)) * HOP
+        return np.where(f < 0, before, np.where(f > last, after, inside))
+
+    def mean_cost(self, t0: float, t1: float) -> float:
+        """Mean local cost of the path cells whose reference frame lies in ``[t0, t1)`` s."""
+        f0, f1 = (t0 - self.ref_t0) / HOP, (t1 - self.ref_t0) / HOP
+        a, b = np.searchsorted(self.rows, f0), np.searchsorted(self.rows, f1)
+        return float((self.cumcost[b] - self.cumcost[a]) / (b - a)) if b > a else 0.0
+
+
+def _word_boundaries(ref, ref_t0: float, n: int) -> dict[int, float]:
+    """Reference frame (in the warped span) → time (s) of every word start after the first that
+    no pause of espeak's precedes."""
+    out: dict[int, float] = {}
+    starts = [p.start for p in ref.phonemes]
+    for w in ref.words[1:]:
+        k = int(np.searchsorted(starts, w.start - 1e-9))
+        if 0 < k < len(ref.phonemes) and ref.phonemes[k - 1].phoneme not in PAUSES:
+            f = round((w.start - ref_t0) / HOP)
+            if 0 < f < n:
+                out[f] = w.start
+    return out
+
+
+def _inserted_pauses(ref, boundaries, path, silent, ref_t0, rec_t0) -> dict[int, tuple]:
+    """Pauses of the recording where the reference has none: the path resting on a word
+    boundary over at least :data:`MIN_PAUSE` s of silence. Each becomes a zero-length ``_`` in
+    ``ref.phonemes`` (before the word); returns its index → (start, end) in the recording (s)."""
+    rows = path[:, 0]  # non-decreasing
+    found: list[tuple[float, tuple | None]] = []
+    for b, t in sorted(boundaries.items()):
+        i0, i1 = np.searchsorted(rows, b - 1), np.searchsorted(rows, b, side="right")
+        cols = path[i0:i1, 1]
+        cols = cols[silent[cols]]
+        span = None
+        if len(cols):
+            # the longest run of consecutive columns
+            runs = np.split(cols, np.flatnonzero(np.diff(cols) > 1) + 1)
+            run = max(runs, key=len)
+            if len(run) * HOP >= MIN_PAUSE:
+                span = (rec_t0 + run[0] * HOP, rec_t0 + (run[-1] + 1) * HOP)
+        found.append((t, span))
+    # one pass: every word boundary gets a zero-length pause before its first phone
+    starts = np.array([p.start for p in ref.phonemes])
+    at = np.searchsorted(starts, np.array([t for t, _ in found]) - 1e-9)
+    phones: list[Phone] = []
+    out: dict[int, tuple] = {}
+    j = 0
+    for k, p in enumerate(ref.phonemes):
+        while j < len(found) and at[j] == k:
+            t, span = found[j]
+            if span is not None:
+                out[len(phones)] = span
+            phones.append(Phone(t, t, "_", 0))
+            j += 1
+        phones.append(p)
+    ref.phonemes[:] = phones
+    return out
+
+
+def _warped_phones(
+    ref: list[Phone], warp: _Warp, duration: float, inserted: dict[int, tuple] | None = None
+) -> list[Phone]:
+    starts = warp.time(np.array([p.start for p in ref]))
+    for k, (a, b) in (inserted or {}).items():
+        starts[k] = a
+        starts[k + 1] = b
+    starts = np.clip(np.maximum.accumulate(starts), 0.0, duration)
+    starts[0] = 0.0
+    ends = np.append(starts[1:], duration)
+    return [
+        Phone(float(s), float(e), p.phoneme, p.viseme, p.ipa)
+        for p, s, e in zip(ref, starts, ends, strict=True)
+    ]
+
+
+def _carry(t: float, ref: list[Phone], aligned: list[Phone]) -> float:
+    """A reference time carried to the recording: the same fraction of the same phone."""
+    starts = [p.start for p in ref]
+    k = max(0, int(np.searchsorted(starts, t, side="right")) - 1)
+    p, q = ref[k], aligned[k]
+    f = 0.0 if p.duration <= 0 else min(max((t - p.start) / p.duration, 0.0), 1.0)
+    return q.start + f * q.duration
+
+
+def _words(ref, phones: list[Phone], warp: _Warp) -> list[AlignedWord]:
+    """The reference's words (their first to last phone that is not a pause), carried to the
+    recording through the aligned phones, with their warping costs."""
+    ref_starts = np.array([p.start for p in ref.phonemes])
+    out: list[AlignedWord] = []
+    for word in ref.words:
+        end = word.end if word.end is not None else word.start
+        k0 = int(np.searchsorted(ref_starts, word.start - 1e-9))
+        k1 = int(np.searchsorted(ref_starts, end - 1e-9))
+        ks = [k for k in range(k0, k1) if ref.phonemes[k].phoneme not in PAUSES]
+        if not ks:
+            continue
+        a, b = phones[ks[0]], phones[ks[-1]]
+        cost = warp.mean_cost(ref.phonemes[ks[0]].start, ref.phonemes[ks[-1]].end)
+        out.append(AlignedWord(a.start, b.end, word.text, cost))
+    return out
+
+
+def _problems(words: list[AlignedWord], voiced: bool) -> list[str]:
+    """Where the recording does not match the transcript, from the words' warping costs: a run
+    of words costing :data:`LOCAL_RATIO` times the utterance's median (and at least
+    :data:`LOCAL_MIN`), or a median above :data:`GLOBAL_COST` (nowhere a match)."""
+    problems = []
+    if not voiced:
+        problems.append("the recording has almost no voiced sound: is it speech?")
+    if not words:
+        return problems
+    costs = np.array([w.cost for w in words])
+    median = float(np.median(costs))
+    typical = float(np.percentile(costs, 25))  # robust to a transcript half wrong
+    if median > GLOBAL_COST:
+        problems.append(
+            f"the recording does not match the transcript anywhere (median word alignment cost "
+            f"{median:.1f}, above {GLOBAL_COST:g}): is it the right text, and speech?"
+        )
+        return problems
+    bad = (costs > LOCAL_RATIO * typical) & (costs > LOCAL_MIN)
+    k = 0
+    while k < len(words):
+        if not bad[k]:
+            k += 1
+            continue
+        j = k
+        while j + 1 < len(words) and bad[j + 1]:
+            j += 1
+        run = words[k : j + 1]
+        worst = float(costs[k : j + 1].max())
+        if len(run) >= 2 or worst > SINGLE_RATIO * typical:
+            names = " ".join(w.text for w in run if w.text) or f"{len(run)} word(s)"
+            if len(names) > 60:
+                names = names[:59] + "…"
+            problems.append(
+                f"the alignment breaks down at {run[0].start:.2f}–{run[-1].end:.2f} s "
+                f'("{names}": word alignment cost up to {worst:.1f}, a typical word\'s '
+                f"{typical:.1f}): does the recording say these words?"
+            )
+        k = j + 1
+    return problems
