@@ -44,7 +44,7 @@ def vtts(*args: str) -> subprocess.CompletedProcess:
         (["say", "Hi", "--model", HEAD, "--background", "transparent", "-o", "{tmp}/x.mp4"],
          "an MP4 (H.264) has no alpha channel"),
     ],
-)
+)  # fmt: skip
 def test_bad_input_is_a_clear_error(tmp_path, args, fragment):
     (tmp_path / "file.txt").write_text("not a bitstream")
     r = vtts(*(a.replace("{tmp}", str(tmp_path)) for a in args))

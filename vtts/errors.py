@@ -139,9 +139,7 @@ class CodingError(FapError):
     message without the prefix.
     """
 
-    def __init__(
-        self, message: str, *, offset: int | None = None, file: str | None = None
-    ) -> None:
+    def __init__(self, message: str, *, offset: int | None = None, file: str | None = None) -> None:
         super().__init__(f"byte {offset}: {message}" if offset is not None else message, file=file)
         self.reason = message
         self.offset = offset

@@ -109,8 +109,10 @@ def write_obj(path: Path, points: np.ndarray, faces: np.ndarray, *, uv: bool = T
     lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in np.asarray(points).tolist()]
     if uv:
         lines += [f"vt {i / len(faces):.6f} 0.5" for i in range(len(faces))]
-        lines += [f"f {a + 1}/{i + 1} {b + 1}/{i + 1} {c + 1}/{i + 1}"
-                  for i, (a, b, c) in enumerate(faces)]
+        lines += [
+            f"f {a + 1}/{i + 1} {b + 1}/{i + 1} {c + 1}/{i + 1}"
+            for i, (a, b, c) in enumerate(faces)
+        ]
     else:
         lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in faces]
     path.write_text("\n".join(lines) + "\n")
@@ -147,40 +149,62 @@ def write_gltf(
     def add_view(data: bytes, target: int | None = None) -> int:
         while len(blob) % 4:
             blob.append(0)
-        views.append(g.BufferView(buffer=0, byteOffset=len(blob), byteLength=len(data),
-                                  target=target))
+        views.append(
+            g.BufferView(buffer=0, byteOffset=len(blob), byteLength=len(data), target=target)
+        )
         blob.extend(data)
         return len(views) - 1
 
     def add_vec3(a: np.ndarray) -> int:
         a = np.asarray(a, dtype="<f4")
         view = add_view(a.tobytes(), g.ARRAY_BUFFER)
-        accessors.append(g.Accessor(bufferView=view, componentType=g.FLOAT, count=len(a),
-                                    type=g.VEC3, max=a.max(0).tolist(), min=a.min(0).tolist()))
+        accessors.append(
+            g.Accessor(
+                bufferView=view,
+                componentType=g.FLOAT,
+                count=len(a),
+                type=g.VEC3,
+                max=a.max(0).tolist(),
+                min=a.min(0).tolist(),
+            )
+        )
         return len(accessors) - 1
 
     def add_sparse_vec3(a: np.ndarray) -> int:
         idx = np.flatnonzero(np.abs(a).sum(1) > 0).astype("<u4")
         iv = add_view(idx.tobytes())
         vv = add_view(np.asarray(a[idx], dtype="<f4").tobytes())
-        accessors.append(g.Accessor(
-            componentType=g.FLOAT, count=len(a), type=g.VEC3,
-            sparse=g.Sparse(count=len(idx),
-                            indices=g.AccessorSparseIndices(bufferView=iv,
-                                                            componentType=g.UNSIGNED_INT),
-                            values=g.AccessorSparseValues(bufferView=vv)),
-        ))
+        accessors.append(
+            g.Accessor(
+                componentType=g.FLOAT,
+                count=len(a),
+                type=g.VEC3,
+                sparse=g.Sparse(
+                    count=len(idx),
+                    indices=g.AccessorSparseIndices(bufferView=iv, componentType=g.UNSIGNED_INT),
+                    values=g.AccessorSparseValues(bufferView=vv),
+                ),
+            )
+        )
         return len(accessors) - 1
 
     gl_meshes = []
     for name, base, faces, targets in meshes:
         pos = add_vec3(base)
         idx_view = add_view(np.asarray(faces, dtype="<u4").tobytes(), g.ELEMENT_ARRAY_BUFFER)
-        accessors.append(g.Accessor(bufferView=idx_view, componentType=g.UNSIGNED_INT,
-                                    count=int(np.size(faces)), type=g.SCALAR))
+        accessors.append(
+            g.Accessor(
+                bufferView=idx_view,
+                componentType=g.UNSIGNED_INT,
+                count=int(np.size(faces)),
+                type=g.SCALAR,
+            )
+        )
         ind = len(accessors) - 1
-        tgts = [g.Attributes(POSITION=(add_sparse_vec3 if sparse else add_vec3)(d))
-                for d in targets.values()]
+        tgts = [
+            g.Attributes(POSITION=(add_sparse_vec3 if sparse else add_vec3)(d))
+            for d in targets.values()
+        ]
         prim = g.Primitive(attributes=g.Attributes(POSITION=pos), indices=ind, targets=tgts)
         mesh = g.Mesh(name=name, primitives=[prim], weights=[0.0] * len(tgts))
         if targets:
@@ -199,8 +223,9 @@ def write_gltf(
         doc.set_binary_blob(bytes(blob))
         doc.save_binary(str(path))
     else:
-        doc.buffers[0].uri = ("data:application/octet-stream;base64,"
-                              + base64.b64encode(bytes(blob)).decode())
+        doc.buffers[0].uri = (
+            "data:application/octet-stream;base64," + base64.b64encode(bytes(blob)).decode()
+        )
         doc.save_json(str(path))
     return path
 

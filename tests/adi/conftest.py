@@ -49,4 +49,3 @@ def phase_files(model: FaceModel, tmp_path_factory: pytest.TempPathFactory) -> l
                 continue
             files.append(export_pose(model, key, a, d / f"{key}@{a:g}.wrl"))
     return files
-

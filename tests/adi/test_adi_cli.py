@@ -25,8 +25,7 @@ def test_console_script_builds_and_reports(neutral_wrl, phase_files, tmp_path):
     assert out.read_text().startswith("#AnimationDefinitionTables\n")
 
 
-@pytest.mark.parametrize("case", ["unknown-miap", "missing-file", "bad-adt", "bad-gltf",
-                                  "no-args"])
+@pytest.mark.parametrize("case", ["unknown-miap", "missing-file", "bad-adt", "bad-gltf", "no-args"])
 def test_console_script_bad_input_has_no_traceback(model, neutral_wrl, tmp_path, case):
     out = tmp_path / "m.adt"
     if case == "unknown-miap":
@@ -53,23 +52,25 @@ def test_console_script_bad_input_has_no_traceback(model, neutral_wrl, tmp_path,
     assert not out.exists()
 
 
-@pytest.mark.parametrize("args, message", [
-    (["-o", "x.wrl"], "the output is a .adt file; pass --embed"),
-    (["-o", "x.txt"], "the output is a .adt file"),
-    (["-o", "x.adt", "--embed"], "--embed writes a .wrl"),
-    (["-o", "x.adt", "--tolerance", "-1"], "--tolerance must not be negative"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["-o", "x.wrl"], "the output is a .adt file; pass --embed"),
+        (["-o", "x.txt"], "the output is a .adt file"),
+        (["-o", "x.adt", "--embed"], "--embed writes a .wrl"),
+        (["-o", "x.adt", "--tolerance", "-1"], "--tolerance must not be negative"),
+    ],
+)
 def test_build_output_rules(neutral_wrl, phase_files, tmp_path, capsys, args, message):
     args = [a if not a.startswith("x.") else str(tmp_path / a) for a in args]
     assert main(["build", str(neutral_wrl), str(phase_files[0]), *args]) == 1
     assert message in capsys.readouterr().err
 
 
-def test_embed_warns_about_a_sidecar_beside_the_output(neutral_wrl, phase_files, tmp_path,
-                                                       capsys):
+def test_embed_warns_about_a_sidecar_beside_the_output(neutral_wrl, phase_files, tmp_path, capsys):
     (tmp_path / "m.adt").write_text("#AnimationDefinitionTables\n")
     assert main(["build", str(neutral_wrl), *map(str, phase_files), "-o",
-                 str(tmp_path / "m.wrl"), "--embed"]) == 0
+                 str(tmp_path / "m.wrl"), "--embed"]) == 0  # fmt: skip
     assert "warning: m.adt lies beside it" in capsys.readouterr().err
 
 
@@ -131,8 +132,10 @@ def test_show_embedded_tables_with_temporal_tables_and_feature_points(
     capsys.readouterr()
     assert main(["show", str(out)]) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert lines[0] == (f"{out}: 6 MIAPs (4 FAPs, 1 viseme, 1 expression); 1 IndexedFaceSet "
-                        "(FACE_MESH), 1 Transform (HEAD)")
+    assert lines[0] == (
+        f"{out}: 6 MIAPs (4 FAPs, 1 viseme, 1 expression); 1 IndexedFaceSet "
+        "(FACE_MESH), 1 Transform (HEAD)"
+    )
     assert lines[-5:] == [
         "temporal tables:",
         "  expression joy: onset 0.5 offset 0.8 shape smooth climax 1 duration 2",

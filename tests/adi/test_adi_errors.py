@@ -59,8 +59,9 @@ def build_error(neutral: Path, *files: Path, node: str | None = None) -> AdtErro
         ("head_pitch@1e4.wrl", "48", 10000),
     ],
 )
-def test_file_names_name_the_miap_and_amplitude(model, neutral_wrl, tmp_path, name, miap,
-                                                amplitude):
+def test_file_names_name_the_miap_and_amplitude(
+    model, neutral_wrl, tmp_path, name, miap, amplitude
+):
     pose = load_pose(export_pose(model, "joy", 0.5, tmp_path / name), read(neutral_wrl))
     assert (pose.miap.key, pose.amplitude) == (miap, amplitude)
 
@@ -77,8 +78,9 @@ def test_file_names_name_the_miap_and_amplitude(model, neutral_wrl, tmp_path, na
         ("MIAP expression joy 0.25", "expression 1", 0.25),
     ],
 )
-def test_worldinfo_strings_name_the_miap_and_amplitude(model, neutral_wrl, tmp_path, info, miap,
-                                                       amplitude):
+def test_worldinfo_strings_name_the_miap_and_amplitude(
+    model, neutral_wrl, tmp_path, info, miap, amplitude
+):
     # the WorldInfo string wins over the file name
     path = tmp_path / "open_jaw@5.wrl"
     path.write_text(with_worldinfo(posed_scene(model, "joy", 1), info))
@@ -127,8 +129,10 @@ def test_bad_worldinfo_strings_give_file_and_line(model, neutral_wrl, tmp_path, 
 
 def test_two_worldinfo_miap_strings(model, neutral_wrl, tmp_path):
     path = tmp_path / "x.wrl"
-    path.write_text(with_worldinfo(posed_scene(model, "joy", 1), "miap joy 1")
-                    + 'WorldInfo { info [ "miap 19 20" ] }\n')
+    path.write_text(
+        with_worldinfo(posed_scene(model, "joy", 1), "miap joy 1")
+        + 'WorldInfo { info [ "miap 19 20" ] }\n'
+    )
     e = build_error(neutral_wrl, path)
     assert "2 WorldInfo 'miap' strings" in e.message and e.file == str(path)
 
@@ -170,8 +174,9 @@ def test_changed_faces(model, neutral_wrl, tmp_path):
     assert "topology differs: the faces (coordIndex) of FACE_MESH in joy@1.wrl" in e.message
 
 
-@pytest.mark.parametrize("node, kind", [("FACE_MESH", "an IndexedFaceSet"),
-                                        ("HEAD", "a Transform")])
+@pytest.mark.parametrize(
+    "node, kind", [("FACE_MESH", "an IndexedFaceSet"), ("HEAD", "a Transform")]
+)
 def test_missing_def_name(model, neutral_wrl, tmp_path, node, kind):
     path = tmp_path / "joy@1.wrl"
     write(posed_scene(model, "joy", 1), path)
@@ -185,8 +190,10 @@ def two_mesh_neutral(tmp_path: Path) -> Path:
     """The Candide scene with a second IndexedFaceSet of the same size (DEF COPY_MESH)."""
     text = SAMPLE.read_text()
     path = tmp_path / "two.wrl"
-    path.write_text(text + "Transform { children Shape { geometry DEF COPY_MESH IndexedFaceSet "
-                    "{ coord USE FACE_COORD coordIndex [ 0 1 2 -1 ] } } }\n")
+    path.write_text(
+        text + "Transform { children Shape { geometry DEF COPY_MESH IndexedFaceSet "
+        "{ coord USE FACE_COORD coordIndex [ 0 1 2 -1 ] } } }\n"
+    )
     return path
 
 
@@ -204,21 +211,27 @@ def test_ambiguous_obj_needs_node(model, tmp_path):
 
 
 def test_obj_of_no_size_in_the_neutral(model, neutral_wrl, tmp_path):
-    obj = write_obj(tmp_path / "joy@1.obj", face_points(model, "joy", 1)[:100],
-                    face_triangles(model)[:10])
+    obj = write_obj(
+        tmp_path / "joy@1.obj", face_points(model, "joy", 1)[:100], face_triangles(model)[:10]
+    )
     e = build_error(neutral_wrl, obj)
     assert "topology differs: the mesh in joy@1.obj has 100 vertices but no IndexedFaceSet" in (
-        e.message)
+        e.message
+    )
     assert "FACE_MESH (113)" in e.message
 
 
-@pytest.mark.parametrize("node, message", [
-    ("NOPE", "--node NOPE: "),
-    ("FACE_MESH", "topology differs: FACE_MESH has 113 points in"),
-])
+@pytest.mark.parametrize(
+    "node, message",
+    [
+        ("NOPE", "--node NOPE: "),
+        ("FACE_MESH", "topology differs: FACE_MESH has 113 points in"),
+    ],
+)
 def test_node_option_errors(model, neutral_wrl, tmp_path, node, message):
-    obj = write_obj(tmp_path / "joy@1.obj", face_points(model, "joy", 1)[:100],
-                    face_triangles(model)[:10])
+    obj = write_obj(
+        tmp_path / "joy@1.obj", face_points(model, "joy", 1)[:100], face_triangles(model)[:10]
+    )
     e = build_error(neutral_wrl, obj, node=node)
     assert message in e.message and e.file == str(obj)
 
@@ -242,8 +255,9 @@ def test_bad_obj_vertex_line(neutral_wrl, tmp_path):
 
 def test_gltf_targets_need_names(model, neutral_wrl, tmp_path):
     base = face_points(model)
-    path = write_gltf(tmp_path / "x.glb", [("FACE_MESH", base, face_triangles(model),
-                                            {"joy": base * 0})])
+    path = write_gltf(
+        tmp_path / "x.glb", [("FACE_MESH", base, face_triangles(model), {"joy": base * 0})]
+    )
     import pygltflib
 
     doc = pygltflib.GLTF2.load(str(path))
@@ -258,8 +272,9 @@ def _hostile_gltf(model, tmp_path, change):
     import pygltflib
 
     base = face_points(model)
-    path = write_gltf(tmp_path / "x.glb", [("FACE_MESH", base, face_triangles(model),
-                                            {"joy@1": base * 0})])
+    path = write_gltf(
+        tmp_path / "x.glb", [("FACE_MESH", base, face_triangles(model), {"joy@1": base * 0})]
+    )
     doc = pygltflib.GLTF2.load(str(path))
     blob = doc.binary_blob()
     change(doc)
@@ -268,16 +283,25 @@ def _hostile_gltf(model, tmp_path, change):
     return path
 
 
-@pytest.mark.parametrize("change, message", [
-    # a count of 1e10 was allocated (5.2 GB) before anything checked it
-    (lambda d: setattr(d.accessors[0], "bufferView", None) or setattr(d.accessors[0], "count",
-                                                                       10**10),
-     "count 10000000000 is not an integer within 0–50000000"),
-    (lambda d: setattr(d.accessors[0], "count", -1), "count -1 is not an integer"),
-    (lambda d: setattr(d.bufferViews[d.accessors[0].bufferView], "byteStride", -12),
-     "byteStride -12; it must be 12–252"),
-    (lambda d: setattr(d.accessors[0], "byteOffset", -4), "byteOffset must be an integer >= 0"),
-])
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        # a count of 1e10 was allocated (5.2 GB) before anything checked it
+        (
+            lambda d: (
+                setattr(d.accessors[0], "bufferView", None)
+                or setattr(d.accessors[0], "count", 10**10)
+            ),
+            "count 10000000000 is not an integer within 0–50000000",
+        ),
+        (lambda d: setattr(d.accessors[0], "count", -1), "count -1 is not an integer"),
+        (
+            lambda d: setattr(d.bufferViews[d.accessors[0].bufferView], "byteStride", -12),
+            "byteStride -12; it must be 12–252",
+        ),
+        (lambda d: setattr(d.accessors[0], "byteOffset", -4), "byteOffset must be an integer >= 0"),
+    ],
+)
 def test_hostile_gltf_accessors_are_clear_errors(model, neutral_wrl, tmp_path, change, message):
     path = _hostile_gltf(model, tmp_path, change)
     e = build_error(neutral_wrl, path)
@@ -285,15 +309,20 @@ def test_hostile_gltf_accessors_are_clear_errors(model, neutral_wrl, tmp_path, c
     assert e.file == str(path)
 
 
-@pytest.mark.parametrize("target, message", [
-    ("close_t_l_eyelid", "names FAP MIAP 19 (close_t_l_eyelid) without an amplitude"),
-    ("wink@1", "unknown MIAP 'wink' in morph target name 'wink@1' of mesh FACE_MESH"),
-    ("joy@0", "amplitude 0"),
-])
+@pytest.mark.parametrize(
+    "target, message",
+    [
+        ("close_t_l_eyelid", "names FAP MIAP 19 (close_t_l_eyelid) without an amplitude"),
+        ("wink@1", "unknown MIAP 'wink' in morph target name 'wink@1' of mesh FACE_MESH"),
+        ("joy@0", "amplitude 0"),
+    ],
+)
 def test_gltf_target_names_must_be_miaps(model, neutral_wrl, tmp_path, target, message):
     base = face_points(model)
-    path = write_gltf(tmp_path / "x.glb", [("FACE_MESH", base, face_triangles(model),
-                                            {target: face_points(model, "joy", 1) - base})])
+    path = write_gltf(
+        tmp_path / "x.glb",
+        [("FACE_MESH", base, face_triangles(model), {target: face_points(model, "joy", 1) - base})],
+    )
     e = build_error(neutral_wrl, path)
     assert message in e.message and e.file == str(path)
 
@@ -301,8 +330,9 @@ def test_gltf_target_names_must_be_miaps(model, neutral_wrl, tmp_path, target, m
 def test_gltf_base_must_be_the_neutral(model, neutral_wrl, tmp_path):
     base = face_points(model)
     moved = base[::-1].copy()  # same points, other order
-    path = write_gltf(tmp_path / "x.glb", [("FACE_MESH", moved, face_triangles(model),
-                                            {"joy": base * 0})])
+    path = write_gltf(
+        tmp_path / "x.glb", [("FACE_MESH", moved, face_triangles(model), {"joy": base * 0})]
+    )
     e = build_error(neutral_wrl, path)
     assert "the base of glTF mesh FACE_MESH is not the neutral FACE_MESH" in e.message
     assert " is at " in e.message and "in the same vertex order" in e.message
@@ -319,8 +349,9 @@ def test_external_buffer_outside_the_folder(model, neutral_wrl, tmp_path):
     import pygltflib
 
     base = face_points(model)
-    path = write_gltf(tmp_path / "x.gltf", [("FACE_MESH", base, face_triangles(model),
-                                             {"joy": base * 0})])
+    path = write_gltf(
+        tmp_path / "x.gltf", [("FACE_MESH", base, face_triangles(model), {"joy": base * 0})]
+    )
     doc = pygltflib.GLTF2.load(str(path))
     doc.buffers[0].uri = "../../etc/passwd"
     doc.save_json(str(path))
@@ -354,18 +385,26 @@ def eye_tables(tmp_path: Path, poses: dict[str, dict[str, str]], **neutral: str)
 
 
 def test_rotation_about_a_nonzero_neutral_angle(tmp_path):
-    tables = eye_tables(tmp_path, {"yaw_l_eyeball@-10000.wrl": {"rotation": "0 1 0 0.4"},
-                                   "yaw_l_eyeball@20000.wrl": {"rotation": "0 -1 0 -0.7"}})
+    tables = eye_tables(
+        tmp_path,
+        {
+            "yaw_l_eyeball@-10000.wrl": {"rotation": "0 1 0 0.4"},
+            "yaw_l_eyeball@20000.wrl": {"rotation": "0 -1 0 -0.7"},
+        },
+    )
     (t,) = tables.adts[next(iter(tables.adts))].transforms
     assert (t.node, t.field) == ("EYE", "rotation")
     np.testing.assert_allclose(t.neutral, [0, 1, 0, 0.5])
     assert t.unit[0] == 1e-5
 
 
-@pytest.mark.parametrize("field, value, unit", [
-    ("translation", "0 0.5 -1", [0, 0.001, -0.002]),
-    ("scale", "1.5 1 1", [0.001, 0, 0]),
-])
+@pytest.mark.parametrize(
+    "field, value, unit",
+    [
+        ("translation", "0 0.5 -1", [0, 0.001, -0.002]),
+        ("scale", "1.5 1 1", [0.001, 0, 0]),
+    ],
+)
 def test_translation_and_scale(tmp_path, field, value, unit):
     tables = eye_tables(tmp_path, {"joy@500.wrl": {field: value}})
     (t,) = tables.adts[next(iter(tables.adts))].transforms
@@ -384,15 +423,23 @@ def test_rotation_axis_must_stay(tmp_path):
 
 def test_rotation_axes_of_poses_must_agree_at_angle_zero(tmp_path):
     with pytest.raises(AdtError, match="axis 1 0 0 of the other poses"):
-        eye_tables(tmp_path, {"head_pitch@1000.wrl": {"rotation": "1 0 0 0.01"},
-                              "head_pitch@2000.wrl": {"rotation": "0 0 1 0.02"}},
-                   rotation="0 0 1 0")
+        eye_tables(
+            tmp_path,
+            {
+                "head_pitch@1000.wrl": {"rotation": "1 0 0 0.01"},
+                "head_pitch@2000.wrl": {"rotation": "0 0 1 0.02"},
+            },
+            rotation="0 0 1 0",
+        )
 
 
-@pytest.mark.parametrize("field, a, b", [
-    ("rotation", "0 1 0 0.6", "0 1 0 0.9"),
-    ("translation", "0 0.1 0", "0 0.3 0"),
-])
+@pytest.mark.parametrize(
+    "field, a, b",
+    [
+        ("rotation", "0 1 0 0.6", "0 1 0 0.9"),
+        ("translation", "0 0.1 0", "0 0.3 0"),
+    ],
+)
 def test_transform_motion_must_be_linear(tmp_path, field, a, b):
     with pytest.raises(AdtError) as info:
         eye_tables(tmp_path, {"joy@0.5.wrl": {field: a}, "joy@1.wrl": {field: b}})

@@ -47,8 +47,9 @@ def assert_same_tables(got: AnimationTables, want: AnimationTables, atol: float 
             np.testing.assert_allclose(gm.displacements, wm.displacements, atol=atol, rtol=0)
         key = lambda t: (t.node, t.field)  # noqa: E731
         assert sorted(map(key, g.transforms)) == sorted(map(key, w.transforms)), miap
-        for gt, wt in zip(sorted(g.transforms, key=key), sorted(w.transforms, key=key),
-                          strict=True):
+        for gt, wt in zip(
+            sorted(g.transforms, key=key), sorted(w.transforms, key=key), strict=True
+        ):
             np.testing.assert_allclose(gt.neutral, wt.neutral, atol=1e-12)
             np.testing.assert_allclose(gt.unit, wt.unit, rtol=1e-9)
 
@@ -59,14 +60,21 @@ def assert_same_motion(got: FaceModel, want: FaceModel, atol: float = 1e-10) -> 
             p = params_for(want, key, f)
             a, b = got.deform(p), want.deform(p)
             np.testing.assert_allclose(
-                a.points["FACE_MESH"], b.points["FACE_MESH"], atol=atol, rtol=0,
+                a.points["FACE_MESH"],
+                b.points["FACE_MESH"],
+                atol=atol,
+                rtol=0,
                 err_msg=f"{key} = {f}",
             )
             assert a.transforms.keys() == b.transforms.keys()
             for node, fields in b.transforms.items():
                 for fld, value in fields.items():
-                    np.testing.assert_allclose(a.transforms[node][fld], value, atol=1e-12,
-                                               err_msg=f"{key} = {f}: {node}.{fld}")
+                    np.testing.assert_allclose(
+                        a.transforms[node][fld],
+                        value,
+                        atol=1e-12,
+                        err_msg=f"{key} = {f}: {node}.{fld}",
+                    )
 
 
 def rebuilt_model(tmp_path: Path, adt: Path) -> FaceModel:
@@ -110,8 +118,7 @@ def test_round_trip_embedded(model, neutral_wrl, phase_files, tmp_path, capsys):
 def test_one_phase_of_a_fap_gives_one_interval(model, neutral_wrl, phase_files):
     """A linear motion needs one export: borders 0 and the amplitude, extended both ways."""
     neutral = read(neutral_wrl)
-    pose = load_poses(next(f for f in phase_files if f.name == "close_t_l_eyelid@512.wrl"),
-                      neutral)
+    pose = load_poses(next(f for f in phase_files if f.name == "close_t_l_eyelid@512.wrl"), neutral)
     tables = build_tables(neutral, pose)
     (table,) = tables.adts[Miap.parse("close_t_l_eyelid")].meshes
     assert table.borders.tolist() == [0, 512]
@@ -120,14 +127,20 @@ def test_one_phase_of_a_fap_gives_one_interval(model, neutral_wrl, phase_files):
     np.testing.assert_allclose(table.displacement(-256), -want[table.vertices] / 2, atol=1e-12)
 
 
-@pytest.mark.parametrize("tolerance, kept", [(0.0, [20, 21, 22]), (0.02, [20, 21]),
-                                             (0.16, [20]), (1.0, None)])
-def test_tolerance_leaves_out_vertices_that_barely_move(model, neutral_wrl, phase_files,
-                                                        tolerance, kept):
+@pytest.mark.parametrize(
+    "tolerance, kept", [(0.0, [20, 21, 22]), (0.02, [20, 21]), (0.16, [20]), (1.0, None)]
+)
+def test_tolerance_leaves_out_vertices_that_barely_move(
+    model, neutral_wrl, phase_files, tolerance, kept
+):
     # farthest moves: vertex 20 by 0.2048 (at 1024), 21 by 0.1537 (at 1024), 22 by 0.01536 (512)
     neutral = read(neutral_wrl)
-    poses = [p for f in phase_files if f.name.startswith("close_t_l_eyelid")
-             for p in load_poses(f, neutral)]
+    poses = [
+        p
+        for f in phase_files
+        if f.name.startswith("close_t_l_eyelid")
+        for p in load_poses(f, neutral)
+    ]
     if kept is None:
         with pytest.warns(UserWarning, match="move nothing"):
             tables = build_tables(neutral, poses, tolerance)
@@ -146,8 +159,12 @@ def test_mesh_poses_round_trip(model, neutral_wrl, tmp_path, fmt):
     """Each phase of the FAP, viseme and expression tables as a mesh file."""
     tri = face_triangles(model)
     files = []
-    for key, amps in {"stretch_l_cornerlip": [-1000, 1000], "close_t_l_eyelid": [512, 1024],
-                      "viseme3": [1], "joy": [0.5, 1]}.items():
+    for key, amps in {
+        "stretch_l_cornerlip": [-1000, 1000],
+        "close_t_l_eyelid": [512, 1024],
+        "viseme3": [1],
+        "joy": [0.5, 1],
+    }.items():
         for a in amps:
             pts = face_points(model, key, a)
             path = tmp_path / f"{key}@{a:g}.{fmt[:3]}"
@@ -159,8 +176,10 @@ def test_mesh_poses_round_trip(model, neutral_wrl, tmp_path, fmt):
                 write_gltf(path, [(None, pts, tri, {})])
             files.append(path)
     out = tmp_path / "mesh.adt"
-    assert main(["build", str(neutral_wrl), *map(str, files), "-o", str(out), "--tolerance",
-                 "1e-5"]) == 0
+    assert (
+        main(["build", str(neutral_wrl), *map(str, files), "-o", str(out), "--tolerance", "1e-5"])
+        == 0
+    )
     got = read_adt(out)
     # float32 files (PLY, glTF) carry ~1e-8 of noise per coordinate
     atol = 1e-12 if fmt.startswith("obj") else 1e-7
@@ -183,14 +202,17 @@ def test_gltf_morph_targets_named_after_miaps(model, neutral_wrl, tmp_path, suff
         "joy@0.5": face_points(model, "joy", 0.5) - base,
         "smile": face_points(model, "joy", 1) - base,
     }
-    path = write_gltf(tmp_path / f"head{suffix}", [("FACE_MESH", base, face_triangles(model),
-                                                    targets)], sparse=sparse)
+    path = write_gltf(
+        tmp_path / f"head{suffix}",
+        [("FACE_MESH", base, face_triangles(model), targets)],
+        sparse=sparse,
+    )
     neutral = read(neutral_wrl)
     poses = load_poses(path, neutral)
     assert [(p.miap.key, p.amplitude) for p in poses] == [
         ("6", -1000), ("6", 1000), ("19", 512), ("19", 1024), ("viseme 3", 1),
         ("expression 1", 0.5), ("expression 1", 1),
-    ]
+    ]  # fmt: skip
     assert poses[0].source == f"{path}#stretch_l_cornerlip@-1000"
     got = build_tables(neutral, poses, tolerance=1e-5)
     want = AnimationTables({m: a for m, a in model.tables.adts.items() if m.number not in (48, 49)})
@@ -211,11 +233,18 @@ def test_gltf_targets_of_several_meshes_make_one_pose(model, tmp_path):
     teeth = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=float)
     jaw = np.zeros((3, 3))
     jaw[:, 1] = -0.25
-    path = write_gltf(tmp_path / "two.glb", [
-        ("TEETH_MESH", teeth, np.array([[0, 1, 2]]), {"open_jaw@1000": jaw}),
-        ("FACE_MESH", base, face_triangles(model),
-         {"open_jaw@1000": face_points(model, "viseme3", 1) - base}),
-    ])
+    path = write_gltf(
+        tmp_path / "two.glb",
+        [
+            ("TEETH_MESH", teeth, np.array([[0, 1, 2]]), {"open_jaw@1000": jaw}),
+            (
+                "FACE_MESH",
+                base,
+                face_triangles(model),
+                {"open_jaw@1000": face_points(model, "viseme3", 1) - base},
+            ),
+        ],
+    )
     (pose,) = load_poses(path, neutral)
     assert sorted(pose.points) == ["FACE_MESH", "TEETH_MESH"]
     tables = build_tables(neutral, [pose])
@@ -239,16 +268,27 @@ def test_gltf_interleaved_and_quantized_accessors(tmp_path):
     quantized = np.concatenate([quantized, np.zeros((3, 1), "<i2")], axis=1).tobytes()  # pad 8 B
     blob = interleaved + quantized
     doc = g.GLTF2(
-        meshes=[g.Mesh(name="M", extras={"targetNames": ["joy"]}, primitives=[g.Primitive(
-            attributes=g.Attributes(POSITION=0, NORMAL=1), targets=[g.Attributes(POSITION=2)])])],
+        meshes=[
+            g.Mesh(
+                name="M",
+                extras={"targetNames": ["joy"]},
+                primitives=[
+                    g.Primitive(
+                        attributes=g.Attributes(POSITION=0, NORMAL=1),
+                        targets=[g.Attributes(POSITION=2)],
+                    )
+                ],
+            )
+        ],
         accessors=[
             g.Accessor(bufferView=0, componentType=g.FLOAT, count=3, type=g.VEC3),
             g.Accessor(bufferView=0, byteOffset=12, componentType=g.FLOAT, count=3, type=g.VEC3),
-            g.Accessor(bufferView=1, componentType=g.SHORT, normalized=True, count=3,
-                       type=g.VEC3),
+            g.Accessor(bufferView=1, componentType=g.SHORT, normalized=True, count=3, type=g.VEC3),
         ],
-        bufferViews=[g.BufferView(buffer=0, byteOffset=0, byteLength=72, byteStride=24),
-                     g.BufferView(buffer=0, byteOffset=72, byteLength=24, byteStride=8)],
+        bufferViews=[
+            g.BufferView(buffer=0, byteOffset=0, byteLength=72, byteStride=24),
+            g.BufferView(buffer=0, byteOffset=72, byteLength=24, byteStride=8),
+        ],
         buffers=[g.Buffer(byteLength=len(blob))],
     )
     doc.set_binary_blob(blob)

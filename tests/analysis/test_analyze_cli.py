@@ -218,7 +218,10 @@ def test_outputs_of_a_run(tmp_path, five_frames, fake_estimator, capsys):
     # coded on the grid of open_jaw's MPEG-4 step (4 MNS units): within half a step
     np.testing.assert_allclose(coded.values[:, 2], [3, 23, 43], atol=2)
     assert sorted(p.name for p in report.iterdir()) == [
-        "faps.png", "frames.csv", "psnr.png", "side-by-side.mp4"
+        "faps.png",
+        "frames.csv",
+        "psnr.png",
+        "side-by-side.mp4",
     ]
     text = capsys.readouterr().out.strip()
     assert len(text.splitlines()) == 1

@@ -141,8 +141,13 @@ def test_analyze_fits_writes_the_head_and_codes_the_translation(tmp_path):
         Image.fromarray(frame).save(clip / f"f{i}.png")
     r = vtts("analyze", str(clip), "-o", str(tmp_path / "talk.fbs"), "--quiet")
     assert r.returncode == 0, r.stderr
-    for name in ("talk.fbs", "talk-model.wrl", "talk-model.adt", "talk-model-face.png",
-                 "talk-model-frame.png"):
+    for name in (
+        "talk.fbs",
+        "talk-model.wrl",
+        "talk-model.adt",
+        "talk-model-face.png",
+        "talk-model-frame.png",
+    ):
         assert (tmp_path / name).is_file(), name
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no staging left
     data = (tmp_path / "talk.fbs").read_bytes()

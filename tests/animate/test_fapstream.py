@@ -161,8 +161,9 @@ def test_hold_matches_a_reference(column: list[int | None]) -> None:
 # --- FAPs 1 and 2 ------------------------------------------------------------------------------
 
 
-def high_level(viseme: list[list[int]] | None = None,
-               expression: list[list[int]] | None = None) -> FapStream:
+def high_level(
+    viseme: list[list[int]] | None = None, expression: list[list[int]] | None = None
+) -> FapStream:
     n = len(viseme or expression or [])
     mask = np.zeros((n, 68), dtype=bool)
     mask[:, 0] = viseme is not None
@@ -171,8 +172,12 @@ def high_level(viseme: list[list[int]] | None = None,
 
 
 def test_viseme_blend() -> None:
-    out = stream_params(high_level(viseme=[[1, 4, 21, 0], [7, 0, 63, 0], [0, 9, 0, 1],
-                                           [5, 5, 10, 0], [0, 0, 30, 0]]), ALL)
+    out = stream_params(
+        high_level(
+            viseme=[[1, 4, 21, 0], [7, 0, 63, 0], [0, 9, 0, 1], [5, 5, 10, 0], [0, 0, 30, 0]]
+        ),
+        ALL,
+    )
     w = out.params[:, VISEME_BASE : VISEME_BASE + 15]
     assert w[0, 1] == pytest.approx(21 / 63) and w[0, 4] == pytest.approx(42 / 63)
     assert w[1, 7] == 1.0 and w[1].sum() == 1.0  # viseme_select2 = 0: neutral adds nothing
@@ -185,14 +190,23 @@ def test_viseme_blend() -> None:
 
 
 def test_expression_intensities() -> None:
-    out = stream_params(high_level(expression=[[1, 63, 3, 21, 0, 0], [0, 40, 6, 63, 1, 0],
-                                               [2, 10, 2, 20, 0, 1], [0, 0, 0, 0, 0, 0]]), ALL)
+    out = stream_params(
+        high_level(
+            expression=[
+                [1, 63, 3, 21, 0, 0],
+                [0, 40, 6, 63, 1, 0],
+                [2, 10, 2, 20, 0, 1],
+                [0, 0, 0, 0, 0, 0],
+            ]
+        ),
+        ALL,
+    )
     w = out.params[:, EXPRESSION_BASE : EXPRESSION_BASE + 7]
     assert w[0].tolist() == pytest.approx([0, 1, 0, 21 / 63, 0, 0, 0])
     assert w[1].tolist() == pytest.approx([0, 0, 0, 0, 0, 0, 1])  # select 0: nothing
     assert w[2, 2] == pytest.approx(30 / 63)
     assert not w[3].any()
-    assert not out.params[:, : EXPRESSION_BASE].any()
+    assert not out.params[:, :EXPRESSION_BASE].any()
 
 
 def test_missing_visemes_and_expressions() -> None:
@@ -274,7 +288,7 @@ def test_pairs_follow_the_fap_table() -> None:
         (6, 7), (8, 9), (10, 11), (12, 13), (19, 20), (21, 22), (23, 24), (25, 26), (27, 28),
         (29, 30), (31, 32), (33, 34), (35, 36), (37, 38), (39, 40), (41, 42), (53, 54),
         (55, 56), (57, 58), (59, 60), (61, 62), (65, 66), (67, 68),
-    }
+    }  # fmt: skip
     assert len(MIRROR) == 46 and all(MIRROR[MIRROR[k]] == k for k in MIRROR)
     assert {(k, LIP_LAYER[k]) for k in range(4, 14)} == {(k, k + 47) for k in range(4, 14)}
     for a, b in MIRROR.items():
@@ -308,8 +322,11 @@ def test_resampling_25_to_30_keeps_duration(n: int) -> None:
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.integers(1, 80), st.sampled_from([10.0, 12.5, 24.0, 25.0, 29.97, 30.0, 60.0]),
-       st.sampled_from([15.0, 25.0, 30.0, 50.0]))
+@given(
+    st.integers(1, 80),
+    st.sampled_from([10.0, 12.5, 24.0, 25.0, 29.97, 30.0, 60.0]),
+    st.sampled_from([15.0, 25.0, 30.0, 50.0]),
+)
 def test_resample_params_properties(n: int, fps_in: float, fps_out: float) -> None:
     rng = np.random.default_rng(n)
     rows = rng.normal(size=(n, 3))

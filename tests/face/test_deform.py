@@ -167,6 +167,29 @@ def test_translation_and_scale_tables():
     assert np.allclose(pose.transforms["T"]["scale"], [1.05, 1, 1])
 
 
+def test_transform_values_of_some_transforms():
+    t = AnimationTables()
+    t.add(
+        Adt(
+            Miap("fap", 3),
+            transforms=[TransformTable("JAW", "translation", [0, 0, 0], [0, -1e-3, 0])],
+        )
+    )
+    t.add(
+        Adt(Miap("fap", 48), transforms=[TransformTable("HEAD", "rotation", [1, 0, 0, 0], [1e-5])])
+    )
+    neutral = {"rotation": np.array([0, 0, 1, 0.0]), "translation": np.zeros(3)}
+    e = DeformationEngine(t, {"F": np.zeros((1, 3))}, {"JAW": neutral, "HEAD": neutral})
+    p = np.zeros(N_PARAMS)
+    p[2], p[47] = 500, 10000
+    every = e.transform_values(p)
+    assert set(every) == {"JAW", "HEAD"}
+    assert np.allclose(every["HEAD"]["rotation"], [1, 0, 0, 0.1])
+    some = e.transform_values(p, names={"JAW"})
+    assert set(some) == {"JAW"} and np.allclose(some["JAW"]["translation"], [0, -0.5, 0])
+    assert e.transform_values(p, names=()) == {}
+
+
 def test_model_deform_api_and_posed_scene(model_dir):
     model = load_model(model_dir / "head.wrl")
     neutral = model.neutral_points("FACE_MESH")

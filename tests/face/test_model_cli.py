@@ -21,7 +21,7 @@ def vtts(*args: str) -> subprocess.CompletedProcess:
 def test_pose_writes_plain_posed_vrml(model_dir: Path, capsys):
     out = model_dir / "posed.wrl"
     rc = main(["pose", "--model", str(model_dir / "head.wrl"), "--fap", "6=500,head_pitch=20000",
-               "--viseme", "1", "--expression", "joy=0.5", "-o", str(out)])
+               "--viseme", "1", "--expression", "joy=0.5", "-o", str(out)])  # fmt: skip
     assert rc == 0 and capsys.readouterr().out.strip() == f"wrote {out}"
     posed = read(out)
     assert not posed.find("FaceDefTables")
@@ -33,7 +33,7 @@ def test_pose_writes_plain_posed_vrml(model_dir: Path, capsys):
 
 def test_pose_warns_about_miaps_without_tables(model_dir: Path, capsys):
     rc = main(["pose", "--model", str(model_dir / "head.wrl"), "--fap", "3=100",
-               "-o", str(model_dir / "p.wrl")])
+               "-o", str(model_dir / "p.wrl")])  # fmt: skip
     assert rc == 0
     assert "has no table for 3; ignored" in capsys.readouterr().err
 
@@ -47,8 +47,9 @@ def test_pose_bad_input_is_a_clear_error(model_dir: Path):
         (["--viseme", "99"], "viseme"),
     ]
     for extra, fragment in cases:
-        r = vtts("pose", "--model", str(model_dir / "head.wrl"), *extra, "-o",
-                 str(model_dir / "x.wrl"))
+        r = vtts(
+            "pose", "--model", str(model_dir / "head.wrl"), *extra, "-o", str(model_dir / "x.wrl")
+        )
         assert r.returncode == 1, extra
         assert fragment in r.stderr, (extra, r.stderr)
         assert "Traceback" not in r.stderr

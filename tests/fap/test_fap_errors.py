@@ -18,6 +18,7 @@ def mask_line(*faps: int, n: int = 68, bad: dict[int, str] | None = None) -> str
 M34 = mask_line(3, 4)
 HEAD = "2.1 demo 25 2\n"
 
+# fmt: off
 # (id, text, message (exact), line, column)
 CASES = [
     ("empty", "", "expected a header 'VERSION NAME FPS NFRAMES', got an empty file", 1, None),
@@ -92,6 +93,7 @@ CASES = [
     ("expression-def-word", HEAD + mask_line(2) + "\n0 1 2 3 4 0 x\n",
      "expected an integer for expression_def, got 'x'", 3, 13),
 ]
+# fmt: on
 
 
 @pytest.mark.parametrize(

@@ -26,7 +26,7 @@ def test_there_are_nine_real_files() -> None:
         "xface-anger.fap", "xface-beg.fap", "xface-disgust.fap", "xface-fear.fap",
         "xface-happy-for.fap", "xface-hate.fap", "xface-joy.fap", "xface-pride.fap",
         "xface-test.fap",
-    ]
+    ]  # fmt: skip
 
 
 @pytest.mark.parametrize("path", REAL_FILES, ids=lambda p: p.stem)
@@ -52,9 +52,9 @@ def test_real_file_values_by_hand() -> None:
     s = read_fap(DATA / "xface-anger.fap")
     assert s.n_frames == 108
     # Line 2: the mask sets FAPs 3-20, 23-26, 31-42, 48-60 and 63.
-    expected = set(range(3, 21)) | set(range(23, 27)) | set(range(31, 43)) | set(
-        range(48, 61)
-    ) | {63}
+    expected = (
+        set(range(3, 21)) | set(range(23, 27)) | set(range(31, 43)) | set(range(48, 61)) | {63}
+    )
     assert set(np.flatnonzero(s.mask[0]) + 1) == expected
     # Line 3: "0 0 10 10 0 0 10 10 10 10 0 ..." -> FAPs 3..11
     assert list(s.values[0, 2:11]) == [0, 10, 10, 0, 0, 10, 10, 10, 10]
@@ -70,7 +70,7 @@ def test_real_file_last_frame_by_hand() -> None:
     # FAPs 3-20, then 23-26 (21, 22 are not masked).
     row = s.values[42]
     assert list(row[2:20]) == [80, -90, -103, 69, 69, -90, -90, -103, -103, 0, 0, 8, 0, -4, -9,
-                               0, -100, -100]
+                               0, -100, -100]  # fmt: skip
     assert list(row[22:26]) == [689, 689, -946, -946]
     assert row[20] == row[21] == 0 and not s.mask[42, 20]
 
@@ -94,7 +94,7 @@ SMALL = (
     "0 5 -3\n"
     f"{mask_line(3, 4)}\n"
     "1 6 -2\n"
-)
+)  # fmt: skip
 
 
 def test_small_file() -> None:
@@ -167,7 +167,7 @@ def test_high_level_faps() -> None:
         "2.1 hl 30 1\n"
         f"{mask_line(1, 2, 3)}\n"
         "0 1 7 40 1 3 63 0 0 1 0 -12\n"
-    )
+    )  # fmt: skip
     s = parse_fap(text)
     assert s.viseme.tolist() == [[1, 7, 40, 1]]
     assert s.expression.tolist() == [[3, 63, 0, 0, 1, 0]]
@@ -183,8 +183,11 @@ def test_empty_stream() -> None:
 @pytest.mark.parametrize("nframes", [0, 1, 5])
 def test_wrong_frame_count_warns(nframes: int) -> None:
     text = SMALL.replace("demo 25 2", f"demo 25 {nframes}")
-    with pytest.warns(FapWarning, match=rf"^clip\.fap:1: the header says {nframes} frames but "
-                                        r"the file has 2; using the 2 frames present$") as w:
+    with pytest.warns(
+        FapWarning,
+        match=rf"^clip\.fap:1: the header says {nframes} frames but "
+        r"the file has 2; using the 2 frames present$",
+    ) as w:
         s = parse_fap(text, file="clip.fap")
     assert s == parse_fap(SMALL)
     assert isinstance(w[0].message, VttsWarning)

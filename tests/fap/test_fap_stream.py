@@ -20,8 +20,9 @@ DATA = Path(__file__).resolve().parent.parent / "data" / "fap"
 def make(n: int = 3, **kw: Any) -> FapStream:
     values = kw.pop("values", np.zeros((n, 68)))
     mask = kw.pop("mask", np.ones((n, 68), dtype=bool))
-    return FapStream(fps=kw.pop("fps", 25.0), name=kw.pop("name", "s"), values=values, mask=mask,
-                     **kw)
+    return FapStream(
+        fps=kw.pop("fps", 25.0), name=kw.pop("name", "s"), values=values, mask=mask, **kw
+    )
 
 
 def test_defaults_and_properties() -> None:
@@ -81,10 +82,14 @@ def test_unmasked_values_are_zeroed() -> None:
         ({"mask": np.full((3, 68), 2)}, "mask must hold booleans"),
         ({"viseme": np.zeros((3, 3))}, r"viseme must have shape \(3, 4\), got \(3, 3\)"),
         ({"viseme": np.full((3, 4), 0.5)}, "viseme must hold integers"),
-        ({"viseme": [[0, 15, 0, 0]] * 3},
-         r"viseme\[0, 1\] \(viseme_select2\) must be 0–14, got 15"),
-        ({"expression": [[0, 0, 0, 64, 0, 0]] * 3},
-         r"expression\[0, 3\] \(expression_intensity2\) must be 0–63, got 64"),
+        (
+            {"viseme": [[0, 15, 0, 0]] * 3},
+            r"viseme\[0, 1\] \(viseme_select2\) must be 0–14, got 15",
+        ),
+        (
+            {"expression": [[0, 0, 0, 64, 0, 0]] * 3},
+            r"expression\[0, 3\] \(expression_intensity2\) must be 0–63, got 64",
+        ),
     ],
 )
 def test_validation(kw: dict[str, Any], message: str) -> None:
@@ -111,9 +116,16 @@ def test_equality() -> None:
     assert a != b
     assert a != make() and a != "xface"
     for change in ({"fps": 30.0}, {"name": "other"}, {"first_frame": 1}, {"version": "2.0"}):
-        fields = {"fps": a.fps, "name": a.name, "values": a.values, "mask": a.mask,
-                  "viseme": a.viseme, "expression": a.expression, "first_frame": 0,
-                  "version": "2.1"}
+        fields = {
+            "fps": a.fps,
+            "name": a.name,
+            "values": a.values,
+            "mask": a.mask,
+            "viseme": a.viseme,
+            "expression": a.expression,
+            "first_frame": 0,
+            "version": "2.1",
+        }
         assert FapStream(**fields) == a
         assert FapStream(**(fields | change)) != a
     with pytest.raises(TypeError):
@@ -174,16 +186,18 @@ def test_resample_high_level_from_nearest_frame() -> None:
     mask[3:, 1] = True
     viseme = np.array([[k, 0, 63, 0] for k in range(n)])
     expression = np.array([[0] * 6] * 3 + [[1, 10, 0, 0, 0, 0], [2, 20, 0, 0, 0, 0]])
-    s = FapStream(fps=10, name="hl", values=np.zeros((n, 68)), mask=mask, viseme=viseme,
-                  expression=expression)
+    s = FapStream(
+        fps=10, name="hl", values=np.zeros((n, 68)), mask=mask, viseme=viseme, expression=expression
+    )
     r = s.resample(20)  # output frame j at input position j / 2
     assert r.n_frames == 10
     # Nearest input frame of positions 0, .5, 1, 1.5, ... (halves round up), clamped to 4.
     nearest = [0, 1, 1, 2, 2, 3, 3, 4, 4, 4]
     assert r.viseme[:, 0].tolist() == nearest
     assert r.mask[:, 1].tolist() == [k >= 3 for k in nearest]
-    assert r.expression[:, 1].tolist() == [[0, 0, 0, 0, 0, 10, 10, 20, 20, 20][j]
-                                           for j in range(10)]
+    assert r.expression[:, 1].tolist() == [
+        [0, 0, 0, 0, 0, 10, 10, 20, 20, 20][j] for j in range(10)
+    ]
 
 
 def test_resample_down() -> None:

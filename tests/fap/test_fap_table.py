@@ -32,7 +32,10 @@ def test_rows(
     d = fap(number)
     assert d == FAPS[number - 1]
     assert (d.name, d.fapu, d.bidirectional, d.positive_motion) == (
-        name, fapu, bidirectional, motion
+        name,
+        fapu,
+        bidirectional,
+        motion,
     )
     assert (d.feature_point, d.quant_step, d.high_level) == (point, step, False)
 
@@ -75,7 +78,7 @@ def test_visemes() -> None:
     ("key", "number"),
     [(0, 0), (14, 14), ("7", 7), ("p", 1), ("m", 1), ("T", 3), ("t", 4), ("S", 6), ("s", 7),
      ("A:", 10), ("p, b, m", 1), ("none", 0)],
-)
+)  # fmt: skip
 def test_viseme_lookup(key: int | str, number: int) -> None:
     assert viseme(key).number == number
 
@@ -88,7 +91,12 @@ def test_viseme_lookup_errors(key: object) -> None:
 
 def test_expressions() -> None:
     assert {k: e.name for k, e in EXPRESSIONS.items()} == {
-        1: "joy", 2: "sadness", 3: "anger", 4: "fear", 5: "disgust", 6: "surprise"
+        1: "joy",
+        2: "sadness",
+        3: "anger",
+        4: "fear",
+        5: "disgust",
+        6: "surprise",
     }
 
 

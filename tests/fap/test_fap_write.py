@@ -30,8 +30,15 @@ def small_stream() -> FapStream:
     values[1, 2:4] = [1e20, 2.5e-7]
     viseme = [[1, 2, 63, 0], [0, 14, 0, 1]]
     expression = [[0, 0, 0, 0, 0, 0], [6, 63, 1, 0, 1, 1]]
-    return FapStream(fps=30, name="my clip", values=values, mask=mask, viseme=viseme,
-                     expression=expression, first_frame=1)
+    return FapStream(
+        fps=30,
+        name="my clip",
+        values=values,
+        mask=mask,
+        viseme=viseme,
+        expression=expression,
+        first_frame=1,
+    )
 
 
 def test_format_exactly() -> None:
@@ -43,7 +50,7 @@ def test_format_exactly() -> None:
         "1 1 2 63 0 5 -0.1\n"
         f"{m1}\n"
         "2 0 14 0 1 6 63 1 0 1 1 1e+20 2.5e-07\n"
-    )
+    )  # fmt: skip
 
 
 @pytest.mark.parametrize(
@@ -61,8 +68,9 @@ def test_names_that_cannot_be_written(name: str) -> None:
 
 
 def test_format_non_integral_fps_and_version_2_0() -> None:
-    s = FapStream(fps=29.97, name="x", values=np.zeros((0, 68)), mask=np.zeros((0, 68), bool),
-                  version="2.0")
+    s = FapStream(
+        fps=29.97, name="x", values=np.zeros((0, 68)), mask=np.zeros((0, 68), bool), version="2.0"
+    )
     assert format_fap(s) == "2.1 x 29.97 0\n"
 
 
@@ -90,7 +98,7 @@ def test_real_file_round_trip(path: Path, tmp_path: Path) -> None:
     "value",
     [0.1, -0.0, 1e-300, 5e-324, sys.float_info.max, -sys.float_info.max, 1e16, 1e15 + 0.5,
      2.0**53 + 2, 123456789.125, -1 / 3, math.pi],
-)
+)  # fmt: skip
 def test_float_round_trip(value: float) -> None:
     values = np.zeros((1, 68))
     values[0, 5] = value
@@ -118,17 +126,24 @@ fps_values = st.one_of(
 @st.composite
 def streams(draw: st.DrawFn) -> FapStream:
     n = draw(st.integers(0, 5))
-    values = draw(hnp.arrays(np.float64, (n, 68), elements=st.one_of(
-        finite, st.integers(-5000, 5000).map(float))))
+    values = draw(
+        hnp.arrays(
+            np.float64, (n, 68), elements=st.one_of(finite, st.integers(-5000, 5000).map(float))
+        )
+    )
     values[:, :2] = 0.0
     mask = draw(hnp.arrays(np.bool_, (n, 68)))
     viseme = np.column_stack(
-        [draw(hnp.arrays(np.int64, n, elements=st.integers(lo, hi)))
-         for lo, hi in [(0, 14), (0, 14), (0, 63), (0, 1)]]
+        [
+            draw(hnp.arrays(np.int64, n, elements=st.integers(lo, hi)))
+            for lo, hi in [(0, 14), (0, 14), (0, 63), (0, 1)]
+        ]
     ).reshape(n, 4)
     expression = np.column_stack(
-        [draw(hnp.arrays(np.int64, n, elements=st.integers(lo, hi)))
-         for lo, hi in [(0, 6), (0, 63), (0, 6), (0, 63), (0, 1), (0, 1)]]
+        [
+            draw(hnp.arrays(np.int64, n, elements=st.integers(lo, hi)))
+            for lo, hi in [(0, 6), (0, 63), (0, 6), (0, 63), (0, 1), (0, 1)]
+        ]
     ).reshape(n, 6)
     name = draw(names)
     try:

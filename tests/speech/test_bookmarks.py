@@ -115,3 +115,36 @@ def test_unknown_names_list_what_the_model_knows():
     msg = info.value.message
     assert "known names: joy (happiness, happy, smile), surprise (surprised), blink" in msg
     assert "sadness" not in msg
+
+
+@pytest.mark.parametrize(
+    "text, spoken, moved",
+    [
+        ("people <sad>.", "people.", [0]),
+        ("people <sad> .", "people.", [0]),
+        ("Hello <smile>, nice <blink>!", "Hello, nice!", [0, 1]),
+        ("Why <surprise>? Oh <fear>; so <joy>: yes", "Why? Oh; so: yes", [0, 1, 2]),
+        ("people <sad> <blink>. Bye", "people. Bye", [0, 1]),
+        ("well <sad>?!\n", "well?!\n", [0]),
+        ('"people <sad>." he said', '"people." he said', [0]),
+        ("a <sad>.<joy> b", "a. b", [0]),
+        # nothing to attach to, or not punctuation standing alone: as written
+        ("<sad>. Hello", ". Hello", []),
+        ("Hello. <sad>. Bye", "Hello. . Bye", []),
+        ("a <sad>.5 b", "a .5 b", []),
+        ("Hello <smile> nice", "Hello  nice", []),
+    ],
+)
+def test_punctuation_after_bookmarks_stays_on_its_word(text, spoken, moved):
+    t = parse_bookmarks(text)
+    assert t.text == spoken
+    assert sorted(t.before_punctuation) == moved
+    # the bookmarks keep their order and their columns in the text as written
+    assert [b.column for b in t.bookmarks] == [i + 1 for i, c in enumerate(text) if c == "<"]
+    assert all(f'<mark name="b{k}"/>' in t.ssml() for k in range(len(t.bookmarks)))
+
+
+def test_punctuation_is_spoken_before_the_mark():
+    assert parse_bookmarks("people <sad> <blink>. Bye").ssml() == (
+        '<speak>people.<mark name="b0"/><mark name="b1"/> Bye</speak>'
+    )

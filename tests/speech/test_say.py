@@ -114,3 +114,32 @@ def test_say_bad_input(tmp_path, args, fragment):
     assert fragment in r.stderr, r.stderr
     assert "Traceback" not in r.stderr
     assert not (tmp_path / "x.mp4").exists()
+
+
+def test_people_sad_full_stop_is_spoken_as_people_full_stop():
+    """espeak-ng reads a full stop after a mark (``people <mark/>.``) as "dot"."""
+    u, v = prepare_utterance("people <sad>."), prepare_utterance("people.")
+    assert [p.phoneme for p in u.phones] == [p.phoneme for p in v.phones]
+    assert "0" not in [p.phoneme for p in u.phones]  # the o of "dot"
+    assert np.array_equal(u.audio, v.audio)
+    (sad,) = u.bookmarks
+    assert sad.time == pytest.approx(v.words[0].end)
+
+
+@pytest.mark.parametrize(
+    "text, plain",
+    [
+        ("people <sad> <blink> .", "people."),
+        ("so <sad>. you came <joy>, then <blink>!", "so. you came, then!"),
+        ("Why <surprise>? oh <fear>; so <joy>: yes", "Why? oh; so: yes"),
+    ],
+)
+def test_bookmarks_before_punctuation_are_at_the_end_of_their_word(text, plain):
+    u, v = prepare_utterance(text), prepare_utterance(plain)
+    spoken = [p.phoneme for p in u.phones if p.viseme]
+    assert spoken == [p.phoneme for p in v.phones if p.viseme] and "0" not in spoken
+    # each bookmark at the end of the word before it, where espeak-ng puts a mark written before
+    # the punctuation (whose pause comes after it); a second one in a row: the same time
+    ends = [w.end for w in v.words]
+    n = [sum(1 for w in text[: b.column - 1].split() if not w.startswith("<")) for b in u.bookmarks]
+    assert [b.time for b in u.bookmarks] == pytest.approx([ends[k - 1] for k in n])

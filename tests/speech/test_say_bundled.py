@@ -40,8 +40,9 @@ def test_lips_close_at_every_bilabial_centre_under_surprise(models, utterance, i
     surprised = np.zeros(N_PARAMS)
     surprised[EXPRESSION_BASE + 6] = 1.0
     assert lip_gap(model, surprised) > neutral + 0.01  # surprise alone opens the mouth
-    tl = build_timeline(model, utterance.phones, utterance.bookmarks, utterance.duration,
-                        autonomous=False)
+    tl = build_timeline(
+        model, utterance.phones, utterance.bookmarks, utterance.duration, autonomous=False
+    )
     assert len(tl.bilabial_centres) >= 10
     for c in tl.bilabial_centres:
         frame = tl.params[int(round(c * tl.fps))]
@@ -60,7 +61,9 @@ def test_two_models_blink_at_different_times_and_smile_differently(models, utter
     from vtts.speech.bookmarks import Bookmark
 
     smile = [Bookmark("expression", "joy", duration=1.0, time=0.5)]
-    ea, eb = (build_timeline(m, [], smile, 4.0, autonomous=False).params[:, EXPRESSION_BASE + 1]
-              for m in models)
+    ea, eb = (
+        build_timeline(m, [], smile, 4.0, autonomous=False).params[:, EXPRESSION_BASE + 1]
+        for m in models
+    )
     assert not np.allclose(ea, eb)
     assert np.argmax(eb > 0.5) < np.argmax(ea > 0.5)  # lotta's smile comes faster

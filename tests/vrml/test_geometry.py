@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from vtts.errors import VrmlSemanticError
-from vtts.vrml import parse, polygon_triangle_count, triangulate
+from vtts.vrml import PRIMITIVES, parse, polygon_triangle_count, primitive_mesh, triangulate
 
 H = "#VRML V2.0 utf8\n"
 CUBE_POINTS = "-1 -1 1, 1 -1 1, 1 1 1, -1 1 1, -1 -1 -1, 1 -1 -1, 1 1 -1, -1 1 -1"
@@ -150,3 +150,24 @@ def test_an_unknown_texture_coordinate_node_is_no_texture_coordinates():
         )
     mesh = triangulate(scene.node("G"))
     assert mesh.texcoords.shape == (3, 2) and mesh.faces.shape == (1, 3)
+
+
+@pytest.mark.parametrize(
+    "node, lo, hi",
+    [
+        ("Box { size 2 4 6 }", [-1, -2, -3], [1, 2, 3]),
+        ("Sphere { radius 0.5 }", [-0.5, -0.5, -0.5], [0.5, 0.5, 0.5]),
+        ("Cylinder { radius 1 height 3 }", [-1, -1.5, -1], [1, 1.5, 1]),  # VRML's axis is y
+        ("Cone { bottomRadius 2 height 1 }", [-2, -0.5, -2], [2, 0.5, 2]),
+    ],
+)
+def test_primitive_meshes_fill_the_vrml_bounds(node, lo, hi):
+    geom = parse(H + f"DEF G {node}").node("G")
+    mesh = primitive_mesh(geom)
+    assert mesh.is_watertight and mesh.volume > 0  # closed, and wound outward
+    assert np.allclose(mesh.bounds, [lo, hi], atol=1e-9)
+
+
+def test_primitive_mesh_is_none_for_other_geometry():
+    assert primitive_mesh(ifs()) is None
+    assert PRIMITIVES == ("Box", "Sphere", "Cylinder", "Cone")

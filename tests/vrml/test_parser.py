@@ -313,11 +313,11 @@ def test_every_error_is_a_vtts_error():
 @pytest.mark.parametrize(
     "text",
     [
-        'PROTO P [ exposedField MFString u [] ] { ImageTexture { url IS u } }\n'
+        "PROTO P [ exposedField MFString u [] ] { ImageTexture { url IS u } }\n"
         'Shape { appearance Appearance { texture P { u "/etc/passwd" } } }',
         'PROTO P [ exposedField MFString u [ "../../secret.png" ] ] { ImageTexture { url IS u } }',
-        'PROTO P [ exposedField MFString u [] ] { ImageTexture { url IS u } }\n'
-        'PROTO Q [ field MFString v [] ] { P { u IS v } }\n'
+        "PROTO P [ exposedField MFString u [] ] { ImageTexture { url IS u } }\n"
+        "PROTO Q [ field MFString v [] ] { P { u IS v } }\n"
         'Shape { appearance Appearance { texture Q { v "../x.png" } } }',
     ],
 )

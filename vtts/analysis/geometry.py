@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vtts.face import FaceModel
-from vtts.face.deform import Pose, _transform_value
+from vtts.face.deform import Pose
 from vtts.vrml import Node, transform_matrix, triangulate
 from vtts.vrml.geometry import TriangleMesh
 from vtts.vrml.transform import compose_transform
@@ -87,15 +87,6 @@ class HeadGeometry:
 
     # ---- posing --------------------------------------------------------------------------------
 
-    def _transforms(self, params: np.ndarray, names=None) -> dict[str, dict[str, np.ndarray]]:
-        """The posed fields of the Transforms the tables drive (only those in ``names``, if
-        given): ``{node name: {field: value}}``."""
-        out: dict[str, dict[str, np.ndarray]] = {}
-        for (node, fld), t in self.engine.transforms.items():
-            if names is None or node in names:
-                out.setdefault(node, {})[fld] = _transform_value(t, fld, params)
-        return out
-
     def _node_matrix(self, node: Node, posed: dict[str, dict[str, np.ndarray]]) -> np.ndarray:
         """The local matrix of a Transform: posed by the tables, or its own fields."""
         fields = posed.get(node.name)
@@ -119,7 +110,7 @@ class HeadGeometry:
         posed by ``params`` (the last ones are kept)."""
         key = np.asarray(params, np.float64).tobytes()
         if self._local is None or self._local[0] != key:
-            posed = self._transforms(params)
+            posed = self.engine.transform_values(params)
             local: dict[int, np.ndarray] = {}
             for s in self.shapes:
                 for node in s.chain:
@@ -152,7 +143,10 @@ class HeadGeometry:
         up, down = params.copy(), params.copy()
         up[pi] += _H
         down[pi] -= _H
-        posed_up, posed_down = self._transforms(up, names), self._transforms(down, names)
+        posed_up, posed_down = (
+            self.engine.transform_values(up, names),
+            self.engine.transform_values(down, names),
+        )
         top = self._top(translation)
         slope: dict[int, np.ndarray] = {}
         out: list[np.ndarray | None] = []

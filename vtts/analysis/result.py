@@ -85,4 +85,3 @@ class Analysis:
         if fapu is not None and any(u in TRANSLATION for u in self.unknowns):
             translation = np.array([fe.translation for fe in self.frames]).reshape(n, 3) / fapu.es
         return FapStream(self.fps, name, values, mask, translation=translation)
-

@@ -17,13 +17,19 @@ from vtts.errors import ExportError, VttsError
 from vtts.face import FaceModel
 from vtts.limits import MAX_IMAGE_SIDE
 from vtts.render.camera import Camera, find_viewpoint, frame_bounds, row_layout
-from vtts.vrml import Node, TriangleMesh, drawn_children, transform_matrix, triangulate
+from vtts.vrml import (
+    PRIMITIVES,
+    Node,
+    TriangleMesh,
+    drawn_children,
+    primitive_mesh,
+    transform_matrix,
+    triangulate,
+)
 from vtts.vrml.scene import GROUPING
 
 #: The deepest scene graph walked (as the renderer: deeper graphs are refused).
 MAX_DEPTH = 128
-#: Geometry nodes drawn besides IndexedFaceSet (as meshes the renderer makes with trimesh).
-PRIMITIVES = ("Box", "Sphere", "Cylinder", "Cone")
 
 
 @dataclass(eq=False)
@@ -133,8 +139,6 @@ def walk_head(model: FaceModel) -> HeadScene:
 
 
 def _shape(model: FaceModel, shape: Node) -> ShapeItem | None:
-    from vtts.render.renderer import _primitive  # the renderer's own meshes of VRML primitives
-
     geom = shape["geometry"]
     if geom is None:
         return None
@@ -152,7 +156,7 @@ def _shape(model: FaceModel, shape: Node) -> ShapeItem | None:
         return ShapeItem(geom, appearance, double_sided, mesh=tm)
     if geom.type.name not in PRIMITIVES:
         return None
-    tri = _primitive(geom)
+    tri = primitive_mesh(geom)
     if tri is None:
         return None
     return ShapeItem(geom, appearance, double_sided, primitive=tri)

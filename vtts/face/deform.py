@@ -17,6 +17,7 @@ translation and scale add ``f · unit``.
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -180,12 +181,16 @@ class DeformationEngine:
                 out[(node, fld)] = np.array([_transform_value(t, fld, p) for p in params])
         return out
 
-    def transform_values(self, params: np.ndarray) -> dict[str, dict[str, np.ndarray]]:
+    def transform_values(
+        self, params: np.ndarray, names: Collection[str] | None = None
+    ) -> dict[str, dict[str, np.ndarray]]:
         """The animated Transform fields for a ``(N_PARAMS,)`` parameter vector, as
-        :attr:`Pose.transforms` has them (without deforming any mesh)."""
+        :attr:`Pose.transforms` has them (without deforming any mesh): ``{DEF name: {field:
+        value}}``, only for the Transforms named in ``names`` when given."""
         out: dict[str, dict[str, np.ndarray]] = {}
         for (node, fld), t in self.transforms.items():
-            out.setdefault(node, {})[fld] = _transform_value(t, fld, params)
+            if names is None or node in names:
+                out.setdefault(node, {})[fld] = _transform_value(t, fld, params)
         return out
 
     def displacement(self, b: _MeshBlock, params: np.ndarray) -> np.ndarray:

@@ -29,7 +29,7 @@ from vtts.face import N_PARAMS, FaceModel
 from vtts.limits import MAX_IMAGE_SIDE, MAX_RENDER_PIXELS, check_image_size
 from vtts.render.camera import Camera, find_viewpoint, frame_bounds, row_layout
 from vtts.render.color import TRANSPARENT, parse_background
-from vtts.vrml import Node, drawn_children, transform_matrix, triangulate
+from vtts.vrml import Node, drawn_children, primitive_mesh, transform_matrix, triangulate
 from vtts.vrml.geometry import TriangleMesh
 from vtts.vrml.scene import GROUPING
 from vtts.vrml.transform import compose_transform
@@ -467,7 +467,7 @@ class FaceRenderer:
                     )
                 )
         else:
-            tri = _primitive(geom)
+            tri = primitive_mesh(geom)
             if tri is None:
                 return
             mesh = pr.Mesh.from_trimesh(tri, material=material, smooth=geom.type.name != "Box")
@@ -893,31 +893,6 @@ def _rot_xy(ax: float, ay: float) -> np.ndarray:
     m = np.eye(4)
     m[:3, :3] = rotation_matrix([0, 1, 0, ay]) @ rotation_matrix([1, 0, 0, ax])
     return m
-
-
-def _primitive(geom: Node):
-    """A trimesh for VRML's Box, Sphere, Cylinder and Cone (None for other geometry)."""
-    import trimesh
-
-    t = geom.type.name
-    if t == "Box":
-        return trimesh.creation.box(extents=geom["size"])
-    if t == "Sphere":
-        return trimesh.creation.icosphere(subdivisions=3, radius=geom["radius"])
-    if t in ("Cylinder", "Cone"):
-        h = geom["height"]
-        r = geom["radius"] if t == "Cylinder" else geom["bottomRadius"]
-        mesh = (
-            trimesh.creation.cylinder(radius=r, height=h, sections=32)
-            if t == "Cylinder"
-            else trimesh.creation.cone(radius=r, height=h, sections=32)
-        )
-        if t == "Cone":
-            mesh.apply_translation([0, 0, -h / 2])
-        # VRML's axis is y; trimesh's is z
-        mesh.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))
-        return mesh
-    return None
 
 
 def _pyrender_texture(rgba: np.ndarray):

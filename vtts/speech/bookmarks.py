@@ -8,6 +8,12 @@ in 0–1. SSML ``<mark name="smile 2s"/>`` carries a bookmark in its name. ``\\<
 
 The text goes to the speech synthesizer as SSML with one ``<mark/>`` per bookmark, so each
 bookmark gets its time in the audio from the synthesizer's own mark event.
+
+Punctuation right after bookmarks (``people <sad>.``) is spoken before them (``people.<mark/>``):
+left after a mark, away from its word, espeak-ng reads a full stop aloud as "dot" (its SSML mode
+does so even for ``people<mark/>.``). Such a bookmark's time is the end of the word before it,
+where espeak-ng puts a mark written before the punctuation
+(:attr:`BookmarkedText.before_punctuation`).
 """
 
 from __future__ import annotations
@@ -65,9 +71,16 @@ class Bookmark:
 
 @dataclass
 class BookmarkedText:
-    """Text pieces and bookmarks in order."""
+    """Text pieces and bookmarks in order, as spoken.
+
+    pieces              the spoken text and the bookmarks, in order; punctuation written right
+                        after bookmarks is moved before them, onto its word (see the module)
+    before_punctuation  indices (in :attr:`bookmarks`) of the bookmarks written before such
+                        punctuation, whose time is the end of the word before them
+    """
 
     pieces: list[str | Bookmark]
+    before_punctuation: frozenset[int] = frozenset()
 
     @property
     def bookmarks(self) -> list[Bookmark]:
@@ -155,7 +168,43 @@ def parse_bookmarks(text: str, known: set[str] | None = None) -> BookmarkedText:
                 raise
             token = item if isinstance(item, Token) else item.children[0]
             raise _on_line(e, token.line) from None
-    return BookmarkedText(pieces)
+    return _punctuation_on_its_word(pieces)
+
+
+#: Stands for a bookmark in the text while punctuation is moved (the text cannot hold it:
+#: :data:`_UNSPEAKABLE`).
+_MARK = "\x00"
+#: Bookmarks (with spaces around and between them) after a word, then punctuation that stands
+#: alone (a space, another bookmark or the end after it; not the decimal point of ``.5``). The
+#: word's last character is not punctuation itself: ``Hello. <sad>. Bye`` stays as it is (espeak
+#: reads a second full stop after a first one silently, and ``Hello..`` would lose the pause).
+_DETACHED = re.compile(
+    r"(?<=[^\s\x00.,!?;:\u2026])\s*(?P<marks>\x00(?:\s*\x00)*)\s*"
+    r"(?P<punct>[.,!?;:\u2026]+[\"')\]\u00bb\u201d\u2019]*)(?=[\s\x00]|\Z)"
+)
+
+
+def _punctuation_on_its_word(pieces: list[str | Bookmark]) -> BookmarkedText:
+    """The pieces with each punctuation run written after bookmarks moved before them, right after
+    its word: ``people <sad> <blink>. Bye`` is spoken ``people.<sad><blink> Bye``."""
+    marks = [p for p in pieces if isinstance(p, Bookmark)]
+    flat = "".join(_MARK if isinstance(p, Bookmark) else p for p in pieces)
+    moved: set[int] = set()
+
+    def attach(m: re.Match) -> str:
+        first = flat.count(_MARK, 0, m.start("marks"))
+        n = m.group("marks").count(_MARK)
+        moved.update(range(first, first + n))
+        return m.group("punct") + _MARK * n
+
+    spoken = _DETACHED.sub(attach, flat)
+    out: list[str | Bookmark] = []
+    for k, text in enumerate(spoken.split(_MARK)):
+        if k:
+            out.append(marks[k - 1])
+        if text:
+            out.append(text)
+    return BookmarkedText(out, frozenset(moved))
 
 
 def _on_line(error: BookmarkError, line: int) -> BookmarkError:

@@ -12,6 +12,7 @@ import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -19,6 +20,9 @@ from vtts.animate.timeline import TimedPhone
 from vtts.errors import SpeechError, VttsWarning
 from vtts.speech.bookmarks import Bookmark, BookmarkedText, parse_bookmarks
 from vtts.speech.timings import TimedWord, write_timings
+
+if TYPE_CHECKING:
+    from vtts.speech.tts import Word
 
 
 @dataclass
@@ -125,7 +129,10 @@ def _espeak(bt: BookmarkedText, voice: str | None, rate: int | None, pitch: int 
     from vtts.speech.tts import synthesize
 
     speech = synthesize(bt.ssml(), voice=voice or "en-us", rate=rate, pitch=pitch)
-    return speech, [(m.name, m.time) for m in speech.marks]
+    marks = [(m.name, m.time) for m in speech.marks]
+    if bt.before_punctuation:
+        _end_of_word_before(bt, speech.words, marks)
+    return speech, marks
 
 
 def _festival(bt: BookmarkedText, voice: str | None, rate: int | None, pitch: int | None):
@@ -143,6 +150,24 @@ def _festival(bt: BookmarkedText, voice: str | None, rate: int | None, pitch: in
         bt.text, marks=positions, voice=voice or festival.DEFAULT_VOICE, rate=rate, pitch=pitch
     )
     return speech, [(f"b{m.name}", m.time) for m in speech.marks]
+
+
+def _end_of_word_before(
+    bt: BookmarkedText, words: list[Word], marks: list[tuple[str, float]]
+) -> None:
+    """Bookmarks written before punctuation (spoken after it, see
+    :mod:`vtts.speech.bookmarks`) at the end of the word before them, where espeak-ng reports a
+    mark written before punctuation, rather than at the next word's start. The word is found by
+    its rank among the text's words (espeak-ng's word positions can fall into the word before
+    after a full stop), so only where espeak-ng's words are the text's, one for one."""
+    before, count = _words_before(bt)
+    if count != len(words):
+        return
+    for k in sorted(bt.before_punctuation):
+        n = before[k]
+        if n and words[n - 1].end is not None:
+            earlier = max((t for _, t in marks[:k]), default=0.0)
+            marks[k] = (marks[k][0], max(words[n - 1].end, earlier))
 
 
 #: Speech engines by name: each takes the bookmarked text, voice, rate and pitch and returns a
@@ -199,19 +224,25 @@ def _place_marks(utt: Utterance, marks: list[tuple[str, float]], *, fallback: bo
 _TEXT_WORD = re.compile(r"\S*\w\S*")
 
 
+def _words_before(bt: BookmarkedText) -> tuple[list[int], int]:
+    """For each bookmark, how many words of the text come before it; and the text's words."""
+    before: list[int] = []
+    count = 0
+    for piece in bt.pieces:
+        if isinstance(piece, str):
+            count += len(_TEXT_WORD.findall(piece))
+        else:
+            before.append(count)
+    return before, count
+
+
 def _place_at_words(utt: Utterance) -> bool:
     """Bookmarks without a time at the start of the word after them, when the file's words
     (Polly's word marks, a ``--timings-out`` table) are the text's, one for one: the end of the
     last word for a bookmark after every word. False, and nothing placed, when they are not."""
     if not utt.words:
         return False
-    count = 0
-    before: list[int] = []  # for each bookmark, the words of the text before it
-    for piece in utt.text.pieces:
-        if isinstance(piece, str):
-            count += len(_TEXT_WORD.findall(piece))
-        else:
-            before.append(count)
+    before, count = _words_before(utt.text)
     if count != len(utt.words):
         return False
     words = sorted(utt.words, key=lambda w: w.start)

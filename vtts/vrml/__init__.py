@@ -7,7 +7,13 @@ array([0., 1., 0.])
 """
 
 from vtts.vrml.fields import FIELD_TYPES, FieldType, SFImage
-from vtts.vrml.geometry import TriangleMesh, polygon_triangle_count, triangulate
+from vtts.vrml.geometry import (
+    PRIMITIVES,
+    TriangleMesh,
+    polygon_triangle_count,
+    primitive_mesh,
+    triangulate,
+)
 from vtts.vrml.nodes import FieldDecl, NodeType, standard_node_types
 from vtts.vrml.parser import parse, read, resolve_url, url_problem, url_roots
 from vtts.vrml.scene import Node, Proto, Route, Scene, drawn_children, same_node
@@ -16,6 +22,7 @@ from vtts.vrml.writer import dumps, write
 
 __all__ = [
     "FIELD_TYPES",
+    "PRIMITIVES",
     "FieldDecl",
     "FieldType",
     "Node",
@@ -30,6 +37,7 @@ __all__ = [
     "dumps",
     "parse",
     "polygon_triangle_count",
+    "primitive_mesh",
     "read",
     "resolve_url",
     "rotation_matrix",

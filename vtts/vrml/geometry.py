@@ -4,7 +4,8 @@ Polygons (``coordIndex`` runs separated by ``-1``) are fan-triangulated, which i
 convex polygons VRML97 asks for by default. Where normals, colors or texture coordinates are
 indexed differently from the coordinates (per face, or by their own index arrays), corners that
 differ become separate output vertices; :attr:`TriangleMesh.coord_index` maps each output vertex
-back to its Coordinate point so that animation can move them together.
+back to its Coordinate point so that animation can move them together. :func:`primitive_mesh`
+gives the triangles of the primitives (Box, Sphere, Cylinder, Cone).
 """
 
 from __future__ import annotations
@@ -294,3 +295,35 @@ def triangulate(node: Node, points: np.ndarray | None = None) -> TriangleMesh:
         face_polygon=pid[tri[:, 0]] if tri.size else np.zeros(0, dtype=np.int64),
         double_sided=not node["solid"],
     )
+
+
+#: The VRML97 geometry nodes :func:`primitive_mesh` makes triangles of.
+PRIMITIVES = ("Box", "Sphere", "Cylinder", "Cone")
+
+
+def primitive_mesh(geom: Node):
+    """A ``trimesh.Trimesh`` of a VRML primitive (:data:`PRIMITIVES`: Box, Sphere, Cylinder and
+    Cone) in the node's own units and axes, or None for other geometry. The sphere is an
+    icosphere of 3 subdivisions, the cylinder and cone have 32 sections; the renderer and the
+    exporters draw the same triangles."""
+    import trimesh
+
+    t = geom.type.name
+    if t == "Box":
+        return trimesh.creation.box(extents=geom["size"])
+    if t == "Sphere":
+        return trimesh.creation.icosphere(subdivisions=3, radius=geom["radius"])
+    if t in ("Cylinder", "Cone"):
+        h = geom["height"]
+        r = geom["radius"] if t == "Cylinder" else geom["bottomRadius"]
+        mesh = (
+            trimesh.creation.cylinder(radius=r, height=h, sections=32)
+            if t == "Cylinder"
+            else trimesh.creation.cone(radius=r, height=h, sections=32)
+        )
+        if t == "Cone":
+            mesh.apply_translation([0, 0, -h / 2])
+        # VRML's axis is y; trimesh's is z
+        mesh.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))
+        return mesh
+    return None

@@ -197,7 +197,6 @@ def _instantiate(instance: Node) -> Node:
     return clone(first)
 
 
-
 #: The grouping nodes whose children are drawn (see :func:`drawn_children`).
 GROUPING = ("Transform", "Group", "Anchor", "Billboard", "Collision", "Switch", "LOD")
 

@@ -106,11 +106,12 @@ class _Writer:
         """The node's body as parsed, then whatever was added to the node since (PROTOs first,
         then Script declarations, fields, IS bindings and ROUTEs)."""
         decl_names = {d.name for d in node.script_decls}
-        present = {
-            ("decl", d) for d in decl_names
-        } | {("field", f) for f in node.fields if f not in decl_names} | {
-            ("is", m) for m in node.is_maps if m not in decl_names
-        } | {("extra", i) for i in range(len(node.extras))}
+        present = (
+            {("decl", d) for d in decl_names}
+            | {("field", f) for f in node.fields if f not in decl_names}
+            | {("is", m) for m in node.is_maps if m not in decl_names}
+            | {("extra", i) for i in range(len(node.extras))}
+        )
         order = [item for item in node.order if item in present]
         seen = set(order)
         rest = (
