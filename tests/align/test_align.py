@@ -207,3 +207,13 @@ def test_say_audio_rejects_rate_and_other_engines(tmp_path, other_voice) -> None
         )  # fmt: skip
         assert r.returncode != 0 and message in r.stderr and "Traceback" not in r.stderr
     assert not (tmp_path / "t.tsv").exists()
+
+
+def test_bookmark_before_punctuation_is_at_the_end_of_its_word(tmp_path, other_voice) -> None:
+    # as for espeak-ng's own speech: "map <smile>, but" smiles when "map" ends, not at "but"
+    sf.write(tmp_path / "rec.wav", other_voice.audio, other_voice.rate)
+    text = "Maybe Bob can bring the map <smile 1s>, but please remember my umbrella."
+    utt = prepare_utterance(text, audio=tmp_path / "rec.wav")
+    words = {w.label: w for w in utt.words}
+    assert utt.bookmarks[0].time == pytest.approx(words["map"].end, abs=1e-6)
+    assert words["but"].start - utt.bookmarks[0].time > 0.05  # the comma's pause between

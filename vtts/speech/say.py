@@ -22,6 +22,9 @@ from vtts.speech.bookmarks import Bookmark, BookmarkedText, parse_bookmarks
 from vtts.speech.timings import TimedWord, write_timings
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from vtts.align import AlignedWord
     from vtts.speech.tts import Word
 
 
@@ -120,7 +123,10 @@ def _aligned(bt: BookmarkedText, audio: Path, voice: str | None) -> Utterance:
     phones = [TimedPhone(p.start, p.end, p.viseme or 0, p.phoneme) for p in found.phones]
     words = [TimedWord(w.start, w.end, w.text) for w in found.words]
     utt = Utterance(bt, samples, sr, phones, bt.bookmarks, words)
-    _place_marks(utt, [(m.name, m.time) for m in found.marks], fallback=False)
+    marks = [(m.name, m.time) for m in found.marks]
+    if bt.before_punctuation:  # as for espeak-ng's own speech: at the end of the word before
+        _end_of_word_before(bt, found.words, marks)
+    _place_marks(utt, marks, fallback=False)
     return utt
 
 
@@ -153,7 +159,7 @@ def _festival(bt: BookmarkedText, voice: str | None, rate: int | None, pitch: in
 
 
 def _end_of_word_before(
-    bt: BookmarkedText, words: list[Word], marks: list[tuple[str, float]]
+    bt: BookmarkedText, words: Sequence[Word | AlignedWord], marks: list[tuple[str, float]]
 ) -> None:
     """Bookmarks written before punctuation (spoken after it, see
     :mod:`vtts.speech.bookmarks`) at the end of the word before them, where espeak-ng reports a
