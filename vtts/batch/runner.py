@@ -360,36 +360,18 @@ class _Bar:
 
 @contextlib.contextmanager
 def _bar(total: int, show: bool) -> Iterator[_Bar]:
+    from vtts.render.output import terminal_progress
+
     bar = _Bar(total, show)
-    if not show:
+    prog = None
+    if show:
+        prog = terminal_progress(
+            "{task.fields[rate]} jobs/min", "{task.fields[failed]} failed", eta_label="ETA"
+        )
+    if prog is None:
         yield bar
         return
-    from rich.console import Console
-
-    console = Console(file=sys.stderr)
-    if not console.is_terminal or console.is_dumb_terminal:
-        yield bar
-        return
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
-
-    columns = (
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("{task.fields[rate]} jobs/min"),
-        TimeElapsedColumn(),
-        TextColumn("ETA"),
-        TimeRemainingColumn(),
-        TextColumn("{task.fields[failed]} failed"),
-    )
-    with Progress(*columns, console=console, transient=True) as prog:
+    with prog:
         bar.progress = prog
         bar.task = prog.add_task("starting workers", total=total, rate="0.0", failed=0)
         yield bar

@@ -622,6 +622,34 @@ class ProgressBar:
             self._progress.advance(self._task, n)
 
 
+def terminal_progress(*extra_columns: str, eta_label: str = ""):
+    """A transient rich ``Progress`` on stderr — description, bar, done/total, each of
+    ``extra_columns`` (rich text templates such as ``"{task.fields[rate]} jobs/min"``), elapsed
+    time and time remaining (after ``eta_label``, when given) — or None when stderr is not a
+    terminal (CI logs and redirected output get no progress lines)."""
+    from rich.console import Console
+
+    console = Console(file=sys.stderr)
+    if not console.is_terminal or console.is_dumb_terminal:
+        return None
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    columns = [TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn()]
+    columns += [TextColumn(c) for c in extra_columns]
+    columns.append(TimeElapsedColumn())
+    if eta_label:
+        columns.append(TextColumn(eta_label))
+    columns.append(TimeRemainingColumn())
+    return Progress(*columns, console=console, transient=True)
+
+
 @contextlib.contextmanager
 def progress(total: int, description: str, quiet: bool = False) -> Iterator[ProgressBar]:
     """A progress bar for ``total`` units of work (frames), shown on stderr.
@@ -636,32 +664,11 @@ def progress(total: int, description: str, quiet: bool = False) -> Iterator[Prog
                 bar.advance()
     """
     bar = ProgressBar(total, description, enabled=False)
-    if quiet:
+    prog = None if quiet else terminal_progress()
+    if prog is None:
         yield bar
         return
-    from rich.console import Console
-
-    console = Console(file=sys.stderr)
-    if not console.is_terminal or console.is_dumb_terminal:
-        yield bar
-        return
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
-
-    columns = (
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        TimeRemainingColumn(),
-    )
-    with Progress(*columns, console=console, transient=True) as prog:
+    with prog:
         bar.enabled = True
         bar._progress = prog
         bar._task = prog.add_task(description, total=total)
