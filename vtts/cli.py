@@ -618,6 +618,11 @@ def cmd_say(args: argparse.Namespace) -> int:
     _check_web(args)
     _check_curves(args)
     text = args.text
+    if args.text_option is not None:
+        if text or args.file:
+            given = "the text twice" if text else "--text and --file"
+            raise RenderError(f"give the text once: got {given}")
+        text = args.text_option
     if args.file:
         try:
             text = read_bytes_capped(args.file, MAX_TEXT_BYTES, what="text").decode("utf-8")
@@ -985,6 +990,12 @@ def build_parser() -> argparse.ArgumentParser:
         nargs="?",
         default="",
         help='text with bookmarks, e.g. "Hello <smile 2s> world <blink>"',
+    )
+    sy.add_argument(
+        "--text",
+        dest="text_option",
+        metavar="TEXT",
+        help="the text, as an option (the same as giving it first; e.g. with --audio REC)",
     )
     sy.add_argument("--file", help="read the text from a file instead")
     _models_flag(sy)

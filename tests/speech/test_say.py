@@ -96,6 +96,9 @@ def test_say_writes_mp4_wav_and_fap_with_matching_durations(tmp_path):
         (["Hi", "--phonemes", "{tmp}/p.txt"], "--audio"),
         (["Hi"], "nothing to write"),
         (["", "-o", "{tmp}/x.mp4"], "nothing to say"),
+        (["Hi", "--text", "there"], "give the text once: got the text twice"),
+        (["--text", "Hi", "--file", "{tmp}/t.txt"], "give the text once: got --text and --file"),
+        (["--text", "Hi <grin>"], "column 4: unknown bookmark <grin>"),
         (["Hi \x01 there"], "column 4: the control character '\\x01' cannot be spoken"),
         (["--file", "{tmp}/t.txt"], "{tmp}/t.txt:2:7: error: unknown bookmark <frown>"),
         (["--file", "{tmp}/t1.txt"], "{tmp}/t1.txt: error: column 4: unknown bookmark <grin>"),
@@ -114,6 +117,17 @@ def test_say_bad_input(tmp_path, args, fragment):
     assert fragment in r.stderr, r.stderr
     assert "Traceback" not in r.stderr
     assert not (tmp_path / "x.mp4").exists()
+
+
+def test_say_takes_the_text_as_an_option_too(tmp_path):
+    """``--text TEXT`` is the positional text under a name (``say --audio REC --text ...``)."""
+    r = vtts(
+        "say", "--text", "Hi <joy>", "--model", str(HEAD), "--fap-out", str(tmp_path / "a.fap")
+    )
+    assert r.returncode == 0, r.stderr
+    r = vtts("say", "Hi <joy>", "--model", str(HEAD), "--fap-out", str(tmp_path / "b.fap"))
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "a.fap").read_bytes() == (tmp_path / "b.fap").read_bytes()
 
 
 def test_people_sad_full_stop_is_spoken_as_people_full_stop():

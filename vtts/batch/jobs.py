@@ -368,7 +368,7 @@ def preflight(job: Job, models: dict | None = None) -> None:
                 models[key] = load_model(m, url_root=args.url_root)
             heads.append(models[key])
         if job.command == "say":
-            text = args.text
+            text = args.text or args.text_option
             if args.file:
                 raw = read_bytes_capped(args.file, MAX_TEXT_BYTES, what="text")
                 text = raw.decode("utf-8", errors="replace")
