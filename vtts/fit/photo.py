@@ -43,6 +43,7 @@ from vtts.fit.landmarks import (
     choose_face,
     detect_faces,
 )
+from vtts.fit.neck import free_neck
 from vtts.fit.shape import ShapeFit, fit_shape, focal_length
 from vtts.fit.texture import (
     ATLAS_SIZE,
@@ -88,6 +89,9 @@ EARS = ("L_EAR", "R_EAR")
 #: neck, which a portrait may show as collar or shadow but a video will show again as it is,
 #: and the ears.
 VIDEO_PARTS = (*PHOTO_PARTS, "NECK", *EARS)
+#: Whether a head made for a video (:func:`with_frame`) gets a neck that follows the head's
+#: rotation only near the skull (:mod:`vtts.fit.neck`), as the person's does.
+FREE_NECK = True
 #: Larger photos are refused (a 16k photo is 270 megapixels).
 MAX_SIZE = 16384
 
@@ -163,13 +167,16 @@ class FittedHead:
         return [png, frame_png]
 
 
-def with_frame(head: FittedHead) -> FittedHead:
+def with_frame(head: FittedHead, neck: bool | None = None) -> FittedHead:
     """``head`` (fitted to a video's frame) made for that video, changed in place and returned:
     the parts the frame shows take the frame itself as their texture, unlit
     (:mod:`vtts.fit.frame`), so that the head rendered at the frame's view gives the frame
-    back."""
+    back; with ``neck`` (default :data:`FREE_NECK`) the neck follows the head's rotation only
+    near the skull (:func:`vtts.fit.neck.free_neck`)."""
     h, w = head.photo.shape[:2]
     project_frame(head.scene, head.shape.camera, (w, h))
+    if FREE_NECK if neck is None else neck:
+        free_neck(head.scene, head.tables)
     head.frame = frame_texture(head.photo)
     return head
 

@@ -1,0 +1,133 @@
+"""A neck that does not turn with the head: the head rotation weighed down the neck.
+
+In the generic heads the neck hangs inside the head's rotation Transforms (``HEAD_YAW`` ⊃
+``HEAD_PITCH`` ⊃ ``HEAD_ROLL``, all pivoting at the top of the spine), so every nod of the
+model swings the whole neck over the person's collar. A person's head turns on the neck: the
+top of the neck goes with the skull, the bottom stays with the shoulders.
+
+:func:`free_neck` takes the ``NECK`` Shape out of the head's Transforms (to the top level of
+the scene, where it stands as it did at the neutral pose: the head Transforms are the identity
+there) and gives it Animation Definition Tables for the head rotation FAPs 48–50 instead: each
+neck vertex turns about the FAP's own pivot and axis (the Transform's ``center`` and
+``rotation`` axis) by ``w · angle``, with a weight ``w`` that is 1 at and above the pivot (the
+top of the spine, inside the skull) and falls smoothly to 0 at the neck's lowest point (the
+collar); see :func:`neck_weights`. A rotation is not linear in its angle, so each table
+samples it at :data:`BORDERS` (every 0.1 rad over ±0.8 rad; the chord of a 0.1 rad arc is off
+it by r·0.1²/8, below a thousandth of the head's size at the neck's radius) and is linear
+between; beyond ±0.8 rad the outer intervals extend. The tables are MPEG-4's own way of saying
+how a FAP moves vertices, so the written model carries the neck's motion to any decoder
+(``vtts play OUT.fbs --model OUT-model.wrl``).
+
+Several rotations at once add their displacements (the tables superimpose linearly, as MPEG-4
+defines them), while the head's Transforms compose: at the top of the neck the two differ by
+the product of the angles times the radius (0.1 × 0.05 rad × 0.6 units ≈ 0.003 units, a
+tenth of a pixel for a CIF face), and the neck's top lies inside the skull.
+
+The head *translation* (the coded stream's, not a FAP) still moves the whole model, the neck
+with it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from vtts.errors import FitError
+from vtts.face.adt import AnimationTables, MeshTable
+from vtts.face.miap import Miap
+from vtts.vrml import Scene
+
+#: The neck's IndexedFaceSet.
+NECK = "NECK"
+#: The head rotation FAPs and the Transform each one turns.
+HEAD_ROTATIONS = {48: "HEAD_PITCH", 49: "HEAD_YAW", 50: "HEAD_ROLL"}
+#: Interval borders of the neck's tables (AU = 1e-5 rad): every 0.1 rad over ±0.8 rad.
+BORDERS = np.arange(-80_000.0, 80_001.0, 10_000.0)
+
+
+def smoothstep(t: np.ndarray) -> np.ndarray:
+    """``3t² − 2t³`` of ``t`` clipped to [0, 1]: 0 and 1 at the ends, flat at both."""
+    t = np.clip(t, 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
+def neck_weights(points: np.ndarray, pivot_y: float) -> np.ndarray:
+    """``(p,)`` how much of the head's rotation each neck point ``points (p, 3)`` (model units,
+    y up) follows: 1 at and above ``pivot_y`` (the top of the spine), 0 at the neck's lowest
+    point, :func:`smoothstep` in height between."""
+    y = np.asarray(points, np.float64)[:, 1]
+    bottom = float(y.min())
+    if pivot_y <= bottom:
+        raise FitError(
+            f"the head rotation's pivot (y = {pivot_y:g}) is not above the neck's lowest point "
+            f"(y = {bottom:g}): the neck cannot be weighed down from it"
+        )
+    return smoothstep((y - bottom) / (pivot_y - bottom))
+
+
+def rotation_table(points: np.ndarray, weights: np.ndarray, centre: np.ndarray,
+                   axis: np.ndarray, per_unit: float,
+                   borders: np.ndarray = BORDERS) -> np.ndarray:  # fmt: skip
+    """``(n, p, 3)`` displacement per unit of each interval between ``borders (n+1,)`` (MIAP
+    units) of ``points (p, 3)`` turned about the line through ``centre (3,)`` along ``axis
+    (3,)`` by ``weights (p,)`` times the angle, ``per_unit`` rad a unit (the Transform table's
+    unit; its sign gives the direction): the chords of the turned points' arcs."""
+    k = np.asarray(axis, np.float64)
+    k = k / np.linalg.norm(k)
+    rel = np.asarray(points, np.float64) - centre
+    angle = np.asarray(borders, np.float64)[:, None, None] * per_unit * weights[None, :, None]
+    # Rodrigues: r cos a + (k × r) sin a + k (k · r)(1 − cos a)
+    cross = np.cross(k, rel)[None]
+    along = (rel @ k)[None, :, None] * k
+    turned = rel * np.cos(angle) + cross * np.sin(angle) + along * (1 - np.cos(angle))
+    at = turned - rel  # (n+1, p, 3) displacement at each border
+    return (at[1:] - at[:-1]) / np.diff(borders)[:, None, None]
+
+
+def free_neck(scene: Scene, tables: AnimationTables, borders: np.ndarray = BORDERS) -> None:
+    """Take the ``NECK`` Shape of ``scene`` out of the head's rotation Transforms and give it
+    tables for FAPs 48–50 in ``tables`` (both changed in place), as the module docstring
+    describes. The head Transforms must be at their neutral (zero) angles."""
+    if NECK not in scene.defs:
+        raise FitError(f"the head has no {NECK} IndexedFaceSet to free from the head's rotation")
+    neck = scene.node(NECK).expand()
+    found = None
+    for shape, _, path in scene.shapes():
+        geom = shape["geometry"]
+        if geom is not None and geom.expand() is neck:
+            found = (shape, path)
+            break
+    if found is None or not found[1]:
+        raise FitError(f"{NECK} is not drawn inside the head's Transforms")
+    shape, path = found
+    parent = path[-1]
+    for node in path:
+        if node.type_name == "Transform":
+            angle = float(np.asarray(node["rotation"], np.float64)[3])
+            moved = np.any(np.asarray(node["translation"]) != 0) or np.any(
+                np.asarray(node["scale"]) != 1
+            )
+            if angle != 0 or moved:
+                raise FitError(f"the head Transform {node.name} is not at its neutral pose")
+    parent.fields["children"] = [c for c in parent["children"] if c is not shape]
+    at = next((i + 1 for i, s in enumerate(scene.statements) if s is path[0]),
+              len(scene.statements))  # fmt: skip
+    scene.statements.insert(at, shape)
+    points = np.asarray(neck["coord"].expand()["point"], np.float64)
+    pitch = scene.node(HEAD_ROTATIONS[48]).expand()
+    weights = neck_weights(points, float(np.asarray(pitch["center"], np.float64)[1]))
+    moving = np.flatnonzero(weights > 0)
+    for number, transform in HEAD_ROTATIONS.items():
+        adt = tables.adts.get(Miap("fap", number))
+        if adt is None:
+            raise FitError(f"the head has no table for FAP {number}")
+        node = scene.node(transform).expand()
+        table = next((t for t in adt.transforms if t.node == transform and t.field == "rotation"),
+                     None)  # fmt: skip
+        if table is None:
+            raise FitError(f"FAP {number} has no table that turns the head Transform {transform}")
+        centre = np.asarray(node["center"], np.float64)
+        axis, per_unit = table.neutral[:3], float(table.unit[0])
+        slopes = rotation_table(points[moving], weights[moving], centre, axis, per_unit, borders)
+        adt.meshes = [m for m in adt.meshes if m.node != NECK]
+        adt.meshes.append(MeshTable(NECK, np.asarray(borders, np.float64), moving,
+                                    np.round(slopes, 12) + 0.0))  # fmt: skip
