@@ -145,6 +145,8 @@ def main(argv: list[str] | None = None) -> int:
         "uncoded_median": round(float(np.nanmedian(psnr)), 2),
         "uncoded_worst": round(float(np.nanmin(psnr)), 2),
         "uncoded_mean_stream_psnr": round(sequence_psnr(check), 2),
+        "uncoded_median_stream_psnr": round(float(np.nanmedian(check)), 2),
+        "uncoded_worst_stream_psnr": round(float(np.nanmin(check)), 2),
         "after_first_mean": round(sequence_psnr(later), 2),
         "coded_12.5Hz_kbps": round(len(data) * 8 / duration / 1000, 3),
         "coded_12.5Hz_mean": round(sequence_psnr(coded), 2),
