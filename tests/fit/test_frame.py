@@ -12,6 +12,7 @@ import pytest
 
 from vtts.analysis.quality import coverage, face_psnr_rgb
 from vtts.analysis.video import read_video
+from vtts.cli import main
 from vtts.face import N_PARAMS, load_model
 from vtts.fit import fit_photo, with_frame
 from vtts.fit.frame import FRAME_APPEARANCES, FRAME_PARTS, frame_texture, texture_size
@@ -73,6 +74,11 @@ def test_the_head_made_for_the_video_gives_its_frame_back(akiyo, tmp_path):
     for name in FRAME_PARTS:
         uv = np.asarray(model.scene.node(name).expand()["texCoord"].expand()["point"])
         assert uv.shape[0] == len(model.scene.node(name).expand()["coord"].expand()["point"])
+    # the neck follows the head's rotation near the skull only (vtts.fit.neck): its own tables
+    assert {
+        m.number for m in model.miaps if "NECK" in [t.node for t in model.tables.adts[m].meshes]
+    } == {48, 49, 50}
+    assert main(["check", str(paths[0])]) == 0
 
 
 def test_the_ears_of_a_video_head_have_tiles_of_their_own(akiyo):
