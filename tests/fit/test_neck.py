@@ -106,3 +106,28 @@ def test_the_written_head_passes_check_and_loads_the_same(heads, tmp_path, capsy
     params = np.zeros(N_PARAMS)
     params[47], params[48] = 12_345.0, -6_789.0
     assert np.allclose(_neck(back, params), _neck(freed, params), atol=1e-6)
+
+
+def test_the_renderer_draws_the_collar_still_while_the_head_nods(heads):
+    """The decoder's view (the renderer deforms the model by its tables): under a nod the
+    collar's pixels stay as they were at rest, while the bundled head's neck swings."""
+    from vtts.render import FaceRenderer
+
+    bundled, freed = heads
+    nod = np.zeros(N_PARAMS)
+    nod[47] = 15_000.0  # 0.15 rad
+    images = {}
+    for label, model in (("bundled", bundled), ("freed", freed)):
+        with FaceRenderer(model, size=(160, 120)) as r:
+            rest, numbers = r.render(np.zeros(N_PARAMS), triangles=True)
+            images[label] = r.render(nod).astype(np.float64)
+            neck = np.zeros(numbers.shape, bool)
+            for node, first, n in r.triangle_sets:
+                if node.name == NECK:
+                    neck |= (numbers >= first) & (numbers < first + n)
+    rows = np.flatnonzero(neck.any(axis=1))
+    collar = neck & (np.arange(neck.shape[0])[:, None] >= rows[-1] - 3)
+    assert collar.sum() >= 10
+    still = np.abs(images["freed"] - rest)[collar].mean()
+    swung = np.abs(images["bundled"] - rest)[collar].mean()
+    assert still < 1.0 < 2.0 < swung, (still, swung)  # measured: 0.5 and 3.6 gray levels
