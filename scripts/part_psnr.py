@@ -12,7 +12,14 @@ model's coverage, shrunk by 2) — and splits them by the part of the head each 
 rasterizer's triangle numbers). Prints the whole stream's mean / median / worst face PSNR (of
 every analyzed frame, and of the frames after the first), each part's pixels per frame, PSNR
 and share of the squared error (frames after the first), and the bit rate and mean PSNR of the
-stream coded at 12.5 Hz (arithmetic coder, quantizer 1), as JSON.
+stream coded at 12.5 Hz (arithmetic coder, quantizer 1), as JSON. ``*_stream_psnr`` are
+the same figures from the library's own measure (:func:`vtts.analysis.quality.stream_psnr`).
+
+``--neck-translation`` is a trial of what is not built: the split's renderings move the neck's
+points by ``(w − 1) · t`` (``w`` the neck's weights of :func:`vtts.fit.neck.neck_weights`,
+``t`` the stream's head translation in model units), so the neck follows the translation as
+it follows the rotation; ``uncoded_*`` and the parts then show that, while ``*_stream_psnr``
+and the coded figures stay the decoder's (the whole neck translated).
 """
 
 from __future__ import annotations
