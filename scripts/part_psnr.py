@@ -3,7 +3,7 @@ the head (docs/analysis.md, "Where the error is"), with the neck weighed down or
 the head (vtts.fit.neck).
 
     .venv/bin/python scripts/part_psnr.py tests/data/video/akiyo_cif.mp4 --frames 60
-    .venv/bin/python scripts/part_psnr.py ... --neck turning      # the head before vtts.fit.neck
+    .venv/bin/python scripts/part_psnr.py ... --neck weighed      # with vtts.fit.neck
 
 Tracks the video's first FRAMES frames (every second one, ``--model auto``, the paper's 17
 parameters, as bench/bench_real_video.py does), then renders the uncoded stream through the
@@ -15,11 +15,12 @@ and share of the squared error (frames after the first), and the bit rate and me
 stream coded at 12.5 Hz (arithmetic coder, quantizer 1), as JSON. ``*_stream_psnr`` are
 the same figures from the library's own measure (:func:`vtts.analysis.quality.stream_psnr`).
 
-``--neck-translation`` is a trial of what is not built: the split's renderings move the neck's
-points by ``(w − 1) · t`` (``w`` the neck's weights of :func:`vtts.fit.neck.neck_weights`,
-``t`` the stream's head translation in model units), so the neck follows the translation as
-it follows the rotation; ``uncoded_*`` and the parts then show that, while ``*_stream_psnr``
-and the coded figures stay the decoder's (the whole neck translated).
+``--neck-translation`` (with the neck weighed) is a trial of what is not built: the split's
+renderings move the neck's points by ``(w − 1) · t`` (``w`` the neck's weights of
+:func:`vtts.fit.neck.neck_weights`, ``t`` the stream's head translation in model units), so the
+neck follows the translation as it follows the rotation; ``uncoded_*`` and the parts then show
+that, while ``*_stream_psnr`` and the coded figures stay the decoder's (the whole neck
+translated).
 """
 
 from __future__ import annotations
@@ -55,9 +56,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("video", type=Path)
     ap.add_argument("--frames", type=int, default=60, help="the video's first N frames")
     ap.add_argument("--step", type=int, default=2)
-    ap.add_argument("--neck", choices=("weighed", "turning"), default="weighed",
+    ap.add_argument("--neck", choices=("weighed", "turning"), default="turning",
                     help="weighed: the neck follows the head near the skull only (vtts.fit.neck); "
-                    "turning: the whole neck turns with the head (the head before it)")  # fmt: skip
+                    "turning: the whole neck turns with the head (the default head)")  # fmt: skip
     ap.add_argument("--match-neck", action="store_true",
                     help="match the neck too (not in ignore=)")  # fmt: skip
     ap.add_argument("--neck-translation", action="store_true",
@@ -75,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
     from vtts.fit.neck import neck_weights
     from vtts.render import FaceRenderer
 
-    vtts.fit.photo.FREE_NECK = args.neck == "weighed"
+    vtts.fit.photo.FREE_NECK = args.neck == "weighed" or args.neck_translation
     video = read_video(args.video)
     frames = [f for i, f in enumerate(video.frames()) if i < args.frames]
     h, w = frames[0].shape[:2]

@@ -24,7 +24,10 @@ the product of the angles times the radius (0.1 × 0.05 rad × 0.6 units ≈ 0.0
 tenth of a pixel for a CIF face), and the neck's top lies inside the skull.
 
 The head *translation* (the coded stream's, not a FAP) still moves the whole model, the neck
-with it.
+with it. Since the estimator trades the head's pitch against its translation, a neck that holds
+still under the pitch but moves with the translation fits a real collar no better than one that
+turns with the head: measured on Akiyo, it is not in the default path
+(:data:`vtts.fit.photo.FREE_NECK`; docs/analysis.md has the figures).
 """
 
 from __future__ import annotations

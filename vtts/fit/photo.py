@@ -90,8 +90,10 @@ EARS = ("L_EAR", "R_EAR")
 #: and the ears.
 VIDEO_PARTS = (*PHOTO_PARTS, "NECK", *EARS)
 #: Whether a head made for a video (:func:`with_frame`) gets a neck that follows the head's
-#: rotation only near the skull (:mod:`vtts.fit.neck`), as the person's does.
-FREE_NECK = True
+#: rotation only near the skull (:mod:`vtts.fit.neck`), as the person's does. Off: measured on
+#: Akiyo (300 frames) it changed the decoded face PSNR by −0.03 dB, since the head translation,
+#: which the estimator trades against the pitch, still moves the whole neck (docs/analysis.md).
+FREE_NECK = False
 #: Larger photos are refused (a 16k photo is 270 megapixels).
 MAX_SIZE = 16384
 
