@@ -21,7 +21,7 @@ how a FAP moves vertices, so the written model carries the neck's motion to any 
 Several rotations at once add their displacements (the tables superimpose linearly, as MPEG-4
 defines them), while the head's Transforms compose: at the top of the neck the two differ by
 the product of the angles times the radius (0.1 × 0.05 rad × 0.6 units ≈ 0.003 units, a
-tenth of a pixel for a CIF face), and the neck's top lies inside the skull.
+fifth of a pixel for Akiyo's CIF face), and the neck's top lies inside the skull.
 
 The head *translation* (the coded stream's, not a FAP) still moves the whole model, the neck
 with it. Since the estimator trades the head's pitch against its translation, a neck that holds
