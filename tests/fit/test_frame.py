@@ -88,7 +88,8 @@ def test_a_video_head_with_the_neck_weighed_down_passes_check(akiyo, tmp_path):
     assert with_neck == {48, 49, 50}
     assert main(["check", str(paths[0])]) == 0
     # it does not change the first frame: the head Transforms are the identity there
-    assert face_psnr_rgb(frame, _render(paths, frame), coverage(_render(paths, frame))) > 40.0
+    rendered = _render(paths, frame)
+    assert face_psnr_rgb(frame, rendered, coverage(rendered)) > 40.0
 
 
 def test_the_ears_of_a_video_head_have_tiles_of_their_own(akiyo):
