@@ -26,7 +26,8 @@ fifth of a pixel for Akiyo's CIF face), and the neck's top lies inside the skull
 The head *translation* (the coded stream's, not a FAP) still moves the whole model, the neck
 with it. Since the estimator trades the head's pitch against its translation, a neck that holds
 still under the pitch but moves with the translation fits a real collar no better than one that
-turns with the head: measured on Akiyo, it is not in the default path
+turns with the head by much: measured on Akiyo and Carphone, the gain is no larger than the
+difference between two runs, so it is not in the default path
 (:data:`vtts.fit.photo.FREE_NECK`; docs/analysis.md has the figures).
 """
 

@@ -91,8 +91,10 @@ EARS = ("L_EAR", "R_EAR")
 VIDEO_PARTS = (*PHOTO_PARTS, "NECK", *EARS)
 #: Whether a head made for a video (:func:`with_frame`) gets a neck that follows the head's
 #: rotation only near the skull (:mod:`vtts.fit.neck`), as the person's does. Off: measured on
-#: Akiyo (300 frames) it changed the decoded face PSNR by −0.03 dB, since the head translation,
-#: which the estimator trades against the pitch, still moves the whole neck (docs/analysis.md).
+#: Akiyo's 300 frames it changed the decoded face PSNR by +0.29 dB in one pair of runs and
+#: −0.03 dB in another (the tracking differs by as much between runs), and Carphone's figures
+#: moved with its lost tracks both ways: the head translation, which the estimator trades
+#: against the pitch, still moves the whole neck (docs/analysis.md).
 FREE_NECK = False
 #: Larger photos are refused (a 16k photo is 270 megapixels).
 MAX_SIZE = 16384
