@@ -76,7 +76,9 @@ def main(argv: list[str] | None = None) -> int:
     from vtts.fit.neck import neck_weights
     from vtts.render import FaceRenderer
 
-    vtts.fit.photo.FREE_NECK = args.neck == "weighed" or args.neck_translation
+    if args.neck_translation:
+        args.neck = "weighed"  # the trial weighs the translation as the tables weigh the rotation
+    vtts.fit.photo.FREE_NECK = args.neck == "weighed"
     video = read_video(args.video)
     frames = [f for i, f in enumerate(video.frames()) if i < args.frames]
     h, w = frames[0].shape[:2]
