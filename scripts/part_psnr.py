@@ -63,13 +63,16 @@ def main(argv: list[str] | None = None) -> int:
                     help="match the neck too (not in ignore=)")  # fmt: skip
     ap.add_argument("--neck-translation", action="store_true",
                     help="the neck follows the translation, weighed")  # fmt: skip
+    ap.add_argument("--faps", default="paper17", help="the unknowns (vtts analyze --faps)")
+    ap.add_argument("--searched", default="",
+                    help="FAPs found by the search alone, head held (Estimator(searched=...))")  # fmt: skip
     ap.add_argument("--per-frame", action="store_true", help="each frame's figures too")
     args = ap.parse_args(argv)
 
     import vtts.fit.photo
     from vtts.analysis.quality import coverage, sequence_psnr
     from vtts.analysis.track import FITTED_IGNORED, track
-    from vtts.analysis.unknowns import DEFAULT_UNKNOWNS
+    from vtts.analysis.unknowns import parse_unknowns
     from vtts.analysis.video import read_video
     from vtts.animate.fapstream import head_roots, stream_params
     from vtts.fap.coding import decode, encode
@@ -83,12 +86,14 @@ def main(argv: list[str] | None = None) -> int:
     frames = [f for i, f in enumerate(video.frames()) if i < args.frames]
     h, w = frames[0].shape[:2]
     options = {}
+    if args.searched:
+        options["searched"] = tuple(int(x) for x in args.searched.split(","))
     if args.match_neck:
         options["ignore"] = tuple(p for p in FITTED_IGNORED if p != "NECK")
     with tempfile.TemporaryDirectory(prefix="vtts-parts-") as tmp:
         t0 = time.perf_counter()
         tracked = track(frames, fps=video.fps, model_path=Path(tmp) / "m.wrl", step=args.step,
-                        unknowns=DEFAULT_UNKNOWNS, **options)  # fmt: skip
+                        unknowns=parse_unknowns(args.faps), **options)  # fmt: skip
         seconds = time.perf_counter() - t0
         model = tracked.model
         stream = tracked.analysis.stream(args.video.stem, fapu=model.fapu)
@@ -148,6 +153,8 @@ def main(argv: list[str] | None = None) -> int:
         "analyzed": int(np.sum(~np.isnan(psnr))),
         "neck": args.neck,
         "match_neck": args.match_neck,
+        "faps": args.faps,
+        "searched": args.searched,
         "seconds": round(seconds, 1),
         "restarts": len(tracked.restarts),
         "held": len(tracked.held),

@@ -71,6 +71,14 @@ REFINE_MOVES = 4
 FIRST_REFINE_STEPS = (128, 64, 32, 16, 8, 4, 2, 1)
 FIRST_RESTARTS = 3
 
+#: The search steps for the FAPs an estimator finds by the search alone (``searched``): with
+#: no linear solve to bring them near, each frame's search reaches ±252 units.
+SEARCHED_STEPS = (32, 16, 8, 4, 2, 1)
+
+#: How many times at most the search of the ``searched`` FAPs and the finest level's solves
+#: take turns on one frame.
+SEARCH_ROUNDS = 3
+
 #: A level's solves stop when no unknown moved its image by more than this many pixels (of that
 #: level) in the last one.
 TOLERANCE = 0.003
@@ -120,6 +128,11 @@ class Estimator:
     has no say), for camera video where parts of the image are not the model's. ``ignore``:
     DEF names of IndexedFaceSets drawn but left out of the match (a fitted head's hair, ears and
     neck, whose texture the photo did not give); their pixels are not in the face area either.
+    ``searched``: FAPs among the unknowns (and, for the search, among ``refine``'s) that every
+    linear solve holds, so that they are found by the search on the rendered image alone, after
+    the pyramid, with the head's pose and the other FAPs held where the solves left them (a
+    second stage on the eye region's pixels: the eyelids then cannot trade against the head's
+    pitch in the solves; each frame's search reaches ±252 units, :data:`SEARCHED_STEPS`).
     """
 
     def __init__(
@@ -138,10 +151,15 @@ class Estimator:
         predict: Iterable[int | str] = HEAD_MOTION,
         robust: bool = False,
         ignore: Iterable[str] = (),
+        searched: Iterable[int] = (),
     ) -> None:
         self.unknowns = _check_unknowns(unknowns)
-        wanted = set(refine)
+        alone = set(searched)
+        wanted = set(refine) | alone
         self.refined = tuple(u for u in self.unknowns if u in wanted)
+        self.searched = tuple(u for u in self.unknowns if u in alone)
+        # columns of the linear solves held for the searched FAPs
+        self._searched_columns = np.array([u in alone for u in self.unknowns])
         self.model = model
         self.size = (int(size[0]), int(size[1]))
         self.pyramid = tuple(pyramid)
@@ -255,6 +273,14 @@ class Estimator:
             if lv.factor not in pyramid:
                 pyramid[lv.factor] = _smooth(_subsample(full, lv.factor), self.sigma)
         solves, converged = self._descend(pyramid)
+        if self.searched and self._history:
+            # the second stage: the searched FAPs, with everything else held where the solves
+            # left it; while they move far, what the solves matched against the wrong lids (the
+            # head's pitch) is solved again at the finest level, the lids held
+            for _ in range(SEARCH_ROUNDS):
+                if self._refine(full, SEARCHED_STEPS) <= REFINE_STEPS[-1]:
+                    break
+                solves += self._descend(pyramid, self.pyramid[-1:])[0]
         if not self._history:
             # the first frame starts from neutral, which may be far from the truth (an eyelid
             # half closed, the head turned): its eyelids are searched over their whole range and
@@ -320,12 +346,14 @@ class Estimator:
         ):
             target[:] = value
 
-    def _descend(self, pyramid: dict[int, np.ndarray]) -> tuple[int, bool]:
-        """One pass down the pyramid, coarse to fine, with the camera frame smoothed at each
-        level's factor in ``pyramid``; returns the linear solves made and whether the finest
-        level's last one moved no unknown by :attr:`tolerance` or more."""
+    def _descend(
+        self, pyramid: dict[int, np.ndarray], levels: Sequence[Level] | None = None
+    ) -> tuple[int, bool]:
+        """One pass down the pyramid (or ``levels`` of it), coarse to fine, with the camera
+        frame smoothed at each level's factor in ``pyramid``; returns the linear solves made and
+        whether the finest level's last one moved no unknown by :attr:`tolerance` or more."""
         solves, step = 0, math.inf
-        for lv in self.pyramid:
+        for lv in self.pyramid if levels is None else levels:
             self._last_step = None  # energies of different levels do not compare
             for _ in range(lv.iterations):
                 step = self._solve(pyramid[lv.factor], lv)
@@ -409,7 +437,7 @@ class Estimator:
         # an unknown whose motion covers too few pixels at this level is held
         speed = np.hypot(du, dv)
         support = (speed > 0.2 * speed.max(axis=0, initial=0.0)).sum(axis=0)
-        held = support < lv.support
+        held = (support < lv.support) | self._searched_columns
         du[:, held] = 0.0
         dv[:, held] = 0.0
         weights = None
