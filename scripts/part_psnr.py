@@ -64,8 +64,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--neck-translation", action="store_true",
                     help="the neck follows the translation, weighed")  # fmt: skip
     ap.add_argument("--faps", default="paper17", help="the unknowns (vtts analyze --faps)")
-    ap.add_argument("--searched", default="",
-                    help="FAPs found by the search alone, head held (Estimator(searched=...))")  # fmt: skip
+    ap.add_argument("--searched", default="", help="FAPs found by the image search alone")
     ap.add_argument("--per-frame", action="store_true", help="each frame's figures too")
     args = ap.parse_args(argv)
 
