@@ -65,6 +65,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="the neck follows the translation, weighed")  # fmt: skip
     ap.add_argument("--faps", default="paper17", help="the unknowns (vtts analyze --faps)")
     ap.add_argument("--searched", default="", help="FAPs found by the image search alone")
+    ap.add_argument("--lid-floor", type=float, default=None,
+                    help="the upper eyelids' lowest value in the search (FAPs 19, 20)")  # fmt: skip
     ap.add_argument("--per-frame", action="store_true", help="each frame's figures too")
     args = ap.parse_args(argv)
 
@@ -87,6 +89,8 @@ def main(argv: list[str] | None = None) -> int:
     options = {}
     if args.searched:
         options["searched"] = tuple(int(x) for x in args.searched.split(","))
+    if args.lid_floor is not None:
+        options["bounds"] = {19: (args.lid_floor, math.inf), 20: (args.lid_floor, math.inf)}
     if args.match_neck:
         options["ignore"] = tuple(p for p in FITTED_IGNORED if p != "NECK")
     with tempfile.TemporaryDirectory(prefix="vtts-parts-") as tmp:
@@ -154,6 +158,7 @@ def main(argv: list[str] | None = None) -> int:
         "match_neck": args.match_neck,
         "faps": args.faps,
         "searched": args.searched,
+        "lid_floor": args.lid_floor,
         "seconds": round(seconds, 1),
         "restarts": len(tracked.restarts),
         "held": len(tracked.held),

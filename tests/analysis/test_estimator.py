@@ -370,3 +370,18 @@ def test_searched_eyelids_are_found_with_the_head_pose_held(cybatt):
     assert abs(fe.params[47] - 2500) <= 60 and abs(fe.params[48] + 1500) <= 60, fe.params[47:50]
     assert np.abs(fe.translation).max() < 0.01, fe.translation
     assert fe.psnr > 38, fe.psnr
+
+
+def test_the_search_keeps_a_fap_within_its_bounds(cybatt):
+    """A left eyelid at 300 units, searched with its bounds at 0–200: it stops at its upper
+    bound (the match improves all the way there), the right eyelid, unbounded, at the truth."""
+    from vtts.analysis.unknowns import DEFAULT_UNKNOWNS
+
+    truth = _params({19: 300, 20: 300})
+    frame = FaceRenderer(cybatt, size=SIZE).render(truth)
+    est = Estimator(cybatt, size=SIZE, unknowns=(*DEFAULT_UNKNOWNS, 19, 20), searched=(19, 20),
+                    bounds={19: (0.0, 200.0)})  # fmt: skip
+    est.params[:] = _params({19: 150, 20: 150})
+    est._history = [(0, est.params.copy(), est.translation.copy())]
+    fe = est.estimate(frame, 5)
+    assert 196 <= fe.params[18] <= 200 and abs(fe.params[19] - 300) <= 5, fe.params[18:20]

@@ -133,6 +133,9 @@ class Estimator:
     the pyramid, with the head's pose and the other FAPs held where the solves left them (a
     second stage on the eye region's pixels: the eyelids then cannot trade against the head's
     pitch in the solves; each frame's search reaches ±252 units, :data:`SEARCHED_STEPS`).
+    ``bounds``: FAP -> (lowest, highest) value the search on the rendered image may take it to
+    (e.g. an eyelid of a head made from a video frame opened no further than that frame shows
+    it: its eyeball is textured only where the frame showed it).
     """
 
     def __init__(
@@ -152,6 +155,7 @@ class Estimator:
         robust: bool = False,
         ignore: Iterable[str] = (),
         searched: Iterable[int] = (),
+        bounds: dict[int, tuple[float, float]] | None = None,
     ) -> None:
         self.unknowns = _check_unknowns(unknowns)
         alone = set(searched)
@@ -160,6 +164,7 @@ class Estimator:
         self.searched = tuple(u for u in self.unknowns if u in alone)
         # columns of the linear solves held for the searched FAPs
         self._searched_columns = np.array([u in alone for u in self.unknowns])
+        self.bounds = dict(bounds or {})
         self.model = model
         self.size = (int(size[0]), int(size[1]))
         self.pyramid = tuple(pyramid)
@@ -529,6 +534,17 @@ class Estimator:
             direction = dict.fromkeys(windows, 0)  # 0: try up, then down
             while any(left.values()):
                 trying = {f: step if direction[f] >= 0 else -step for f in windows if left[f]}
+                for fap, change in list(trying.items()):
+                    lo, hi = self.bounds.get(fap, (-math.inf, math.inf))
+                    value = self.params[fap - 1] + change
+                    if (value < lo and change < 0) or (value > hi and change > 0):
+                        del trying[fap]  # further out of bounds: as if it did not improve
+                        if direction[fap] == 0:
+                            direction[fap] = -1
+                        else:
+                            left[fap] = 0
+                if not trying:
+                    continue
                 for fap, change in trying.items():
                     self.params[fap - 1] += change
                 value = mismatch()
