@@ -15,6 +15,11 @@ and share of the squared error (frames after the first), and the bit rate and me
 stream coded at 12.5 Hz (arithmetic coder, quantizer 1), as JSON. ``*_stream_psnr`` are
 the same figures from the library's own measure (:func:`vtts.analysis.quality.stream_psnr`).
 
+``--faps LIST`` tracks other unknowns (``vtts analyze --faps``); ``--searched 19,20`` has those
+FAPs found by the image search alone with the head held (``Estimator(searched=)``), and
+``--lid-floor V`` keeps the upper eyelids' search at V units or more (``Estimator(bounds=)``):
+docs/analysis.md, "The 17 parameters lack the eyes".
+
 ``--neck-translation`` (with the neck weighed) is a trial of what is not built: the split's
 renderings move the neck's points by ``(w − 1) · t`` (``w`` the neck's weights of
 :func:`vtts.fit.neck.neck_weights`, ``t`` the stream's head translation in model units), so the
