@@ -80,6 +80,23 @@ def cmd_show(args: argparse.Namespace) -> int:
     return 0
 
 
+def _wrl_output(output: str, beside: str) -> Path | None:
+    """``-o`` of a command that writes a model: a ``.wrl`` file in an existing folder (its .adt
+    and ``beside`` go next to it), or None after printing why not."""
+    out = Path(output)
+    if out.suffix.lower() != ".wrl":
+        print(f"{out}: error: the output is a .wrl file (its .adt and {beside} go beside it)",
+              file=sys.stderr)  # fmt: skip
+        return None
+    if out.is_dir():
+        print(f"{out}: error: is a folder; name the .wrl to write", file=sys.stderr)
+        return None
+    if not out.parent.is_dir():
+        print(f"{out.parent}: error: no such folder for the output", file=sys.stderr)
+        return None
+    return out
+
+
 def cmd_import(args: argparse.Namespace) -> int:
     """Import an ARKit-blendshape glTF avatar as a personalized model (.wrl + .adt + textures)."""
     import time
@@ -89,13 +106,8 @@ def cmd_import(args: argparse.Namespace) -> int:
     from vtts.face import load_model
 
     t0 = time.perf_counter()
-    out = Path(args.output)
-    if out.suffix.lower() != ".wrl":
-        print(f"{out}: error: the output is a .wrl file (its .adt and textures go beside it)",
-              file=sys.stderr)  # fmt: skip
-        return 1
-    if not out.parent.is_dir():
-        print(f"{out.parent}: error: no such folder for the output", file=sys.stderr)
+    out = _wrl_output(args.output, "textures")
+    if out is None:
         return 1
     check_outputs([out, out.with_suffix(".adt")], [args.avatar])
     with reported_warnings():
@@ -125,16 +137,8 @@ def cmd_fit(args: argparse.Namespace) -> int:
     from vtts.fit.report import write_report
 
     t0 = time.perf_counter()
-    out = Path(args.output)
-    if out.suffix.lower() != ".wrl":
-        print(f"{out}: error: the output is a .wrl file (its .adt and texture go beside it)",
-              file=sys.stderr)  # fmt: skip
-        return 1
-    if out.is_dir():
-        print(f"{out}: error: is a folder; name the .wrl to write", file=sys.stderr)
-        return 1
-    if not out.parent.is_dir():
-        print(f"{out.parent}: error: no such folder for the output", file=sys.stderr)
+    out = _wrl_output(args.output, "texture")
+    if out is None:
         return 1
     if args.report and Path(args.report).exists() and not Path(args.report).is_dir():
         print(f"{args.report}: error: --report names a folder, and this is a file",

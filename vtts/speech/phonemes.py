@@ -387,13 +387,7 @@ def _read_table(lines: list[str], file: str, language: str) -> PhonemeFile:
                 file=file,
                 line=n,
             )
-        if phones and start < phones[-1].end - 1e-6:
-            raise SpeechError(
-                f"phones must follow each other: starts at {start:g} s before the previous "
-                f"phone ends ({phones[-1].end:g} s)",
-                file=file,
-                line=n,
-            )
+        _check_follows(phones, start, file, n)
         symbol = fields[2]
         try:
             vis = viseme_of(symbol, language, alphabet=alphabet)
@@ -443,16 +437,21 @@ def _read_timings(lines: list[str], file: str) -> PhonemeFile:
             raise SpeechError(
                 f"a phone's viseme must be 0–14, got {_short(vis)}", file=file, line=n
             )
-        if phones and start < phones[-1].end - 1e-6:
-            raise SpeechError(
-                f"phones must follow each other: starts at {start:g} s before the previous "
-                f"phone ends ({phones[-1].end:g} s)",
-                file=file,
-                line=n,
-            )
+        _check_follows(phones, start, file, n)
         phones.append(Phone(start, end, label, int(vis)))
     words.sort(key=lambda w: w.start)
     return PhonemeFile(phones, [], "timings", "timings", words)
+
+
+def _check_follows(phones: list[Phone], start: float, file: str, line: int) -> None:
+    """A phone starting at ``start`` (s) must not start before the last of ``phones`` ends."""
+    if phones and start < phones[-1].end - 1e-6:
+        raise SpeechError(
+            f"phones must follow each other: starts at {start:g} s before the previous "
+            f"phone ends ({phones[-1].end:g} s)",
+            file=file,
+            line=line,
+        )
 
 
 def _finite(x: float) -> bool:
