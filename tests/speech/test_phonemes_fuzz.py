@@ -20,8 +20,8 @@ from hypothesis import strategies as st
 
 from vtts.errors import SpeechError
 from vtts.limits import MAX_AUDIO_S, MAX_DURATION_S, LimitError
+from vtts.speech.audio import read_for_mp4
 from vtts.speech.phonemes import PhonemeFile, read_phoneme_file
-from vtts.speech.say import _read_audio
 
 POLLY = "\n".join(
     json.dumps(e)
@@ -150,7 +150,7 @@ WAVS = [_wav(), _wav(2, 2, 8000), _wav(1, 1, 22050), _wav(1, 3, 44100), _wav(2, 
 def read_audio_or_speech_error(path: Path, data: bytes) -> None:
     path.write_bytes(data)
     try:
-        samples, rate = _read_audio(path)
+        samples, rate = read_for_mp4(path)
     except (SpeechError, LimitError) as e:
         assert e.file == str(path) and e.message, str(e)
         return
@@ -161,7 +161,7 @@ def read_audio_or_speech_error(path: Path, data: bytes) -> None:
 def test_the_wavs_read(folder: Path) -> None:
     for data in WAVS:
         (folder / "w.wav").write_bytes(data)
-        samples, rate = _read_audio(folder / "w.wav")
+        samples, rate = read_for_mp4(folder / "w.wav")
         assert samples.size > 0 and rate > 0
 
 
@@ -198,4 +198,4 @@ def test_audio_longer_than_the_limit_is_refused_before_decoding(folder: Path) ->
     path = folder / "long.flac"
     path.write_bytes(_flac_claiming(36_000))
     with pytest.raises(LimitError, match="the audio lasts 36000 s, more than the limit of 1800 s"):
-        _read_audio(path)
+        read_for_mp4(path)

@@ -18,6 +18,7 @@ import numpy as np
 
 from vtts.animate.timeline import TimedPhone
 from vtts.errors import SpeechError, VttsWarning
+from vtts.speech.audio import read_for_mp4
 from vtts.speech.bookmarks import Bookmark, BookmarkedText, parse_bookmarks
 from vtts.speech.timings import TimedWord, write_timings
 
@@ -81,7 +82,7 @@ def prepare_utterance(
             raise SpeechError("--phonemes needs the speech itself: give --audio FILE too")
         language = voice.split("-")[0] if voice else "en"
         pf = read_phoneme_file(phonemes, language=language)
-        samples, sr = _read_audio(Path(audio))
+        samples, sr = read_for_mp4(Path(audio))
         phones = [TimedPhone(p.start, p.end, p.viseme, p.phoneme) for p in pf.phones]
         marks = [(m.name, m.time) for m in pf.marks]
         utt = Utterance(bt, samples, sr, phones, bt.bookmarks, list(pf.words))
@@ -111,7 +112,7 @@ def _aligned(bt: BookmarkedText, audio: Path, voice: str | None) -> Utterance:
     recording (:func:`vtts.align.align`); where the alignment breaks down is a warning."""
     from vtts.align import align
 
-    samples, sr = _read_audio(audio)
+    samples, sr = read_for_mp4(audio)
     try:
         found = align(samples, sr, bt.ssml(), voice=voice or "en-us")
     except SpeechError as e:
@@ -256,10 +257,3 @@ def _place_at_words(utt: Utterance) -> bool:
         if b.time is None:
             b.time = words[n].start if n < len(words) else words[-1].end
     return True
-
-
-def _read_audio(path: Path) -> tuple[np.ndarray, int]:
-    """The speech of ``--audio`` (:func:`vtts.speech.audio.read_for_mp4`)."""
-    from vtts.speech.audio import read_for_mp4
-
-    return read_for_mp4(path)
