@@ -164,6 +164,21 @@ class DeformationEngine:
             pose.points[name] = b.neutral + self.displacement(b, params).reshape(-1, 3)
         return pose
 
+    def points_many(self, params: np.ndarray) -> dict[str, np.ndarray]:
+        """The posed Coordinate points of every IndexedFaceSet for each row of ``params``
+        ``(T, N_PARAMS)``: DEF name → ``(T, p, 3) float64``, row ``t`` the same numbers as
+        ``deform(params[t]).points`` (one sparse product per IndexedFaceSet for all T rows,
+        which sums each point's terms in the same order as the frame-by-frame paths)."""
+        params = np.asarray(params, dtype=np.float64)
+        if params.ndim != 2 or params.shape[1] != N_PARAMS:
+            raise ValueError(f"parameters must have shape (T, {N_PARAMS}), got {params.shape}")
+        out = {}
+        for name, b in self.meshes.items():
+            w = np.clip(params[:, b.param], b.lo, b.hi) - b.at_zero  # (T, C)
+            moved = (b.csr @ np.ascontiguousarray(w.T)).T  # (T, 3p)
+            out[name] = b.neutral + moved.reshape(len(params), -1, 3)
+        return out
+
     def transform_tracks(self, params: np.ndarray) -> dict[tuple[str, str], np.ndarray]:
         """The animated Transform fields for each row of ``params`` ``(T, N_PARAMS)``:
         (DEF name, field) → ``(T, 4)`` rotations (axis, angle in rad) or ``(T, 3)`` translations

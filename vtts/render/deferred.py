@@ -43,6 +43,9 @@ G_TARGETS = ("g_position", "g_normal", "g_texel", "g_color")
 #: The G-buffer's attachment for triangle numbers (drawn only when asked for).
 TRIANGLE_ATTACHMENT = len(G_TARGETS)
 
+#: pyrender's light uniforms ``n_…`` in the order of :func:`_light_counts`.
+LIGHT_KINDS = ("directional_lights", "point_lights", "spot_lights")
+
 #: pyrender's mesh.frag, from its inputs to plain globals (each must occur exactly once).
 _RESOLVE_EDITS = (
     ("in vec3 frag_position;", "vec3 frag_position;"),
@@ -87,8 +90,9 @@ class DeferredPass(ForwardPass):
         # primitive -> the same
         self._gbuffer_programs: dict[tuple[frozenset, bool], object] = {}
         self._gbuffer_of: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-        # vertex colors? -> (resolve program, empty vertex array), or None if it cannot be made
-        self._resolve: dict[bool, tuple[int, int] | None] = {}
+        # (vertex colors?, light counts) -> (resolve program, empty vertex array), or None if it
+        # cannot be made
+        self._resolve: dict[tuple[bool, tuple[int, int, int]], tuple[int, int] | None] = {}
         self._targets: _Targets | None = None
 
     def deferrable(self, scene) -> bool:
@@ -128,7 +132,7 @@ class DeferredPass(ForwardPass):
         opaque = [(n, pose) for n, pose in nodes if not n.mesh.is_transparent]
         transparent = [(n, pose) for n, pose in nodes if n.mesh.is_transparent]
         colors = self._vertex_colors(opaque)
-        resolve = self._resolve_program(r, colors)
+        resolve = self._resolve_program(r, colors, _light_counts(scene))
         if resolve is None:
             if triangles is not None:
                 raise RenderError("triangle numbers need pyrender's shader as vtts knows it")
@@ -253,13 +257,22 @@ class DeferredPass(ForwardPass):
         GL.glDepthFunc(GL.GL_LESS)  # the depth state pyrender draws with, for whoever draws next
         GL.glDepthMask(GL.GL_TRUE)
 
-    def _resolve_program(self, r, colors: bool) -> tuple[int, int] | None:
+    def _resolve_program(
+        self, r, colors: bool, lights: tuple[int, int, int]
+    ) -> tuple[int, int] | None:
         """The resolve program: pyrender's mesh.frag (as pyrender would compile it for an
         untextured metallic-roughness material with normals, and with vertex colors if
-        ``colors``) with its inputs loaded from the G-buffer. None when this pyrender's shader
-        does not read as expected."""
-        if colors in self._resolve:
-            return self._resolve[colors]
+        ``colors``) with its inputs loaded from the G-buffer, made for ``lights`` (the scene's
+        directional, point and spot lights: :func:`_light_counts`). None when this pyrender's
+        shader does not read as expected.
+
+        The light counts, uniforms in pyrender's shader, are constants here: its light loops
+        then have fixed bounds that the compiler unrolls, and the loops for kinds the scene
+        lacks vanish. Same arithmetic, a quarter less of a frame's rasterizer time (llvmpipe
+        runs a loop with a uniform bound as a masked loop over every lane)."""
+        key = (colors, lights)
+        if key in self._resolve:
+            return self._resolve[key]
         from pyrender.shader_program import ShaderProgram
 
         n_lights = self._max_lights
@@ -274,9 +287,13 @@ class DeferredPass(ForwardPass):
             defines["COLOR_0_LOC"] = 2
         mesh_frag = os.path.join(r._program_cache.shader_dir, "mesh.frag")
         source = ShaderProgram(None, mesh_frag, defines=defines)._load(mesh_frag)
-        for old, new in _RESOLVE_EDITS:
+        edits = _RESOLVE_EDITS + tuple(
+            (f"uniform int n_{kind};", f"const int n_{kind} = {n};")
+            for kind, n in zip(LIGHT_KINDS, lights, strict=True)
+        )
+        for old, new in edits:
             if source.count(old) != 1:
-                self._resolve[colors] = None
+                self._resolve[key] = None
                 return None
             source = source.replace(old, new)
         main = (SHADER_DIR / "resolve_main.frag").read_text(encoding="utf-8")
@@ -290,9 +307,9 @@ class DeferredPass(ForwardPass):
             shaders.compileShader(source, GL.GL_FRAGMENT_SHADER),
         )
         GL.glBindVertexArray(0)
-        self._resolve[colors] = (int(pid), vertex_array)
+        self._resolve[key] = (int(pid), vertex_array)
         self._private.add(int(pid))
-        return self._resolve[colors]
+        return self._resolve[key]
 
     def _uniform_array(self, pid: int, name: str, values: list) -> None:
         """Set the first ``len(values)`` elements of the float (vec) array uniform ``name``."""
@@ -359,6 +376,15 @@ class DeferredPass(ForwardPass):
         self._state.clear()
         self._targets = _Targets((width, height), gbuffer, color_fb, textures, [color, depth])
         return self._targets
+
+
+def _light_counts(scene) -> tuple[int, int, int]:
+    """The numbers of directional, point and spot lights of ``scene`` (:data:`LIGHT_KINDS`)."""
+    return (
+        len(scene.directional_light_nodes),
+        len(scene.point_light_nodes),
+        len(scene.spot_light_nodes),
+    )
 
 
 def _read_triangles(gbuffer: int, width: int, height: int) -> np.ndarray:

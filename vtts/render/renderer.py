@@ -17,7 +17,7 @@ import os
 import sys
 import types
 import weakref
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -35,6 +35,10 @@ from vtts.vrml.scene import GROUPING
 from vtts.vrml.transform import compose_transform
 
 _pyrender = None
+#: Frames whose geometry :meth:`FaceRenderer.frames` computes together (a second of video at
+#: 25–30 frames/s is two or three batches; a batch of the bundled heads is about 15 MB).
+BATCH_FRAMES = 12
+
 #: Multisampling of the main framebuffer (pyrender's own default is 4).
 MSAA_SAMPLES = 0
 
@@ -227,21 +231,27 @@ def vertex_normals(
     positions: np.ndarray, faces: np.ndarray, incidence: sp.csr_matrix
 ) -> np.ndarray:
     """Area-weighted unit vertex normals ``(n, 3)`` from ``positions (n, 3)`` and
-    ``faces (m, 3)``, summing over each vertex's triangles through ``incidence (n, m)``."""
+    ``faces (m, 3)``, summing over each vertex's triangles through ``incidence (n, m)``; for
+    ``positions (T, n, 3)``, the normals of each of the T shapes ``(T, n, 3)``, the same
+    numbers as one by one (one sparse product for all)."""
+    single = positions.ndim == 2
+    p = positions[None] if single else positions
     # np.cross on gathered (m, 3, 3) corners, computed per coordinate on contiguous columns:
     # the same arithmetic (so the same bits), without the strided gathers
-    x, y, z = (np.ascontiguousarray(positions[:, k]) for k in range(3))
+    x, y, z = (np.ascontiguousarray(p[..., k]) for k in range(3))  # (T, n)
     i0, i1, i2 = faces[:, 0], faces[:, 1], faces[:, 2]
-    ax, ay, az = x[i0], y[i0], z[i0]
-    ux, uy, uz = x[i1] - ax, y[i1] - ay, z[i1] - az
-    vx, vy, vz = x[i2] - ax, y[i2] - ay, z[i2] - az
-    fn = np.empty((faces.shape[0], 3))
-    fn[:, 0] = uy * vz - uz * vy
-    fn[:, 1] = uz * vx - ux * vz
-    fn[:, 2] = ux * vy - uy * vx
-    vn = incidence @ fn
-    norm = np.linalg.norm(vn, axis=1, keepdims=True)
-    return np.divide(vn, norm, out=np.zeros_like(vn), where=norm > 0)
+    ax, ay, az = x[:, i0], y[:, i0], z[:, i0]
+    ux, uy, uz = x[:, i1] - ax, y[:, i1] - ay, z[:, i1] - az
+    vx, vy, vz = x[:, i2] - ax, y[:, i2] - ay, z[:, i2] - az
+    t = p.shape[0]
+    fn = np.empty((faces.shape[0], t, 3))  # triangle-major: one product sums them all
+    fn[:, :, 0] = (uy * vz - uz * vy).T
+    fn[:, :, 1] = (uz * vx - ux * vz).T
+    fn[:, :, 2] = (ux * vy - uy * vx).T
+    vn = (incidence @ fn.reshape(faces.shape[0], 3 * t)).reshape(-1, t, 3).transpose(1, 0, 2)
+    norm = np.linalg.norm(vn, axis=2, keepdims=True)
+    out = np.divide(vn, norm, out=np.zeros_like(vn), where=norm > 0)
+    return out[0] if single else out
 
 
 def _incidence(faces: np.ndarray, n_vertices: int) -> sp.csr_matrix:
@@ -598,6 +608,37 @@ class FaceRenderer:
         in the renderer's world for this frame (a head's translation, see
         :func:`vtts.animate.fapstream.head_roots`), None where it stays as it is. Returns what
         :meth:`apply` puts on the GPU."""
+        return self.prepare_many([(params, poses, roots)])[0]
+
+    def prepare_many(self, items: Sequence[tuple]) -> list[list]:
+        """:meth:`prepare` for several frames at once: ``items`` holds one ``(params, poses,
+        roots)`` per frame, as :meth:`prepare` takes them; returns one prepared frame each,
+        the same numbers as :meth:`prepare` of each in turn. The meshes of all frames are
+        deformed (:meth:`~vtts.face.deform.DeformationEngine.points_many`), given normals
+        and laid out as vertex buffers together, which costs a fraction of frame by frame."""
+        frames = [self._frame_args(*item) for item in items]
+        prepared: list[list] = [[] for _ in frames]
+        for i, inst in enumerate(self.instances):
+            column = [(p[i], None if poses is None else poses[i]) for p, poses, _ in frames]
+            points = self._points(inst, column)
+            for f, (p, pose) in enumerate(column):
+                transforms = (
+                    inst.model.engine.transform_values(p) if pose is None else pose.transforms
+                )
+                prepared[f].append((None, self._matrices(inst, transforms), frames[f][2][i]))
+            meshes: list[list] = [[] for _ in frames]
+            for am in inst.meshes:
+                for f, entry in enumerate(self._mesh_frames(am, points.get(am.name))):
+                    if entry is not None:
+                        meshes[f].append(entry)
+            for f in range(len(frames)):
+                _, matrices, root = prepared[f][i]
+                prepared[f][i] = (meshes[f], matrices, root)
+        return prepared
+
+    def _frame_args(self, params, poses, roots) -> tuple[list, list | None, list]:
+        """One frame's arguments of :meth:`prepare`, checked: a ``(N_PARAMS,)`` float vector
+        per model, the poses or None, a root pose or None per model."""
         if isinstance(params, np.ndarray) and params.ndim == 1:
             params = [params] * len(self.instances)
         if len(params) != len(self.instances):
@@ -609,42 +650,91 @@ class FaceRenderer:
         if len(roots) != len(self.instances):
             raise RenderError(f"{len(self.instances)} models but {len(roots)} root poses")
         roots = [None if r is None else _root_pose(r) for r in roots]
-        prepared = []
-        for i, (inst, p) in enumerate(zip(self.instances, params, strict=True)):
+        checked = []
+        for p in params:
             p = np.asarray(p, dtype=np.float64)
             if p.shape != (N_PARAMS,):
                 raise RenderError(f"a parameter vector has shape ({N_PARAMS},), got {p.shape}")
-            pose = inst.model.engine.deform(p) if poses is None else poses[i]
-            meshes = []
-            for am in inst.meshes:
-                pts = pose.points.get(am.name)
-                if pts is None:
-                    continue
-                last = am.last
-                if last is None or not np.array_equal(last[0], pts):
-                    positions = pts[am.template.coord_index]
-                    normals = vertex_normals(positions, am.template.faces, am.incidence)
-                    last = am.last = (pts, positions, normals, _vertex_data(am, positions, normals))
-                meshes.append((am, *last[1:]))
-            matrices = []
-            for name, at in inst.transforms.items():
-                fields = pose.transforms.get(name)
-                if not fields:
-                    continue
-                key = [(f, np.asarray(v).tobytes()) for f, v in sorted(fields.items())]
-                if at.last is None or at.last[0] != key:
-                    v = at.vrml
-                    m = compose_transform(
-                        fields.get("translation", v["translation"]),
-                        fields.get("rotation", v["rotation"]),
-                        fields.get("scale", v["scale"]),
-                        v["scaleOrientation"],
-                        v["center"],
-                    )
-                    at.last = (key, m)
-                matrices.append((at, at.last[1]))
-            prepared.append((meshes, matrices, roots[i]))
-        return prepared
+            checked.append(p)
+        return checked, poses, roots
+
+    @staticmethod
+    def _points(inst: _ModelInstance, column: list) -> dict[str, list]:
+        """Each animated mesh's Coordinate points ``(p, 3)`` in each frame of ``column``
+        (``(params, pose or None)`` per frame): DEF name → one array (or None) per frame."""
+        engine = inst.model.engine
+        todo = [f for f, (_, pose) in enumerate(column) if pose is None]
+        if not todo:
+            deformed = {}
+        elif len(todo) == 1:
+            # one frame: the engine's own path, which gathers only the active columns
+            deformed = {k: v[None] for k, v in engine.deform(column[todo[0]][0]).points.items()}
+        else:
+            deformed = engine.points_many(np.array([column[f][0] for f in todo]))
+        out: dict[str, list] = {}
+        for am in inst.meshes:
+            per_frame = [None] * len(column)
+            for f, (_, pose) in enumerate(column):
+                if pose is not None:
+                    per_frame[f] = pose.points.get(am.name)
+            if am.name in deformed:
+                for k, f in enumerate(todo):
+                    per_frame[f] = deformed[am.name][k]
+            out[am.name] = per_frame
+        return out
+
+    @staticmethod
+    def _mesh_frames(am: _AnimatedMesh, points: list | None) -> list:
+        """``(am, positions, normals, vertex buffer)`` for each frame (None where the frame has
+        no points for it), computed once for each run of frames with the same points and for
+        all the changes together."""
+        if points is None:
+            return []
+        # the frames whose points differ from the frame before (or from the last prepared)
+        changed, last = [], am.last[0] if am.last is not None else None
+        for f, pts in enumerate(points):
+            if pts is None:
+                continue
+            if last is None or not np.array_equal(last, pts):
+                changed.append(f)
+            last = pts
+        if changed:
+            positions = np.stack([points[f] for f in changed])[:, am.template.coord_index]
+            normals = vertex_normals(positions, am.template.faces, am.incidence)
+            data = _vertex_data(am, positions, normals)
+        out: list = [None] * len(points)
+        k = -1
+        for f, pts in enumerate(points):
+            if pts is None:
+                continue
+            if k + 1 < len(changed) and changed[k + 1] == f:
+                k += 1
+                am.last = (pts, positions[k], normals[k], None if data is None else data[k])
+            out[f] = (am, *am.last[1:])
+        return out
+
+    @staticmethod
+    def _matrices(inst: _ModelInstance, transforms: dict) -> list:
+        """``(animated Transform, its (4, 4) matrix)`` for the Transforms ``transforms`` (a
+        :attr:`~vtts.face.deform.Pose.transforms`) animates."""
+        matrices = []
+        for name, at in inst.transforms.items():
+            fields = transforms.get(name)
+            if not fields:
+                continue
+            key = [(f, np.asarray(v).tobytes()) for f, v in sorted(fields.items())]
+            if at.last is None or at.last[0] != key:
+                v = at.vrml
+                m = compose_transform(
+                    fields.get("translation", v["translation"]),
+                    fields.get("rotation", v["rotation"]),
+                    fields.get("scale", v["scale"]),
+                    v["scaleOrientation"],
+                    v["center"],
+                )
+                at.last = (key, m)
+            matrices.append((at, at.last[1]))
+        return matrices
 
     def apply(self, prepared: list) -> None:
         """Put a :meth:`prepare` d frame into the scene (vertex buffers, Transform matrices,
@@ -675,28 +765,31 @@ class FaceRenderer:
     def frames(self, params: Iterable, roots: Iterable | None = None) -> Iterator[np.ndarray]:
         """Render a sequence: one frame ``(H, W, 3) uint8`` (``(H, W, 4)`` when transparent) per
         item of ``params`` (each item as :meth:`prepare` takes it; with ``roots``, the item of
-        ``roots`` alongside, as :meth:`prepare` takes its ``roots``). The next frame's geometry
-        is computed in a worker thread while the current one rasterizes, which hides most of the
-        deformation's cost."""
+        ``roots`` alongside, as :meth:`prepare` takes its ``roots``). The geometry of the next
+        :data:`BATCH_FRAMES` frames is computed together (:meth:`prepare_many`) in a worker
+        thread while the current ones rasterize, which hides most of the deformation's cost."""
         from concurrent.futures import ThreadPoolExecutor
+        from itertools import islice
 
         if roots is None:
             it = ((p, None, None) for p in params)
         else:
             it = ((p, None, r) for p, r in zip(params, roots, strict=True))
+
+        def batch():
+            items = list(islice(it, BATCH_FRAMES))
+            return self.prepare_many(items) if items else None
+
         with ThreadPoolExecutor(max_workers=1) as pool:
-            try:
-                nxt = pool.submit(self.prepare, *next(it))
-            except StopIteration:
-                return
-            while nxt is not None:
+            nxt = pool.submit(batch)
+            while True:
                 prepared = nxt.result()
-                try:
-                    nxt = pool.submit(self.prepare, *next(it))
-                except StopIteration:
-                    nxt = None
-                self.apply(prepared)
-                yield self.render()
+                if prepared is None:
+                    return
+                nxt = pool.submit(batch)
+                for frame in prepared:
+                    self.apply(frame)
+                    yield self.render()
 
     def render(
         self,
@@ -789,14 +882,16 @@ def _constant_columns(mesh) -> np.ndarray | None:
 
 def _vertex_data(am: _AnimatedMesh, positions: np.ndarray, normals: np.ndarray):
     """The interleaved vertex buffer pyrender would upload for these positions and normals,
-    ``(n, 6 + k) float32``, or None when it cannot be updated in place."""
+    ``(n, 6 + k) float32`` (``(T, n, 6 + k)`` for ``(T, n, 3)`` of each), or None when it
+    cannot be updated in place."""
     const = am.constant_columns
-    if const is None or const.shape[0] != positions.shape[0]:
+    n = positions.shape[-2]
+    if const is None or const.shape[0] != n:
         return None
-    data = np.empty((positions.shape[0], 6 + const.shape[1]), dtype=np.float32)
-    data[:, :3] = positions
-    data[:, 3:6] = normals
-    data[:, 6:] = const
+    data = np.empty((*positions.shape[:-1], 6 + const.shape[1]), dtype=np.float32)
+    data[..., :3] = positions
+    data[..., 3:6] = normals
+    data[..., 6:] = const
     return data
 
 
@@ -896,10 +991,62 @@ def _rot_xy(ax: float, ay: float) -> np.ndarray:
 
 
 def _pyrender_texture(rgba: np.ndarray):
-    """A pyrender texture of an ``(h, w, 4) uint8`` image, top row first."""
+    """A pyrender texture of an ``(h, w, 4) uint8`` image, top row first, whose mipmaps vtts
+    makes (:mod:`vtts.render.mipmaps`)."""
     # pyrender (like glTF) puts t = 0 at the bottom of such images, which is VRML's convention
     # too (a test checks the orientation)
-    return _pr().Texture(source=np.ascontiguousarray(rgba), source_channels="RGBA")
+    return _texture_class()(source=np.ascontiguousarray(rgba), source_channels="RGBA")
+
+
+_TEXTURE_CLASS = None
+
+
+def _texture_class():
+    """pyrender's ``Texture`` with its mipmaps computed by NumPy (:func:`mip_levels`) instead
+    of ``glGenerateMipmap``; otherwise set up on the GPU as pyrender sets it up."""
+    global _TEXTURE_CLASS
+    if _TEXTURE_CLASS is not None:
+        return _TEXTURE_CLASS
+    from OpenGL import GL
+
+    from vtts.render.mipmaps import mip_levels, power_of_two
+
+    class MipmappedTexture(_pr().Texture):
+        def _add_to_context(self) -> None:
+            source = self.source
+            if (
+                source is None
+                or source.dtype != np.uint8
+                or source.ndim != 3
+                or source.shape[2] != 4
+                or not power_of_two(source.shape[:2])
+                or self.sampler.minFilter is not None
+            ):
+                super()._add_to_context()
+                return
+            if self._texid is not None:
+                raise ValueError("Texture already loaded into OpenGL context")
+            self._texid = GL.glGenTextures(1)
+            GL.glBindTexture(self.tex_type, self._texid)
+            GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
+            for k, level in enumerate(mip_levels(np.flip(source, axis=0))):
+                h, w = level.shape[:2]
+                GL.glTexImage2D(
+                    self.tex_type, k, GL.GL_RGBA, w, h, 0, GL.GL_RGBA, GL.GL_UNSIGNED_BYTE,
+                    np.ascontiguousarray(level),
+                )  # fmt: skip
+            GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 4)
+            mag = self.sampler.magFilter if self.sampler.magFilter is not None else GL.GL_LINEAR
+            GL.glTexParameteri(self.tex_type, GL.GL_TEXTURE_MAG_FILTER, mag)
+            GL.glTexParameteri(self.tex_type, GL.GL_TEXTURE_MIN_FILTER, GL.GL_LINEAR_MIPMAP_LINEAR)
+            GL.glTexParameteri(self.tex_type, GL.GL_TEXTURE_WRAP_S, self.sampler.wrapS)
+            GL.glTexParameteri(self.tex_type, GL.GL_TEXTURE_WRAP_T, self.sampler.wrapT)
+            border = 255 * np.ones(4).astype(np.uint8)
+            GL.glTexParameterfv(self.tex_type, GL.GL_TEXTURE_BORDER_COLOR, border)
+            GL.glBindTexture(self.tex_type, 0)
+
+    _TEXTURE_CLASS = MipmappedTexture
+    return _TEXTURE_CLASS
 
 
 def _load_image(path: Path) -> np.ndarray:

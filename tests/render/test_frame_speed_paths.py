@@ -1,0 +1,128 @@
+"""The fast paths of a speaking head's frames give the same frames: geometry prepared for many
+frames at once (``FaceRenderer.prepare_many``), mipmaps made by NumPy (``vtts.render.mipmaps``)
+and the resolve shader made for the scene's light counts."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from vtts.face import load_model
+from vtts.render import FaceRenderer
+from vtts.render.mipmaps import mip_levels, power_of_two
+from vtts.render.renderer import _offscreen, _pr, vertex_normals
+
+
+def _speaking(model, n: int = 14) -> list[np.ndarray]:
+    """``n`` parameter vectors of a head that speaks, turns and blinks, with repeats."""
+    rng = np.random.default_rng(3)
+    out = []
+    for i in range(n):
+        faps = {3: int(rng.integers(0, 600)), 48: 3000 * np.sin(i / 3), 19: 900 * (i % 5 == 0)}
+        out.append(model.params(faps, visemes={int(rng.integers(1, 15)): 1.0}))
+        if i % 4 == 0:
+            out.append(out[-1].copy())  # a frame like the one before
+    return out
+
+
+def test_prepare_many_is_prepare_frame_by_frame():
+    model = load_model("cybatt")
+    params = _speaking(model)
+    with FaceRenderer(model, size=(176, 144)) as r:
+        together = r.prepare_many([(p, None, None) for p in params])
+    with FaceRenderer(model, size=(176, 144)) as r:
+        one_by_one = [r.prepare(p) for p in params]
+    assert len(together) == len(one_by_one) == len(params)
+    for a, b in zip(together, one_by_one, strict=True):
+        (meshes_a, matrices_a, _), (meshes_b, matrices_b, _) = a[0], b[0]
+        assert [m[0].name for m in meshes_a] == [m[0].name for m in meshes_b]
+        for x, y in zip(meshes_a, meshes_b, strict=True):
+            for u, v in zip(x[1:], y[1:], strict=True):
+                assert np.array_equal(u, v)  # the same bits
+        assert len(matrices_a) == len(matrices_b)
+        for (_, u), (_, v) in zip(matrices_a, matrices_b, strict=True):
+            assert np.array_equal(u, v)
+
+
+def test_frames_are_the_renders_of_each_frame():
+    model = load_model("cybatt")
+    params = _speaking(model, 8)
+    with FaceRenderer(model, size=(176, 144)) as r:
+        frames = list(r.frames(params))
+        assert len(frames) == len(params)
+        for p, frame in zip(params, frames, strict=True):
+            assert np.array_equal(frame, r.render(p))
+
+
+def test_points_many_is_deform():
+    model = load_model("cybatt")
+    params = np.array(_speaking(model, 6))
+    many = model.engine.points_many(params)
+    for t, p in enumerate(params):
+        for name, pts in model.engine.deform(p).points.items():
+            assert np.array_equal(many[name][t], pts)
+    with pytest.raises(ValueError, match="shape"):
+        model.engine.points_many(params[0])
+
+
+def test_vertex_normals_of_many_shapes_are_each_shapes():
+    from vtts.render.renderer import _incidence
+
+    rng = np.random.default_rng(0)
+    faces = rng.integers(0, 40, (70, 3))
+    shapes = rng.normal(size=(5, 40, 3))
+    inc = _incidence(faces, 40)
+    many = vertex_normals(shapes, faces, inc)
+    assert many.shape == shapes.shape
+    for s, n in zip(shapes, many, strict=True):
+        assert np.array_equal(vertex_normals(s, faces, inc), n)
+
+
+@pytest.mark.parametrize("shape", [(64, 64), (512, 256), (16, 1), (1, 8), (2, 32)])
+def test_mipmaps_are_the_rasterizers(shape):
+    """:func:`mip_levels` gives the texels of llvmpipe's ``glGenerateMipmap``."""
+    _pr()
+    _offscreen()._platform.make_current()
+    from OpenGL import GL
+
+    if "llvmpipe" not in GL.glGetString(GL.GL_RENDERER).decode():
+        pytest.skip("the levels copy Mesa's llvmpipe")
+    h, w = shape
+    image = np.random.default_rng(h * w).integers(0, 256, (h, w, 4), dtype=np.uint8)
+    tex = GL.glGenTextures(1)
+    try:
+        GL.glBindTexture(GL.GL_TEXTURE_2D, tex)
+        GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
+        GL.glTexImage2D(
+            GL.GL_TEXTURE_2D, 0, GL.GL_RGBA, w, h, 0, GL.GL_RGBA, GL.GL_UNSIGNED_BYTE, image
+        )
+        GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 4)
+        GL.glGenerateMipmap(GL.GL_TEXTURE_2D)
+        levels = mip_levels(image)
+        assert levels[-1].shape == (1, 1, 4)
+        for k, level in enumerate(levels[1:], start=1):
+            got = GL.glGetTexImage(GL.GL_TEXTURE_2D, k, GL.GL_RGBA, GL.GL_UNSIGNED_BYTE)
+            assert np.array_equal(np.frombuffer(got, np.uint8).reshape(level.shape), level), k
+    finally:
+        GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
+        GL.glDeleteTextures([tex])
+
+
+def test_mip_levels_refuse_other_sizes():
+    assert power_of_two((512, 1)) and not power_of_two((6, 8)) and not power_of_two((0, 4))
+    with pytest.raises(ValueError, match="2\\^k"):
+        mip_levels(np.zeros((6, 8, 4), np.uint8))
+
+
+def test_a_texture_of_another_size_keeps_gl_mipmaps(tmp_path):
+    """A texture whose sides are not powers of two renders (GL makes its levels)."""
+    from vtts.render.renderer import _pyrender_texture
+
+    tex = _pyrender_texture(np.full((6, 10, 4), 200, np.uint8))
+    _pr()
+    _offscreen()._platform.make_current()
+    tex._add_to_context()
+    try:
+        assert tex._texid is not None
+    finally:
+        tex._remove_from_context()
