@@ -4,7 +4,11 @@ Personalized talking heads (Ostermann & Haratsch) and model-based FAP analysis a
 (Eisert & Girod). The library is usable on its own; the ``vtts`` command is a thin layer over it.
 """
 
+from vtts.deferred import NUMPY_UNUSED, defer_package
 from vtts.errors import VttsError, VttsWarning
+
+for _package in NUMPY_UNUSED:  # see vtts.deferred: a faster start, nothing else changes
+    defer_package(_package)
 
 __version__ = "0.1.0"
 

@@ -12,7 +12,6 @@ of Ostermann & Haratsch, Figure 15).
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import sys
 import types
@@ -24,6 +23,7 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
+from vtts.deferred import defer_package
 from vtts.errors import RenderError, VttsError
 from vtts.face import N_PARAMS, FaceModel
 from vtts.limits import MAX_IMAGE_SIDE, MAX_RENDER_PIXELS, check_image_size
@@ -75,8 +75,9 @@ def _pr():
             # pyrender's interactive Viewer (a pyglet window) cannot run headless, and importing
             # it and pyglet is a fifth of pyrender's import time: leave it out.
             sys.modules.setdefault("pyrender.viewer", _headless_viewer_module())
-        _defer_package("trimesh")
-        _defer_package("networkx")
+        defer_package("trimesh", lone_submodules=True)  # pyrender: trimesh.transformations
+        defer_package("networkx")
+        defer_package("freetype")  # pyrender's text rendering, which vtts does not use
         try:
             import pyrender
             import pyrender.renderer as pr_renderer
@@ -96,32 +97,6 @@ def _pr():
         pr_renderer.glRenderbufferStorageMultisample = single_sampled
         _pyrender = pyrender
     return _pyrender
-
-
-def _defer_package(name: str) -> None:
-    """Run package ``name``'s ``__init__`` only when one of its names is first used; its
-    submodules import as usual meanwhile. pyrender imports trimesh in every module but uses it only
-    to convert trimesh meshes (vtts: VRML's Box, Sphere, Cylinder and Cone, and the room), and
-    trimesh's own import (scipy.spatial, networkx graphs) is half of pyrender's import time."""
-    if name in sys.modules:
-        return
-    spec = importlib.util.find_spec(name)
-    if spec is None or spec.loader is None or spec.submodule_search_locations is None:
-        return
-    module = importlib.util.module_from_spec(spec)
-    module.__class__ = _DeferredPackage
-    sys.modules[name] = module
-
-
-class _DeferredPackage(types.ModuleType):
-    """A package whose ``__init__`` has not run yet (see :func:`_defer_package`)."""
-
-    def __getattr__(self, attr: str):
-        # only called for names the module does not have yet: run the package body once, as a
-        # plain module (a name missing while it runs is then a plain AttributeError)
-        self.__class__ = types.ModuleType
-        self.__spec__.loader.exec_module(self)
-        return getattr(self, attr)
 
 
 class _SceneTree:

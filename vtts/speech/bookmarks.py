@@ -22,7 +22,6 @@ import math
 import re
 from dataclasses import dataclass, field
 from functools import cache
-from xml.sax.saxutils import escape
 
 from lark import Lark, Token, Tree
 from lark.exceptions import UnexpectedInput
@@ -31,6 +30,7 @@ from vtts.errors import BookmarkError, FapError
 from vtts.face.miap import EXPRESSION_ALIASES, Miap
 from vtts.limits import MAX_DURATION_S, MAX_FAP_VALUE
 from vtts.resources import grammar_text
+from vtts.speech.tts import escape
 
 EXPRESSIONS = ("joy", "sadness", "anger", "fear", "disgust", "surprise")
 #: Actions a bookmark can ask for; each maps to an autonomous behaviour it overrides.
