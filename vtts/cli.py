@@ -566,15 +566,16 @@ def _write_web(args: argparse.Namespace, models, params, *, audio=None, roots=No
 
 
 def _speak_and_set_up(args, text: str, models: list, known: set[str]):
-    """The utterance of ``text`` and the renderer (None without video or PNG output) for
-    ``vtts say``: espeak-ng speaks in a process of its own while the renderer is set up."""
+    """The utterance of ``text``, each model's timeline and the renderer (None without video or
+    PNG output) for ``vtts say``: espeak-ng speaks (in a process of its own) and the timelines
+    are built in a worker thread while the renderer is set up."""
     from concurrent.futures import ThreadPoolExecutor
 
+    from vtts.animate.timeline import build_timeline
     from vtts.speech.say import prepare_utterance
 
-    with ThreadPoolExecutor(max_workers=1) as pool:
-        speaking = pool.submit(
-            prepare_utterance,
+    def speak():
+        utt = prepare_utterance(
             text,
             known=known,
             engine=args.engine,
@@ -584,6 +585,22 @@ def _speak_and_set_up(args, text: str, models: list, known: set[str]):
             phonemes=args.phonemes,
             audio=args.audio,
         )
+        timelines = [
+            build_timeline(
+                m,
+                utt.phones,
+                utt.bookmarks,
+                utt.duration,
+                fps=args.fps,
+                seed=args.seed,
+                autonomous=not args.no_autonomous,
+            )
+            for m in models
+        ]
+        return utt, timelines
+
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        speaking = pool.submit(speak)
         renderer = None
         if args.output or args.png_dir:
             try:
@@ -591,14 +608,14 @@ def _speak_and_set_up(args, text: str, models: list, known: set[str]):
             except VttsError:
                 speaking.result()  # a problem with the text is reported first, as it comes first
                 raise
-        utt = speaking.result()
-    return utt, renderer
+        utt, timelines = speaking.result()
+    return utt, timelines, renderer
 
 
 def cmd_say(args: argparse.Namespace) -> int:
     """Speak bookmarked text with one or more models into an MP4 (and/or PNGs, WAV, FAP)."""
 
-    from vtts.animate.timeline import build_timeline, timeline_stream
+    from vtts.animate.timeline import timeline_stream
     from vtts.errors import BookmarkError, RenderError
     from vtts.fap import write_fap
     from vtts.limits import MAX_TEXT_BYTES, read_bytes_capped
@@ -634,7 +651,7 @@ def cmd_say(args: argparse.Namespace) -> int:
     models = [load_model(m) for m in args.model]
     known = {x.name for m in models for x in m.tables.adts if x.kind == "expression"}
     try:
-        utt, renderer = _speak_and_set_up(args, text, models, known)
+        utt, timelines, renderer = _speak_and_set_up(args, text, models, known)
     except BookmarkError as e:
         if args.file and e.file is None:
             e.file = args.file  # the text's place is in that file
@@ -647,18 +664,6 @@ def cmd_say(args: argparse.Namespace) -> int:
                 f"warning: {m.name} has no table for <{'>, <'.join(lacking)}>; not shown",
                 file=sys.stderr,
             )
-    timelines = [
-        build_timeline(
-            m,
-            utt.phones,
-            utt.bookmarks,
-            utt.duration,
-            fps=args.fps,
-            seed=args.seed,
-            autonomous=not args.no_autonomous,
-        )
-        for m in models
-    ]
     n = timelines[0].n_frames
     if args.output or args.png_dir:
         with contextlib.ExitStack() as stack:
