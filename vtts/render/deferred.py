@@ -36,8 +36,9 @@ from vtts.render.renderer import UNLIT
 
 SHADER_DIR = Path(__file__).resolve().parent / "shaders"
 
-#: The G-buffer's float targets, in attachment order, as the resolve shader samples them; the
-#: last one (per-vertex colors) is drawn only for scenes that have such colors.
+#: The G-buffer's targets, in attachment order, as the resolve shader samples them (floats; the
+#: texture sample in 8 bits on llvmpipe: :func:`_filters_in_8_bits`); the last one (per-vertex
+#: colors) is drawn only for scenes that have such colors.
 G_TARGETS = ("g_position", "g_normal", "g_texel", "g_color")
 
 #: The G-buffer's attachment for triangle numbers (drawn only when asked for).
@@ -340,9 +341,11 @@ class DeferredPass(ForwardPass):
             self._targets.delete()
         textures = [int(t) for t in np.atleast_1d(GL.glGenTextures(len(G_TARGETS) + 1))]
         for i, t in enumerate(textures):
-            fmt, channels = (
-                (GL.GL_R32F, GL.GL_RED) if i == TRIANGLE_ATTACHMENT else (GL.GL_RGBA32F, GL.GL_RGBA)
-            )
+            fmt, channels = GL.GL_RGBA32F, GL.GL_RGBA
+            if i == TRIANGLE_ATTACHMENT:
+                fmt, channels = GL.GL_R32F, GL.GL_RED
+            elif G_TARGETS[i] == "g_texel" and _filters_in_8_bits():
+                fmt = GL.GL_RGBA8  # the texture's samples are 8-bit already: same values
             GL.glBindTexture(GL.GL_TEXTURE_2D, t)
             GL.glTexImage2D(GL.GL_TEXTURE_2D, 0, fmt, width, height, 0, channels, GL.GL_FLOAT, None)
             GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_MIN_FILTER, GL.GL_NEAREST)
@@ -376,6 +379,17 @@ class DeferredPass(ForwardPass):
         self._state.clear()
         self._targets = _Targets((width, height), gbuffer, color_fb, textures, [color, depth])
         return self._targets
+
+
+def _filters_in_8_bits() -> bool:
+    """Whether the current context is Mesa's llvmpipe, which filters 8-bit textures in 8-bit
+    arithmetic: every sample of the (8-bit) textures vtts draws is then a multiple of 1/255,
+    which an ``RGBA8`` G-buffer target keeps exactly, for a third of the bytes the rasterizer's
+    threads write and read (about 0.5 ms of a frame of ``vtts say``; ``tests/render`` compares
+    the textured pixels with pyrender's). Other drivers filter in floats: their samples stay in a
+    float target."""
+    renderer = GL.glGetString(GL.GL_RENDERER) or b""
+    return b"llvmpipe" in renderer
 
 
 def _light_counts(scene) -> tuple[int, int, int]:
