@@ -596,19 +596,16 @@ class FaceRenderer:
         for i, inst in enumerate(self.instances):
             column = [(p[i], None if poses is None else poses[i]) for p, poses, _ in frames]
             points = self._points(inst, column)
-            for f, (p, pose) in enumerate(column):
-                transforms = (
-                    inst.model.engine.transform_values(p) if pose is None else pose.transforms
-                )
-                prepared[f].append((None, self._matrices(inst, transforms), frames[f][2][i]))
             meshes: list[list] = [[] for _ in frames]
             for am in inst.meshes:
                 for f, entry in enumerate(self._mesh_frames(am, points.get(am.name))):
                     if entry is not None:
                         meshes[f].append(entry)
-            for f in range(len(frames)):
-                _, matrices, root = prepared[f][i]
-                prepared[f][i] = (meshes[f], matrices, root)
+            for f, (p, pose) in enumerate(column):
+                transforms = (
+                    inst.model.engine.transform_values(p) if pose is None else pose.transforms
+                )
+                prepared[f].append((meshes[f], self._matrices(inst, transforms), frames[f][2][i]))
         return prepared
 
     def _frame_args(self, params, poses, roots) -> tuple[list, list | None, list]:
