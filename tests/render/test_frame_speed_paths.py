@@ -126,3 +126,24 @@ def test_a_texture_of_another_size_keeps_gl_mipmaps(tmp_path):
         assert tex._texid is not None
     finally:
         tex._remove_from_context()
+
+
+def test_a_scene_draws_in_the_order_its_nodes_were_added():
+    """pyrender keeps a scene's nodes in sets (address order); a FaceRenderer's scene iterates
+    its meshes and lights in the order they were added, so two renderers of one model draw
+    alike (renderer._order_scene)."""
+    model = load_model("cybatt")
+    orders = []
+    for _ in range(3):
+        with FaceRenderer(model, size=(176, 144)) as r:
+            nodes = list(r.scene.mesh_nodes)
+            primitives = [n.mesh.primitives[0] for n in nodes]
+            firsts = [r._triangle_numbers.get(p) for p in primitives]
+            triangles = [f for f in firsts if f is not None]
+            assert triangles == sorted(triangles)  # the IndexedFaceSets in model order
+            lights = [n.light.intensity for n in r.scene.light_nodes]
+            orders.append((firsts, lights))
+            junk = [np.empty(n) for n in range(1, 4000, 97)]  # other addresses for the next
+            del junk
+    assert orders[0] == orders[1] == orders[2]
+    assert orders[0][1] == [2.2, 0.8]  # the key light, then the fill light

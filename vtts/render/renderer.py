@@ -16,7 +16,7 @@ import os
 import sys
 import types
 import weakref
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterable, Iterator, MutableSet, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -97,6 +97,47 @@ def _pr():
         pr_renderer.glRenderbufferStorageMultisample = single_sampled
         _pyrender = pyrender
     return _pyrender
+
+
+class _InsertionOrdered(MutableSet):
+    """A set that iterates in the order its members were added (a dict's keys)."""
+
+    def __init__(self, items: Iterable = ()) -> None:
+        self._items = dict.fromkeys(items)
+
+    def __contains__(self, item) -> bool:
+        return item in self._items
+
+    def __iter__(self) -> Iterator:
+        return iter(self._items)
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def add(self, item) -> None:
+        self._items[item] = None
+
+    def discard(self, item) -> None:
+        self._items.pop(item, None)
+
+
+#: The node sets of a pyrender ``Scene`` whose order reaches the pixels: the drawing order of
+#: meshes the same distance from the camera (pyrender sorts them by their origin's distance,
+#: and a head's meshes share one), and the order of the lights, whose contributions the shader
+#: sums in that order.
+ORDERED_SCENE_SETS = ("_mesh_nodes", "_point_light_nodes", "_spot_light_nodes",
+                      "_directional_light_nodes")  # fmt: skip
+
+
+def _order_scene(scene) -> None:
+    """Make ``scene`` draw in the order its nodes were added. pyrender keeps them in sets,
+    which iterate in the order of the nodes' memory addresses: two renderers of the same model
+    drew a head's meshes in different orders, so pixels where two meshes meet at the same
+    depth came out of one mesh or the other, and the analysis of a video went another way
+    from there from one run to the next. pyrender's own ``render`` iterates the same sets, so
+    its pixels stay ours."""
+    for name in ORDERED_SCENE_SETS:
+        setattr(scene, name, _InsertionOrdered(getattr(scene, name)))
 
 
 class _SceneTree:
@@ -299,6 +340,7 @@ class FaceRenderer:
             bg_color=[*bg, 0.0 if self.background_image is not None or self.transparent else 1.0],
             ambient_light=[0.35, 0.35, 0.35],
         )
+        _order_scene(self.scene)
         self._image_textures: dict[Path, object] = {}  # image file -> its pyrender texture
         # every IndexedFaceSet drawn, with the number of its first triangle (in model order)
         self.triangle_sets: list[tuple[Node, int, int]] = []
