@@ -157,12 +157,18 @@ class DeformationEngine:
         """The :class:`Pose` for a ``(N_PARAMS,)`` parameter vector
         (see :mod:`vtts.face.miap`)."""
         params = np.asarray(params, dtype=np.float64)
+        return Pose(points=self.points(params), transforms=self.transform_values(params))
+
+    def points(self, params: np.ndarray) -> dict[str, np.ndarray]:
+        """The posed Coordinate points of every IndexedFaceSet for a ``(N_PARAMS,)`` parameter
+        vector (:attr:`Pose.points`, without the Transforms): DEF name → ``(p, 3) float64``."""
+        params = np.asarray(params, dtype=np.float64)
         if params.shape != (N_PARAMS,):
             raise ValueError(f"parameter vector must have shape ({N_PARAMS},), got {params.shape}")
-        pose = Pose(transforms=self.transform_values(params))
-        for name, b in self.meshes.items():
-            pose.points[name] = b.neutral + self.displacement(b, params).reshape(-1, 3)
-        return pose
+        return {
+            name: b.neutral + self.displacement(b, params).reshape(-1, 3)
+            for name, b in self.meshes.items()
+        }
 
     def points_many(self, params: np.ndarray) -> dict[str, np.ndarray]:
         """The posed Coordinate points of every IndexedFaceSet for each row of ``params``
@@ -174,7 +180,7 @@ class DeformationEngine:
             raise ValueError(f"parameters must have shape (T, {N_PARAMS}), got {params.shape}")
         out = {}
         for name, b in self.meshes.items():
-            w = np.clip(params[:, b.param], b.lo, b.hi) - b.at_zero  # (T, C)
+            w = _weights(b, params[:, b.param])  # (T, C)
             moved = (b.csr @ np.ascontiguousarray(w.T)).T  # (T, 3p)
             out[name] = b.neutral + moved.reshape(len(params), -1, 3)
         return out
@@ -209,8 +215,7 @@ class DeformationEngine:
         return out
 
     def displacement(self, b: _MeshBlock, params: np.ndarray) -> np.ndarray:
-        f = params[b.param]
-        w = np.clip(f, b.lo, b.hi) - b.at_zero
+        w = _weights(b, params[b.param])
         active = np.flatnonzero(w)
         if active.size == 0:
             return np.zeros(b.csr.shape[0])
@@ -228,6 +233,12 @@ class DeformationEngine:
         idx = np.repeat(starts - np.cumsum(lengths) + lengths, lengths) + np.arange(lengths.sum())
         weights = np.repeat(w[active], lengths) * val[idx]
         return np.bincount(ind[idx], weights=weights, minlength=b.csr.shape[0])
+
+
+def _weights(b: _MeshBlock, values: np.ndarray) -> np.ndarray:
+    """Each column's weight for its MIAP's ``values`` (``(…, C)``): how much of the column's
+    interval lies between 0 and the value (:func:`vtts.face.adt.interval_weights`)."""
+    return np.clip(values, b.lo, b.hi) - b.at_zero
 
 
 _POOL = None

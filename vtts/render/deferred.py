@@ -31,7 +31,7 @@ from OpenGL import GL
 from OpenGL.GL import shaders
 
 from vtts.errors import RenderError
-from vtts.render.forward import ForwardPass, _cull_back, _read_color
+from vtts.render.forward import LIGHT_KINDS, ForwardPass, _cull_back, _light_counts, _read_color
 from vtts.render.renderer import UNLIT
 
 SHADER_DIR = Path(__file__).resolve().parent / "shaders"
@@ -43,9 +43,6 @@ G_TARGETS = ("g_position", "g_normal", "g_texel", "g_color")
 
 #: The G-buffer's attachment for triangle numbers (drawn only when asked for).
 TRIANGLE_ATTACHMENT = len(G_TARGETS)
-
-#: pyrender's light uniforms ``n_…`` in the order of :func:`_light_counts`.
-LIGHT_KINDS = ("directional_lights", "point_lights", "spot_lights")
 
 #: pyrender's mesh.frag, from its inputs to plain globals (each must occur exactly once).
 _RESOLVE_EDITS = (
@@ -390,15 +387,6 @@ def _filters_in_8_bits() -> bool:
     float target."""
     renderer = GL.glGetString(GL.GL_RENDERER) or b""
     return b"llvmpipe" in renderer
-
-
-def _light_counts(scene) -> tuple[int, int, int]:
-    """The numbers of directional, point and spot lights of ``scene`` (:data:`LIGHT_KINDS`)."""
-    return (
-        len(scene.directional_light_nodes),
-        len(scene.point_light_nodes),
-        len(scene.spot_light_nodes),
-    )
 
 
 def _read_triangles(gbuffer: int, width: int, height: int) -> np.ndarray:

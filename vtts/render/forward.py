@@ -80,8 +80,7 @@ class ForwardPass:
     def supports(self, scene) -> bool:
         """Whether this pass draws ``scene`` as pyrender would (else use pyrender's render)."""
         pr = self._pr
-        lights = (scene.directional_light_nodes, scene.spot_light_nodes, scene.point_light_nodes)
-        if any(len(nodes) > self._max_lights for nodes in lights):
+        if max(_light_counts(scene)) > self._max_lights:
             return False
         if scene.main_camera_node is None:
             return False
@@ -167,12 +166,9 @@ class ForwardPass:
     def _light_uniforms(self, scene) -> dict[str, object]:
         """The lighting uniforms of pyrender's ``_bind_lighting`` (without shadows)."""
         pr = self._pr
-        u: dict[str, object] = {
-            "ambient_light": scene.ambient_light,
-            "n_directional_lights": len(scene.directional_light_nodes),
-            "n_spot_lights": len(scene.spot_light_nodes),
-            "n_point_lights": len(scene.point_light_nodes),
-        }
+        u: dict[str, object] = {"ambient_light": scene.ambient_light}
+        for kind, n in zip(LIGHT_KINDS, _light_counts(scene), strict=True):
+            u[f"n_{kind}"] = n
         counts = {"point_lights": 0, "spot_lights": 0, "directional_lights": 0}
         for n in scene.light_nodes:
             light = n.light
@@ -315,6 +311,20 @@ class ForwardPass:
         elif isinstance(value, int):
             GL.glUniform1i(loc, value)
         # other types: pyrender raises and swallows its own error, leaving the uniform as it was
+
+
+#: pyrender's kinds of light, as its uniforms name them (``n_directional_lights``, …), in the
+#: order of :func:`_light_counts`.
+LIGHT_KINDS = ("directional_lights", "point_lights", "spot_lights")
+
+
+def _light_counts(scene) -> tuple[int, int, int]:
+    """The numbers of directional, point and spot lights of ``scene`` (:data:`LIGHT_KINDS`)."""
+    return (
+        len(scene.directional_light_nodes),
+        len(scene.point_light_nodes),
+        len(scene.spot_light_nodes),
+    )
 
 
 def _read_color(framebuffer: int, width: int, height: int, rgba: bool) -> np.ndarray:

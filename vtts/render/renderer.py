@@ -682,7 +682,7 @@ class FaceRenderer:
             deformed = {}
         elif len(todo) == 1:
             # one frame: the engine's own path, which gathers only the active columns
-            deformed = {k: v[None] for k, v in engine.deform(column[todo[0]][0]).points.items()}
+            deformed = {k: v[None] for k, v in engine.points(column[todo[0]][0]).items()}
         else:
             deformed = engine.points_many(np.array([column[f][0] for f in todo]))
         out: dict[str, list] = {}
