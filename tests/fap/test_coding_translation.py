@@ -285,9 +285,9 @@ def test_crafted_translation_headers(coder: str) -> None:
         with pytest.raises(CodingError) as e:
             decode(bad)
         assert e.value.offset >= read_header(bad).header_size
-    with pytest.raises(CodingError, match="unknown flags 0x06") as e:
+    with pytest.raises(CodingError, match="unknown flags 0x0a") as e:
         bad = bytearray(data)
-        bad[6] |= 0x04
+        bad[6] |= 0x08  # bit 2 marks a streamed bitstream
         decode(bytes(bad))
     assert e.value.offset == 6
     if coder == "huffman":

@@ -58,13 +58,15 @@ into a silently different stream; truncation is reported at the byte where the d
 
 from __future__ import annotations
 
+import binascii
 import heapq
 import math
 import re
 import struct
 import zlib
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field, replace
+from typing import BinaryIO
 
 import numpy as np
 
@@ -123,7 +125,8 @@ _VISEME_BITS = tuple(hi.bit_length() for _, _, hi in VISEME_FIELDS)
 _EXPRESSION_BITS = tuple(hi.bit_length() for _, _, hi in EXPRESSION_FIELDS)
 _FLAG_CONSTANT_MASK = 0x01
 _FLAG_TRANSLATION = 0x02
-_FLAGS = _FLAG_CONSTANT_MASK | _FLAG_TRANSLATION
+_FLAG_STREAM = 0x04
+_FLAGS = _FLAG_CONSTANT_MASK | _FLAG_TRANSLATION | _FLAG_STREAM
 
 #: The base step of the head translation's three axes, in ES units (ES0 / 1024), sent in the
 #: header like the FAPs' base steps. On a CIF head (ES0 ≈ 60 pixels) 4 ES units are 0.23 pixels,
@@ -412,7 +415,12 @@ class FbsHeader:
         predictors: arithmetic mode: FAP → the earlier FAP whose error in the same frame
             predicts its error.
         header_size, payload_size: bytes of the header (with its CRC) and of the frame data
-            (without its CRC); the file has ``header_size + payload_size + 4`` bytes.
+            (without its CRC); the file has ``header_size + payload_size + 4`` bytes. For a
+            stream (``stream``), the frame data are the packets and the end marker before its
+            CRC, and both are known only once the whole stream was read (0 before).
+        stream: a streamed bitstream (header flag bit 2): the frames follow as packets, each
+            decodable as soon as it arrives, and an end marker (:class:`StreamEncoder`);
+            ``n_frames`` is then the count of the end marker (0 when only the header was read).
     """
 
     coder: str
@@ -431,6 +439,7 @@ class FbsHeader:
     header_size: int = 0
     payload_size: int = 0
     translation_base_steps: tuple[int, ...] = ()
+    stream: bool = False
 
     @property
     def low(self) -> tuple[int, ...]:
@@ -510,6 +519,8 @@ def _pack_header(h: FbsHeader, payload_size: int) -> bytes:
     flags = _FLAG_CONSTANT_MASK if h.constant_mask else 0
     if h.translation:
         flags |= _FLAG_TRANSLATION
+    if h.stream:
+        flags |= _FLAG_STREAM
     out = bytearray(
         _FIXED.pack(
             MAGIC,
@@ -518,7 +529,7 @@ def _pack_header(h: FbsHeader, payload_size: int) -> bytes:
             flags,
             h.fps,
             h.first_frame,
-            h.n_frames,
+            0 if h.stream else h.n_frames,
             _mask_bytes(h.faps),
             h.quantizer,
         )
@@ -547,17 +558,21 @@ def _pack_header(h: FbsHeader, payload_size: int) -> bytes:
 
 
 class _Cursor:
-    """Reads the header's fields, reporting where data ends or a field is wrong."""
+    """Reads the header's fields, reporting where data ends or a field is wrong. With a
+    ``source`` (a binary file object), ``data`` grows by what is read from it as needed."""
 
-    def __init__(self, data: bytes, file: str | None) -> None:
+    def __init__(self, data: bytes, file: str | None, source: BinaryIO | None = None) -> None:
         self.data = data
         self.pos = 0
         self.file = file
+        self.source = source
 
     def error(self, message: str, offset: int | None = None) -> CodingError:
         return CodingError(message, offset=self.pos if offset is None else offset, file=self.file)
 
     def take(self, n: int, what: str) -> bytes:
+        if self.source is not None and self.pos + n > len(self.data):
+            self.data += _read_up_to(self.source, self.pos + n - len(self.data))
         if self.pos + n > len(self.data):
             raise self.error(
                 f"unexpected end of data inside the {what} ({n} bytes from byte {self.pos}): "
@@ -584,6 +599,17 @@ class _Cursor:
         return value, start
 
 
+def _read_up_to(source: BinaryIO, n: int) -> bytes:
+    """Up to ``n`` bytes of ``source``: fewer only at its end (a pipe's reads may be short)."""
+    out = b""
+    while len(out) < n:
+        chunk = source.read(n - len(out))
+        if not chunk:
+            break
+        out += chunk
+    return out
+
+
 def read_header(data: bytes, *, file: str | None = None) -> FbsHeader:
     """Parse and check the header of a ``.fbs`` bitstream, and the framing of the whole.
 
@@ -596,6 +622,20 @@ def read_header(data: bytes, *, file: str | None = None) -> FbsHeader:
         raise CodingError(f"expected bytes, got {type(data).__name__}", file=file)
     data = bytes(data)
     cur = _Cursor(data, file)
+    h = _parse_header(cur)
+    if h.stream:
+        packets = _Packets(cur, h)
+        for _ in packets:
+            pass
+        return replace(h, n_frames=packets.count, payload_size=packets.end - h.header_size)
+    return _check_whole(cur, h)
+
+
+def _parse_header(cur: _Cursor) -> FbsHeader:
+    """The header at the start of ``cur``, checked up to its CRC and its fields' values."""
+    if cur.source is not None:
+        cur.data += _read_up_to(cur.source, 4)
+    data = cur.data
     head = data[:4]
     if head != MAGIC[: len(head)]:
         raise cur.error(f"not a vtts FAP bitstream: expected the magic {MAGIC!r}, got {head!r}", 0)
@@ -608,7 +648,15 @@ def read_header(data: bytes, *, file: str | None = None) -> FbsHeader:
     if coder_id not in _CODER_NAMES:
         raise cur.error(f"unknown coder {coder_id} (0 = Huffman, 1 = arithmetic)", 5)
     if flags & ~_FLAGS:
-        raise cur.error(f"unknown flags 0x{flags:02x} (only bits 0 and 1 are defined)", 6)
+        raise cur.error(f"unknown flags 0x{flags:02x} (only bits 0 to 2 are defined)", 6)
+    stream = bool(flags & _FLAG_STREAM)
+    if stream and coder_id != CODERS["arithmetic"]:
+        raise cur.error("a streamed bitstream (flag bit 2) needs the arithmetic coder", 5)
+    if stream and n_frames:
+        raise cur.error(
+            f"a streamed bitstream's header counts no frames (its end marker does), got {n_frames}",
+            19,
+        )
     if not (math.isfinite(fps) and fps > 0):
         raise cur.error(f"frame rate must be finite and > 0, got {fps!r}", 7)
     if not MIN_FPS <= fps <= MAX_FPS:
@@ -659,9 +707,11 @@ def read_header(data: bytes, *, file: str | None = None) -> FbsHeader:
     else:
         count = cur.take(1, "predictor list")[0]
         table = cur.take(2 * count, "predictor list")
+    size_at = cur.pos
     (payload_size,) = struct.unpack(">I", cur.take(4, "frame data length"))
     crc_at = cur.pos
     (stored,) = struct.unpack(">I", cur.take(4, "header CRC"))
+    data = cur.data
     computed = zlib.crc32(data[:crc_at])
     if stored != computed:
         raise cur.error(
@@ -670,6 +720,11 @@ def read_header(data: bytes, *, file: str | None = None) -> FbsHeader:
             crc_at,
         )
     header_size = cur.pos
+    if stream and payload_size:
+        raise cur.error(
+            f"a streamed bitstream's header announces no frame data length, got {payload_size}",
+            size_at,
+        )
 
     base_steps = []
     for value, at in steps:
@@ -718,7 +773,30 @@ def read_header(data: bytes, *, file: str | None = None) -> FbsHeader:
                     at,
                 )
             predictors[k] = p
+    return FbsHeader(
+        coder=coder,
+        fps=fps,
+        first_frame=first_frame,
+        n_frames=n_frames,
+        faps=faps,
+        quantizer=quantizer,
+        base_steps=tuple(base_steps[: len(low)]),
+        constant_mask=bool(flags & _FLAG_CONSTANT_MASK),
+        name=name,
+        huffman_tables=tuple(tables),
+        huffman_table_of=tuple(table_of),
+        predictors=predictors,
+        version=version,
+        header_size=header_size,
+        payload_size=payload_size,
+        translation_base_steps=tuple(base_steps[len(low) :]),
+        stream=stream,
+    )
 
+
+def _check_whole(cur: _Cursor, h: FbsHeader) -> FbsHeader:
+    """The framing of a whole (not streamed) bitstream: its length and frame data CRC."""
+    data, header_size, payload_size = cur.data, h.header_size, h.payload_size
     end = header_size + payload_size
     if end + 4 > len(data):
         raise cur.error(
@@ -739,24 +817,7 @@ def read_header(data: bytes, *, file: str | None = None) -> FbsHeader:
             f"bytes {header_size}–{end - 1} are corrupt",
             end,
         )
-    return FbsHeader(
-        coder=coder,
-        fps=fps,
-        first_frame=first_frame,
-        n_frames=n_frames,
-        faps=faps,
-        quantizer=quantizer,
-        base_steps=tuple(base_steps[: len(low)]),
-        constant_mask=bool(flags & _FLAG_CONSTANT_MASK),
-        name=name,
-        huffman_tables=tuple(tables),
-        huffman_table_of=tuple(table_of),
-        predictors=predictors,
-        version=version,
-        header_size=header_size,
-        payload_size=payload_size,
-        translation_base_steps=tuple(base_steps[len(low) :]),
-    )
+    return h
 
 
 # --- the frame syntax, shared by encoder and decoder -------------------------------------------
@@ -1314,6 +1375,23 @@ class _RangeWriter(_Adaptive):
         self.pending += 1
         self.low = (low & 0x00FFFFFF) << 8
 
+    def packet(self) -> bytes:
+        """End a packet of a streamed bitstream: the fewest bytes that decode what was coded
+        (the decoder reads zeros after them), then start the coder anew; the contexts stay.
+
+        After renormalization the range is at least 2^24, so ``[low, low + range)`` holds a
+        multiple of 2^24: coding it takes the pending bytes and at most one more, and the zero
+        bytes at the end are left out."""
+        self.low = (self.low + 0xFFFFFF) & ~0xFFFFFF
+        self._shift_low()
+        self._shift_low()
+        out = self.out
+        assert out[0] == 0  # the first byte is always 0: not sent
+        data = bytes(out[1:]).rstrip(b"\0")
+        self.low, self.range, self.cache, self.pending = 0, 0xFFFFFFFF, 0, 1
+        self.out = bytearray()
+        return data
+
     def finish(self) -> bytes:
         for _ in range(5):
             self._shift_low()
@@ -1322,12 +1400,20 @@ class _RangeWriter(_Adaptive):
 
 
 class _RangeReader(_Adaptive):
-    def __init__(self, data: bytes, base: int, file: str | None) -> None:
+    """The range decoder. ``pad``: a packet of a streamed bitstream, read as if zeros followed
+    it (:meth:`_RangeWriter.packet`)."""
+
+    def __init__(self, data: bytes, base: int, file: str | None, pad: bool = False) -> None:
         super().__init__()
+        self.file = file
+        self.pad = pad
+        self.start(data, base)
+
+    def start(self, data: bytes, base: int) -> None:
+        """Start decoding ``data`` (at offset ``base`` of the bitstream); the contexts stay."""
         self.data = data
         self.pos = 0
         self.base = base
-        self.file = file
         self.range = 0xFFFFFFFF
         self.code_value = 0
         for _ in range(4):
@@ -1338,6 +1424,9 @@ class _RangeReader(_Adaptive):
 
     def _byte(self) -> int:
         if self.pos >= len(self.data):
+            if self.pad:
+                self.pos += 1
+                return 0
             raise self.error("unexpected end of the frame data")
         b = self.data[self.pos]
         self.pos += 1
@@ -1477,6 +1566,15 @@ def decode(data: bytes, *, file: str | None = None) -> FapStream:
     Raises :class:`CodingError` with the byte offset for anything that is not a complete, intact
     bitstream; never returns a stream that differs from what the encoder reconstructed.
     """
+    if not isinstance(data, bytes | bytearray | memoryview):
+        raise CodingError(f"expected bytes, got {type(data).__name__}", file=file)
+    cur = _Cursor(bytes(data), file)
+    if _parse_header(cur).stream:
+        import io
+
+        dec = StreamDecoder(io.BytesIO(bytes(data)), file=file)
+        rows = list(dec.rows())
+        return _assemble_rows(dec.header, rows, dec.header.first_frame, file)
     h = read_header(data, file=file)
     payload = bytes(data[h.header_size : h.header_size + h.payload_size])
     reader: _HuffmanReader | _RangeReader
@@ -1501,6 +1599,382 @@ def decode(data: bytes, *, file: str | None = None) -> FapStream:
             viseme,
             expression,
             t_steps if h.translation else None,
+            t_index if h.translation else None,
+        )
+    except FapError as e:  # pragma: no cover - the syntax checks every field's range
+        raise CodingError(
+            f"decoded frames are invalid: {e}", offset=h.header_size, file=file
+        ) from None
+
+
+# --- streamed bitstreams ------------------------------------------------------------------------
+
+#: The most bytes of one packet's frame data (a frame of all 68 FAPs takes well under 1,000).
+MAX_PACKET_BYTES = 1 << 16
+_END_MARKER = struct.Struct(">II")  # frame count, CRC-32
+
+
+def _crc16(data: bytes) -> int:
+    """A packet's CRC: CRC-16/CCITT (``binascii.crc_hqx``, initial value 0xFFFF)."""
+    return binascii.crc_hqx(data, 0xFFFF)
+
+
+class _Packets:
+    """The packets of a streamed bitstream after its header (in ``cur``, from ``cur.pos``; read
+    from ``cur.source`` as they arrive when it has one), each checked against its CRC-16.
+
+    Iterating yields ``(i, data, at)``: frame i's range-coded bytes and the offset of the first.
+    It ends after the end marker, whose frame count and CRC-32 are checked, and after making sure
+    nothing follows it; then :attr:`count` is the number of frames and :attr:`end` the offset of
+    the final CRC-32. A stream that ends anywhere else is an error at the byte where it ends.
+    """
+
+    def __init__(self, cur: _Cursor, h: FbsHeader) -> None:
+        self.buf = cur.data[cur.pos :]
+        self.at = cur.pos  # offset of buf[0]
+        self.source = cur.source
+        self.file = cur.file
+        self.h = h
+        self.count = 0
+        self.end = -1
+        self.crc = 0
+
+    def error(self, message: str, offset: int) -> CodingError:
+        return CodingError(message, offset=offset, file=self.file)
+
+    def _take(self, n: int, what: str) -> bytes:
+        if len(self.buf) < n and self.source is not None:
+            self.buf += _read_up_to(self.source, n - len(self.buf))
+        if len(self.buf) < n:
+            end = self.at + len(self.buf)
+            raise self.error(
+                f"unexpected end of the stream inside {what} ({n} bytes from byte {self.at}): "
+                "the stream is truncated",
+                end,
+            )
+        chunk, self.buf = self.buf[:n], self.buf[n:]
+        self.at += n
+        self.crc = zlib.crc32(chunk, self.crc)
+        return chunk
+
+    def _varint(self, what: str) -> tuple[int, bytes]:
+        raw = b""
+        while True:
+            byte = self._take(1, what)
+            raw += byte
+            if not byte[0] & 0x80:
+                break
+            if len(raw) >= 3:
+                raise self.error(f"{what} is not a varint of at most 3 bytes", self.at - 3)
+        return sum((b & 0x7F) << (7 * i) for i, b in enumerate(raw)), raw
+
+    def __iter__(self) -> Iterator[tuple[int, bytes, int]]:
+        h = self.h
+        while True:
+            i = self.count
+            start = self.at
+            length, raw = self._varint(f"the length of packet {i}")
+            if length == 0:
+                break
+            n = length - 1
+            if n > MAX_PACKET_BYTES:
+                raise self.error(
+                    f"packet {i} announces {n} bytes, more than a frame takes (at most "
+                    f"{MAX_PACKET_BYTES}): the stream is damaged or not a vtts stream",
+                    start,
+                )
+            if i >= MAX_FRAMES or (i + 1) / h.fps > MAX_DURATION_S:
+                raise self.error(
+                    f"the stream goes on past {i} frames at {h.fps:g} Hz, beyond the limits of "
+                    f"{MAX_FRAMES} frames and {MAX_DURATION_S:g} s",
+                    start,
+                )
+            data = self._take(n, f"packet {i}")
+            crc_at = self.at
+            (stored,) = struct.unpack(">H", self._take(2, f"the CRC of packet {i}"))
+            computed = _crc16(raw + data)
+            if stored != computed:
+                raise self.error(
+                    f"packet {i} CRC-16 mismatch (stored 0x{stored:04x}, computed "
+                    f"0x{computed:04x}): bytes {start}–{crc_at - 1} are corrupt",
+                    crc_at,
+                )
+            yield i, data, start + len(raw)
+            self.count += 1
+        marker_at = self.at - 1
+        (count,) = struct.unpack(">I", self._take(4, "the end marker's frame count"))
+        self.end = self.at
+        computed = self.crc
+        (stored,) = struct.unpack(">I", self._take(4, "the end marker's CRC"))
+        if stored != computed:
+            raise self.error(
+                f"stream CRC-32 mismatch (stored 0x{stored:08x}, computed 0x{computed:08x}): "
+                f"bytes {h.header_size}–{self.end - 1} are corrupt",
+                self.end,
+            )
+        if count != self.count:
+            raise self.error(
+                f"the end marker counts {count} frames, the stream sent {self.count}", marker_at
+            )
+        if self.source is not None and not self.buf:
+            self.buf = _read_up_to(self.source, 1)
+        if self.buf:
+            extra = "" if self.source is not None else f"{len(self.buf)} "
+            raise self.error(f"{extra}unexpected bytes after the end marker of the stream", self.at)
+
+
+def paired_predictors(faps: Iterable[int | str] | str) -> dict[int, int]:
+    """Predictor pairs fixed in advance, for a stream that cannot choose them from its frames:
+    each outer-lip FAP (``NAME_o``, 51–60) from its inner-lip FAP (4–13), else each right-side
+    FAP from its left-side twin (``…_l`` / ``…_r``, ``lm`` / ``rm``), where both are in
+    ``faps``, the predicting one earlier, with the same unit and base step."""
+    coded = set(fap_set(faps))
+    by_name = {d.name: d.number for d in FAPS}
+    swap = {"l": "r", "r": "l", "lm": "rm", "rm": "lm"}
+    out: dict[int, int] = {}
+    for k in sorted(coded):
+        if k < 3:
+            continue
+        d = FAPS[k - 1]
+        inner = by_name.get(d.name[:-2]) if d.name.endswith("_o") else None
+        mirror = by_name.get("_".join(swap.get(t, t) for t in d.name.split("_")))
+        for p in (inner, mirror):
+            if p is None or p not in coded or not 3 <= p < k:
+                continue
+            q = FAPS[p - 1]
+            if q.fapu == d.fapu and q.quant_step == d.quant_step:
+                out[k] = p
+                break
+    return out
+
+
+class StreamEncoder:
+    """Codes a FAP stream frame by frame as a streamed ``.fbs`` bitstream (header flag bit 2).
+
+    A whole ``.fbs`` needs the whole stream first (its frame count, payload length and CRC,
+    Huffman tables and predictor pairs are chosen from all frames); a streamed one does not:
+    :meth:`header` gives the header, :meth:`frames` the packets of frames as they come (one
+    packet per frame, which a decoder can decode as soon as it arrives), :meth:`end` the end
+    marker. The arithmetic coder's adaptive contexts carry on from packet to packet; each packet
+    ends the range coder with the fewest bytes that decode it and starts it anew. The bytes
+    ``header() + frames(s) + end()`` decode (:func:`decode`, :class:`StreamDecoder`) to
+    :func:`reconstruct` of ``s`` with the same FAPs and quantizer.
+
+    Args:
+        fps: the frame rate, Hz.
+        faps: the FAPs sent (see :func:`fap_set`); a frame sets some or all of them.
+        translation: send the head translation (every frame must then carry one).
+        quantizer: as :func:`encode`'s.
+        name: the stream's name.
+        first_frame: the number of the first frame.
+        constant_mask: every frame sets every FAP of ``faps`` (no mask is sent per frame).
+        predictors: FAP → the earlier FAP (same unit and base step) whose error in the same
+            frame predicts its error, fixed in advance; default none.
+    """
+
+    def __init__(
+        self,
+        *,
+        fps: float,
+        faps: Iterable[int | str] | str,
+        translation: bool = False,
+        quantizer: float = 1.0,
+        name: str = "stream",
+        first_frame: int = 0,
+        constant_mask: bool = False,
+        predictors: dict[int, int] | None = None,
+    ) -> None:
+        fps = float(fps)
+        if not (math.isfinite(fps) and MIN_FPS <= fps <= MAX_FPS):
+            raise FapError(f"frame rate must be within {MIN_FPS:g}–{MAX_FPS:g} Hz, got {fps!r}")
+        coded = fap_set(faps)
+        low = tuple(k for k in coded if k >= 3)
+        q32 = _check_quantizer(quantizer)
+        if not 0 <= first_frame < 1 << 32:
+            raise CodingError(f"first frame number {first_frame} must be within 0–2^32")
+        if len(name.encode("utf-8")) > MAX_NAME_BYTES:
+            raise CodingError(f"the stream's name has more than {MAX_NAME_BYTES} bytes")
+        FapStream(fps=fps, name=name, values=np.zeros((0, N_FAPS)), mask=np.zeros((0, N_FAPS)))
+        predictors = dict(predictors or {})
+        for k, p in predictors.items():
+            if k not in low or p not in low or p >= k:
+                raise FapError(
+                    f"predictor {k} ← {p}: both must be sent low-level FAPs, the predicting one "
+                    "earlier"
+                )
+        self.header_info = FbsHeader(
+            coder="arithmetic",
+            fps=fps,
+            first_frame=int(first_frame),
+            n_frames=0,
+            faps=coded,
+            quantizer=q32,
+            base_steps=tuple(FAPS[k - 1].quant_step for k in low),
+            constant_mask=bool(constant_mask),
+            name=name,
+            predictors=predictors,
+            translation_base_steps=(TRANSLATION_BASE_STEP,) * 3 if translation else (),
+            stream=True,
+        )
+        self._syntax = _FrameSyntax(self.header_info)
+        self._writer = _RangeWriter()
+        self._crc = 0
+        self._state = "new"
+        self.n_frames = 0
+
+    def header(self) -> bytes:
+        """The header: call first, once."""
+        if self._state != "new":
+            raise FapError("the stream's header was already made")
+        self._state = "open"
+        data = _pack_header(self.header_info, 0)
+        self.header_info = replace(self.header_info, header_size=len(data))
+        return data
+
+    def frames(self, stream: FapStream) -> bytes:
+        """The packets of the frames of ``stream`` (usually one frame), which must have the
+        encoder's frame rate, set only FAPs it sends, every one of them in each frame with
+        ``constant_mask``, and carry a head translation when it sends one."""
+        h = self.header_info
+        if self._state != "open":
+            raise FapError("frames go between the header and the end")
+        if not isinstance(stream, FapStream):
+            raise FapError(f"expected a FapStream, got {type(stream).__name__}")
+        if abs(stream.fps - h.fps) > 1e-9 * h.fps:
+            raise FapError(f"the frames are at {stream.fps:g} Hz, the stream at {h.fps:g} Hz")
+        extra = sorted(set(np.flatnonzero(stream.mask.any(axis=0)) + 1) - set(h.faps))
+        if extra:
+            raise FapError(f"the frames set FAPs {extra} that the stream does not send")
+        if h.constant_mask and not stream.mask[:, [k - 1 for k in h.faps]].all():
+            raise FapError("every frame of a stream with a constant mask sets all its FAPs")
+        if h.translation and stream.translation is None:
+            raise FapError("the stream sends the head translation: the frames must carry one")
+        if self.n_frames + stream.n_frames > MAX_FRAMES:
+            raise CodingError(f"a stream has at most {MAX_FRAMES} frames")
+        if stream.n_frames == 0:
+            return b""
+        plan = _prepare(stream, h.faps, None, h.quantizer, h.translation)
+        out = bytearray()
+        for i in range(stream.n_frames):
+            m = plan.mask[i]
+            row = (
+                [bool(m[plan.faps.index(k)]) if k in plan.faps else False for k in h.faps],
+                [int(plan.index[i, plan.low.index(k)]) if k in plan.low else 0 for k in h.low],
+                [0] * 4 if stream.viseme is None else stream.viseme[i].tolist(),
+                [0] * 6 if stream.expression is None else stream.expression[i].tolist(),
+                () if plan.translation_index is None else plan.translation_index[i].tolist(),
+            )
+            self._syntax.frame(self._writer, self.n_frames, row)
+            data = self._writer.packet()
+            raw = _varint(len(data) + 1)
+            packet = raw + data + struct.pack(">H", _crc16(raw + data))
+            self._crc = zlib.crc32(packet, self._crc)
+            out += packet
+            self.n_frames += 1
+        return bytes(out)
+
+    def end(self) -> bytes:
+        """The end marker: the frame count and the CRC-32 of everything after the header."""
+        if self._state != "open":
+            raise FapError("the end goes after the header, once")
+        self._state = "ended"
+        marker = b"\0" + struct.pack(">I", self.n_frames)
+        return marker + struct.pack(">I", zlib.crc32(marker, self._crc))
+
+
+class StreamDecoder:
+    """Decodes a ``.fbs`` bitstream from a binary file object as it arrives (a pipe).
+
+    Creating it reads and checks the header (:attr:`header`); iterating yields each frame as
+    a one-frame :class:`FapStream` (``first_frame`` its number) as soon as its packet has
+    arrived and passed its CRC-16, then checks the end marker. A whole (not streamed) ``.fbs``
+    is read completely (at most :data:`~vtts.limits.MAX_FBS_BYTES`), decoded, and its frames
+    yielded one by one. Every problem is a :class:`CodingError` at the byte concerned; frames
+    already yielded stay valid (a stream damaged later is reported when that part arrives).
+    """
+
+    def __init__(self, source: BinaryIO, *, file: str | None = None) -> None:
+        self.file = file
+        self._cur = _Cursor(b"", file, source)
+        self.header = _parse_header(self._cur)
+        self._whole: FapStream | None = None
+        if not self.header.stream:
+            from vtts.limits import MAX_FBS_BYTES
+
+            rest = _read_up_to(source, MAX_FBS_BYTES + 1 - len(self._cur.data))
+            data = self._cur.data + rest
+            if len(data) > MAX_FBS_BYTES:
+                raise CodingError(
+                    f"the bitstream is larger than the limit of {MAX_FBS_BYTES} bytes",
+                    offset=MAX_FBS_BYTES,
+                    file=file,
+                )
+            self._whole = decode(data, file=file)
+
+    def rows(self) -> Iterator[tuple]:
+        """The frames as :meth:`_FrameSyntax.frame` returns them (streams only)."""
+        h = self.header
+        syntax = _FrameSyntax(h)
+        reader: _RangeReader | None = None
+        for i, data, at in _Packets(self._cur, h):
+            if reader is None:
+                reader = _RangeReader(data, at, self.file, pad=True)
+            else:
+                reader.start(data, at)
+            row = syntax.frame(reader, i, None)
+            if len(data) > reader.pos:
+                raise reader.error(
+                    f"{len(data) - reader.pos} unused bytes at the end of packet {i}"
+                )
+            yield row
+
+    def __iter__(self) -> Iterator[FapStream]:
+        if self._whole is not None:
+            s = self._whole
+            for i in range(s.n_frames):
+                yield _frame_of(s, i)
+            return
+        h = self.header
+        for i, row in enumerate(self.rows()):
+            yield _assemble_rows(h, [row], h.first_frame + i, self.file)
+
+
+def _frame_of(s: FapStream, i: int) -> FapStream:
+    """Frame ``i`` of ``s`` as a one-frame stream."""
+    return FapStream(
+        fps=s.fps,
+        name=s.name,
+        values=s.values[i : i + 1],
+        mask=s.mask[i : i + 1],
+        viseme=None if s.viseme is None else s.viseme[i : i + 1],
+        expression=None if s.expression is None else s.expression[i : i + 1],
+        first_frame=s.first_frame + i,
+        translation=None if s.translation is None else s.translation[i : i + 1],
+    )
+
+
+def _assemble_rows(h: FbsHeader, rows: list[tuple], first_frame: int, file: str | None):
+    """The decoded stream of ``rows`` (:meth:`_FrameSyntax.frame`'s) under header ``h``."""
+    n = len(rows)
+    mask = np.array([r[0] for r in rows], dtype=bool).reshape(n, len(h.faps))
+    index = np.array([r[1] for r in rows], dtype=np.int64).reshape(n, len(h.low))
+    viseme = np.array([r[2] for r in rows], dtype=np.int64).reshape(n, 4)
+    expression = np.array([r[3] for r in rows], dtype=np.int64).reshape(n, 6)
+    nt = len(h.translation_base_steps)
+    t_index = np.array([r[4] for r in rows], dtype=np.int64).reshape(n, nt)
+    try:
+        return _assemble(
+            h.fps,
+            h.name,
+            first_frame,
+            h.faps,
+            h.low,
+            _steps(h.base_steps, h.quantizer),
+            mask,
+            index,
+            viseme,
+            expression,
+            _steps(h.translation_base_steps, h.quantizer) if h.translation else None,
             t_index if h.translation else None,
         )
     except FapError as e:  # pragma: no cover - the syntax checks every field's range
