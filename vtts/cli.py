@@ -708,9 +708,10 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     """Estimate FAPs from a video (Eisert–Girod analysis by synthesis) into a .fap/.fbs file."""
     import tempfile
 
+    from vtts.analysis.estimator import DEFAULT_UNKNOWNS
     from vtts.analysis.report import mean_psnr, write_report, write_side_by_side
     from vtts.analysis.unknowns import parse_unknowns
-    from vtts.analysis.video import read_video
+    from vtts.analysis.video import read_pipe, read_video
     from vtts.atomic import atomic_path, check_outputs
     from vtts.errors import AnalysisError, VttsWarning
     from vtts.face import load_model
@@ -734,7 +735,11 @@ def cmd_analyze(args: argparse.Namespace) -> int:
         raise AnalysisError(f"--fps must be within 0–1000, got {args.fps:g}")
     unknowns = parse_unknowns(args.faps) if args.faps is not None else None
     camera = Camera.parse(args.camera) if args.camera else None
-    out = Path(args.output)
+    pipe = args.video == "-"
+    _check_analyze_stream(args, pipe, auto)
+    size = _size(args.size) if args.size is not None else None
+    # with --stream there is no OUT: the bitstream goes to stdout
+    out = Path(args.output) if args.output else Path(args.model_out)
     fbs = out.suffix.lower() == ".fbs"
     extra_fbs = out.with_suffix(".fbs") if args.fbs and not fbs else None
     if args.report and Path(args.report).exists() and not Path(args.report).is_dir():
@@ -746,25 +751,54 @@ def cmd_analyze(args: argparse.Namespace) -> int:
         )
     if args.rate is not None and not (fbs or extra_fbs):
         raise AnalysisError("--rate sets the rate of a coded .fbs: give -o OUT.fbs or --fbs")
-    fitted = _fitted_paths(out) if auto else []
-    for path in (out, extra_fbs, args.report and Path(args.report) / "frames.csv", *fitted):
+    if args.model_out:
+        fitted = _fitted_model_paths(Path(args.model_out)) if auto else []
+    else:
+        fitted = _fitted_paths(out) if auto else []
+    outputs = [p for p in (None if args.stream_out else out, extra_fbs, *fitted) if p]
+    for path in (*outputs, args.report and Path(args.report) / "frames.csv"):
         if path:
             _check_writable(path)
-    check_outputs([p for p in (out, extra_fbs, *fitted) if p], [Path(args.video)])
-    video = read_video(args.video, fps=args.fps)
+    check_outputs(outputs, [] if pipe else [Path(args.video)])
+    if pipe:
+        video = read_pipe(sys.stdin.buffer, size, fps=args.fps, name="-")  # type: ignore[arg-type]
+    else:
+        video = read_video(args.video, fps=args.fps)
     model = None if auto else load_model(models[0])
     total = None if video.n_frames is None else -(-video.n_frames // args.step)
+    name = _stream_name(args.video)
+    say = sys.stderr if args.stream_out else sys.stdout  # with --stream, stdout is the bitstream's
 
     with contextlib.ExitStack() as stack:
         # the outputs' temporary files exist from the start (an unwritable -o fails now) and
         # are renamed into place only when everything succeeded
-        tmp_out = stack.enter_context(atomic_path(out))
+        tmp_out = None if args.stream_out else stack.enter_context(atomic_path(out))
         tmp_fbs = stack.enter_context(atomic_path(extra_fbs)) if extra_fbs else None
         # a fitted head is written into a hidden folder beside OUT and moved into place with OUT
-        staging = stack.enter_context(tempfile.TemporaryDirectory(dir=out.parent, prefix=".vtts-"))
+        # (with --stream: before the stream's header, so that a reader finds it complete)
+        folder = fitted[0].parent if fitted else out.parent
+        staging = stack.enter_context(tempfile.TemporaryDirectory(dir=folder, prefix=".vtts-"))
         from vtts.analysis.track import track
 
-        bar = stack.enter_context(progress(total, f"analyzing {Path(args.video).name}", args.quiet))
+        def place_fitted() -> None:
+            # the .wrl last: a reader that waits for it finds its .adt and textures there
+            for written in sorted(Path(staging).iterdir(), key=lambda p: p.suffix == ".wrl"):
+                os.replace(written, fitted[0].with_name(written.name))
+
+        sink = None
+        if args.stream_out:
+            from vtts.analysis.streaming import EstimateStream
+
+            sink = EstimateStream(
+                sys.stdout.buffer,
+                fps=video.fps / args.step,
+                unknowns=DEFAULT_UNKNOWNS if unknowns is None else unknowns,
+                name=name,
+                fapu=lambda: (load_model(str(fitted[0])) if auto else model).fapu,
+                before_header=place_fitted if auto else None,
+            )
+        what = "frames from stdin" if pipe else Path(args.video).name
+        bar = stack.enter_context(progress(total, f"analyzing {what}", args.quiet))
         options = {} if unknowns is None else {"unknowns": unknowns}
         tracked = track(
             video.frames(),
@@ -775,11 +809,14 @@ def cmd_analyze(args: argparse.Namespace) -> int:
             face=args.face,
             step=args.step,
             progress=lambda _index: bar.advance(),
+            on_estimate=sink,
             **options,
         )
         analysis = tracked.analysis
-        stream = analysis.stream(_stream_name(args.video), fapu=tracked.model.fapu)
-        if fbs:
+        stream = analysis.stream(name, fapu=tracked.model.fapu)
+        if sink is not None:
+            sink.end()
+        elif fbs:
             tmp_out.write_bytes(_encode_fbs(stream, args.rate))
         else:
             with warnings.catch_warnings():  # the summary says where the translation went
@@ -791,10 +828,12 @@ def cmd_analyze(args: argparse.Namespace) -> int:
             write_report(analysis, args.report)
             video = read_video(args.video, fps=args.fps)  # again: the frames were not kept
             write_side_by_side(args.report, video.frames(), analysis, tracked.model)
-        for written in tracked.fitted:
-            os.replace(written, out.with_name(written.name))
+        if sink is None:
+            place_fitted()
     if not args.quiet:
-        written = [str(p) for p in (out, extra_fbs) if p]
+        written = [str(p) for p in (None if args.stream_out else out, extra_fbs) if p]
+        if args.stream_out:
+            written.insert(0, f"the stream to stdout ({sink.bytes_written} bytes)")
         if fitted:
             written.append(f"the fitted head {fitted[0]} (+ .adt, -face.png, -frame.png)")
         if args.report:
@@ -806,11 +845,52 @@ def cmd_analyze(args: argparse.Namespace) -> int:
             f"wrote {', '.join(written)}: {n} frame{'s' if n != 1 else ''} at "
             f"{analysis.fps:g} fps, {len(analysis.unknowns)} unknowns, "
             f"mean face PSNR {mean_psnr(analysis.psnr()):.2f} dB, "
-            f"{restarts} re-initialization{'s' if restarts != 1 else ''}{held}"
+            f"{restarts} re-initialization{'s' if restarts != 1 else ''}{held}",
+            file=say,
         )
-        if not fbs and not extra_fbs and any(isinstance(u, str) for u in analysis.unknowns):
+        translation = any(isinstance(u, str) for u in analysis.unknowns)
+        if not args.stream_out and not fbs and not extra_fbs and translation:
             print("note: a .fap file cannot carry the head translation; -o OUT.fbs or --fbs does")
     return 0
+
+
+def _check_analyze_stream(args: argparse.Namespace, pipe: bool, auto: bool) -> None:
+    """The rules of ``vtts analyze -`` (raw frames on stdin) and ``--stream`` (a streamed .fbs
+    on stdout)."""
+    from vtts.errors import AnalysisError
+
+    if pipe and args.size is None:
+        raise AnalysisError(
+            "raw frames on stdin (VIDEO -) have no size of their own: give --size WIDTHxHEIGHT"
+        )
+    if not pipe and args.size is not None:
+        raise AnalysisError(
+            "--size is the size of raw frames on stdin (VIDEO -): a video file or PNG folder "
+            "states its own"
+        )
+    if pipe and args.report:
+        raise AnalysisError(
+            "--report draws side-by-side.mp4 from the video's frames again, which a pipe cannot "
+            "give back: save the frames to a file and analyze that for a report"
+        )
+    if args.stream_out and args.output:
+        raise AnalysisError(
+            "--stream writes the bitstream to stdout: give no -o (save it with > OUT.fbs)"
+        )
+    if not args.stream_out and not args.output:
+        raise AnalysisError("nothing to write: give -o OUT.fap (or OUT.fbs), or --stream")
+    if args.stream_out and (args.fbs or args.rate is not None):
+        raise AnalysisError("--fbs and --rate go with -o: --stream codes every estimate as made")
+    if args.stream_out and auto and not args.model_out:
+        raise AnalysisError(
+            "--stream with --model auto needs --model-out HEAD.wrl: the fitted head a reader "
+            "of the stream loads (stdout has no name to derive it from)"
+        )
+    if args.model_out is not None:
+        if not auto:
+            raise AnalysisError("--model-out names the fitted head of --model auto")
+        if Path(args.model_out).suffix.lower() != ".wrl":
+            raise AnalysisError("--model-out names a .wrl file", file=args.model_out)
 
 
 def _fitted_paths(out: Path) -> list[Path]:
@@ -818,6 +898,13 @@ def _fitted_paths(out: Path) -> list[Path]:
     ``OUT-model.wrl``, ``OUT-model.adt``, ``OUT-model-face.png`` (the atlas) and
     ``OUT-model-frame.png`` (the first frame, the texture of what it shows)."""
     wrl = out.with_name(f"{out.stem}-model.wrl")
+    return [wrl, wrl.with_suffix(".adt"), wrl.with_name(f"{wrl.stem}-face.png"),
+            wrl.with_name(f"{wrl.stem}-frame.png")]  # fmt: skip
+
+
+def _fitted_model_paths(wrl: Path) -> list[Path]:
+    """The files of a fitted head written as ``wrl`` (``--model-out``): ``HEAD.wrl``,
+    ``HEAD.adt``, ``HEAD-face.png``, ``HEAD-frame.png``."""
     return [wrl, wrl.with_suffix(".adt"), wrl.with_name(f"{wrl.stem}-face.png"),
             wrl.with_name(f"{wrl.stem}-frame.png")]  # fmt: skip
 
@@ -844,6 +931,8 @@ def _stream_name(video: str) -> str:
     """The name in the header of the estimated stream: the video's name as one word."""
     import re
 
+    if video == "-":
+        return "stdin"
     return re.sub(r"\s+", "_", Path(video).stem.strip()).lstrip("#") or "vtts_analyze"
 
 
@@ -1058,7 +1147,12 @@ def build_parser() -> argparse.ArgumentParser:
             "pixel gives a linear update, over a pyramid, frame after frame."
         ),
     )
-    an.add_argument("video", metavar="VIDEO", help="a video file (MP4, ...) or a folder of PNGs")
+    an.add_argument(
+        "video",
+        metavar="VIDEO",
+        help="a video file (MP4, ...), a folder of PNGs, or - for raw rgb24 frames on stdin "
+        "(ffmpeg ... -f rawvideo -pix_fmt rgb24 -; with --size)",
+    )
     an.add_argument(
         "--model",
         action="append",
@@ -1067,7 +1161,25 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _url_root_flag(an)
     an.add_argument(
-        "-o", "--output", required=True, metavar="OUT.fap", help="output .fap (or coded .fbs)"
+        "-o", "--output", metavar="OUT.fap", help="output .fap (or coded .fbs); or --stream"
+    )
+    an.add_argument(
+        "--stream",
+        action="store_true",
+        dest="stream_out",
+        help="write a streamed .fbs to stdout instead of -o, each frame as soon as it is "
+        "estimated (vtts play - renders it)",
+    )
+    an.add_argument(
+        "--model-out",
+        metavar="HEAD.wrl",
+        help="where --model auto writes the fitted head (default OUT-model.wrl; needed with "
+        "--stream), complete before the stream's header",
+    )
+    an.add_argument(
+        "--size",
+        metavar="WxH",
+        help="the size of raw frames on stdin (VIDEO -), such as 176x144",
     )
     an.add_argument(
         "--face", type=int, metavar="N", help="which face to track, 1 = the largest (default)"
@@ -1095,7 +1207,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--fps",
         type=float,
         metavar="F",
-        help="frame rate of a PNG folder (default 25), or instead of a video's own",
+        help="frame rate of a PNG folder or of frames on stdin (default 25), or instead of a "
+        "video's own",
     )
     an.add_argument(
         "--report",

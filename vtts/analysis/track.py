@@ -100,6 +100,7 @@ def track(
     unknowns: Sequence[int | str] = DEFAULT_UNKNOWNS,
     progress: Callable[[int], None] | None = None,
     detector=None,
+    on_estimate: Callable[[FrameEstimate], None] | None = None,
     **options,
 ) -> Tracked:
     """Track the face in ``frames`` (each ``(H, W, 3) uint8`` RGB) of a video at ``fps``.
@@ -108,7 +109,9 @@ def track(
     (a ``.wrl``; required then). ``camera`` (renderer frame) is for a given model only (default:
     the framing ``vtts render`` uses). ``face``: 1 = the largest face. ``options`` go to the
     :class:`~vtts.analysis.estimator.Estimator` (defaults here: ``robust=True``). BLAS runs on
-    one thread meanwhile (:mod:`vtts.threads`)."""
+    one thread meanwhile (:mod:`vtts.threads`). ``on_estimate`` is called with each final
+    estimate as soon as it is made, in frame order, the copies for the frames before the first
+    face included (a fitted head is written by then)."""
     from vtts.fit.landmarks import detect_faces
 
     if not (math.isfinite(fps) and fps > 0):
@@ -161,10 +164,12 @@ def track(
         kept = estimator.snapshot()
         if math.isfinite(fe.psnr):
             recent = [*recent[-(RECENT - 1) :], fe.psnr]
-        if waiting:
-            out += [_copy(fe, j, tj) for j, tj in waiting]
-            waiting = []
-        out.append(fe)
+        done = [_copy(fe, j, tj) for j, tj in waiting] + [fe]
+        waiting = []
+        out += done
+        if on_estimate is not None:
+            for estimate in done:
+                on_estimate(estimate)
         _progress(progress, i)
     if estimator is None:
         if not waiting:

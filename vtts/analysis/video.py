@@ -4,6 +4,11 @@
 (when known) frame count, and :meth:`Video.frames`, which decodes the frames one at a time as
 ``(H, W, 3) uint8`` RGB arrays, top row first — never the whole video in memory.
 
+A pipe (:func:`read_pipe`, ``vtts analyze -``) carries raw ``rgb24`` frames, such as
+``ffmpeg … -f rawvideo -pix_fmt rgb24 -`` writes: W·H·3 bytes a frame, top row first, with
+neither header nor size of its own, so the size is given (``--size``) and the rate too
+(``--fps``, default 25). Its frames are read as they arrive, once.
+
 A video file is anything the ffmpeg of the ``imageio-ffmpeg`` wheel reads (MP4, AVI, MKV, …);
 its frame count and rate come from the packets' time stamps (:func:`vtts.render.probe_media`).
 A folder of PNGs is read in natural name order (``frame_2.png`` before ``frame_10.png``); every
@@ -22,6 +27,7 @@ import subprocess
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 
@@ -44,7 +50,8 @@ class Video:
     fps       frames per second
     n_frames  how many frames the file indexes (a damaged file may decode fewer), or None when
               not known before decoding
-    kind      ``"video"`` (a file decoded by ffmpeg) or ``"png"`` (a folder)
+    kind      ``"video"`` (a file decoded by ffmpeg), ``"png"`` (a folder) or ``"pipe"`` (raw
+              frames read as they arrive: :func:`read_pipe`; its frames can be read once)
     """
 
     path: Path
@@ -90,6 +97,73 @@ def read_video(path: str | os.PathLike[str], *, fps: float | None = None) -> Vid
             file=str(p),
         )
     return _read_file(p, fps)
+
+
+#: Frame rate of a pipe of raw frames when none is given (frames per second).
+DEFAULT_PIPE_FPS = 25.0
+#: The smallest frame side of a pipe, in pixels (what the renderer draws at least).
+MIN_PIPE_SIDE = 16
+
+
+def read_pipe(
+    source: BinaryIO,
+    size: tuple[int, int],
+    *,
+    fps: float | None = None,
+    name: str = "-",
+) -> Video:
+    """Raw ``rgb24`` frames of ``size`` ``(W, H)`` from the binary file object ``source`` (a pipe:
+    ``ffmpeg … -f rawvideo -pix_fmt rgb24 -``), each read when it has arrived whole.
+
+    ``fps`` defaults to :data:`DEFAULT_PIPE_FPS`; ``name`` names the pipe in errors. The frame
+    count is not known (``n_frames`` None). A pipe that ends inside a frame is an error naming
+    the byte offset where the incomplete frame starts and how many of its bytes came (the size
+    is likely wrong), raised after the complete frames were yielded; frames can be read once.
+    """
+    w, h = (int(v) for v in size)
+    if min(w, h) < MIN_PIPE_SIDE:
+        raise AnalysisError(
+            f"the frame size {w}x{h} is too small: at least {MIN_PIPE_SIDE} pixels a side",
+            file=name,
+        )
+    check_image_size(w, h, file=name, what="frame")
+    if fps is not None and not (math.isfinite(fps) and fps > 0):
+        raise AnalysisError(f"the frame rate must be a positive number, got {fps!r}")
+    rate = DEFAULT_PIPE_FPS if fps is None else float(fps)
+    used = [False]
+
+    def frames() -> Iterator[np.ndarray]:
+        if used[0]:
+            raise AnalysisError("the frames of a pipe can be read once", file=name)
+        used[0] = True
+        n = w * h * 3
+        index = 0
+        while True:
+            buf = bytearray(n)
+            got = _read_into(source, memoryview(buf))
+            if got == 0:
+                return
+            if got < n:
+                raise AnalysisError(
+                    f"byte {index * n}: the pipe ends inside frame {index} ({got} of its {n} "
+                    f"bytes came): are the frames {w}x{h} rgb24 (--size)?",
+                    file=name,
+                )
+            yield np.frombuffer(buf, dtype=np.uint8).reshape(h, w, 3)
+            index += 1
+
+    return Video(Path(name), (w, h), rate, None, "pipe", frames)
+
+
+def _read_into(source: BinaryIO, view: memoryview) -> int:
+    """Fill ``view`` from ``source``; fewer bytes only at its end."""
+    got = 0
+    while got < len(view):
+        k = source.readinto(view[got:])  # type: ignore[attr-defined]
+        if not k:
+            break
+        got += k
+    return got
 
 
 # ---- folders of PNGs -----------------------------------------------------------------------------
