@@ -375,6 +375,11 @@ def cmd_play(args: argparse.Namespace) -> int:
     from vtts.errors import RenderError
     from vtts.speech.audio import read_for_mp4
 
+    if args.stream == "-":
+        return _play_live(args)
+    if args.output == "-":
+        raise RenderError("-o - (raw frames on stdout) plays a stream from stdin: vtts play - …")
+    args.fps = DEFAULT_PLAY_FPS if args.fps is None else args.fps
     if not (args.output or args.png_dir or args.web or args.gltf or args.curves_out):
         raise RenderError(
             "nothing to write: give -o OUT.mp4 (or OUT.glb), --png-dir DIR, --web DIR and/or "
@@ -389,6 +394,100 @@ def cmd_play(args: argparse.Namespace) -> int:
     speech = read_for_mp4(args.audio) if args.audio and (args.output or args.web) else None
     with _speech_wav(speech) as wav:
         return _play(args, wav)
+
+
+#: The frame rate ``vtts play`` renders a file at unless ``--fps`` says otherwise.
+DEFAULT_PLAY_FPS = 30.0
+
+
+def _play_live(args: argparse.Namespace) -> int:
+    """``vtts play -``: render a FAP stream from stdin frame by frame as it arrives, at its own
+    rate, into an MP4 (renamed into place at the end of the stream), raw rgb24 frames on stdout
+    (``-o -``, flushed per frame) and/or PNGs. A streamed .fbs plays as its packets arrive; a
+    whole .fbs is read completely first."""
+    import itertools
+
+    from vtts.animate.fapstream import model_roots, warn_ignored
+    from vtts.animate.live import LiveParams
+    from vtts.errors import RenderError
+    from vtts.fap.coding import StreamDecoder
+    from vtts.render import PngSequenceWriter, VideoWriter, progress
+    from vtts.warm import load_model
+
+    unsupported = [
+        flag
+        for flag, value in (
+            ("--audio", args.audio),
+            ("--web", args.web),
+            ("--gltf", args.gltf),
+            ("--curves-out", args.curves_out),
+        )
+        if value
+    ]
+    if unsupported:
+        raise RenderError(
+            f"{', '.join(unsupported)} need the whole stream: a stream from stdin (vtts play -) "
+            "renders to -o OUT.mp4, -o - (raw rgb24 frames on stdout) or --png-dir"
+        )
+    if not (args.output or args.png_dir):
+        raise RenderError(
+            "nothing to write: give -o OUT.mp4, -o - (raw rgb24 frames on stdout) or --png-dir"
+        )
+    raw = args.output == "-"
+    _background(args, video=bool(args.output))  # rgb24 frames have no alpha either
+    decoder = StreamDecoder(sys.stdin.buffer, file="-")  # waits for the header
+    fps = decoder.header.fps
+    if args.fps is not None and abs(args.fps - fps) > 1e-9 * fps:
+        raise RenderError(
+            f"a stream from stdin plays at its own rate, {fps:g} Hz: give no --fps "
+            f"(or --fps {fps:g}), not {args.fps:g}"
+        )
+    args.fps = fps
+    # the models load once the header arrived: a fitted head is in place by then
+    models = [load_model(m) for m in args.model]
+    lives = [LiveParams(decoder.header.faps, m.tables.adts) for m in models]
+    out = sys.stdout.buffer if raw else None
+    n = 0
+    with contextlib.ExitStack() as stack:
+        renderer = stack.enter_context(_renderer(args, models, video=bool(args.output)))
+        matrices = [renderer.model_matrix(j) for j in range(len(models))]
+        sinks = []
+        if args.output and not raw:
+            sinks.append(stack.enter_context(VideoWriter(args.output, fps, renderer.size)))
+        if args.png_dir:
+            sinks.append(stack.enter_context(PngSequenceWriter(args.png_dir)))
+        bar = stack.enter_context(progress(None, "rendering stdin", args.quiet or raw))
+
+        moves = decoder.header.translation
+
+        def items():
+            for i, frame in enumerate(decoder):
+                played = [live(frame) for live in lives]
+                roots = []
+                for j, (sp, m) in enumerate(zip(played, models, strict=True)):
+                    if i == 0:
+                        warn_ignored(m.name, sp.ignored)
+                    # model_roots warns (once: at the first frame) about a model without FAPUs
+                    r = model_roots(sp, matrices[j], m.fapu, m.name) if i == 0 or m.fapu else None
+                    roots.append(None if r is None else r[0])
+                yield [sp.params[0] for sp in played], roots
+
+        a, b = itertools.tee(items())
+        params = (p for p, _ in a)
+        roots = (r for _, r in b) if moves else None
+        for frame in renderer.frames(params, roots, batch=1):
+            if out is not None:
+                out.write(np.ascontiguousarray(frame[..., :3]).tobytes())
+                out.flush()
+            for sink in sinks:
+                sink.write(frame)
+            bar.advance()
+            n += 1
+    if not args.quiet:
+        written = " and ".join(str(p) for p in (args.output if not raw else "stdout",
+                                                args.png_dir) if p)  # fmt: skip
+        print(f"wrote {written}: {n} frames at {fps:g} fps ({n / fps:.2f} s)", file=sys.stderr)
+    return 0
 
 
 @contextlib.contextmanager
@@ -1061,18 +1160,31 @@ def build_parser() -> argparse.ArgumentParser:
     r.set_defaults(func=cmd_render)
 
     pl = sub.add_parser("play", help="play a FAP stream on one or more models")
-    pl.add_argument("stream", help="a .fap file or a coded .fbs stream")
+    pl.add_argument(
+        "stream",
+        help="a .fap file or a coded .fbs stream; - reads a .fbs (streamed by vtts analyze "
+        "--stream) from stdin and renders each frame as it arrives",
+    )
     _models_flag(pl)
     pl.add_argument(
         "--audio", help="sound to mux into the MP4 and --web (WAV, FLAC, OGG, MP3, M4A …)"
     )
-    pl.add_argument("--fps", type=float, default=30.0, help="output frame rate (default 30)")
+    pl.add_argument(
+        "--fps",
+        type=float,
+        help="output frame rate (default 30; a stream from stdin plays at its own)",
+    )
     pl.add_argument("--png-dir", help="also (or only) write lossless PNG frames into this folder")
     pl.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     _curves_flags(pl)
     _web_flag(pl)
     _view_flags(pl)
-    pl.add_argument("-o", "--output", help="output .mp4, or an animated .glb/.gltf")
+    pl.add_argument(
+        "-o",
+        "--output",
+        help="output .mp4, or an animated .glb/.gltf; with a stream from stdin, - writes raw "
+        "rgb24 frames of --size to stdout (ffplay -f rawvideo -pixel_format rgb24 ...)",
+    )
     pl.set_defaults(func=cmd_play, gltf=None)
 
     ms = sub.add_parser("models", help="list the bundled models")
@@ -1381,10 +1493,11 @@ def _check_io(args: argparse.Namespace) -> None:
     the command starts (:func:`vtts.atomic.check_outputs`)."""
     from vtts.atomic import check_outputs
 
-    outputs = [v for k in OUTPUT_OPTIONS if (v := getattr(args, k, None))]
+    # "-" is stdin or stdout, not a file
+    outputs = [v for k in OUTPUT_OPTIONS if (v := getattr(args, k, None)) and v != "-"]
     if not outputs:
         return
-    inputs = [v for k in INPUT_OPTIONS if (v := getattr(args, k, None))]
+    inputs = [v for k in INPUT_OPTIONS if (v := getattr(args, k, None)) and v != "-"]
     models = getattr(args, "model", None) or []
     for m in [models] if isinstance(models, str) else models:
         inputs += _model_files(m)
@@ -1405,6 +1518,8 @@ def _video_output(args: argparse.Namespace) -> None:
     out = getattr(args, "output", None)
     if not out or args.func not in (cmd_say, cmd_play):
         return
+    if out == "-" and args.func is cmd_play:
+        return  # raw frames on stdout (vtts play -)
     suffix = Path(out).suffix.lower()
     if suffix in GLTF_SUFFIXES:
         args.gltf, args.output = out, None

@@ -776,12 +776,16 @@ class FaceRenderer:
         """Pose every model (see :meth:`prepare`)."""
         self.apply(self.prepare(params, poses, roots))
 
-    def frames(self, params: Iterable, roots: Iterable | None = None) -> Iterator[np.ndarray]:
+    def frames(
+        self, params: Iterable, roots: Iterable | None = None, *, batch: int = BATCH_FRAMES
+    ) -> Iterator[np.ndarray]:
         """Render a sequence: one frame ``(H, W, 3) uint8`` (``(H, W, 4)`` when transparent) per
         item of ``params`` (each item as :meth:`prepare` takes it; with ``roots``, the item of
         ``roots`` alongside, as :meth:`prepare` takes its ``roots``). The geometry of the next
-        :data:`BATCH_FRAMES` frames is computed together (:meth:`prepare_many`) in a worker
-        thread while the current ones rasterize, which hides most of the deformation's cost."""
+        ``batch`` frames (:data:`BATCH_FRAMES`) is computed together (:meth:`prepare_many`) in a
+        worker thread while the current ones rasterize, which hides most of the deformation's
+        cost. A live stream passes ``batch=1``: each frame is rendered as soon as its item
+        arrives (the pixels are the same for any batch)."""
         from concurrent.futures import ThreadPoolExecutor
         from itertools import islice
 
@@ -790,17 +794,20 @@ class FaceRenderer:
         else:
             it = ((p, None, r) for p, r in zip(params, roots, strict=True))
 
-        def batch():
-            items = list(islice(it, BATCH_FRAMES))
+        if not (isinstance(batch, int) and batch >= 1):
+            raise RenderError(f"a batch is a whole number of frames ≥ 1, got {batch!r}")
+
+        def next_batch():
+            items = list(islice(it, batch))
             return self.prepare_many(items) if items else None
 
         with ThreadPoolExecutor(max_workers=1) as pool:
-            nxt = pool.submit(batch)
+            nxt = pool.submit(next_batch)
             while True:
                 prepared = nxt.result()
                 if prepared is None:
                     return
-                nxt = pool.submit(batch)
+                nxt = pool.submit(next_batch)
                 for frame in prepared:
                     self.apply(frame)
                     yield self.render()
