@@ -801,16 +801,23 @@ class FaceRenderer:
             items = list(islice(it, batch))
             return self.prepare_many(items) if items else None
 
-        with ThreadPoolExecutor(max_workers=1) as pool:
+        pool = ThreadPoolExecutor(max_workers=1)
+        done = False
+        try:
             nxt = pool.submit(next_batch)
             while True:
                 prepared = nxt.result()
                 if prepared is None:
+                    done = True
                     return
                 nxt = pool.submit(next_batch)
                 for frame in prepared:
                     self.apply(frame)
                     yield self.render()
+        finally:
+            # stopped early (Ctrl-C, the reader of the frames gone): the worker may be blocked
+            # on ``params`` (a pipe that has nothing yet), so it is not waited for
+            pool.shutdown(wait=done, cancel_futures=True)
 
     def render(
         self,

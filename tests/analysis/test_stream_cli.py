@@ -1,0 +1,203 @@
+"""Live streaming end to end: raw frames → vtts analyze - --stream → vtts play -, over OS pipes;
+and each way a stream can go wrong (garbage, truncation, wrong size, a reader that leaves,
+Ctrl-C)."""
+
+from __future__ import annotations
+
+import io
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import imageio_ffmpeg
+import numpy as np
+import pytest
+
+from vtts.analysis.video import read_pipe
+from vtts.errors import AnalysisError
+from vtts.fap import FapStream
+from vtts.fap.coding import PAPER_17, StreamEncoder, _frame_of, decode, encode, paired_predictors
+from vtts.render import probe_media
+
+DATA = Path(__file__).parents[1] / "data"
+CLIP = DATA / "video" / "carphone_qcif.mp4"
+HEAD = DATA / "models" / "head.wrl"
+EXE = Path(sys.executable).with_name("vtts")
+FRAMES = 4  # the accurate analysis runs about 2 QCIF frames/s on the 2-core machine
+
+
+def vtts(*args: str, stdin: bytes = b"") -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [str(EXE), *args], input=stdin, capture_output=True, timeout=300, check=False
+    )
+
+
+def synthetic(n: int = 6) -> FapStream:
+    rng = np.random.default_rng(1)
+    values = np.zeros((n, 68))
+    mask = np.zeros((n, 68), dtype=bool)
+    for k in PAPER_17:
+        values[:, k - 1] = np.round(np.cumsum(rng.normal(0, 40, n)))
+        mask[:, k - 1] = True
+    t = np.cumsum(rng.normal(0, 5, (n, 3)), axis=0)
+    return FapStream(25.0, "synthetic", values, mask, translation=t)
+
+
+def streamed(s: FapStream) -> list[bytes]:
+    enc = StreamEncoder(
+        fps=s.fps,
+        faps=PAPER_17,
+        translation=True,
+        constant_mask=True,
+        predictors=paired_predictors(PAPER_17),
+    )
+    return [enc.header(), *(enc.frames(_frame_of(s, i)) for i in range(s.n_frames)), enc.end()]
+
+
+def pngs(folder: Path) -> list[bytes]:
+    from PIL import Image
+
+    return [np.asarray(Image.open(p)).tobytes() for p in sorted(folder.glob("*.png"))]
+
+
+def test_webcam_pipeline_with_a_file(tmp_path):
+    """ffmpeg | vtts analyze - --stream | tee | vtts play -: the documented pipeline, for real."""
+    ffmpeg = imageio_ffmpeg.get_ffmpeg_exe()
+    saved, head, out = tmp_path / "live.fbs", tmp_path / "head.wrl", tmp_path / "live.mp4"
+    decoder = subprocess.Popen(
+        [ffmpeg, "-v", "error", "-i", str(CLIP), "-frames:v", str(FRAMES), "-f", "rawvideo",
+         "-pix_fmt", "rgb24", "-"], stdout=subprocess.PIPE)  # fmt: skip
+    analyze = subprocess.Popen(
+        [str(EXE), "analyze", "-", "--size", "176x144", "--stream", "--model-out", str(head),
+         "--quiet"],
+        stdin=decoder.stdout, stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+    decoder.stdout.close()
+    play = subprocess.Popen(
+        [str(EXE), "play", "-", "--model", str(head), "--size", "176x144", "-o", str(out),
+         "--png-dir", str(tmp_path / "live"), "--quiet"],
+        stdin=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+    with open(saved, "wb") as keep:  # tee: the stream as it went by
+        while chunk := analyze.stdout.read1(1 << 16):
+            keep.write(chunk)
+            play.stdin.write(chunk)
+            play.stdin.flush()
+    play.stdin.close()
+    assert decoder.wait(60) == 0
+    assert analyze.wait(300) == 0, analyze.stderr.read().decode()
+    assert play.wait(300) == 0, play.stderr.read().decode()
+    assert decode(saved.read_bytes()).n_frames == FRAMES
+    assert probe_media(out).frames == FRAMES
+    r = vtts("play", str(saved), "--model", str(head), "--size", "176x144", "--fps", "25",
+             "--png-dir", str(tmp_path / "file"), "--quiet")  # fmt: skip
+    assert r.returncode == 0, r.stderr.decode()
+    live, whole = pngs(tmp_path / "live"), pngs(tmp_path / "file")
+    assert len(live) == FRAMES and live == whole
+
+
+def test_read_pipe_yields_frames_and_names_a_partial_one():
+    frame = np.arange(32 * 16 * 3, dtype=np.uint8).reshape(16, 32, 3)
+    video = read_pipe(io.BytesIO(frame.tobytes() * 2 + b"x" * 100), (32, 16), name="-")
+    assert video.fps == 25.0 and video.n_frames is None and video.kind == "pipe"
+    got = []
+    with pytest.raises(AnalysisError, match="byte 3072: the pipe ends inside frame 2 .100 of"):
+        for f in video.frames():
+            got.append(f)
+    assert len(got) == 2 and np.array_equal(got[1], frame)
+    with pytest.raises(AnalysisError, match="read once"):
+        next(video.frames())
+    with pytest.raises(AnalysisError, match="too small"):
+        read_pipe(io.BytesIO(b""), (8, 8))
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["-o", "x.fap"], "give --size"),
+        (["--size", "176x144", "--report", "rep", "-o", "x.fap"], "pipe cannot"),
+        (["--size", "176x144", "--stream", "-o", "x.fbs"], "give no -o"),
+        (["--size", "176x144", "--stream"], "--model-out"),
+        (["--size", "176x144"], "nothing to write"),
+        (["--size", "4x4", "-o", "x.fap"], "too small"),
+        (["--size", "5000x5000", "-o", "x.fap"], "limit"),
+        (["--size", "176x144", "-o", "x.fap"], "byte 0: the pipe ends inside frame 0"),
+    ],
+)
+def test_analyze_stdin_errors(tmp_path, args, message):
+    args = [str(tmp_path / a) if a.startswith(("x.", "rep")) else a for a in args]
+    r = vtts("analyze", "-", *args, stdin=b"garbage, not frames")
+    err = r.stderr.decode()
+    assert r.returncode == 1 and message in err and "Traceback" not in err, err
+    assert r.stdout == b""
+
+
+def test_size_is_for_a_pipe():
+    r = vtts("analyze", str(CLIP), "--size", "176x144", "-o", "x.fap")
+    assert r.returncode == 1 and b"--size is the size of raw frames" in r.stderr
+
+
+def test_play_stdin_renders_each_frame_and_a_whole_fbs_too(tmp_path):
+    s = synthetic(5)
+    data = b"".join(streamed(s))
+    r = vtts("play", "-", "--model", str(HEAD), "--size", "32x24", "-o", "-", stdin=data)
+    assert r.returncode == 0, r.stderr.decode()
+    assert len(r.stdout) == 5 * 32 * 24 * 3
+    whole = vtts("play", "-", "--model", str(HEAD), "--size", "32x24", "-o", "-", stdin=encode(s))
+    assert whole.returncode == 0 and whole.stdout == r.stdout
+
+
+@pytest.mark.parametrize(
+    ("cut", "message"),
+    [
+        (lambda d, p: b"\x00garbage" * 20, "byte 0: not a vtts FAP bitstream"),
+        (lambda d, p: b"", "truncated"),
+        (lambda d, p: d[: len(p[0]) + len(p[1]) - 1], "inside the CRC of packet 0"),
+        (lambda d, p: d[:-4], "inside the end marker's CRC"),
+    ],
+)
+def test_play_stdin_bad_streams(tmp_path, cut, message):
+    parts = streamed(synthetic(3))
+    out = tmp_path / "o.mp4"
+    r = vtts("play", "-", "--model", str(HEAD), "--size", "32x24", "-o", str(out),
+             stdin=cut(b"".join(parts), parts))  # fmt: skip
+    err = r.stderr.decode()
+    assert r.returncode == 1 and message in err and "Traceback" not in err, err
+    assert not out.exists()  # an MP4 is renamed into place only at the end of the stream
+
+
+def test_play_stdin_rejects_another_rate_and_whole_stream_options():
+    data = b"".join(streamed(synthetic(2)))
+    r = vtts("play", "-", "--model", str(HEAD), "--fps", "30", "-o", "-", stdin=data)
+    assert r.returncode == 1 and b"its own rate, 25 Hz" in r.stderr
+    r = vtts("play", "-", "--model", str(HEAD), "--web", "w", "-o", "-", stdin=data)
+    assert r.returncode == 1 and b"need the whole stream" in r.stderr
+
+
+def test_play_stdin_quiet_when_the_reader_leaves():
+    """`vtts play - -o - | head -c 1`: the reader goes away; vtts ends without a traceback."""
+    parts = streamed(synthetic(40))
+    p = subprocess.Popen(
+        [str(EXE), "play", "-", "--model", str(HEAD), "--size", "64x48", "-o", "-"],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+    p.stdin.write(b"".join(parts))
+    p.stdin.close()
+    assert p.stdout.read(1)
+    p.stdout.close()
+    assert p.wait(120) == 141
+    assert b"Traceback" not in p.stderr.read()
+
+
+def test_play_stdin_ctrl_c_waiting_for_a_packet():
+    parts = streamed(synthetic(3))
+    p = subprocess.Popen(
+        [str(EXE), "play", "-", "--model", str(HEAD), "--size", "32x24", "-o", "-"],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+    p.stdin.write(parts[0] + parts[1])
+    p.stdin.flush()
+    assert len(p.stdout.read(32 * 24 * 3)) == 32 * 24 * 3  # frame 0 came: it waits for frame 1
+    os.kill(p.pid, signal.SIGINT)
+    assert p.wait(60) == 130
+    err = p.stderr.read()
+    assert b"interrupted" in err and b"Traceback" not in err
+    p.stdin.close()
