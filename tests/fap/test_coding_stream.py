@@ -214,3 +214,9 @@ def test_saved_stream_checks_and_plays_from_a_file(tmp_path):
     path.write_bytes(data)
     assert check_fbs(path).startswith("6 frames at 25 Hz")
     same(read_stream(path), decode(data))
+
+
+def test_packet_crc_is_crc8_smbus():
+    from vtts.fap.coding import _crc8
+
+    assert _crc8(b"123456789") == 0xF4  # the catalogue's check value of CRC-8/SMBUS

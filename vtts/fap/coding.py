@@ -58,7 +58,6 @@ into a silently different stream; truncation is reported at the byte where the d
 
 from __future__ import annotations
 
-import binascii
 import heapq
 import math
 import re
@@ -1614,14 +1613,32 @@ MAX_PACKET_BYTES = 1 << 16
 _END_MARKER = struct.Struct(">II")  # frame count, CRC-32
 
 
-def _crc16(data: bytes) -> int:
-    """A packet's CRC: CRC-16/CCITT (``binascii.crc_hqx``, initial value 0xFFFF)."""
-    return binascii.crc_hqx(data, 0xFFFF)
+def _crc8_table() -> tuple[int, ...]:
+    table = []
+    for byte in range(256):
+        c = byte
+        for _ in range(8):
+            c = ((c << 1) ^ 0x07) & 0xFF if c & 0x80 else (c << 1) & 0xFF
+        table.append(c)
+    return tuple(table)
+
+
+_CRC8 = _crc8_table()
+
+
+def _crc8(data: bytes) -> int:
+    """A packet's CRC: CRC-8 with the polynomial x^8 + x^2 + x + 1 (0x07, CRC-8/SMBUS), which
+    detects every error burst of up to 8 bits (every damaged byte) in a packet; the end
+    marker's CRC-32 covers the whole stream with the strength of a whole file's."""
+    c = 0
+    for b in data:
+        c = _CRC8[c ^ b]
+    return c
 
 
 class _Packets:
     """The packets of a streamed bitstream after its header (in ``cur``, from ``cur.pos``; read
-    from ``cur.source`` as they arrive when it has one), each checked against its CRC-16.
+    from ``cur.source`` as they arrive when it has one), each checked against its CRC-8.
 
     Iterating yields ``(i, data, at)``: frame i's range-coded bytes and the offset of the first.
     It ends after the end marker, whose frame count and CRC-32 are checked, and after making sure
@@ -1691,12 +1708,12 @@ class _Packets:
                 )
             data = self._take(n, f"packet {i}")
             crc_at = self.at
-            (stored,) = struct.unpack(">H", self._take(2, f"the CRC of packet {i}"))
-            computed = _crc16(raw + data)
+            stored = self._take(1, f"the CRC of packet {i}")[0]
+            computed = _crc8(raw + data)
             if stored != computed:
                 raise self.error(
-                    f"packet {i} CRC-16 mismatch (stored 0x{stored:04x}, computed "
-                    f"0x{computed:04x}): bytes {start}–{crc_at - 1} are corrupt",
+                    f"packet {i} CRC-8 mismatch (stored 0x{stored:02x}, computed "
+                    f"0x{computed:02x}): bytes {start}–{crc_at - 1} are corrupt",
                     crc_at,
                 )
             yield i, data, start + len(raw)
@@ -1867,7 +1884,7 @@ class StreamEncoder:
             self._syntax.frame(self._writer, self.n_frames, row)
             data = self._writer.packet()
             raw = _varint(len(data) + 1)
-            packet = raw + data + struct.pack(">H", _crc16(raw + data))
+            packet = raw + data + bytes([_crc8(raw + data)])
             self._crc = zlib.crc32(packet, self._crc)
             out += packet
             self.n_frames += 1
@@ -1887,7 +1904,7 @@ class StreamDecoder:
 
     Creating it reads and checks the header (:attr:`header`); iterating yields each frame as
     a one-frame :class:`FapStream` (``first_frame`` its number) as soon as its packet has
-    arrived and passed its CRC-16, then checks the end marker. A whole (not streamed) ``.fbs``
+    arrived and passed its CRC-8, then checks the end marker. A whole (not streamed) ``.fbs``
     is read completely (at most :data:`~vtts.limits.MAX_FBS_BYTES`), decoded, and its frames
     yielded one by one. Every problem is a :class:`CodingError` at the byte concerned; frames
     already yielded stay valid (a stream damaged later is reported when that part arrives).
