@@ -241,6 +241,39 @@ def _assemble(
     )
 
 
+def _quantize(stream: FapStream, low: tuple[int, ...], steps: np.ndarray) -> np.ndarray:
+    """``(n, L) int64``: the grid index of each low-level FAP of ``low`` (steps ``(L,)``) in
+    each frame, 0 where the frame does not set it; a value too large to code is an error."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        ratio = stream.values[:, [k - 1 for k in low]] / steps
+    bad = ~(np.abs(ratio) < MAX_INDEX - 1)
+    if np.any(bad):
+        i, j = (int(x) for x in np.argwhere(bad)[0])
+        raise CodingError(
+            f"FAP {low[j]} = {stream.values[i, low[j] - 1]!r} in frame {i} is too large to code "
+            f"with step {steps[j]:g}: |value / step| must stay below 2^40"
+        )
+    low_mask = stream.mask[:, [k - 1 for k in low]]
+    return np.where(low_mask, np.rint(ratio), 0.0).astype(np.int64)
+
+
+def _quantize_translation(translation: np.ndarray, t_steps: np.ndarray) -> np.ndarray:
+    """``(n, 3) int64``: the grid index of the head translation (ES units) on each axis."""
+    t_index = np.rint(translation / t_steps).astype(np.int64)
+    # |t| ≤ MAX_TRANSLATION keeps |t / step| far below MAX_INDEX; its grid point may lie
+    # beyond the bound only within half a step of it
+    beyond = ~(np.abs(t_index * t_steps) <= MAX_TRANSLATION)
+    if np.any(beyond):
+        i, a = (int(x) for x in np.argwhere(beyond)[0])
+        value = float(translation[i, a])
+        raise CodingError(
+            f"head translation {TRANSLATION_AXES[a]} = {value!r} in frame "
+            f"{i} is too large to code with step {t_steps[a]:g}: its reconstruction would "
+            f"leave ±{MAX_TRANSLATION:g} ES units"
+        )
+    return t_index
+
+
 def _prepare(
     stream: FapStream,
     faps: Iterable[int | str] | str | None,
@@ -268,17 +301,7 @@ def _prepare(
     base = tuple(FAPS[k - 1].quant_step for k in low)
     steps = _steps(base, q32)
     mask = stream.mask[:, [k - 1 for k in coded]]
-    low_mask = stream.mask[:, [k - 1 for k in low]]
-    with np.errstate(over="ignore", invalid="ignore"):
-        ratio = stream.values[:, [k - 1 for k in low]] / steps
-    bad = ~(np.abs(ratio) < MAX_INDEX - 1)
-    if np.any(bad):
-        i, j = (int(x) for x in np.argwhere(bad)[0])
-        raise CodingError(
-            f"FAP {low[j]} = {stream.values[i, low[j] - 1]!r} in frame {i} is too large to code "
-            f"with step {steps[j]:g}: |value / step| must stay below 2^40"
-        )
-    index = np.where(low_mask, np.rint(ratio), 0.0).astype(np.int64)
+    index = _quantize(stream, low, steps)
     viseme = stream.viseme if 1 in coded else None
     expression = stream.expression if 2 in coded else None
     t_base: tuple[int, ...] = ()
@@ -286,18 +309,7 @@ def _prepare(
     if translation and stream.translation is not None:
         t_base = (TRANSLATION_BASE_STEP,) * 3
         t_steps = _steps(t_base, q32)
-        t_index = np.rint(stream.translation / t_steps).astype(np.int64)
-        # |t| ≤ MAX_TRANSLATION keeps |t / step| far below MAX_INDEX; its grid point may lie
-        # beyond the bound only within half a step of it
-        beyond = ~(np.abs(t_index * t_steps) <= MAX_TRANSLATION)
-        if np.any(beyond):
-            i, a = (int(x) for x in np.argwhere(beyond)[0])
-            value = float(stream.translation[i, a])
-            raise CodingError(
-                f"head translation {TRANSLATION_AXES[a]} = {value!r} in frame "
-                f"{i} is too large to code with step {t_steps[a]:g}: its reconstruction would "
-                f"leave ±{MAX_TRANSLATION:g} ES units"
-            )
+        t_index = _quantize_translation(stream.translation, t_steps)
     recon = _assemble(
         stream.fps,
         stream.name,
@@ -1834,6 +1846,8 @@ class StreamEncoder:
             stream=True,
         )
         self._syntax = _FrameSyntax(self.header_info)
+        self._steps = _steps(self.header_info.base_steps, q32)
+        self._t_steps = _steps(self.header_info.translation_base_steps, q32)
         self._writer = _RangeWriter()
         self._crc = 0
         self._state = "new"
@@ -1870,16 +1884,19 @@ class StreamEncoder:
             raise CodingError(f"a stream has at most {MAX_FRAMES} frames")
         if stream.n_frames == 0:
             return b""
-        plan = _prepare(stream, h.faps, None, h.quantizer, h.translation)
+        mask = stream.mask[:, [k - 1 for k in h.faps]]
+        index = _quantize(stream, h.low, self._steps)
+        t_index = None
+        if h.translation:
+            t_index = _quantize_translation(stream.translation, self._t_steps)  # type: ignore[arg-type]
         out = bytearray()
         for i in range(stream.n_frames):
-            m = plan.mask[i]
             row = (
-                [bool(m[plan.faps.index(k)]) if k in plan.faps else False for k in h.faps],
-                [int(plan.index[i, plan.low.index(k)]) if k in plan.low else 0 for k in h.low],
+                mask[i].tolist(),
+                index[i].tolist(),
                 [0] * 4 if stream.viseme is None else stream.viseme[i].tolist(),
                 [0] * 6 if stream.expression is None else stream.expression[i].tolist(),
-                () if plan.translation_index is None else plan.translation_index[i].tolist(),
+                () if t_index is None else t_index[i].tolist(),
             )
             self._syntax.frame(self._writer, self.n_frames, row)
             data = self._writer.packet()
