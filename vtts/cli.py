@@ -183,8 +183,22 @@ def scene_tree(scene) -> list[str]:
 
 
 def cmd_info(args: argparse.Namespace) -> int:
-    """Describe a scene or model: the scene graph, and what the model can do."""
+    """Describe a scene or model: the scene graph, and what the model can do; or what a .fbs
+    bitstream holds."""
     from vtts.face import find_model, load_model
+
+    if Path(args.file).suffix.lower() == ".fbs":
+        from vtts.fap.cli_coding import describe_fbs
+
+        try:
+            lines = describe_fbs(args.file)
+        except VttsError as e:
+            print_error(e, args.file)
+            return 1
+        print(f"{args.file}:")
+        for line in lines:
+            print("  " + line)
+        return 0
 
     try:
         path = find_model(args.file)
@@ -932,7 +946,12 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     if not args.quiet:
         written = [str(p) for p in (None if args.stream_out else out, extra_fbs) if p]
         if args.stream_out:
-            written.insert(0, f"the stream to stdout ({sink.bytes_written} bytes)")
+            per_frame = 1000 * sink.framing_s / max(sink.frames, 1)
+            written.insert(
+                0,
+                f"the stream to stdout ({sink.bytes_written} bytes; coding and writing "
+                f"{per_frame:.2f} ms a frame)",
+            )
         if fitted:
             written.append(f"the fitted head {fitted[0]} (+ .adt, -face.png, -frame.png)")
         if args.report:
@@ -1135,7 +1154,9 @@ def build_parser() -> argparse.ArgumentParser:
     _url_root_flag(c)
     c.set_defaults(func=cmd_check)
 
-    i = sub.add_parser("info", help="describe a scene graph and what a model can do")
+    i = sub.add_parser(
+        "info", help="describe a scene graph and what a model can do, or a .fbs bitstream"
+    )
     i.add_argument("file", metavar="FILE")
     i.add_argument(
         "--lenient",

@@ -220,3 +220,31 @@ def test_packet_crc_is_crc8_smbus():
     from vtts.fap.coding import _crc8
 
     assert _crc8(b"123456789") == 0xF4  # the catalogue's check value of CRC-8/SMBUS
+
+
+def test_a_stream_of_the_head_translation_alone():
+    n = 4
+    t = np.cumsum(np.ones((n, 3)) * 7.0, axis=0)
+    s = FapStream(25.0, "t", np.zeros((n, 68)), np.zeros((n, 68), bool), translation=t)
+    enc = StreamEncoder(
+        fps=25, faps=[], translation=True, name="t", predictors=paired_predictors([])
+    )
+    data = enc.header() + enc.frames(s) + enc.end()
+    same(decode(data), reconstruct(s))
+
+
+def test_vtts_info_and_decode_of_a_saved_stream(tmp_path):
+    import subprocess
+    import sys
+
+    data, _ = streamed(small())
+    path = tmp_path / "s.fbs"
+    path.write_bytes(data)
+    exe = Path(sys.executable).with_name("vtts")
+    r = subprocess.run([str(exe), "info", str(path)], capture_output=True, text=True, check=False)
+    assert r.returncode == 0 and "streamed (packets and an end marker)" in r.stdout, r.stderr
+    assert "6 frames at 25 Hz" in r.stdout
+    out = tmp_path / "s.fap"
+    r = subprocess.run([str(exe), "decode", str(path), "-o", str(out)], capture_output=True,
+                       text=True, check=False)  # fmt: skip
+    assert r.returncode == 0 and read_fap(out).n_frames == 6, r.stderr

@@ -62,6 +62,30 @@ def check_fbs(path: str | os.PathLike[str]) -> str:
     )
 
 
+def describe_fbs(path: str | os.PathLike[str]) -> list[str]:
+    """``vtts info`` of a ``.fbs`` file: what its header says, and its frames' size (the whole
+    bitstream is checked and decoded, a streamed one as well)."""
+    data = _read_bytes(path)
+    decode(data, file=os.fspath(path))
+    h = read_header(data, file=os.fspath(path))
+    form = "streamed (packets and an end marker)" if h.stream else "whole"
+    lines = [
+        f"{h.n_frames} frames at {h.fps:g} Hz from frame {h.first_frame}, name {h.name!r}",
+        f"{form} bitstream, {h.coder} coder, quantizer {h.quantizer:g}"
+        + (", constant mask" if h.constant_mask else ""),
+        f"FAPs: {', '.join(map(str, h.faps)) or 'none'}"
+        + ("; the head translation (tx, ty, tz)" if h.translation else ""),
+    ]
+    if h.predictors:
+        pairs = ", ".join(f"{k}←{p}" for k, p in sorted(h.predictors.items()))
+        lines.append(f"predicted FAPs: {pairs}")
+    lines.append(
+        f"{h.size} bytes (header {h.header_size}): {h.bits_per_frame:.1f} bits/frame, "
+        f"{h.kbit_per_s:.3f} kbit/s"
+    )
+    return lines
+
+
 def _contents(h: FbsHeader) -> str:
     faps = f"{len(h.faps)} FAP{'s' if len(h.faps) != 1 else ''}"
     return f"{faps} and the head translation" if h.translation else faps

@@ -1757,7 +1757,7 @@ def paired_predictors(faps: Iterable[int | str] | str) -> dict[int, int]:
     each outer-lip FAP (``NAME_o``, 51–60) from its inner-lip FAP (4–13), else each right-side
     FAP from its left-side twin (``…_l`` / ``…_r``, ``lm`` / ``rm``), where both are in
     ``faps``, the predicting one earlier, with the same unit and base step."""
-    coded = set(fap_set(faps))
+    coded = set(fap_set(faps)) if isinstance(faps, str) or list(faps) else set()
     by_name = {d.name: d.number for d in FAPS}
     swap = {"l": "r", "r": "l", "lm": "rm", "rm": "lm"}
     out: dict[int, int] = {}
@@ -1816,7 +1816,7 @@ class StreamEncoder:
         fps = float(fps)
         if not (math.isfinite(fps) and MIN_FPS <= fps <= MAX_FPS):
             raise FapError(f"frame rate must be within {MIN_FPS:g}–{MAX_FPS:g} Hz, got {fps!r}")
-        coded = fap_set(faps)
+        coded = fap_set(faps) if isinstance(faps, str) or list(faps) else ()  # () for none
         low = tuple(k for k in coded if k >= 3)
         q32 = _check_quantizer(quantizer)
         if not 0 <= first_frame < 1 << 32:
