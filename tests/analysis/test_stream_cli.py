@@ -201,3 +201,10 @@ def test_play_stdin_ctrl_c_waiting_for_a_packet():
     err = p.stderr.read()
     assert b"interrupted" in err and b"Traceback" not in err
     p.stdin.close()
+
+
+def test_a_batch_job_does_not_play_stdin(tmp_path):
+    from vtts.batch.jobs import JobError, parse_job
+
+    with pytest.raises(JobError, match="stdin"):
+        parse_job({"play": "-", "model": "cybatt", "output": "a.mp4"}, tmp_path)

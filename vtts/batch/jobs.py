@@ -206,6 +206,8 @@ def parse_job(spec, out_dir: str | os.PathLike[str], line: int | None = None) ->
             raise JobError(
                 f"'play' takes the .fap or .fbs stream to play, got {json.dumps(positional)}"
             )
+        if positional == "-":
+            raise JobError("'play' in a batch plays a file: '-' (stdin) is for vtts play -")
         argv += ["--", positional]
     elif positional not in (True, None, {}):
         raise JobError(
