@@ -21,7 +21,7 @@ nothing is known in advance (Eisert & Girod's "Camera sequences"):
    (:data:`FITTED_IGNORED`: the hair cap, the ears, the neck); they are still drawn and hide
    what lies behind them.
 3. **Losing the track.** A frame whose face PSNR falls :data:`LOST_DB` below the median of the
-   last good frames (or under :data:`LOST_FLOOR_DB`) is re-initialized from its landmarks — the
+   last good frames (capped at :data:`LOST_REFERENCE_CAP_DB`), or under :data:`LOST_FLOOR_DB`, is re-initialized from its landmarks — the
    head rotation and translation placed on them — and estimated again; the better of the two
    estimates is kept. A frame where that fails too holds the last good estimate.
 4. **Several faces.** ``face`` picks one (1 = the largest, as ``adi fit --face``); later
@@ -41,6 +41,7 @@ import numpy as np
 from vtts.analysis.estimator import DEFAULT_UNKNOWNS, Estimator
 from vtts.analysis.landmark_pose import landmark_pose, placement_error
 from vtts.analysis.result import Analysis, FrameEstimate
+from vtts.analysis.tracker import Tracker
 from vtts.errors import AnalysisError, FitError, VttsError, VttsWarning
 from vtts.face import FaceModel
 from vtts.render.camera import Camera
@@ -59,6 +60,9 @@ FITTED_IGNORED = ("HAIR", "NECK", "L_EAR", "R_EAR")
 LOST_DB = 6.0
 #: … or below this (dB) at all.
 LOST_FLOOR_DB = 12.0
+#: The reference for :data:`LOST_DB` is at most this (dB): near the frame a head was fitted to,
+#: the PSNR falls from 45 dB to 30 within a few frames as the person moves, and is not lost.
+LOST_REFERENCE_CAP_DB = 30.0
 #: Recent frames whose median PSNR is the reference for :data:`LOST_DB`.
 RECENT = 10
 #: A given model whose feature points already fall this close (median, pixels) to the first
@@ -100,6 +104,7 @@ def track(
     unknowns: Sequence[int | str] = DEFAULT_UNKNOWNS,
     progress: Callable[[int], None] | None = None,
     detector=None,
+    tracking: bool = False,
     on_estimate: Callable[[FrameEstimate], None] | None = None,
     **options,
 ) -> Tracked:
@@ -107,11 +112,12 @@ def track(
 
     ``model`` None fits a head on the first frame with a face and writes it to ``model_path``
     (a ``.wrl``; required then). ``camera`` (renderer frame) is for a given model only (default:
-    the framing ``vtts render`` uses). ``face``: 1 = the largest face. ``options`` go to the
-    :class:`~vtts.analysis.estimator.Estimator` (defaults here: ``robust=True``). BLAS runs on
-    one thread meanwhile (:mod:`vtts.threads`). ``on_estimate`` is called with each final
-    estimate as soon as it is made, in frame order, the copies for the frames before the first
-    face included (a fitted head is written by then)."""
+    the framing ``vtts render`` uses). ``face``: 1 = the largest face. ``tracking``: the fast
+    :class:`~vtts.analysis.tracker.Tracker` (about one rendering a frame) instead of the accurate
+    :class:`~vtts.analysis.estimator.Estimator`. ``options`` go to the estimator (defaults here:
+    ``robust=True``). BLAS runs on one thread meanwhile (:mod:`vtts.threads`). ``on_estimate``
+    is called with each final estimate as soon as it is made, in frame order, the copies for the
+    frames before the first face included (a fitted head is written by then)."""
     from vtts.fit.landmarks import detect_faces
 
     if not (math.isfinite(fps) and fps > 0):
@@ -140,8 +146,9 @@ def track(
                 _progress(progress, i)
                 continue
             chosen = _choose(faces, face, i) if faces else None
+            kind = Tracker if tracking else Estimator
             estimator = _start(result, frame, chosen, face, model, model_path, camera, unknowns,
-                               detector, options)  # fmt: skip
+                               detector, options, kind)  # fmt: skip
             result.first = i
         try:
             fe = estimator.estimate(frame, i, t)
@@ -194,7 +201,7 @@ def _choose(faces: list, face: int | None, index: int):
 
 
 def _start(result: Tracked, frame, chosen, face, model, model_path, camera, unknowns, detector,
-           options) -> Estimator:  # fmt: skip
+           options, kind: type[Estimator] = Estimator) -> Estimator:  # fmt: skip
     """The estimator for the first frame with a face: a head fitted to it, or ``model`` placed
     on its landmarks."""
     h, w = frame.shape[:2]
@@ -211,9 +218,9 @@ def _start(result: Tracked, frame, chosen, face, model, model_path, camera, unkn
         result.fitted = head.write(model_path)
         result.model = load_model(str(result.fitted[0]))
         options = {"ignore": FITTED_IGNORED, **options}
-        return Estimator(result.model, size=(w, h), model_camera=head.shape.camera,
-                         unknowns=unknowns, **options)  # fmt: skip
-    estimator = Estimator(model, size=(w, h), camera=camera, unknowns=unknowns, **options)
+        return kind(result.model, size=(w, h), model_camera=head.shape.camera,
+                    unknowns=unknowns, **options)  # fmt: skip
+    estimator = kind(model, size=(w, h), camera=camera, unknowns=unknowns, **options)
     if chosen is None:
         return estimator  # no face seen: the model starts where the camera frames it
     error = placement_error(estimator, chosen.landmarks)
@@ -236,7 +243,8 @@ def _lost(psnr: float, recent: list[float]) -> bool:
         return psnr != float("inf")
     if psnr < LOST_FLOOR_DB:
         return True
-    return len(recent) >= 3 and psnr < float(np.median(recent)) - LOST_DB
+    reference = min(float(np.median(recent)), LOST_REFERENCE_CAP_DB) if recent else math.inf
+    return len(recent) >= 3 and psnr < reference - LOST_DB
 
 
 def _restart(estimator: Estimator, frame, index: int, time: float, fe: FrameEstimate | None,

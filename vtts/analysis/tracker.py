@@ -1,0 +1,401 @@
+"""Tracking mode: one rendering per frame, Gauss–Newton on the camera image without re-rendering.
+
+The accurate :class:`~vtts.analysis.estimator.Estimator` renders the model after every linear
+solve (about nine renderings a frame over a three-level pyramid) and compares the two images at
+fixed pixels. A :class:`Tracker` renders once per frame and keeps what the rendering says about
+the face as **surface samples**: for each face pixel, the triangle it shows, the barycentric
+coordinates of its 3D point, that point in camera space, the point's motion per unit of each
+unknown (Equation 9's matrix T, at the rendered estimate) and the model's color there. The
+Gauss–Newton iterations then move the samples with the parameter change (linearly, as Equation 9
+does), project them into the camera frame and compare the frame *at their projections*
+(bilinear samples of the frame and of its gradients) with the model's colors (forward-additive
+image alignment, with the efficient second-order gradient: the mean of the frame's gradient at
+the projection and the model's at the sample). Nothing is rendered again until the samples have
+moved :data:`RERENDER_PX` pixels since the rendering, where what is visible may have changed.
+
+Coarse to fine without a pyramid of renderings: the camera frame (cropped to the face) is
+smoothed with a wide Gaussian for the first iterations and a narrow one for the last
+(:data:`STAGES`); the model's colors are smoothed alike from the same rendering.
+
+The first frame of a track (and a frame after the track was placed again) is estimated by the
+accurate estimator: it may start far from the truth. The light model (gain and offset per
+channel), robust weights, held unknowns and the eyelid search are the accurate estimator's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy.ndimage import binary_erosion
+
+from vtts.analysis.estimator import (
+    EDGE,
+    LUMA,
+    ROBUST_LIMIT,
+    Estimator,
+    _least_squares,
+    _smooth,
+)
+from vtts.analysis.raster import ray_barycentrics
+from vtts.analysis.result import TRANSLATION, FrameEstimate
+from vtts.errors import VttsError
+from vtts.threads import one_blas_thread
+
+LUMA32 = LUMA.astype(np.float32)
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One stage of a frame's iterations: the Gaussian ``sigma`` (pixels) both images are
+    smoothed with, the outlier threshold ``g`` (pixels, Equation 17), at most ``iterations``
+    solves, and ``limit``, the most (pixels) one solve may move the image of any unknown."""
+
+    sigma: float
+    g: float
+    iterations: int
+    limit: float = 2.0
+
+
+#: Wide smoothing first (motion of a few pixels), then the accurate estimator's own.
+STAGES = (Stage(2.0, 5.0, 1), Stage(0.8, 2.0, 3))
+
+#: Samples that moved this far (pixels) since the rendering may show another surface: render.
+RERENDER_PX = 2.0
+
+#: Pixels of the camera frame kept around the face's box (motion within a frame is smaller).
+MARGIN = 16
+
+#: The face's pixels used as samples: every ``SAMPLE_STEP``-th row and column.
+SAMPLE_STEP = 1
+
+
+@dataclass
+class _Samples:
+    """What one rendering says about the face at the rendered estimate (N samples, K
+    unknowns), all in the pixels of the rendered window ``box`` (rows, cols slices of the
+    frame): pixel ``rows``, ``cols`` ``(N,)``; ``point`` the 3D point in camera space ``(N, 3)``;
+    ``motion`` its motion per unit of each unknown in camera axes ``(N, 3, K)``; ``du``, ``dv``
+    ``(N, K)`` the image motion (pixels per unit) it gives at the rendered estimate; ``raw`` the
+    rendered window ``(h, w, 3)`` float32; ``at`` the unknowns' values ``(K,)`` at the
+    rendering; ``models`` the model's colors smoothed for each stage, by sigma.
+
+    The samples serve the frames that follow as long as they have not moved
+    :attr:`Tracker.rerender` pixels: the model's colors move with its surface (a head made
+    for the video is drawn unlit), and the motion per unit is exact within the tables'
+    intervals and linear in the rotations."""
+
+    rows: np.ndarray
+    cols: np.ndarray
+    point: np.ndarray
+    motion: np.ndarray
+    du: np.ndarray
+    dv: np.ndarray
+    raw: np.ndarray
+    box: tuple[slice, slice]
+    at: np.ndarray
+    models: dict = field(default_factory=dict)
+
+    def model(self, sigma: float) -> _Model:
+        """The model's colors and gradients at the samples, smoothed with ``sigma``."""
+        if sigma not in self.models:
+            self.models[sigma] = _Model(self, sigma)
+        return self.models[sigma]
+
+
+class Tracker(Estimator):
+    """An :class:`~vtts.analysis.estimator.Estimator` that tracks with about one rendering per
+    frame (see the module's docstring). Takes the same arguments, plus ``stages``
+    (:data:`STAGES`), ``rerender`` (:data:`RERENDER_PX`) and ``sample_step``."""
+
+    def __init__(self, *args, stages=STAGES, rerender: float = RERENDER_PX,
+                 sample_step: int = SAMPLE_STEP, **kwargs) -> None:  # fmt: skip
+        super().__init__(*args, **kwargs)
+        self.stages = tuple(stages)
+        self.rerender = float(rerender)
+        self.sample_step = int(sample_step)
+        #: renderings of the last frame estimated (the eyelid search's windows included)
+        self.renderings = 0
+        # the window (x0, y0, width, height) of the frame rendered and matched: the face's box
+        # with a margin; None for the whole frame
+        self._window: tuple[int, int, int, int] | None = None
+        self._samples: _Samples | None = None  # the last rendering's, while they serve
+
+    def forget_motion(self) -> None:
+        super().forget_motion()
+        self._window = None
+        self._samples = None
+
+    @one_blas_thread()
+    def estimate(self, frame: np.ndarray, index: int = 0, time: float = 0.0) -> FrameEstimate:
+        """Update the estimate to the camera ``frame`` ``(H, W, 3) uint8`` and return it."""
+        if not self._history:
+            self.forget_motion()
+            self.renderings = 0
+            return super().estimate(frame, index, time)  # a first frame: the accurate start
+        frame = np.asarray(frame)
+        w, h = self.size
+        if frame.shape != (h, w, 3):
+            raise VttsError(f"frame {index} is {frame.shape}, expected ({h}, {w}, 3)")
+        if self.predicted:
+            self._extrapolate(index)
+        self.renderings = 0
+        solves = 0
+        samples = self._samples
+        if samples is None or self._shift(samples) > self.rerender:
+            samples = self._sample()
+        full = frame[samples.box].astype(np.float32)
+        for stage in self.stages:
+            images = _with_gradients(_smooth(full, stage.sigma))
+            for _ in range(stage.iterations):
+                moved, shift = self._iterate(samples, images, stage)
+                solves += 1
+                if shift > self.rerender:  # the samples may no longer be what is visible
+                    box = samples.box
+                    samples = self._sample()
+                    if samples.box != box:
+                        full = frame[samples.box].astype(np.float32)
+                        images = _with_gradients(_smooth(full, stage.sigma))
+                if moved < self.tolerance:
+                    break
+        self._samples = samples
+        return self._finish(frame, samples, index, time, solves)
+
+    # ---- samples -------------------------------------------------------------------------------
+
+    def _sample(self) -> _Samples:
+        """Render the model at the current estimate (the window around the face) and take its
+        face pixels as samples."""
+        w, h = self.size
+        x0, y0, ww, wh = self._window or (0, 0, w, h)
+        while True:
+            cam = replace(self.camera, cx=self.camera.cx - x0, cy=self.camera.cy - y0)
+            image, numbers = self._synthesize(cam, (ww, wh), triangles=True)
+            self.renderings += 1
+            ids = np.where(numbers >= 0, self._faces[numbers], -1)
+            covered = ids >= 0
+            whole = (ww, wh) == (w, h)
+            if whole or not (covered[[0, -1]].any() or covered[:, [0, -1]].any()):
+                break
+            x0, y0, ww, wh = 0, 0, w, h  # the face reaches the window's edge: render it all
+        inside = binary_erosion(covered, iterations=EDGE)
+        if self.sample_step > 1:
+            grid = np.zeros_like(inside)
+            grid[:: self.sample_step, :: self.sample_step] = True
+            inside &= grid
+        rows, cols = np.nonzero(inside)
+        if rows.size < 4 * len(self.unknowns):
+            raise VttsError(
+                f"the model covers only {rows.size} pixels: it is out of view (check --camera "
+                "and the first frame)"
+            )
+        self._window = _window_around(rows + y0, cols + x0, (ww, wh), self.size)
+        tri = ids[rows, cols]
+        pix = np.stack([cols + 0.5, rows + 0.5], axis=1)
+        positions = self.geometry.positions(self.params, self.translation)
+        verts = self.geometry.faces[tri]
+        lam, point = ray_barycentrics(pix, cam, positions[verts])
+        uniq, inverse = np.unique(verts, return_inverse=True)
+        jac = self.geometry.jacobian(self.params, self.translation, uniq)  # (U, 3, K) world
+        jac = np.einsum("ab,ubk->uak", np.linalg.inv(cam.pose)[:3, :3], jac)
+        motion = np.einsum(
+            "nm,nmak->nak", lam.astype(np.float32),
+            jac.astype(np.float32)[inverse.reshape(verts.shape)],
+        )  # fmt: skip
+        point = point.astype(np.float32)
+        depth = -point[:, 2:3]
+        x_rel = (pix[:, 0:1] - cam.cx).astype(np.float32)
+        y_rel = (cam.cy - pix[:, 1:2]).astype(np.float32)
+        du = (np.float32(cam.fx) * motion[:, 0] + x_rel * motion[:, 2]) / depth
+        dv = -(np.float32(cam.fy) * motion[:, 1] + y_rel * motion[:, 2]) / depth
+        held = self._searched_columns
+        du[:, held] = 0.0
+        dv[:, held] = 0.0
+        box = (slice(y0, y0 + wh), slice(x0, x0 + ww))
+        return _Samples(rows, cols, point, motion, du, dv, image.astype(np.float32), box,
+                        self._values())  # fmt: skip
+
+    # ---- one Gauss–Newton step -----------------------------------------------------------------
+
+    def _iterate(self, s: _Samples, images: np.ndarray, stage: Stage) -> tuple[float, float]:
+        """One solve against the camera frame's window ``images`` (:func:`_with_gradients`,
+        smoothed for ``stage``): returns how far (pixels) it moved the image of the unknown
+        that moved most, and how far the samples had moved since the rendering (the
+        largest)."""
+        model = s.model(stage.sigma)
+        u, v = self._project(s)
+        shift = float(np.sqrt(np.max((u - s.cols - 0.5) ** 2 + (v - s.rows - 0.5) ** 2)))
+        at = _bilinear(images, u - 0.5, v - 0.5)  # (N, 9)
+        gain, offset = self.gain.astype(np.float32), self.offset.astype(np.float32)
+        r = at[:, 0:3] - (model.color * gain + offset)
+        gx = 0.5 * (at[:, 3:6] + model.gx * gain)
+        gy = 0.5 * (at[:, 6:9] + model.gy * gain)
+        ry, gxy, gyy = r @ LUMA32, gx @ LUMA32, gy @ LUMA32
+        # Equation 17: pixels whose displacement estimate exceeds G have no say
+        weights = (np.abs(ry) <= stage.g * np.sqrt(gxy * gxy + gyy * gyy + 1e-6)).astype(np.float32)
+        if weights.sum() < 4 * len(self.unknowns):
+            return 0.0, shift
+        if self.robust:
+            q = np.minimum(np.abs(ry) / np.float32(ROBUST_LIMIT), np.float32(1.0))
+            weights *= (1.0 - q * q) ** 2
+        ata, atb = _system(s.du, s.dv, gx, gy, r, model.color if self.illumination else None,
+                           weights)  # fmt: skip
+        delta = _least_squares(ata, atb)
+        k = s.du.shape[1]
+        reach = model.speed * np.abs(delta[:k])
+        delta[:k] *= np.minimum(1.0, stage.limit / np.maximum(reach, 1e-12))
+        self._apply(delta)
+        return float(np.minimum(reach, stage.limit).max(initial=0.0)), shift
+
+    def _values(self) -> np.ndarray:
+        """The unknowns' current values ``(K,)`` (FAP units, ES units of the translation)."""
+        return np.array([
+            self.translation[TRANSLATION.index(u)] if isinstance(u, str) else self.params[u - 1]
+            for u in self.unknowns
+        ])  # fmt: skip
+
+    def _shift(self, s: _Samples) -> float:
+        """How far (pixels) the samples have moved since their rendering: the largest."""
+        u, v = self._project(s)
+        return float(np.sqrt(np.max((u - s.cols - 0.5) ** 2 + (v - s.rows - 0.5) ** 2)))
+
+    def _project(self, s: _Samples) -> tuple[np.ndarray, np.ndarray]:
+        """Where the samples lie in their window at the current estimate (moved linearly by the
+        unknowns' change since the rendering): X and Y ``(N,)`` (pixel centres at +0.5)."""
+        cam = self.camera
+        y0, x0 = s.box[0].start, s.box[1].start
+        since = (self._values() - s.at).astype(np.float32)
+        p = s.point + s.motion @ since  # (N, 3)
+        depth = -p[:, 2]
+        u = (cam.cx - x0) + np.float32(cam.fx) * p[:, 0] / depth
+        v = (cam.cy - y0) - np.float32(cam.fy) * p[:, 1] / depth
+        return u, v
+
+    # ---- the frame's estimate ------------------------------------------------------------------
+
+    def _finish(self, frame: np.ndarray, s: _Samples, index: int, time: float,
+                solves: int) -> FrameEstimate:  # fmt: skip
+        """Integer FAPs, the eyelid search, and the estimate with the face PSNR measured at the
+        samples (the frame at their projections against the model's unsmoothed colors)."""
+        params = self.params.copy()
+        for u in self.unknowns:
+            if not isinstance(u, str):
+                params[u - 1] = np.round(params[u - 1]) + 0.0  # no negative zeros
+        kept, self.params = self.params, params
+        try:
+            if self.refined:
+                self._refine(frame.astype(np.float32))
+        finally:
+            for fap in self.refined:
+                kept[fap - 1] = self.params[fap - 1]
+            params, self.params = self.params, kept
+        self._history = [*self._history[-1:], (index, self.params.copy(), self.translation.copy())]
+        u, v = self._project(s)
+        seen = _bilinear(frame[s.box].astype(np.float32), u - 0.5, v - 0.5)
+        synth = np.clip(np.round(s.raw[s.rows, s.cols] * self.gain + self.offset), 0, 255)
+        diff = (seen - synth) @ LUMA
+        mse = float(np.mean(diff * diff))
+        psnr = float("inf") if mse == 0 else 10 * math.log10(255.0**2 / mse)
+        return FrameEstimate(
+            index=index,
+            time=time,
+            params=params,
+            translation=self.translation.copy(),
+            gain=self.gain.copy(),
+            offset=self.offset.copy(),
+            psnr=psnr,
+            face_pixels=int(s.rows.size * self.sample_step**2),
+            iterations=solves,
+        )
+
+
+class _Model:
+    """The model's colors ``(N, 3)`` and their gradients at the samples, from the rendering
+    smoothed with ``sigma``."""
+
+    def __init__(self, s: _Samples, sigma: float) -> None:
+        smooth = _smooth(s.raw, sigma)
+        grads = _with_gradients(smooth)
+        at = grads[s.rows, s.cols]
+        self.color, self.gx, self.gy = at[:, 0:3], at[:, 3:6], at[:, 6:9]
+        #: the most (pixels) a unit of each unknown moves any sample ``(K,)``
+        self.speed = np.hypot(s.du, s.dv).max(axis=0, initial=0.0)
+
+
+def _with_gradients(image: np.ndarray) -> np.ndarray:
+    """``(H, W, 3)`` float32 and its central differences along X and Y (one-sided at the
+    border, as ``np.gradient``): ``(H, W, 9)`` = image, d/dX, d/dY."""
+    gy, gx = np.gradient(image, axis=(0, 1))
+    return np.concatenate([image, gx, gy], axis=2).astype(np.float32, copy=False)
+
+
+def _bilinear(image: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """``image`` ``(H, W, C)`` at the ``(N,)`` positions ``x``, ``y`` (index coordinates: pixel
+    ``(r, c)`` at ``x = c``, ``y = r``), bilinearly; positions outside are clamped to the
+    border. Returns ``(N, C)``."""
+    h, w = image.shape[:2]
+    x = np.clip(x, 0.0, w - 1.0)
+    y = np.clip(y, 0.0, h - 1.0)
+    x0 = np.minimum(x.astype(np.int64), w - 2)
+    y0 = np.minimum(y.astype(np.int64), h - 2)
+    fx = (x - x0).astype(np.float32)[:, None]
+    fy = (y - y0).astype(np.float32)[:, None]
+    flat = image.reshape(h * w, -1)
+    i = y0 * w + x0
+    top = flat[i] * (1 - fx) + flat[i + 1] * fx
+    bottom = flat[i + w] * (1 - fx) + flat[i + w + 1] * fx
+    return top * (1 - fy) + bottom * fy
+
+
+def _window_around(rows: np.ndarray, cols: np.ndarray, size: tuple[int, int],
+                   frame: tuple[int, int]) -> tuple[int, int, int, int]:  # fmt: skip
+    """The window ``(x0, y0, width, height)`` of the frame (``frame`` (W, H)) to render next:
+    the box of the face pixels ``rows``, ``cols`` (frame coordinates) with :data:`MARGIN` on
+    each side, centred on it: of the last window's ``size`` (W, H) when the box fits in it
+    with at most 64 pixels to spare, else of the box's size rounded up to 32 pixels (so that
+    the renderer's targets are rarely made anew)."""
+    fw, fh = frame
+    need_w = int(cols.max() - cols.min()) + 1 + 2 * MARGIN
+    need_h = int(rows.max() - rows.min()) + 1 + 2 * MARGIN
+    ww, wh = size
+    if not need_w <= ww <= need_w + 64:
+        ww = -(-need_w // 32) * 32
+    if not need_h <= wh <= need_h + 64:
+        wh = -(-need_h // 32) * 32
+    ww, wh = min(ww, fw), min(wh, fh)
+    cx, cy = (
+        (int(cols.max()) + int(cols.min()) + 1) // 2,
+        (int(rows.max()) + int(rows.min()) + 1) // 2,
+    )
+    x0 = min(max(cx - ww // 2, 0), fw - ww)
+    y0 = min(max(cy - wh // 2, 0), fh - wh)
+    return x0, y0, ww, wh
+
+
+def _system(
+    du: np.ndarray,
+    dv: np.ndarray,
+    gx: np.ndarray,
+    gy: np.ndarray,
+    r: np.ndarray,
+    color: np.ndarray | None,
+    weights: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The normal equations ``(AᵀWA, AᵀWb)`` (float64) of the per-sample, per-channel equations
+    ``−(gx_c·du + gy_c·dv)·Δ + color_c·Δgain_c + Δoffset_c = r_c`` — the same system as
+    :func:`vtts.analysis.estimator._normal_equations`, formed as one single-precision matrix
+    product. ``du``, ``dv`` ``(N, K)``; ``gx``, ``gy``, ``r``, ``color`` ``(N, 3)``; ``weights``
+    ``(N,)``."""
+    n, k = du.shape
+    m = k + (6 if color is not None else 0)
+    root = np.sqrt(weights)[:, None]
+    a = np.zeros((3, n, m), np.float32)
+    for c in range(3):
+        a[c, :, :k] = -(gx[:, c : c + 1] * du + gy[:, c : c + 1] * dv) * root
+        if color is not None:
+            a[c, :, k + c] = color[:, c] * root[:, 0]
+            a[c, :, k + 3 + c] = root[:, 0]
+    a = a.reshape(3 * n, m)
+    b = (r * root).T.reshape(3 * n)
+    return (a.T @ a).astype(np.float64), (a.T @ b).astype(np.float64)
