@@ -208,3 +208,36 @@ def test_a_batch_job_does_not_play_stdin(tmp_path):
 
     with pytest.raises(JobError, match="stdin"):
         parse_job({"play": "-", "model": "cybatt", "output": "a.mp4"}, tmp_path)
+
+
+@pytest.mark.parametrize("model", ["cybatt", str(HEAD)])  # with FAPUs, and without (no ES)
+def test_estimate_stream_sends_what_a_whole_fbs_codes(model):
+    """EstimateStream's packets decode to the stream ``vtts analyze -o OUT.fbs`` codes from the
+    same estimates; the head goes in place before the header."""
+    from vtts.analysis.result import Analysis, FrameEstimate
+    from vtts.analysis.streaming import EstimateStream
+    from vtts.face import load_model
+    from vtts.render.camera import Camera
+
+    fapu = load_model(model).fapu
+    unknowns = (48, 49, 50, "tx", "ty", "tz", 31, 32, 35, 36, 3, 4, 5, 6, 7, 12, 13)
+    rng = np.random.default_rng(5)
+    estimates = []
+    for i in range(5):
+        params = np.zeros(100)
+        params[[u - 1 for u in unknowns if isinstance(u, int)]] = rng.normal(0, 200, 14)
+        estimates.append(FrameEstimate(i, i / 25, params, translation=rng.normal(0, 3, 3)))
+    sink = io.BytesIO()
+    order = []
+    out = EstimateStream(sink, fps=25.0, unknowns=unknowns, name="clip", fapu=lambda: fapu,
+                         before_header=lambda: order.append(sink.tell()))  # fmt: skip
+    for fe in estimates:
+        out(fe)
+    out.end()
+    assert order == [0]  # before anything was written
+    whole = Analysis(estimates, unknowns, 25.0, Camera(1, 1, 0, 0)).stream("clip", fapu=fapu)
+    got, want = decode(sink.getvalue()), decode(encode(whole))
+    assert np.array_equal(got.values, want.values) and np.array_equal(got.mask, want.mask)
+    assert (got.translation is None) == (fapu is None) == (want.translation is None)
+    assert fapu is None or np.array_equal(got.translation, want.translation)
+    assert out.frames == 5 and out.framing_s / 5 < 0.05

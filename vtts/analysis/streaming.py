@@ -30,8 +30,9 @@ class EstimateStream:
     unknowns       what is estimated (FAP numbers, ``"tx"``, ``"ty"``, ``"tz"``): the FAPs sent,
                    and the head translation when any of its axes is estimated
     name           the stream's name
-    fapu           gives the tracked model's FAPUs (the translation's ES), called once, at the
-                   first estimate (a fitted head exists by then)
+    fapu           gives the tracked model's FAPUs (the translation's ES; None: the translation
+                   is not sent), called once, at the first estimate (a fitted head exists by
+                   then)
     before_header  called once before the header is written
 
     :attr:`framing_s` adds up the seconds spent coding and writing (the latency the streaming
@@ -45,7 +46,7 @@ class EstimateStream:
         fps: float,
         unknowns: Sequence[int | str],
         name: str,
-        fapu: Callable[[], Fapu],
+        fapu: Callable[[], Fapu | None],
         before_header: Callable[[], None] | None = None,
     ) -> None:
         self.sink = sink
@@ -73,7 +74,8 @@ class EstimateStream:
         encoder = StreamEncoder(
             fps=self.fps,
             faps=faps,
-            translation=any(u in TRANSLATION for u in self.unknowns),
+            # without FAPUs the translation has no ES units to go in (as Analysis.stream)
+            translation=self._fapu is not None and any(u in TRANSLATION for u in self.unknowns),
             name=self.name,
             constant_mask=True,
             predictors=paired_predictors(faps),
