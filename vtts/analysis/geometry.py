@@ -45,7 +45,9 @@ class HeadGeometry:
     model's placement in the renderer's world).
 
     ``unknowns`` are FAP numbers and ``"tx"``, ``"ty"``, ``"tz"``.
-    Attributes: ``faces`` ``(m, 3)`` global vertex indices, ``n_vertices``.
+    Attributes: ``faces`` ``(m, 3)`` global vertex indices, ``n_vertices``, ``lit`` ``(m,)``
+    whether each triangle's Shape is lit (its Appearance has a Material; VRML97 draws a Shape
+    without one unlit, its colors then independent of the pose).
     """
 
     def __init__(self, model: FaceModel, unknowns, root: np.ndarray) -> None:
@@ -61,6 +63,7 @@ class HeadGeometry:
         self._pose: tuple[bytes, Pose] | None = None
         self._columns: dict[tuple[str, int], np.ndarray] = {}
         faces = []
+        lit = []
         count = n_faces = 0
 
         for shape, _, path in model.scene.shapes():
@@ -78,8 +81,13 @@ class HeadGeometry:
             self.shapes.append(_Shape(chain, geom, tm, name, count, n_faces))
             n_faces += len(tm.faces)
             faces.append(tm.faces + count)
+            appearance = shape["appearance"]
+            appearance = appearance.expand() if appearance is not None else None
+            shaded = appearance is None or appearance["material"] is not None
+            lit.append(np.full(len(tm.faces), shaded))
             count += tm.positions.shape[0]
         self.faces = np.concatenate(faces).astype(np.int64)
+        self.lit = np.concatenate(lit)
         self.n_vertices = count
         self.shape_of_vertex = np.repeat(
             np.arange(len(self.shapes)), [s.mesh.positions.shape[0] for s in self.shapes]

@@ -64,11 +64,27 @@ STAGES = (Stage(2.0, 5.0, 1), Stage(0.8, 2.0, 3))
 #: Samples that moved this far (pixels) since the rendering may show another surface: render.
 RERENDER_PX = 2.0
 
+#: After the stages, while the samples have moved more than this (pixels) since their
+#: rendering, the model is rendered again and solved once more (at most :data:`POLISH_ROUNDS`
+#: times): the samples' colors and motion are the rendering's, and shading and the
+#: linearized rotation drift from them as the estimate moves away.
+POLISH_PX = 0.02
+POLISH_ROUNDS = 8
+
+#: … when at least this share of the samples lie on lit surfaces. Where the face is drawn
+#: unlit (a head made for the video), the colors move with the surface unchanged and the
+#: linearization's error is far below what camera noise and the model's shortcomings leave,
+#: so the solves on the samples are final; a lit face changes its shading with every move.
+LIT_SHARE = 0.5
+
+#: The polishing solves' stage: the accurate estimator's finest level.
+FINAL = Stage(0.6, 0.5, 1)
+
 #: Pixels of the camera frame kept around the face's box (motion within a frame is smaller).
 MARGIN = 16
 
 #: The face's pixels used as samples: every ``SAMPLE_STEP``-th row and column.
-SAMPLE_STEP = 1
+SAMPLE_STEP = 2
 
 
 @dataclass
@@ -79,7 +95,9 @@ class _Samples:
     ``motion`` its motion per unit of each unknown in camera axes ``(N, 3, K)``; ``du``, ``dv``
     ``(N, K)`` the image motion (pixels per unit) it gives at the rendered estimate; ``raw`` the
     rendered window ``(h, w, 3)`` float32; ``at`` the unknowns' values ``(K,)`` at the
-    rendering; ``models`` the model's colors smoothed for each stage, by sigma.
+    rendering; ``lit`` the share of the samples on lit surfaces; ``pixels`` the face pixels
+    of the rendering (the samples are all of them or a grid of them); ``models`` the model's
+    colors smoothed for each stage, by sigma.
 
     The samples serve the frames that follow as long as they have not moved
     :attr:`Tracker.rerender` pixels: the model's colors move with its surface (a head made
@@ -95,6 +113,8 @@ class _Samples:
     raw: np.ndarray
     box: tuple[slice, slice]
     at: np.ndarray
+    lit: float
+    pixels: int
     models: dict = field(default_factory=dict)
 
     def model(self, sigma: float) -> _Model:
@@ -110,21 +130,26 @@ class Tracker(Estimator):
     (:data:`STAGES`), ``rerender`` (:data:`RERENDER_PX`) and ``sample_step``."""
 
     def __init__(self, *args, stages=STAGES, rerender: float = RERENDER_PX,
+                 polish: float = POLISH_PX, polish_rounds: int = POLISH_ROUNDS,
+                 final: Stage = FINAL,
                  sample_step: int = SAMPLE_STEP, **kwargs) -> None:  # fmt: skip
         super().__init__(*args, **kwargs)
         self.stages = tuple(stages)
         self.rerender = float(rerender)
+        self.polish = float(polish)
+        self.polish_rounds = int(polish_rounds)
+        self.final = final
         self.sample_step = int(sample_step)
         #: renderings of the last frame estimated (the eyelid search's windows included)
         self.renderings = 0
         # the window (x0, y0, width, height) of the frame rendered and matched: the face's box
         # with a margin; None for the whole frame
-        self._window: tuple[int, int, int, int] | None = None
+        self._box: tuple[int, int, int, int] | None = None
         self._samples: _Samples | None = None  # the last rendering's, while they serve
 
     def forget_motion(self) -> None:
         super().forget_motion()
-        self._window = None
+        self._box = None
         self._samples = None
 
     @one_blas_thread()
@@ -143,32 +168,40 @@ class Tracker(Estimator):
         self.renderings = 0
         solves = 0
         samples = self._samples
-        if samples is None or self._shift(samples) > self.rerender:
-            samples = self._sample()
-        full = frame[samples.box].astype(np.float32)
+        images: dict[float, np.ndarray] = {}  # the frame's window smoothed, by sigma
+
+        def fresh(step: int) -> _Samples:
+            """Samples of a new rendering (and the frame's window for them)."""
+            new = self._sample(step)
+            if samples is None or new.box != samples.box:
+                images.clear()
+            return new
+
         for stage in self.stages:
-            images = _with_gradients(_smooth(full, stage.sigma))
             for _ in range(stage.iterations):
-                moved, shift = self._iterate(samples, images, stage)
+                if samples is None or self._shift(samples) > self.rerender:
+                    samples = fresh(self.sample_step)  # what is visible may have changed
+                moved = self._iterate(samples, self._frame(frame, samples, stage, images), stage)
                 solves += 1
-                if shift > self.rerender:  # the samples may no longer be what is visible
-                    box = samples.box
-                    samples = self._sample()
-                    if samples.box != box:
-                        full = frame[samples.box].astype(np.float32)
-                        images = _with_gradients(_smooth(full, stage.sigma))
                 if moved < self.tolerance:
                     break
+        last = self.final
+        for _ in range(self.polish_rounds):  # the last solves on a rendering of their own
+            if samples.lit < LIT_SHARE or self._shift(samples) <= self.polish:
+                break
+            samples = fresh(1)  # every face pixel: these solves are for the last digits
+            self._iterate(samples, self._frame(frame, samples, last, images), last)
+            solves += 1
         self._samples = samples
         return self._finish(frame, samples, index, time, solves)
 
     # ---- samples -------------------------------------------------------------------------------
 
-    def _sample(self) -> _Samples:
+    def _sample(self, step: int = 1) -> _Samples:
         """Render the model at the current estimate (the window around the face) and take its
-        face pixels as samples."""
+        face pixels as samples: those of every ``step``-th row and column."""
         w, h = self.size
-        x0, y0, ww, wh = self._window or (0, 0, w, h)
+        x0, y0, ww, wh = self._box or (0, 0, w, h)
         while True:
             cam = replace(self.camera, cx=self.camera.cx - x0, cy=self.camera.cy - y0)
             image, numbers = self._synthesize(cam, (ww, wh), triangles=True)
@@ -180,9 +213,10 @@ class Tracker(Estimator):
                 break
             x0, y0, ww, wh = 0, 0, w, h  # the face reaches the window's edge: render it all
         inside = binary_erosion(covered, iterations=EDGE)
-        if self.sample_step > 1:
+        pixels = int(inside.sum())
+        if step > 1:
             grid = np.zeros_like(inside)
-            grid[:: self.sample_step, :: self.sample_step] = True
+            grid[y0 % step :: step, x0 % step :: step] = True  # the frame's grid
             inside &= grid
         rows, cols = np.nonzero(inside)
         if rows.size < 4 * len(self.unknowns):
@@ -190,7 +224,7 @@ class Tracker(Estimator):
                 f"the model covers only {rows.size} pixels: it is out of view (check --camera "
                 "and the first frame)"
             )
-        self._window = _window_around(rows + y0, cols + x0, (ww, wh), self.size)
+        self._box = _window_around(rows + y0, cols + x0, (ww, wh), self.size)
         tri = ids[rows, cols]
         pix = np.stack([cols + 0.5, rows + 0.5], axis=1)
         positions = self.geometry.positions(self.params, self.translation)
@@ -213,19 +247,27 @@ class Tracker(Estimator):
         du[:, held] = 0.0
         dv[:, held] = 0.0
         box = (slice(y0, y0 + wh), slice(x0, x0 + ww))
+        lit = float(self.geometry.lit[tri].mean())
         return _Samples(rows, cols, point, motion, du, dv, image.astype(np.float32), box,
-                        self._values())  # fmt: skip
+                        self._values(), lit, pixels)  # fmt: skip
 
     # ---- one Gauss–Newton step -----------------------------------------------------------------
 
-    def _iterate(self, s: _Samples, images: np.ndarray, stage: Stage) -> tuple[float, float]:
+    @staticmethod
+    def _frame(frame: np.ndarray, s: _Samples, stage: Stage, images: dict) -> np.ndarray:
+        """The camera ``frame``'s window of the samples ``s`` smoothed for ``stage``, with its
+        gradients (:func:`_with_gradients`), kept in ``images`` by sigma."""
+        if stage.sigma not in images:
+            window = frame[s.box].astype(np.float32)
+            images[stage.sigma] = _with_gradients(_smooth(window, stage.sigma))
+        return images[stage.sigma]
+
+    def _iterate(self, s: _Samples, images: np.ndarray, stage: Stage) -> float:
         """One solve against the camera frame's window ``images`` (:func:`_with_gradients`,
-        smoothed for ``stage``): returns how far (pixels) it moved the image of the unknown
-        that moved most, and how far the samples had moved since the rendering (the
-        largest)."""
+        smoothed for ``stage``); returns how far (pixels) it moved the image of the unknown
+        that moved most."""
         model = s.model(stage.sigma)
         u, v = self._project(s)
-        shift = float(np.sqrt(np.max((u - s.cols - 0.5) ** 2 + (v - s.rows - 0.5) ** 2)))
         at = _bilinear(images, u - 0.5, v - 0.5)  # (N, 9)
         gain, offset = self.gain.astype(np.float32), self.offset.astype(np.float32)
         r = at[:, 0:3] - (model.color * gain + offset)
@@ -235,7 +277,7 @@ class Tracker(Estimator):
         # Equation 17: pixels whose displacement estimate exceeds G have no say
         weights = (np.abs(ry) <= stage.g * np.sqrt(gxy * gxy + gyy * gyy + 1e-6)).astype(np.float32)
         if weights.sum() < 4 * len(self.unknowns):
-            return 0.0, shift
+            return 0.0
         if self.robust:
             q = np.minimum(np.abs(ry) / np.float32(ROBUST_LIMIT), np.float32(1.0))
             weights *= (1.0 - q * q) ** 2
@@ -246,7 +288,7 @@ class Tracker(Estimator):
         reach = model.speed * np.abs(delta[:k])
         delta[:k] *= np.minimum(1.0, stage.limit / np.maximum(reach, 1e-12))
         self._apply(delta)
-        return float(np.minimum(reach, stage.limit).max(initial=0.0)), shift
+        return float(np.minimum(reach, stage.limit).max(initial=0.0))
 
     def _values(self) -> np.ndarray:
         """The unknowns' current values ``(K,)`` (FAP units, ES units of the translation)."""
@@ -272,6 +314,16 @@ class Tracker(Estimator):
         v = (cam.cy - y0) - np.float32(cam.fy) * p[:, 1] / depth
         return u, v
 
+    def _psnr(self, frame: np.ndarray, s: _Samples) -> float:
+        """The face PSNR (dB, luminance) at the samples: the camera ``frame`` at their
+        projections against the model's unsmoothed colors with the light model applied."""
+        u, v = self._project(s)
+        seen = _bilinear(frame[s.box].astype(np.float32), u - 0.5, v - 0.5)
+        synth = np.clip(np.round(s.raw[s.rows, s.cols] * self.gain + self.offset), 0, 255)
+        diff = (seen - synth) @ LUMA
+        mse = float(np.mean(diff * diff))
+        return float("inf") if mse == 0 else 10 * math.log10(255.0**2 / mse)
+
     # ---- the frame's estimate ------------------------------------------------------------------
 
     def _finish(self, frame: np.ndarray, s: _Samples, index: int, time: float,
@@ -291,12 +343,7 @@ class Tracker(Estimator):
                 kept[fap - 1] = self.params[fap - 1]
             params, self.params = self.params, kept
         self._history = [*self._history[-1:], (index, self.params.copy(), self.translation.copy())]
-        u, v = self._project(s)
-        seen = _bilinear(frame[s.box].astype(np.float32), u - 0.5, v - 0.5)
-        synth = np.clip(np.round(s.raw[s.rows, s.cols] * self.gain + self.offset), 0, 255)
-        diff = (seen - synth) @ LUMA
-        mse = float(np.mean(diff * diff))
-        psnr = float("inf") if mse == 0 else 10 * math.log10(255.0**2 / mse)
+        psnr = self._psnr(frame, s)
         return FrameEstimate(
             index=index,
             time=time,
@@ -305,7 +352,7 @@ class Tracker(Estimator):
             gain=self.gain.copy(),
             offset=self.offset.copy(),
             psnr=psnr,
-            face_pixels=int(s.rows.size * self.sample_step**2),
+            face_pixels=s.pixels,
             iterations=solves,
         )
 
@@ -383,19 +430,33 @@ def _system(
     weights: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The normal equations ``(AᵀWA, AᵀWb)`` (float64) of the per-sample, per-channel equations
-    ``−(gx_c·du + gy_c·dv)·Δ + color_c·Δgain_c + Δoffset_c = r_c`` — the same system as
-    :func:`vtts.analysis.estimator._normal_equations`, formed as one single-precision matrix
-    product. ``du``, ``dv`` ``(N, K)``; ``gx``, ``gy``, ``r``, ``color`` ``(N, 3)``; ``weights``
-    ``(N,)``."""
-    n, k = du.shape
+    ``−(gx_c·du + gy_c·dv)·Δ + color_c·Δgain_c + Δoffset_c = r_c`` — the system of
+    :func:`vtts.analysis.estimator._normal_equations`, in single precision: a sample's three
+    channel rows reduce to the 2×2 matrix of its gradients summed over the channels, so the
+    products are (N × K)ᵀ(N × K) ones. ``du``, ``dv`` ``(N, K)``; ``gx``, ``gy``, ``r``,
+    ``color`` ``(N, 3)``; ``weights`` ``(N,)``."""
+    k = du.shape[1]
     m = k + (6 if color is not None else 0)
-    root = np.sqrt(weights)[:, None]
-    a = np.zeros((3, n, m), np.float32)
-    for c in range(3):
-        a[c, :, :k] = -(gx[:, c : c + 1] * du + gy[:, c : c + 1] * dv) * root
-        if color is not None:
-            a[c, :, k + c] = color[:, c] * root[:, 0]
-            a[c, :, k + 3 + c] = root[:, 0]
-    a = a.reshape(3 * n, m)
-    b = (r * root).T.reshape(3 * n)
-    return (a.T @ a).astype(np.float64), (a.T @ b).astype(np.float64)
+    wgx, wgy = gx * weights[:, None], gy * weights[:, None]
+    gxx, gxy, gyy = (wgx * gx).sum(1), (wgx * gy).sum(1), (wgy * gy).sum(1)
+    ata = np.zeros((m, m))
+    atb = np.zeros(m)
+    ata[:k, :k] = du.T @ (du * gxx[:, None] + dv * gxy[:, None]) + dv.T @ (
+        du * gxy[:, None] + dv * gyy[:, None]
+    )
+    atb[:k] = -(du.T @ (wgx * r).sum(1) + dv.T @ (wgy * r).sum(1))
+    if color is not None:
+        # the gains' and offsets' columns: gradient times color (gain) or one (offset)
+        ex = np.concatenate([wgx * color, wgx], axis=1)  # (N, 6)
+        ey = np.concatenate([wgy * color, wgy], axis=1)
+        ata[:k, k:] = -(du.T @ ex + dv.T @ ey)
+        ata[k:, :k] = ata[:k, k:].T
+        wc, wr = color * weights[:, None], r * weights[:, None]
+        for c in range(3):
+            g, o = k + c, k + 3 + c
+            ata[g, g] = wc[:, c] @ color[:, c]
+            ata[g, o] = ata[o, g] = wc[:, c].sum()
+            ata[o, o] = weights.sum()
+            atb[g] = wc[:, c] @ r[:, c]
+            atb[o] = wr[:, c].sum()
+    return ata, atb
