@@ -911,7 +911,9 @@ def cmd_analyze(args: argparse.Namespace) -> int:
                 before_header=place_fitted if auto else None,
             )
         what = "frames from stdin" if pipe else Path(args.video).name
-        bar = stack.enter_context(progress(total, f"analyzing {what}", args.quiet))
+        tracking = pipe if args.track is None else args.track
+        how = "tracking" if tracking else "analyzing"
+        bar = stack.enter_context(progress(total, f"{how} {what}", args.quiet))
         options = {} if unknowns is None else {"unknowns": unknowns}
         tracked = track(
             video.frames(),
@@ -923,6 +925,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
             step=args.step,
             progress=lambda _index: bar.advance(),
             on_estimate=sink,
+            tracking=tracking,
             **options,
         )
         analysis = tracked.analysis
@@ -962,6 +965,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
         print(
             f"wrote {', '.join(written)}: {n} frame{'s' if n != 1 else ''} at "
             f"{analysis.fps:g} fps, {len(analysis.unknowns)} unknowns, "
+            f"{'tracking' if tracking else 'accurate'} mode, "
             f"mean face PSNR {mean_psnr(analysis.psnr()):.2f} dB, "
             f"{restarts} re-initialization{'s' if restarts != 1 else ''}{held}",
             file=say,
@@ -1336,6 +1340,21 @@ def build_parser() -> argparse.ArgumentParser:
         "vtts render for the video's size)",
     )
     an.add_argument("--step", type=int, default=1, metavar="N", help="analyze every N-th frame")
+    mode = an.add_mutually_exclusive_group()
+    mode.add_argument(
+        "--track",
+        action="store_true",
+        default=None,
+        help="the fast tracking mode: about one rendering a frame, solves on surface samples "
+        "(the default for frames on stdin)",
+    )
+    mode.add_argument(
+        "--accurate",
+        dest="track",
+        action="store_false",
+        help="the accurate mode: a rendering after every solve, over a pyramid (the default "
+        "for a video file or folder)",
+    )
     an.add_argument(
         "--fps",
         type=float,

@@ -21,9 +21,10 @@ nothing is known in advance (Eisert & Girod's "Camera sequences"):
    (:data:`FITTED_IGNORED`: the hair cap, the ears, the neck); they are still drawn and hide
    what lies behind them.
 3. **Losing the track.** A frame whose face PSNR falls :data:`LOST_DB` below the median of the
-   last good frames (capped at :data:`LOST_REFERENCE_CAP_DB`), or under :data:`LOST_FLOOR_DB`, is re-initialized from its landmarks — the
-   head rotation and translation placed on them — and estimated again; the better of the two
-   estimates is kept. A frame where that fails too holds the last good estimate.
+   last good frames (capped at :data:`LOST_REFERENCE_CAP_DB`), or under :data:`LOST_FLOOR_DB`,
+   is re-initialized from its landmarks — the head rotation and translation placed on them —
+   and estimated again; the better of the two estimates is kept. A frame where that fails too
+   holds the last good estimate.
 4. **Several faces.** ``face`` picks one (1 = the largest, as ``adi fit --face``); later
    re-initializations take the face nearest to where the tracked head was.
 """

@@ -50,16 +50,20 @@ LUMA32 = LUMA.astype(np.float32)
 class Stage:
     """One stage of a frame's iterations: the Gaussian ``sigma`` (pixels) both images are
     smoothed with, the outlier threshold ``g`` (pixels, Equation 17), at most ``iterations``
-    solves, and ``limit``, the most (pixels) one solve may move the image of any unknown."""
+    solves, ``limit``, the most (pixels) one solve may move the image of any unknown, and
+    ``support``, the fewest samples an unknown's motion must show at (beyond a fifth of its
+    largest) to be solved for at this stage (else it is held: an eyelid a pixel or two tall is
+    lost in the wide smoothing, and the solve would take it anywhere)."""
 
     sigma: float
     g: float
     iterations: int
     limit: float = 2.0
+    support: int = 4
 
 
 #: Wide smoothing first (motion of a few pixels), then the accurate estimator's own.
-STAGES = (Stage(2.0, 5.0, 1), Stage(0.8, 2.0, 3))
+STAGES = (Stage(2.0, 5.0, 1, support=40), Stage(0.8, 2.0, 3))
 
 #: Samples that moved this far (pixels) since the rendering may show another surface: render.
 RERENDER_PX = 2.0
@@ -78,7 +82,7 @@ POLISH_ROUNDS = 8
 LIT_SHARE = 0.5
 
 #: The polishing solves' stage: the accurate estimator's finest level.
-FINAL = Stage(0.6, 0.5, 1)
+FINAL = Stage(0.6, 0.5, 1, support=0)
 
 #: Pixels of the camera frame kept around the face's box (motion within a frame is smaller).
 MARGIN = 16
@@ -281,7 +285,13 @@ class Tracker(Estimator):
         if self.robust:
             q = np.minimum(np.abs(ry) / np.float32(ROBUST_LIMIT), np.float32(1.0))
             weights *= (1.0 - q * q) ** 2
-        ata, atb = _system(s.du, s.dv, gx, gy, r, model.color if self.illumination else None,
+        du, dv = s.du, s.dv
+        held = model.support < stage.support
+        if held.any():
+            du, dv = du.copy(), dv.copy()
+            du[:, held] = 0.0
+            dv[:, held] = 0.0
+        ata, atb = _system(du, dv, gx, gy, r, model.color if self.illumination else None,
                            weights)  # fmt: skip
         delta = _least_squares(ata, atb)
         k = s.du.shape[1]
@@ -367,7 +377,10 @@ class _Model:
         at = grads[s.rows, s.cols]
         self.color, self.gx, self.gy = at[:, 0:3], at[:, 3:6], at[:, 6:9]
         #: the most (pixels) a unit of each unknown moves any sample ``(K,)``
-        self.speed = np.hypot(s.du, s.dv).max(axis=0, initial=0.0)
+        speed = np.hypot(s.du, s.dv)
+        self.speed = speed.max(axis=0, initial=0.0)
+        #: how many samples each unknown moves by more than a fifth of its most ``(K,)``
+        self.support = (speed > 0.2 * self.speed).sum(axis=0)
 
 
 def _with_gradients(image: np.ndarray) -> np.ndarray:

@@ -1,0 +1,153 @@
+"""The tracking mode (:class:`vtts.analysis.tracker.Tracker`): its pieces against their exact
+counterparts, a lit synthetic head followed to the accurate estimator's precision, and a head
+fitted to camera video followed with about one rendering in two frames."""
+
+from __future__ import annotations
+
+import itertools
+import subprocess
+import sys
+from pathlib import Path
+
+import imageio_ffmpeg
+import numpy as np
+import pytest
+from scipy.ndimage import map_coordinates
+
+import vtts
+from vtts.analysis import TABLE1_FAPS, Analysis, Estimator
+from vtts.analysis.estimator import _normal_equations
+from vtts.analysis.quality import sequence_psnr, stream_psnr
+from vtts.analysis.synthetic import render_sequence, table1_truth
+from vtts.analysis.track import FITTED_IGNORED, track
+from vtts.analysis.tracker import (
+    POLISH_ROUNDS,
+    STAGES,
+    Tracker,
+    _bilinear,
+    _system,
+    _window_around,
+)
+from vtts.analysis.video import read_video
+from vtts.face import load_model
+
+DATA = Path(__file__).parents[1] / "data"
+CARPHONE = DATA / "video" / "carphone_qcif.mp4"
+EXE = Path(sys.executable).with_name("vtts")
+
+
+@pytest.mark.parametrize("light", [True, False])
+def test_system_is_the_accurate_estimators_normal_equations(light):
+    rng = np.random.default_rng(3)
+    n, k = 400, 9
+    du, dv = (rng.normal(size=(n, k)).astype(np.float32) for _ in range(2))
+    gx, gy, r, color = (rng.normal(size=(n, 3)).astype(np.float32) for _ in range(4))
+    w = rng.random(n).astype(np.float32)
+    a1, b1 = _system(du, dv, gx, gy, r, color if light else None, w)
+    a2, b2 = _normal_equations(du, dv, gx, gy, r, color if light else None, w)
+    assert a1.shape == a2.shape == ((k + 6, k + 6) if light else (k, k))
+    np.testing.assert_allclose(a1, a2, rtol=1e-5, atol=1e-4 * np.abs(a2).max())
+    np.testing.assert_allclose(b1, b2, rtol=1e-5, atol=1e-4 * np.abs(b2).max())
+
+
+def test_bilinear_samples_as_scipy_does_and_clamps_outside():
+    rng = np.random.default_rng(4)
+    image = rng.random((20, 30, 2)).astype(np.float32)
+    x = rng.uniform(0, 29, 50)
+    y = rng.uniform(0, 19, 50)
+    got = _bilinear(image, x, y)
+    for c in range(2):
+        want = map_coordinates(image[..., c], [y, x], order=1)
+        np.testing.assert_allclose(got[:, c], want, rtol=1e-5, atol=1e-6)
+    # outside: the border pixel
+    out = _bilinear(image, np.array([-3.0, 40.0]), np.array([-1.0, 25.0]))
+    np.testing.assert_allclose(out, [image[0, 0], image[19, 29]])
+
+
+def test_the_window_keeps_its_size_while_the_face_fits():
+    rows, cols = np.array([50, 90]), np.array([100, 160])
+    # the face's box with 16 pixels each side is 93 x 73: a 128 x 96 window keeps its size
+    assert _window_around(rows, cols, (128, 96), (352, 288)) == (66, 22, 128, 96)
+    # a far larger one is made smaller (steps of 32), a too small one larger
+    assert _window_around(rows, cols, (352, 288), (352, 288))[2:] == (96, 96)
+    assert _window_around(rows, cols, (64, 64), (352, 288))[2:] == (96, 96)
+    # never beyond the frame
+    x0, y0, w, h = _window_around(np.array([0, 140]), np.array([0, 170]), (64, 64), (176, 144))
+    assert (x0, y0) == (0, 0) and w <= 176 and h <= 144
+
+
+@pytest.fixture(scope="module")
+def cybatt():
+    return vtts.load_model("cybatt")
+
+
+def test_a_lit_synthetic_head_is_followed_as_the_accurate_estimator_does(cybatt):
+    """cybatt is lit: its shading changes with the pose, so the tracker finishes each frame on
+    renderings of its own (the polish) and comes as close to the truth as the accurate mode."""
+    truth = table1_truth(40)[::5][:6]
+    frames = render_sequence(cybatt, truth, size=(176, 144))
+    tracker = Tracker(cybatt, size=(176, 144), unknowns=TABLE1_FAPS)
+    accurate = Estimator(cybatt, size=(176, 144), unknowns=TABLE1_FAPS)
+    idx = [f - 1 for f in TABLE1_FAPS]
+    for i, frame in enumerate(frames):
+        t = tracker.estimate(frame, i)
+        a = accurate.estimate(frame, i)
+        err_t = np.abs(t.params[idx] - truth[i, idx])
+        err_a = np.abs(a.params[idx] - truth[i, idx])
+        # within a few units of the truth, and of what the accurate mode gets
+        assert err_t.max() <= max(8.0, 2 * err_a.max()), (i, err_t, err_a)
+        if i > 0:  # a rendering at most per solve on the samples, then the polish's
+            most = sum(st.iterations for st in STAGES) + POLISH_ROUNDS
+            assert 1 <= tracker.renderings <= most, tracker.renderings
+
+
+def _carphone(n: int) -> list[np.ndarray]:
+    return list(itertools.islice(read_video(CARPHONE).frames(), n))
+
+
+def test_a_head_made_for_the_video_is_tracked_with_few_renderings(tmp_path):
+    """The fitted head's face is unlit: the samples of one rendering serve several frames, no
+    polish, and the face PSNR stays with the accurate mode's."""
+    frames = _carphone(10)
+    accurate = track(frames, fps=30.0, model_path=tmp_path / "car.wrl")
+    model = load_model(str(tmp_path / "car.wrl"))
+    tracker = Tracker(model, size=(176, 144), camera=accurate.analysis.camera,
+                      ignore=FITTED_IGNORED, robust=True)  # fmt: skip
+    estimates, renderings = [], []
+    for i, frame in enumerate(frames):
+        estimates.append(tracker.estimate(frame, i, i / 30.0))
+        renderings.append(tracker.renderings)
+    assert tracker._samples is not None and tracker._samples.lit < 0.5
+    assert np.mean(renderings[1:]) <= 1.0, renderings
+    assert max(renderings[1:]) <= 2, renderings
+    # the decoder's measure (the model rendered from the stream): as good as the accurate mode
+    tracked = Analysis(estimates, tracker.unknowns, 30.0, tracker.camera, model.name)
+    psnr = [
+        sequence_psnr(stream_psnr(frames, a.stream("c", fapu=model.fapu), model, video_fps=30.0))
+        for a in (tracked, accurate.analysis)
+    ]
+    assert psnr[0] >= psnr[1] - 1.0, psnr
+
+
+def test_track_with_tracking_uses_the_tracker(tmp_path):
+    tracked = track(_carphone(4), fps=30.0, model_path=tmp_path / "c.wrl", tracking=True)
+    assert len(tracked.analysis.frames) == 4
+    assert not tracked.restarts
+    assert np.all(tracked.analysis.psnr() > 20.0), tracked.analysis.psnr()
+
+
+def test_the_cli_tracks_frames_from_stdin_by_default_and_refuses_both_modes(tmp_path):
+    ffmpeg = imageio_ffmpeg.get_ffmpeg_exe()
+    raw = subprocess.run(
+        [ffmpeg, "-v", "error", "-i", str(CARPHONE), "-frames:v", "3", "-f", "rawvideo",
+         "-pix_fmt", "rgb24", "-"], capture_output=True, check=True).stdout  # fmt: skip
+    r = subprocess.run(
+        [str(EXE), "analyze", "-", "--size", "176x144", "-o", str(tmp_path / "s.fap")],
+        input=raw, capture_output=True, timeout=300,
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr.decode()
+    assert b"tracking mode" in r.stdout, r.stdout
+    r = subprocess.run(
+        [str(EXE), "analyze", str(CARPHONE), "-o", str(tmp_path / "x.fap"), "--track",
+         "--accurate"], capture_output=True, timeout=60)  # fmt: skip
+    assert r.returncode == 2 and b"not allowed with argument" in r.stderr
