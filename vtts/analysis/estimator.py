@@ -333,6 +333,10 @@ class Estimator:
             iterations=solves,
         )
 
+    def between_frames(self) -> None:
+        """Work for the next frame that can be done before it arrives, once this frame's
+        estimate is out (nothing here; :class:`~vtts.analysis.tracker.Tracker` renders)."""
+
     def _mismatch(self, frame: np.ndarray) -> float:
         """Mean squared luminance difference over the face area between the camera ``frame``
         ``(H, W, 3) float32`` and the model at the current estimate (one full-size rendering)."""

@@ -62,6 +62,8 @@ class HeadGeometry:
         self._local: tuple[bytes, dict[int, np.ndarray]] | None = None
         self._pose: tuple[bytes, Pose] | None = None
         self._columns: dict[tuple[str, int], np.ndarray] = {}
+        #: parameter indices that drive a Transform (the head and eye rotations)
+        self._rotating = {int(i) for t in self.engine.transforms.values() for i in t.param}
         faces = []
         lit = []
         count = n_faces = 0
@@ -230,34 +232,43 @@ class HeadGeometry:
         ``vertices`` ``(n,)`` at ``params`` and ``translation``."""
         vertices = np.asarray(vertices, dtype=np.int64)
         k_count = len(self.unknowns)
-        out = np.zeros((len(vertices), 3, k_count))
         if len(vertices) == 0:
-            return out
-        shape_ids = self.shape_of_vertex[vertices]
+            return np.zeros((0, 3, k_count))
+        # by shape, each shape's vertices one contiguous block (a view, not a gather)
+        order = np.argsort(vertices, kind="stable")
+        ordered = vertices[order]
+        out = np.zeros((len(vertices), 3, k_count))
+        shape_ids = self.shape_of_vertex[ordered]
         local, mats, _ = self._state(params, translation)
         # Transform chains: the derivative of each shape's world matrix
         d_mats: dict[int, list[np.ndarray | None]] = {}
         for j, u in enumerate(self.unknowns):
             if isinstance(u, str):
                 out[:, "xyz".index(u[1]), j] = 1.0
-            elif any(u - 1 in t.param for t in self.engine.transforms.values()):
+            elif u - 1 in self._rotating:
                 d_mats[j] = self._matrix_derivatives(params, translation, u - 1)
-        for si in np.unique(shape_ids):
-            sel = np.flatnonzero(shape_ids == si)
+        starts = np.flatnonzero(np.diff(shape_ids, prepend=-1))
+        for start, stop in zip(starts, [*starts[1:], len(ordered)], strict=True):
+            si = int(shape_ids[start])
+            block = out[start:stop]
             s = self.shapes[si]
-            lv = vertices[sel] - s.first_vertex
+            lv = ordered[start:stop] - s.first_vertex
             pts = local[si][lv]
             rot = mats[si][:3, :3]
             for j, dm in d_mats.items():
                 d = dm[si]
                 if d is not None:
-                    out[sel, :, j] += pts @ d[:3, :3].T + d[:3, 3]
+                    block[:, :, j] += pts @ d[:3, :3].T + d[:3, 3]
             if s.name is None or s.name not in self.engine.meshes:
                 continue
             slopes = self._slopes(s.name, params, s.mesh.coord_index[lv])
             for j, sl in slopes.items():
-                out[sel, :, j] += sl @ rot.T
-        return out
+                block[:, :, j] += sl @ rot.T
+        if np.all(order[:-1] < order[1:]):
+            return out  # asked in order (np.unique's)
+        result = np.empty_like(out)
+        result[order] = out
+        return result
 
     def _slopes(self, name: str, params: np.ndarray, points: np.ndarray) -> dict[int, np.ndarray]:
         """Displacement per unit ``(len(points), 3)`` of the Coordinate ``points`` of mesh

@@ -179,6 +179,7 @@ def track(
             for estimate in done:
                 on_estimate(estimate)
         _progress(progress, i)
+        estimator.between_frames()  # while the next frame is on its way
     if estimator is None:
         if not waiting:
             raise AnalysisError("the video has no frames")

@@ -66,7 +66,7 @@ class Stage:
 STAGES = (Stage(2.0, 5.0, 1, support=40), Stage(0.8, 2.0, 3))
 
 #: Samples that moved this far (pixels) since the rendering may show another surface: render.
-RERENDER_PX = 2.0
+RERENDER_PX = 3.0
 
 #: After the stages, while the samples have moved more than this (pixels) since their
 #: rendering, the model is rendered again and solved once more (at most :data:`POLISH_ROUNDS`
@@ -83,6 +83,10 @@ LIT_SHARE = 0.5
 
 #: The polishing solves' stage: the accurate estimator's finest level.
 FINAL = Stage(0.6, 0.5, 1, support=0)
+
+#: Between two frames, samples that moved this far (pixels) are rendered anew
+#: (:meth:`Tracker.between_frames`).
+AHEAD_PX = 2.5
 
 #: Pixels of the camera frame kept around the face's box (motion within a frame is smaller).
 MARGIN = 16
@@ -198,6 +202,13 @@ class Tracker(Estimator):
             solves += 1
         self._samples = samples
         return self._finish(frame, samples, index, time, solves)
+
+    def between_frames(self) -> None:
+        """Render now, after the estimate went out and before the next frame arrives, when the
+        samples have moved :data:`AHEAD_PX` since their rendering: the next frame would likely
+        need it, and a live stream has the time between two frames to spare."""
+        if self._samples is not None and self._shift(self._samples) > AHEAD_PX:
+            self._samples = self._sample(self.sample_step)
 
     # ---- samples -------------------------------------------------------------------------------
 
