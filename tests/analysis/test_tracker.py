@@ -15,13 +15,12 @@ import pytest
 from scipy.ndimage import map_coordinates
 
 import vtts
-from vtts.analysis import TABLE1_FAPS, Analysis, Estimator
+from vtts.analysis import PYRAMID, TABLE1_FAPS, Analysis, Estimator
 from vtts.analysis.estimator import _normal_equations
 from vtts.analysis.quality import sequence_psnr, stream_psnr
 from vtts.analysis.synthetic import render_sequence, table1_truth
 from vtts.analysis.track import FITTED_IGNORED, track
 from vtts.analysis.tracker import (
-    POLISH_ROUNDS,
     STAGES,
     Tracker,
     _bilinear,
@@ -82,8 +81,8 @@ def cybatt():
 
 
 def test_a_lit_synthetic_head_is_followed_as_the_accurate_estimator_does(cybatt):
-    """cybatt is lit: its shading changes with the pose, so the tracker finishes each frame on
-    renderings of its own (the polish) and comes as close to the truth as the accurate mode."""
+    """cybatt is lit: its shading changes with the pose, so the tracker finishes each frame
+    with the accurate estimator's finest level and comes as close to the truth as it."""
     truth = table1_truth(40)[::5][:6]
     frames = render_sequence(cybatt, truth, size=(176, 144))
     tracker = Tracker(cybatt, size=(176, 144), unknowns=TABLE1_FAPS)
@@ -96,8 +95,8 @@ def test_a_lit_synthetic_head_is_followed_as_the_accurate_estimator_does(cybatt)
         err_a = np.abs(a.params[idx] - truth[i, idx])
         # within a few units of the truth, and of what the accurate mode gets
         assert err_t.max() <= max(8.0, 2 * err_a.max()), (i, err_t, err_a)
-        if i > 0:  # a rendering at most per solve on the samples, then the polish's
-            most = sum(st.iterations for st in STAGES) + POLISH_ROUNDS
+        if i > 0:  # at most one per solve on the samples, the finest level's, and one after
+            most = sum(st.iterations for st in STAGES) + PYRAMID[-1].iterations + 1
             assert 1 <= tracker.renderings <= most, tracker.renderings
 
 
@@ -151,3 +150,27 @@ def test_the_cli_tracks_frames_from_stdin_by_default_and_refuses_both_modes(tmp_
         [str(EXE), "analyze", str(CARPHONE), "-o", str(tmp_path / "x.fap"), "--track",
          "--accurate"], capture_output=True, timeout=60)  # fmt: skip
     assert r.returncode == 2 and b"not allowed with argument" in r.stderr
+
+
+def test_between_frames_renders_only_samples_that_moved(cybatt):
+    frames = render_sequence(cybatt, table1_truth(10)[:2], size=(176, 144))
+    tracker = Tracker(cybatt, size=(176, 144), unknowns=TABLE1_FAPS)
+    for i, frame in enumerate(frames):
+        tracker.estimate(frame, i)
+    samples = tracker._samples
+    tracker.between_frames()  # polished: the samples are where the estimate is
+    assert tracker._samples is samples
+    tracker.params[48] += 20000  # a turn of the head (0.2 rad) moves them pixels away
+    tracker.between_frames()
+    assert tracker._samples is not samples
+    assert tracker._shift(tracker._samples) < 1e-3
+    Estimator(cybatt, size=(176, 144)).between_frames()  # the accurate mode has nothing to do
+
+
+def test_the_lost_rule_caps_its_reference_in_the_tracking_mode_only():
+    from vtts.analysis.track import LOST_REFERENCE_CAP_DB, _lost
+
+    recent = [45.0, 44.0, 43.0]  # the frames next to the one the head was fitted to
+    assert _lost(31.0, recent)  # the accurate mode: 12 dB below the median
+    assert not _lost(31.0, recent, LOST_REFERENCE_CAP_DB)  # tracking: a natural fall
+    assert _lost(20.0, recent, LOST_REFERENCE_CAP_DB)  # … but not this

@@ -68,21 +68,17 @@ STAGES = (Stage(2.0, 5.0, 1, support=40), Stage(0.8, 2.0, 3))
 #: Samples that moved this far (pixels) since the rendering may show another surface: render.
 RERENDER_PX = 3.0
 
-#: After the stages, while the samples have moved more than this (pixels) since their
-#: rendering, the model is rendered again and solved once more (at most :data:`POLISH_ROUNDS`
-#: times): the samples' colors and motion are the rendering's, and shading and the
-#: linearized rotation drift from them as the estimate moves away.
+#: After the stages, when the samples have moved more than this (pixels) since their
+#: rendering and lie on a lit face, the frame is finished by the accurate estimator's finest
+#: level (a rendering after every solve, :meth:`Estimator._descend`): the samples' colors are
+#: the rendering's, and a lit face's shading changes with every move.
 POLISH_PX = 0.02
-POLISH_ROUNDS = 8
 
-#: … when at least this share of the samples lie on lit surfaces. Where the face is drawn
+#: … "a lit face": at least this share of the samples on lit surfaces. Where the face is drawn
 #: unlit (a head made for the video), the colors move with the surface unchanged and the
 #: linearization's error is far below what camera noise and the model's shortcomings leave,
-#: so the solves on the samples are final; a lit face changes its shading with every move.
+#: so the solves on the samples are final.
 LIT_SHARE = 0.5
-
-#: The polishing solves' stage: the accurate estimator's finest level.
-FINAL = Stage(0.6, 0.5, 1, support=0)
 
 #: Between two frames, samples that moved this far (pixels) are rendered anew
 #: (:meth:`Tracker.between_frames`).
@@ -135,18 +131,16 @@ class _Samples:
 class Tracker(Estimator):
     """An :class:`~vtts.analysis.estimator.Estimator` that tracks with about one rendering per
     frame (see the module's docstring). Takes the same arguments, plus ``stages``
-    (:data:`STAGES`), ``rerender`` (:data:`RERENDER_PX`) and ``sample_step``."""
+    (:data:`STAGES`), ``rerender`` (:data:`RERENDER_PX`), ``polish`` (:data:`POLISH_PX`) and
+    ``sample_step`` (:data:`SAMPLE_STEP`)."""
 
     def __init__(self, *args, stages=STAGES, rerender: float = RERENDER_PX,
-                 polish: float = POLISH_PX, polish_rounds: int = POLISH_ROUNDS,
-                 final: Stage = FINAL,
-                 sample_step: int = SAMPLE_STEP, **kwargs) -> None:  # fmt: skip
+                 polish: float = POLISH_PX, sample_step: int = SAMPLE_STEP,
+                 **kwargs) -> None:  # fmt: skip
         super().__init__(*args, **kwargs)
         self.stages = tuple(stages)
         self.rerender = float(rerender)
         self.polish = float(polish)
-        self.polish_rounds = int(polish_rounds)
-        self.final = final
         self.sample_step = int(sample_step)
         #: renderings of the last frame estimated (the eyelid search's windows included)
         self.renderings = 0
@@ -193,13 +187,13 @@ class Tracker(Estimator):
                 solves += 1
                 if moved < self.tolerance:
                     break
-        last = self.final
-        for _ in range(self.polish_rounds):  # the last solves on a rendering of their own
-            if samples.lit < LIT_SHARE or self._shift(samples) <= self.polish:
-                break
-            samples = fresh(1)  # every face pixel: these solves are for the last digits
-            self._iterate(samples, self._frame(frame, samples, last, images), last)
-            solves += 1
+        if samples.lit >= LIT_SHARE and self._shift(samples) > self.polish:
+            # a lit face: the accurate estimator's finest level, a rendering after every solve
+            pyramid = {1: _smooth(frame.astype(np.float32), self.sigma)}
+            more, _ = self._descend(pyramid, self.pyramid[-1:])
+            solves += more
+            self.renderings += more
+            samples = fresh(self.sample_step)
         self._samples = samples
         return self._finish(frame, samples, index, time, solves)
 
