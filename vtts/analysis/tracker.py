@@ -68,6 +68,10 @@ STAGES = (Stage(2.0, 5.0, 1, support=40), Stage(0.8, 2.0, 3))
 #: Samples that moved this far (pixels) since the rendering may show another surface: render.
 RERENDER_PX = 3.0
 
+#: Renderings at most within one frame's solves on the samples (the latency of a frame of fast
+#: motion; the rendering between frames catches up, :meth:`Tracker.between_frames`).
+MAX_RENDERINGS = 1
+
 #: After the stages, when the samples have moved more than this (pixels) since their
 #: rendering and lie on a lit face, the frame is finished by the accurate estimator's finest
 #: level (a rendering after every solve, :meth:`Estimator._descend`): the samples' colors are
@@ -131,15 +135,17 @@ class _Samples:
 class Tracker(Estimator):
     """An :class:`~vtts.analysis.estimator.Estimator` that tracks with about one rendering per
     frame (see the module's docstring). Takes the same arguments, plus ``stages``
-    (:data:`STAGES`), ``rerender`` (:data:`RERENDER_PX`), ``polish`` (:data:`POLISH_PX`) and
+    (:data:`STAGES`), ``rerender`` (:data:`RERENDER_PX`), ``max_renderings``
+    (:data:`MAX_RENDERINGS`), ``polish`` (:data:`POLISH_PX`) and
     ``sample_step`` (:data:`SAMPLE_STEP`)."""
 
     def __init__(self, *args, stages=STAGES, rerender: float = RERENDER_PX,
-                 polish: float = POLISH_PX, sample_step: int = SAMPLE_STEP,
-                 **kwargs) -> None:  # fmt: skip
+                 max_renderings: int = MAX_RENDERINGS, polish: float = POLISH_PX,
+                 sample_step: int = SAMPLE_STEP, **kwargs) -> None:  # fmt: skip
         super().__init__(*args, **kwargs)
         self.stages = tuple(stages)
         self.rerender = float(rerender)
+        self.max_renderings = int(max_renderings)
         self.polish = float(polish)
         self.sample_step = int(sample_step)
         #: renderings of the last frame estimated (the eyelid search's windows included)
@@ -181,7 +187,9 @@ class Tracker(Estimator):
 
         for stage in self.stages:
             for _ in range(stage.iterations):
-                if samples is None or self._shift(samples) > self.rerender:
+                if samples is None or (
+                    self.renderings < self.max_renderings and self._shift(samples) > self.rerender
+                ):
                     samples = fresh(self.sample_step)  # what is visible may have changed
                 moved = self._iterate(samples, self._frame(frame, samples, stage, images), stage)
                 solves += 1
