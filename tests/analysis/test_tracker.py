@@ -174,3 +174,18 @@ def test_the_lost_rule_caps_its_reference_in_the_tracking_mode_only():
     assert _lost(31.0, recent)  # the accurate mode: 12 dB below the median
     assert not _lost(31.0, recent, LOST_REFERENCE_CAP_DB)  # tracking: a natural fall
     assert _lost(20.0, recent, LOST_REFERENCE_CAP_DB)  # … but not this
+
+
+def test_a_face_that_left_the_window_is_found_in_the_whole_frame_or_dropped(cybatt):
+    frames = render_sequence(cybatt, table1_truth(10)[:2], size=(176, 144))
+    tracker = Tracker(cybatt, size=(176, 144), unknowns=(*TABLE1_FAPS, "tx"))
+    for i, frame in enumerate(frames):
+        tracker.estimate(frame, i)
+    assert tracker._box[2:] != (176, 144)  # a window around the face
+    width = np.ptp(tracker.geometry.positions(tracker.params, tracker.translation)[:, 0])
+    tracker.translation[0] += width / 2  # the head moves sideways out of its window
+    tracker.between_frames()
+    assert tracker._samples is not None and tracker._shift(tracker._samples) < 1e-3
+    tracker.translation[0] += 50 * width  # and out of view altogether: no error between frames
+    tracker.between_frames()
+    assert tracker._samples is None

@@ -66,11 +66,9 @@ class Stage:
 STAGES = (Stage(2.0, 5.0, 1, support=40), Stage(0.8, 2.0, 3))
 
 #: Samples that moved this far (pixels) since the rendering may show another surface: render.
+#: Within one frame's solves, the k-th rendering waits for k times this (the latency of a frame
+#: of fast motion; the rendering between frames catches up, :meth:`Tracker.between_frames`).
 RERENDER_PX = 3.0
-
-#: Renderings at most within one frame's solves on the samples (the latency of a frame of fast
-#: motion; the rendering between frames catches up, :meth:`Tracker.between_frames`).
-MAX_RENDERINGS = 1
 
 #: After the stages, when the samples have moved more than this (pixels) since their
 #: rendering and lie on a lit face, the frame is finished by the accurate estimator's finest
@@ -135,17 +133,15 @@ class _Samples:
 class Tracker(Estimator):
     """An :class:`~vtts.analysis.estimator.Estimator` that tracks with about one rendering per
     frame (see the module's docstring). Takes the same arguments, plus ``stages``
-    (:data:`STAGES`), ``rerender`` (:data:`RERENDER_PX`), ``max_renderings``
-    (:data:`MAX_RENDERINGS`), ``polish`` (:data:`POLISH_PX`) and
+    (:data:`STAGES`), ``rerender`` (:data:`RERENDER_PX`), ``polish`` (:data:`POLISH_PX`) and
     ``sample_step`` (:data:`SAMPLE_STEP`)."""
 
     def __init__(self, *args, stages=STAGES, rerender: float = RERENDER_PX,
-                 max_renderings: int = MAX_RENDERINGS, polish: float = POLISH_PX,
-                 sample_step: int = SAMPLE_STEP, **kwargs) -> None:  # fmt: skip
+                 polish: float = POLISH_PX, sample_step: int = SAMPLE_STEP,
+                 **kwargs) -> None:  # fmt: skip
         super().__init__(*args, **kwargs)
         self.stages = tuple(stages)
         self.rerender = float(rerender)
-        self.max_renderings = int(max_renderings)
         self.polish = float(polish)
         self.sample_step = int(sample_step)
         #: renderings of the last frame estimated (the eyelid search's windows included)
@@ -187,9 +183,9 @@ class Tracker(Estimator):
 
         for stage in self.stages:
             for _ in range(stage.iterations):
-                if samples is None or (
-                    self.renderings < self.max_renderings and self._shift(samples) > self.rerender
-                ):
+                # the k-th rendering within a frame waits for k times the shift of the first
+                # (a frame's latency), but comes: far beyond it the samples would drift away
+                if samples is None or self._shift(samples) > self.rerender * (1 + self.renderings):
                     samples = fresh(self.sample_step)  # what is visible may have changed
                 moved = self._iterate(samples, self._frame(frame, samples, stage, images), stage)
                 solves += 1
@@ -210,7 +206,10 @@ class Tracker(Estimator):
         samples have moved :data:`AHEAD_PX` since their rendering: the next frame would likely
         need it, and a live stream has the time between two frames to spare."""
         if self._samples is not None and self._shift(self._samples) > AHEAD_PX:
-            self._samples = self._sample(self.sample_step)
+            try:
+                self._samples = self._sample(self.sample_step)
+            except VttsError:  # out of view: the next frame's estimate finds out and recovers
+                self._samples = None
 
     # ---- samples -------------------------------------------------------------------------------
 
@@ -226,9 +225,11 @@ class Tracker(Estimator):
             ids = np.where(numbers >= 0, self._faces[numbers], -1)
             covered = ids >= 0
             whole = (ww, wh) == (w, h)
-            if whole or not (covered[[0, -1]].any() or covered[:, [0, -1]].any()):
+            edge = covered[[0, -1]].any() or covered[:, [0, -1]].any()
+            if whole or (covered.sum() >= 4 * len(self.unknowns) and not edge):
                 break
-            x0, y0, ww, wh = 0, 0, w, h  # the face reaches the window's edge: render it all
+            # the face reaches the window's edge, or left it: render the whole frame
+            x0, y0, ww, wh = 0, 0, w, h
         inside = binary_erosion(covered, iterations=EDGE)
         pixels = int(inside.sum())
         if step > 1:
