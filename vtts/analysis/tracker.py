@@ -84,7 +84,7 @@ LIT_SHARE = 0.5
 
 #: Between two frames, samples that moved this far (pixels) are rendered anew
 #: (:meth:`Tracker.between_frames`).
-AHEAD_PX = 2.5
+AHEAD_PX = 1.5
 
 #: Pixels of the camera frame kept around the face's box (motion within a frame is smaller).
 MARGIN = 16
