@@ -305,20 +305,7 @@ class Estimator:
                     self._set_state(state)
                     break
                 best = mismatch
-        # the estimate as a FAP stream carries it: integer FAPs
-        params = self.params.copy()
-        for u in self.unknowns:
-            if not isinstance(u, str):
-                params[u - 1] = np.round(params[u - 1]) + 0.0  # no negative zeros
-        kept, self.params = self.params, params
-        try:
-            self._refine(full)
-            image, ids = self.render(1)
-        finally:
-            for fap in self.refined:
-                kept[fap - 1] = self.params[fap - 1]
-            params, self.params = self.params, kept
-        self._history = [*self._history[-1:], (index, self.params.copy(), self.translation.copy())]
+        params, (image, ids) = self._settle(full, index, lambda: self.render(1))
         synth = np.clip(np.round(image * self.gain + self.offset), 0, 255)
         mask = ids >= 0
         return FrameEstimate(
@@ -332,6 +319,27 @@ class Estimator:
             face_pixels=int(mask.sum()),
             iterations=solves,
         )
+
+    def _settle(self, frame: np.ndarray, index: int, then: Callable[[], object] | None = None):
+        """The estimate as a FAP stream carries it — integer FAPs — with the FAPs :attr:`refined`
+        searched on the rendered image (against the camera ``frame`` ``(H, W, 3)``) from there;
+        ``then`` is called at those parameters. Returns the integer parameters ``(N_PARAMS,)``
+        and what ``then`` returned; the estimator keeps its unrounded values (the searched FAPs
+        as the search left them), and frame ``index`` joins the motion history."""
+        params = self.params.copy()
+        for u in self.unknowns:
+            if not isinstance(u, str):
+                params[u - 1] = np.round(params[u - 1]) + 0.0  # no negative zeros
+        kept, self.params = self.params, params
+        try:
+            self._refine(frame)
+            result = then() if then is not None else None
+        finally:
+            for fap in self.refined:
+                kept[fap - 1] = self.params[fap - 1]
+            params, self.params = self.params, kept
+        self._history = [*self._history[-1:], (index, self.params.copy(), self.translation.copy())]
+        return params, result
 
     def between_frames(self) -> None:
         """Work for the next frame that can be done before it arrives, once this frame's

@@ -354,19 +354,7 @@ class Tracker(Estimator):
                 solves: int) -> FrameEstimate:  # fmt: skip
         """Integer FAPs, the eyelid search, and the estimate with the face PSNR measured at the
         samples (the frame at their projections against the model's unsmoothed colors)."""
-        params = self.params.copy()
-        for u in self.unknowns:
-            if not isinstance(u, str):
-                params[u - 1] = np.round(params[u - 1]) + 0.0  # no negative zeros
-        kept, self.params = self.params, params
-        try:
-            if self.refined:
-                self._refine(frame.astype(np.float32))
-        finally:
-            for fap in self.refined:
-                kept[fap - 1] = self.params[fap - 1]
-            params, self.params = self.params, kept
-        self._history = [*self._history[-1:], (index, self.params.copy(), self.translation.copy())]
+        params, _ = self._settle(frame, index)
         psnr = self._psnr(frame, s)
         return FrameEstimate(
             index=index,
