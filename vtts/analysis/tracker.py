@@ -1,25 +1,31 @@
-"""Tracking mode: one rendering per frame, Gauss–Newton on the camera image without re-rendering.
+"""Tracking mode: under one rendering a frame, Gauss–Newton on the camera image in between.
 
 The accurate :class:`~vtts.analysis.estimator.Estimator` renders the model after every linear
-solve (about nine renderings a frame over a three-level pyramid) and compares the two images at
-fixed pixels. A :class:`Tracker` renders once per frame and keeps what the rendering says about
-the face as **surface samples**: for each face pixel, the triangle it shows, the barycentric
-coordinates of its 3D point, that point in camera space, the point's motion per unit of each
-unknown (Equation 9's matrix T, at the rendered estimate) and the model's color there. The
-Gauss–Newton iterations then move the samples with the parameter change (linearly, as Equation 9
-does), project them into the camera frame and compare the frame *at their projections*
-(bilinear samples of the frame and of its gradients) with the model's colors (forward-additive
-image alignment, with the efficient second-order gradient: the mean of the frame's gradient at
-the projection and the model's at the sample). Nothing is rendered again until the samples have
-moved :data:`RERENDER_PX` pixels since the rendering, where what is visible may have changed.
+solve (about twelve renderings a frame over a three-level pyramid) and compares the two images
+at fixed pixels. A :class:`Tracker` keeps what one rendering — of a window around the face —
+says about the face as **surface samples**: for every second face pixel, the triangle it shows,
+the barycentric coordinates of its 3D point, that point in camera space, the point's motion per
+unit of each unknown (Equation 9's matrix T, at the rendered estimate) and the model's color
+there. The Gauss–Newton iterations move the samples with the parameter change (linearly, as
+Equation 9 does), project them into the camera frame and compare the frame *at their
+projections* (bilinear samples of the frame and of its gradients) with the model's colors
+(forward-additive image alignment, with the efficient second-order gradient: the mean of the
+frame's gradient at the projection and the model's at the sample). The samples serve the
+following frames until they have moved :data:`RERENDER_PX` pixels since their rendering, where
+what is visible may have changed; once a frame's estimate is out, samples that moved
+:data:`AHEAD_PX` are rendered again while the next frame is on its way
+(:meth:`Tracker.between_frames`), so that most renderings cost a live stream no latency.
 
-Coarse to fine without a pyramid of renderings: the camera frame (cropped to the face) is
-smoothed with a wide Gaussian for the first iterations and a narrow one for the last
-(:data:`STAGES`); the model's colors are smoothed alike from the same rendering.
+Coarse to fine without a pyramid of renderings: the camera frame's window is smoothed with a
+wide Gaussian for the first solve and a narrow one for the others (:data:`STAGES`); the model's
+colors are smoothed alike from the same rendering.
 
 The first frame of a track (and a frame after the track was placed again) is estimated by the
-accurate estimator: it may start far from the truth. The light model (gain and offset per
-channel), robust weights, held unknowns and the eyelid search are the accurate estimator's.
+accurate estimator: it may start far from the truth. A lit face — whose shading, unlike an
+unlit head made for the video, changes with every move — is finished by the accurate
+estimator's finest level (:data:`POLISH_PX`, :data:`LIT_SHARE`). The light model (gain and
+offset per channel), robust weights, held unknowns and the eyelid search are the accurate
+estimator's. See docs/analysis.md, "Tracking mode".
 """
 
 from __future__ import annotations
