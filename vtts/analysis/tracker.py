@@ -149,6 +149,12 @@ class Tracker(Estimator):
         self.stages = tuple(stages)
         self.rerender = float(rerender)
         self.polish = float(polish)
+        # on an unlit face the eyelids (the FAPs the search on the rendered image refines) are
+        # held in the solves on the samples and left to the search: a lid's edge a pixel or
+        # two tall is what linearized samples describe worst (solved there, Carphone's lids
+        # ran off and lost the track 8 times). A lit face's are solved, as its frames end with
+        # the accurate estimator's finest level
+        self._refined_columns = np.array([u in self.refined for u in self.unknowns])
         self.sample_step = int(sample_step)
         #: renderings of the last frame estimated (the eyelid search's windows included)
         self.renderings = 0
@@ -307,6 +313,8 @@ class Tracker(Estimator):
             weights *= (1.0 - q * q) ** 2
         du, dv = s.du, s.dv
         held = model.support < stage.support
+        if s.lit < LIT_SHARE:
+            held = held | self._refined_columns
         if held.any():
             du, dv = du.copy(), dv.copy()
             du[:, held] = 0.0
