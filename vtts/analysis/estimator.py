@@ -308,17 +308,8 @@ class Estimator:
         params, (image, ids) = self._settle(full, index, lambda: self.render(1))
         synth = np.clip(np.round(image * self.gain + self.offset), 0, 255)
         mask = ids >= 0
-        return FrameEstimate(
-            index=index,
-            time=time,
-            params=params,
-            translation=self.translation.copy(),
-            gain=self.gain.copy(),
-            offset=self.offset.copy(),
-            psnr=face_psnr(full, synth, mask),
-            face_pixels=int(mask.sum()),
-            iterations=solves,
-        )
+        return self._estimate_of(params, index, time, face_psnr(full, synth, mask),
+                                 int(mask.sum()), solves)  # fmt: skip
 
     def _settle(self, frame: np.ndarray, index: int, then: Callable[[], object] | None = None):
         """The estimate as a FAP stream carries it — integer FAPs — with the FAPs :attr:`refined`
@@ -340,6 +331,23 @@ class Estimator:
             params, self.params = self.params, kept
         self._history = [*self._history[-1:], (index, self.params.copy(), self.translation.copy())]
         return params, result
+
+    def _estimate_of(self, params: np.ndarray, index: int, time: float, psnr: float,
+                     pixels: int, solves: int) -> FrameEstimate:  # fmt: skip
+        """Frame ``index``'s :class:`FrameEstimate`: ``params`` as :meth:`_settle` gave them,
+        with the current translation and light, its face ``psnr`` over ``pixels`` face pixels,
+        after ``solves`` linear solves."""
+        return FrameEstimate(
+            index=index,
+            time=time,
+            params=params,
+            translation=self.translation.copy(),
+            gain=self.gain.copy(),
+            offset=self.offset.copy(),
+            psnr=psnr,
+            face_pixels=pixels,
+            iterations=solves,
+        )
 
     def between_frames(self) -> None:
         """Work for the next frame that can be done before it arrives, once this frame's

@@ -369,18 +369,7 @@ class Tracker(Estimator):
         """Integer FAPs, the eyelid search, and the estimate with the face PSNR measured at the
         samples (the frame at their projections against the model's unsmoothed colors)."""
         params, _ = self._settle(frame, index)
-        psnr = self._psnr(frame, s)
-        return FrameEstimate(
-            index=index,
-            time=time,
-            params=params,
-            translation=self.translation.copy(),
-            gain=self.gain.copy(),
-            offset=self.offset.copy(),
-            psnr=psnr,
-            face_pixels=s.pixels,
-            iterations=solves,
-        )
+        return self._estimate_of(params, index, time, self._psnr(frame, s), s.pixels, solves)
 
 
 class _Model:
