@@ -223,3 +223,61 @@ def test_a_frame_that_cannot_be_restarted_holds_the_last_estimate(tmp_path, monk
     assert np.array_equal(frames[1].params, frames[0].params)
     assert np.isnan(frames[1].psnr) and np.isfinite(frames[2].psnr)
     assert abs(frames[2].translation[0]) < 1.0  # frame 2 starts from frame 0's state
+
+
+def test_a_head_that_ran_away_is_placed_again_from_the_neutral_face(tmp_path, monkeypatch):
+    """A frame whose estimate ends with the head turned past MAX_TURN_AU (and its FAPs off) —
+    a good PSNR notwithstanding — is re-initialized from the landmarks, starting from the
+    neutral face and pose rather than from where the estimate ran to."""
+    import vtts.analysis.track as track_module
+
+    real = Estimator.estimate
+    calls = []
+    placed_from = []
+
+    def estimate(self, frame, index=0, time=0.0):
+        calls.append(index)
+        fe = real(self, frame, index, time)
+        if index == 1 and calls.count(1) == 1:
+            self.params[47] = 3 * track_module.MAX_TURN_AU  # pitched by 3.6 rad
+            self.params[2] = 900.0  # and the jaw with it
+        return fe
+
+    real_pose = track_module.landmark_pose
+
+    def pose(estimator, landmarks, *args, **kwargs):
+        placed_from.append((estimator.params.copy(), estimator.translation.copy()))
+        return real_pose(estimator, landmarks, *args, **kwargs)
+
+    monkeypatch.setattr(Estimator, "estimate", estimate)
+    monkeypatch.setattr(track_module, "landmark_pose", pose)
+    tracked = track(_frames(3), fps=25.0, model_path=tmp_path / "m.wrl")
+    assert tracked.restarts == [1] and tracked.held == []
+    assert calls == [0, 1, 1, 2]
+    params, translation = placed_from[-1]
+    assert not params.any() and not translation.any()  # the neutral face and pose
+    frames = tracked.analysis.frames
+    assert all(abs(f.params[47]) < track_module.MAX_TURN_AU for f in frames)
+    assert tracked.analysis.psnr()[1] > 22.0
+
+
+@pytest.mark.parametrize(
+    ("rotation", "shift", "away"),
+    [
+        ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), False),
+        ((60_000.0, -60_000.0, 30_000.0), (0.01, 0.02, -0.3), False),
+        ((0.0, 130_000.0, 0.0), (0.0, 0.0, 0.0), True),
+        ((0.0, 0.0, -130_000.0), (0.0, 0.0, 0.0), True),
+        ((0.0, 0.0, 0.0), (0.0, 0.0, -0.6), True),
+        ((0.0, 0.0, 0.0), (0.4, 0.4, 0.0), True),
+    ],
+)
+def test_a_head_runs_away_beyond_a_turn_or_a_shift(rotation, shift, away):
+    """``shift``: the translation in units of the camera's distance from the head."""
+    import vtts.analysis.track as track_module
+
+    estimator = Estimator(load_model(HEAD), size=(176, 144))
+    assert estimator.distance > 0
+    estimator.params[47:50] = rotation
+    estimator.translation[:] = np.array(shift) * estimator.distance
+    assert track_module._run_away(estimator) is away

@@ -197,6 +197,8 @@ class Estimator:
                 raise VttsError(f"a {w}x{h} video is too small for a pyramid level of 1/{f}")
             self._levels[f] = (_scaled(self.camera, f), lsize)
         self._root = self._renderer.scene.get_pose(self._renderer.instances[0].root)
+        #: the camera's distance from the model's origin at the start (world units)
+        self.distance = float(np.linalg.norm(self.camera.pose[:3, 3] - self._root[:3, 3]))
         self.geometry = HeadGeometry(model, self.unknowns, self._root)
         self._faces = _face_numbers(self._renderer, self.geometry)
         self.ignored = frozenset(ignore)

@@ -24,8 +24,9 @@ nothing is known in advance (Eisert & Girod's "Camera sequences"):
    last good frames (in the tracking mode, that median capped at
    :data:`LOST_REFERENCE_CAP_DB`), or under :data:`LOST_FLOOR_DB`, is re-initialized from its
    landmarks — the head rotation and translation placed on them — and estimated again; the
-   better of the two estimates is kept. A frame where that fails too holds the last good
-   estimate.
+   better of the two estimates is kept. So is a frame whose head ran away (turned or moved
+   beyond :data:`MAX_TURN_AU`, :data:`MAX_SHIFT`), placed from the neutral face and pose. A
+   frame where that fails too holds the last good estimate.
 4. **Several faces.** ``face`` picks one (1 = the largest, as ``adi fit --face``); later
    re-initializations take the face nearest to where the tracked head was.
 """
@@ -68,6 +69,19 @@ LOST_FLOOR_DB = 12.0
 #: a frame that is not lost. The accurate mode keeps the plain median: on Akiyo (every second
 #: frame) its early re-initialization is worth 0.6 dB over the sequence (22.0 against 21.4).
 LOST_REFERENCE_CAP_DB = 30.0
+#: A frame is lost, too, when the head has **run away**: its estimated rotation (FAPs 48–50:
+#: pitch, yaw, roll) further than this (angle units, 1e-5 rad: 1.2 rad, 69°) from where the
+#: model started, …
+MAX_TURN_AU = 120_000.0
+#: … or its translation further than this share of the camera's distance from the head (its
+#: image half or twice the size it started at). A track that drifted off the face can run away
+#: with the motion carried on from frame to frame (Akiyo analyzed at a third of its frame rate:
+#: pitched past 5 rad, or moved 1.3–3.6 times the distance); it is re-initialized from the landmarks
+#: with the head placed from the neutral face and pose. The real sequences tracked stay within
+#: 0.25 rad and 3 % of the distance (Akiyo), 0.6 rad and 21 % (Carphone, who leans in).
+MAX_SHIFT = 0.5
+#: The indices into the parameters of the head's rotation FAPs 48–50.
+HEAD_ROTATION = (47, 48, 49)
 #: Recent frames whose median PSNR is the reference for :data:`LOST_DB`.
 RECENT = 10
 #: A given model whose feature points already fall this close (median, pixels) to the first
@@ -168,11 +182,18 @@ def track(
                 fe = _copy(out[-1], i, t)
                 result.held.append(i)
         else:
-            if _lost(fe.psnr, recent, LOST_REFERENCE_CAP_DB if tracking else math.inf):
-                again = _restart(estimator, frame, i, t, fe, detector)
+            away = _run_away(estimator)
+            if away or _lost(fe.psnr, recent, LOST_REFERENCE_CAP_DB if tracking else math.inf):
+                again = _restart(estimator, frame, i, t, None if away else fe, detector,
+                                 kept=kept if away else None, neutral=away)  # fmt: skip
                 if again is not None:
                     fe = again
                     result.restarts.append(i)
+                elif away and kept is not None and out:  # hold the last good estimate
+                    estimator.restore(kept)
+                    estimator.forget_motion()  # carried on, the motion would run away again
+                    fe = _copy(out[-1], i, t)
+                    result.held.append(i)
         kept = estimator.snapshot()
         if math.isfinite(fe.psnr):
             recent = [*recent[-(RECENT - 1) :], fe.psnr]
@@ -255,11 +276,14 @@ def _lost(psnr: float, recent: list[float], cap: float = math.inf) -> bool:
 
 
 def _restart(estimator: Estimator, frame, index: int, time: float, fe: FrameEstimate | None,
-             detector, kept: tuple | None = None) -> FrameEstimate | None:  # fmt: skip
+             detector, kept: tuple | None = None,
+             neutral: bool = False) -> FrameEstimate | None:  # fmt: skip
     """Estimate frame ``index`` again from the head placed on its landmarks; the new estimate
     when it matches better than ``fe`` (None: an estimate that failed), else None (the
     estimator is left as ``fe`` left it). ``kept``: the state to place from, when the failed
-    estimate left the estimator elsewhere (the last good frame's)."""
+    estimate left the estimator elsewhere (the last good frame's); ``neutral``: from the neutral
+    face and pose (the head ran away; its FAPs too, which may have run away with it). An
+    estimate that ran away too is no better."""
     from vtts.fit.landmarks import detect_faces
 
     faces = detect_faces(frame, detector)
@@ -268,6 +292,9 @@ def _restart(estimator: Estimator, frame, index: int, time: float, fe: FrameEsti
     after = estimator.snapshot()
     if kept is not None:
         estimator.restore(kept)
+    if neutral:  # the head ran away: place it from the neutral face and pose
+        estimator.params[:] = 0.0
+        estimator.translation[:] = 0.0
     near = _nearest(faces, estimator)
     try:
         landmark_pose(estimator, near.landmarks)
@@ -276,10 +303,18 @@ def _restart(estimator: Estimator, frame, index: int, time: float, fe: FrameEsti
     except VttsError:
         estimator.restore(after)
         return None
-    if fe is None or again.psnr > fe.psnr:
+    if not _run_away(estimator) and (fe is None or again.psnr > fe.psnr):
         return again
     estimator.restore(after)
     return None
+
+
+def _run_away(estimator: Estimator) -> bool:
+    """Whether the estimated head rotation is beyond :data:`MAX_TURN_AU` on any axis or its
+    translation beyond :data:`MAX_SHIFT` of the camera's distance."""
+    rotation = estimator.params[list(HEAD_ROTATION)]
+    shift = float(np.linalg.norm(estimator.translation))
+    return bool(np.abs(rotation).max() > MAX_TURN_AU) or shift > MAX_SHIFT * estimator.distance
 
 
 def _nearest(faces: list, estimator: Estimator):
