@@ -23,9 +23,9 @@ colors are smoothed alike from the same rendering.
 The first frame of a track (and a frame after the track was placed again) is estimated by the
 accurate estimator: it may start far from the truth. A lit face — whose shading, unlike an
 unlit head made for the video, changes with every move — is finished by the accurate
-estimator's two finest levels (:data:`POLISH_PX`, :data:`LIT_SHARE`, :data:`LIT_LEVELS`).
-The light model (gain and offset per channel), robust weights, held unknowns and the eyelid
-search are the accurate estimator's. See docs/analysis.md, "Tracking mode".
+estimator's finest level (:data:`POLISH_PX`, :data:`LIT_SHARE`). The light model (gain and
+offset per channel), robust weights, held unknowns and the eyelid search are the accurate
+estimator's. See docs/analysis.md, "Tracking mode".
 """
 
 from __future__ import annotations
@@ -43,7 +43,6 @@ from vtts.analysis.estimator import (
     Estimator,
     _least_squares,
     _smooth,
-    _subsample,
 )
 from vtts.analysis.raster import ray_barycentrics
 from vtts.analysis.result import TRANSLATION, FrameEstimate
@@ -80,10 +79,15 @@ STAGES = (Stage(2.0, 5.0, 1, support=40), Stage(0.8, 2.0, 3))
 #: decoded PSNR (every frame: 22.56 / 19.17 dB against 22.55 / 19.00).
 RERENDER_PX = 4.0
 
+#: … on a lit face, whose frames end with the accurate estimator's finest level anyway (no
+#: latency to save), this, the setting its synthetic figures were measured with: its samples'
+#: colors, the rendering's, go stale with the shading.
+LIT_RERENDER_PX = 3.0
+
 #: After the stages, when the samples have moved more than this (pixels) since their
 #: rendering and lie on a lit face, the frame is finished by the accurate estimator's finest
-#: levels (:data:`LIT_LEVELS`; a rendering after every solve, :meth:`Estimator._descend`):
-#: the samples' colors are the rendering's, and a lit face's shading changes with every move.
+#: level (a rendering after every solve, :meth:`Estimator._descend`): the samples' colors
+#: are the rendering's, and a lit face's shading changes with every move.
 POLISH_PX = 0.02
 
 #: … "a lit face": at least this share of the samples on lit surfaces. Where the face is drawn
@@ -91,12 +95,6 @@ POLISH_PX = 0.02
 #: linearization's error is far below what camera noise and the model's shortcomings leave,
 #: so the solves on the samples are final.
 LIT_SHARE = 0.5
-
-#: How many of the accurate estimator's finest pyramid levels finish a frame on a lit face: the
-#: half-size level, then the full size. The finest level alone left the lip corners of two of
-#: the 12 seeded Table 1 trajectories above the paper (0.20–0.24 % against 0.17 / 0.19); from
-#: the half-size level every FAP of every seed is within it (docs/analysis.md).
-LIT_LEVELS = 2
 
 #: Between two frames, samples that moved this far (pixels) are rendered anew
 #: (:meth:`Tracker.between_frames`).
@@ -163,7 +161,7 @@ class Tracker(Estimator):
         # held in the solves on the samples and left to the search: a lid's edge a pixel or
         # two tall is what linearized samples describe worst (solved there, Carphone's lids
         # ran off and lost the track 8 times). A lit face's are solved, as its frames end with
-        # the accurate estimator's finest levels
+        # the accurate estimator's finest level
         self._refined_columns = np.array([u in self.refined for u in self.unknowns])
         self.sample_step = int(sample_step)
         #: renderings of the last frame estimated (the eyelid search's windows included)
@@ -207,18 +205,19 @@ class Tracker(Estimator):
             for _ in range(stage.iterations):
                 # the k-th rendering within a frame waits for k times the shift of the first
                 # (a frame's latency), but comes: far beyond it the samples would drift away
-                if samples is None or self._shift(samples) > self.rerender * (1 + self.renderings):
+                stale = samples is None or (
+                    self._shift(samples) > self._rerender(samples) * (1 + self.renderings)
+                )
+                if stale:
                     samples = fresh(self.sample_step)  # what is visible may have changed
                 moved = self._iterate(samples, self._frame(frame, samples, stage, images), stage)
                 solves += 1
                 if moved < self.tolerance:
                     break
         if samples.lit >= LIT_SHARE and self._shift(samples) > self.polish:
-            # a lit face: the accurate estimator's finest levels, a rendering after every solve
-            levels = self.pyramid[-LIT_LEVELS:]
-            full = frame.astype(np.float32)
-            pyramid = {lv.factor: _smooth(_subsample(full, lv.factor), self.sigma) for lv in levels}
-            more, _ = self._descend(pyramid, levels)
+            # a lit face: the accurate estimator's finest level, a rendering after every solve
+            pyramid = {1: _smooth(frame.astype(np.float32), self.sigma)}
+            more, _ = self._descend(pyramid, self.pyramid[-1:])
             solves += more
             self.renderings += more
             samples = fresh(self.sample_step)
@@ -339,6 +338,11 @@ class Tracker(Estimator):
         delta[:k] *= np.minimum(1.0, stage.limit / np.maximum(reach, 1e-12))
         self._apply(delta)
         return float(np.minimum(reach, stage.limit).max(initial=0.0))
+
+    def _rerender(self, s: _Samples) -> float:
+        """How far (pixels) samples ``s`` may move before the first rendering within a frame:
+        :attr:`rerender`, at most :data:`LIT_RERENDER_PX` on a lit face."""
+        return min(self.rerender, LIT_RERENDER_PX) if s.lit >= LIT_SHARE else self.rerender
 
     def _values(self) -> np.ndarray:
         """The unknowns' current values ``(K,)`` (FAP units, ES units of the translation)."""
