@@ -207,3 +207,19 @@ def test_a_face_that_left_the_window_is_found_in_the_whole_frame_or_dropped(cyba
     tracker.translation[0] += 50 * width  # and out of view altogether: no error between frames
     tracker.between_frames()
     assert tracker._samples is None
+
+
+def test_a_lit_face_renders_within_a_frame_sooner(cybatt):
+    """Frames of an unlit face (a head made for the video) render within their solves after
+    RERENDER_PX; a lit face's, whose frames end with the accurate finest level anyway, after
+    LIT_RERENDER_PX at most."""
+    from types import SimpleNamespace
+
+    tracker = Tracker(cybatt, size=(176, 144), unknowns=TABLE1_FAPS)
+    assert tracker.rerender == tracker_module.RERENDER_PX > tracker_module.LIT_RERENDER_PX
+    unlit = SimpleNamespace(lit=0.0)
+    lit = SimpleNamespace(lit=1.0)
+    assert tracker._rerender(unlit) == tracker_module.RERENDER_PX
+    assert tracker._rerender(lit) == tracker_module.LIT_RERENDER_PX
+    tracker.rerender = 2.0  # a smaller choice holds for both
+    assert tracker._rerender(lit) == tracker._rerender(unlit) == 2.0
