@@ -281,3 +281,26 @@ def test_a_head_runs_away_beyond_a_turn_or_a_shift(rotation, shift, away):
     estimator.params[47:50] = rotation
     estimator.translation[:] = np.array(shift) * estimator.distance
     assert track_module._run_away(estimator) is away
+
+
+def test_a_held_frame_carries_no_motion_on(tmp_path, monkeypatch):
+    """After a hold the next frame starts afresh: the motion of the two estimates before the
+    hold would otherwise be carried on, growing with the frames held."""
+    import vtts.analysis.track as track_module
+    from vtts.errors import VttsError
+
+    real = Estimator.estimate
+    history_at_start = {}
+
+    def estimate(self, frame, index=0, time=0.0):
+        history_at_start[index] = len(self._history)
+        if index == 2:
+            raise VttsError("the model covers only 0 pixels at 1/1 size")
+        return real(self, frame, index, time)
+
+    monkeypatch.setattr(Estimator, "estimate", estimate)
+    monkeypatch.setattr(track_module, "_restart", lambda *a, **k: None)
+    tracked = track(_frames(4), fps=25.0, model_path=tmp_path / "m.wrl")
+    assert tracked.held == [2]
+    assert history_at_start[2] == 2  # frames 0 and 1 carried their motion to frame 2
+    assert history_at_start[3] == 0  # not past the hold

@@ -75,10 +75,11 @@ LOST_REFERENCE_CAP_DB = 30.0
 MAX_TURN_AU = 120_000.0
 #: … or its translation further than this share of the camera's distance from the head (its
 #: image half or twice the size it started at). A track that drifted off the face can run away
-#: with the motion carried on from frame to frame (Akiyo analyzed at a third of its frame rate:
-#: pitched past 5 rad, or moved 1.3–3.6 times the distance); it is re-initialized from the landmarks
-#: with the head placed from the neutral face and pose. The real sequences tracked stay within
-#: 0.25 rad and 3 % of the distance (Akiyo), 0.6 rad and 21 % (Carphone, who leans in).
+#: with the motion carried on from frame to frame (Akiyo analyzed at a third of its frame
+#: rate: pitched past 5 rad, or moved 1.3–3.6 times the distance); it is re-initialized from
+#: the landmarks with the head placed from the neutral face and pose. The real sequences
+#: tracked stay within 0.25 rad and 3 % of the distance (Akiyo), 0.6 rad and 21 % (Carphone,
+#: who leans in).
 MAX_SHIFT = 0.5
 #: The indices into the parameters of the head's rotation FAPs 48–50.
 HEAD_ROTATION = (47, 48, 49)
@@ -178,8 +179,7 @@ def track(
             elif kept is None or not out:
                 raise AnalysisError(f"frame {i}: {e.message}; no face to restart from") from None
             else:  # hold the last good estimate; a later frame may find the face again
-                estimator.restore(kept)
-                fe = _copy(out[-1], i, t)
+                fe = _hold(estimator, kept, out[-1], i, t)
                 result.held.append(i)
         else:
             away = _run_away(estimator)
@@ -189,10 +189,8 @@ def track(
                 if again is not None:
                     fe = again
                     result.restarts.append(i)
-                elif away and kept is not None and out:  # hold the last good estimate
-                    estimator.restore(kept)
-                    estimator.forget_motion()  # carried on, the motion would run away again
-                    fe = _copy(out[-1], i, t)
+                elif away and kept is not None and out:
+                    fe = _hold(estimator, kept, out[-1], i, t)
                     result.held.append(i)
         kept = estimator.snapshot()
         if math.isfinite(fe.psnr):
@@ -307,6 +305,16 @@ def _restart(estimator: Estimator, frame, index: int, time: float, fe: FrameEsti
         return again
     estimator.restore(after)
     return None
+
+
+def _hold(estimator: Estimator, kept: tuple, last: FrameEstimate, index: int,
+          time: float) -> FrameEstimate:  # fmt: skip
+    """Frame ``index`` holds the ``last`` good estimate: the estimator goes back to the state
+    ``kept`` after it, with no motion carried on (carried over the frames held, the motion of
+    the last two estimates would grow with the gap: :meth:`Estimator._extrapolate`)."""
+    estimator.restore(kept)
+    estimator.forget_motion()
+    return _copy(last, index, time)
 
 
 def _run_away(estimator: Estimator) -> bool:
