@@ -75,9 +75,10 @@ STAGES = (Stage(2.0, 5.0, 1, support=40), Stage(0.8, 2.0, 3))
 #: Within one frame's solves, the k-th rendering waits for k times this (the latency of a frame
 #: of fast motion; the rendering between frames catches up, :meth:`Tracker.between_frames`).
 #: At 3 pixels 12 % of Akiyo's frames and 29 % of Carphone's rendered within their solves (a
-#: rendering and its samples, 20–30 ms of latency each); at 4, 3 % and 8 %, with the same
-#: decoded PSNR (every frame: 22.56 / 19.17 dB against 22.55 / 19.00).
-RERENDER_PX = 4.0
+#: rendering and its samples, 20–30 ms of latency each), at 4 pixels 3 % and 8 %, at 6 none
+#: and 1 %, with the same decoded PSNR within 0.1 dB (every frame, Akiyo / Carphone: 22.55 /
+#: 19.00 dB at 3, 22.56 / 19.17 at 4, 22.51 / 19.12 at 6).
+RERENDER_PX = 6.0
 
 #: … on a lit face, whose frames end with the accurate estimator's finest level anyway (no
 #: latency to save), this, the setting its synthetic figures were measured with: its samples'
