@@ -31,16 +31,18 @@ from __future__ import annotations
 
 import io
 import os
+import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import bench_analysis as table1  # noqa: E402  (a sibling benchmark: Table 1's settings)
+from bench_real_video import SEQUENCES, VIDEOS  # noqa: E402  (the same real sequences)
+
 BENCH = "tracking"
-ROOT = Path(__file__).resolve().parents[1]
-VIDEOS = ROOT / "tests" / "data" / "video"
-SEQUENCES = (("Akiyo CIF", "akiyo_cif.mp4"), ("Carphone QCIF", "carphone_qcif.mp4"))
 TARGET_FPS = 25.0
 TARGET_LATENCY_MS = 40.0
 TARGET_DB = 1.0
@@ -161,11 +163,6 @@ def _sequence(label: str, path: Path) -> list[dict]:
 
 
 def _synthetic() -> list[dict]:
-    import sys
-
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
-    import bench_analysis as table1
-
     import vtts
     from vtts.analysis import TABLE1_FAPS
     from vtts.analysis.synthetic import (

@@ -45,6 +45,7 @@ from vtts.analysis.estimator import DEFAULT_UNKNOWNS, Estimator
 from vtts.analysis.landmark_pose import landmark_pose, placement_error
 from vtts.analysis.result import Analysis, FrameEstimate
 from vtts.analysis.tracker import Tracker
+from vtts.analysis.unknowns import HEAD_MOTION
 from vtts.errors import AnalysisError, FitError, VttsError, VttsWarning
 from vtts.face import FaceModel
 from vtts.render.camera import Camera
@@ -81,8 +82,6 @@ MAX_TURN_AU = 120_000.0
 #: tracked stay within 0.25 rad and 3 % of the distance (Akiyo), 0.6 rad and 21 % (Carphone,
 #: who leans in).
 MAX_SHIFT = 0.5
-#: The indices into the parameters of the head's rotation FAPs 48–50.
-HEAD_ROTATION = (47, 48, 49)
 #: Recent frames whose median PSNR is the reference for :data:`LOST_DB`.
 RECENT = 10
 #: A given model whose feature points already fall this close (median, pixels) to the first
@@ -320,7 +319,7 @@ def _hold(estimator: Estimator, kept: tuple, last: FrameEstimate, index: int,
 def _run_away(estimator: Estimator) -> bool:
     """Whether the estimated head rotation is beyond :data:`MAX_TURN_AU` on any axis or its
     translation beyond :data:`MAX_SHIFT` of the camera's distance."""
-    rotation = estimator.params[list(HEAD_ROTATION)]
+    rotation = estimator.params[[u - 1 for u in HEAD_MOTION if not isinstance(u, str)]]
     shift = float(np.linalg.norm(estimator.translation))
     return bool(np.abs(rotation).max() > MAX_TURN_AU) or shift > MAX_SHIFT * estimator.distance
 
