@@ -8,6 +8,7 @@ import pytest
 
 import vtts
 from vtts.analysis import TABLE1_FAPS, Estimator, analyze, face_psnr
+from vtts.analysis.estimator import PYRAMID
 from vtts.analysis.geometry import HeadGeometry
 from vtts.analysis.raster import ray_barycentrics
 from vtts.analysis.synthetic import (
@@ -181,6 +182,46 @@ def test_the_head_starts_where_its_motion_leads(cybatt):
         # (the estimates are rounded to whole units: 2 · 0.5 + 0.5 at most)
         assert abs(start[48] - ahead) <= 1.5 and abs(start[2] - ends[1][2]) <= 0.5, start
     assert solves[True] < solves[False], solves
+
+
+@pytest.mark.parametrize("robust", [False, True])
+def test_a_solve_on_the_window_around_the_face_is_the_solve_on_the_whole_image(
+    cybatt, monkeypatch, robust
+):
+    """Each solve smooths, erodes and differentiates only the window around the face
+    (``_render_window``); at every pyramid level the step it takes is the one the whole image
+    gives, to the last bit, and the window holds a fraction of the image (the default framing
+    fills it with the head: under half)."""
+    import vtts.analysis.estimator as estimator_module
+
+    truth = _params({3: 200, 12: 80, 19: 300, 35: 100, 48: 1500, 49: -2500})
+    frame = FaceRenderer(cybatt, size=SIZE).render(truth).astype(np.float32)
+    steps = {}
+    for whole in (False, True):
+        if whole:  # no bounds found: the whole level, as before windows
+            monkeypatch.setattr(estimator_module, "_bounds", lambda mask: None)
+        est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, robust=robust)
+        for lv in est.pyramid:
+            camera = estimator_module._smooth(
+                estimator_module._subsample(frame, lv.factor), est.sigma
+            )
+            image, faces, _ = est._render_window(lv.factor)
+            moved = est._solve(camera, lv)
+            steps[whole, lv.factor] = (moved, est.params.copy(), est.gain.copy(), faces.size)
+    w, h = SIZE
+    for lv in PYRAMID:
+        (m0, p0, g0, n0), (m1, p1, g1, n1) = steps[False, lv.factor], steps[True, lv.factor]
+        assert m0 == m1 and np.array_equal(p0, p1) and np.array_equal(g0, g1), lv.factor
+        assert n1 == (w // lv.factor) * (h // lv.factor) and n0 < n1 / 2, (n0, n1)
+
+
+def test_bounds_of_a_mask():
+    from vtts.analysis.estimator import _bounds
+
+    mask = np.zeros((6, 8), bool)
+    assert _bounds(mask) is None
+    mask[2, 3] = mask[4, 6] = True
+    assert _bounds(mask) == ((2, 5), (3, 7))
 
 
 def test_windows_overlap_when_they_share_a_pixel():

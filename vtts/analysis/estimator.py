@@ -51,6 +51,10 @@ from vtts.threads import one_blas_thread
 #: Pixels next to the model's outline left out of the estimation.
 EDGE = 2
 
+#: The Gaussian filter's reach in standard deviations (its radius: ``int(SMOOTH_REACH · σ + 0.5)``
+#: pixels).
+SMOOTH_REACH = 2.0
+
 #: Residuals beyond this many gray levels count as this many in the match energy (robust).
 TRUNCATE = 10.0
 
@@ -228,6 +232,40 @@ class Estimator:
             c = factor // 2
             faces = faces[c::factor, c::factor][:h, :w]
         return _subsample(image, factor), faces
+
+    def _render_window(self, factor: int) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
+        """What :meth:`render` gives at pyramid ``factor``, cut to the window around the face
+        that a solve reads: ``(image, faces, (top, left))``, the window's image ``(h, w, 3)``
+        and triangle indices ``(h, w)`` and where its top-left pixel lies in the level's image.
+
+        The window holds every face pixel with :func:`_window_margin` pixels of the level
+        around it (the smoothing's reach and the gradients'), so that the subsampling, the
+        smoothing, the erosion of the outline and the gradients give the same numbers over the
+        face as on the whole image, for a fraction of the pixels (the face is a sixth of a CIF
+        head-and-shoulders frame). Without face pixels, the whole level."""
+        image, numbers = self._synthesize(self.camera, self.size, triangles=True)
+        w, h = self._levels[factor][1]
+        c = factor // 2
+        if factor > 1:
+            numbers = numbers[c::factor, c::factor][:h, :w]
+        drawn = numbers >= 0
+        box = _bounds(drawn)  # what is drawn holds the face
+        if box is not None:
+            (y0, y1), (x0, x1) = box
+            faces = np.where(drawn[y0:y1, x0:x1], self._faces[numbers[y0:y1, x0:x1]], -1)
+            inner = _bounds(faces >= 0)
+            box = None
+            if inner is not None:
+                m = _window_margin(self.sigma)
+                (i0, i1), (j0, j1) = inner
+                box = (max(0, y0 + i0 - m), min(h, y0 + i1 + m)), (
+                    max(0, x0 + j0 - m), min(w, x0 + j1 + m))  # fmt: skip
+        if box is None:
+            box = (0, h), (0, w)
+        (y0, y1), (x0, x1) = box
+        faces = np.where(numbers[y0:y1, x0:x1] >= 0, self._faces[numbers[y0:y1, x0:x1]], -1)
+        window = image[y0 * factor : y1 * factor, x0 * factor : x1 * factor]
+        return _subsample(window, factor), faces, (y0, x0)
 
     def _synthesize(self, camera: Camera, size: tuple[int, int], triangles: bool = False):
         """The model at the current estimate through ``camera`` at ``size``: the image ``(h, w,
@@ -410,7 +448,8 @@ class Estimator:
         """One Gauss–Newton step at one level; returns how far (pixels of that level) the step
         moved the image of the unknown that moved most."""
         cam = self._levels[lv.factor][0]
-        image, ids = self.render(lv.factor)
+        image, ids, (top, left) = self._render_window(lv.factor)
+        camera_image = camera_image[top : top + ids.shape[0], left : left + ids.shape[1]]
         raw = _smooth(image, self.sigma)
         gain, offset = self.gain.astype(np.float32), self.offset.astype(np.float32)
         # pixels within the model's outline: at the outline the synthetic background (which a
@@ -444,7 +483,7 @@ class Estimator:
         rows, cols = rows[keep], cols[keep]
         gx_p, gy_p, r_p, s_p = gx_p[keep], gy_p[keep], r_p[keep], s_p[keep]
         tri = ids[rows, cols]
-        pix = np.stack([cols + 0.5, rows + 0.5], axis=1)
+        pix = np.stack([cols + (left + 0.5), rows + (top + 0.5)], axis=1)  # pixels of the level
         positions = self.geometry.positions(self.params, self.translation)
         verts = self.geometry.faces[tri]  # (N, 3)
         lam, pc = ray_barycentrics(pix, cam, positions[verts])
@@ -741,6 +780,22 @@ def _blocks(lo: int, hi: int, n: int, block: int = 16) -> tuple[int, int]:
     return start, start + size
 
 
+def _bounds(mask: np.ndarray) -> tuple[tuple[int, int], tuple[int, int]] | None:
+    """The rows ``[top, bottom)`` and columns ``[left, right)`` that hold every True pixel of
+    ``mask`` ``(H, W)``; None when it has none."""
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    if rows.size == 0:
+        return None
+    return (int(rows[0]), int(rows[-1]) + 1), (int(cols[0]), int(cols[-1]) + 1)
+
+
+def _window_margin(sigma: float) -> int:
+    """Pixels (of a level) around the face that a solve's numbers depend on: the Gaussian
+    filter's radius (:func:`_smooth`, scipy's ``int(truncate · σ + 0.5)``), one more for the
+    central differences of the gradients, and one to spare."""
+    return int(SMOOTH_REACH * sigma + 0.5) + 2
+
+
 def _subsample(image: np.ndarray, factor: int) -> np.ndarray:
     """Moving-average subsampling of ``(H, W, C)`` by ``factor`` to ``float32`` (edges that do
     not fill a block are dropped)."""
@@ -756,7 +811,7 @@ def _subsample(image: np.ndarray, factor: int) -> np.ndarray:
 def _smooth(image: np.ndarray, sigma: float) -> np.ndarray:
     if sigma <= 0:
         return image
-    return gaussian_filter(image, sigma=(sigma, sigma, 0), mode="nearest", truncate=2.0)
+    return gaussian_filter(image, sigma=(sigma, sigma, 0), mode="nearest", truncate=SMOOTH_REACH)
 
 
 def _gradients_at(
