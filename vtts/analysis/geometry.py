@@ -62,6 +62,8 @@ class HeadGeometry:
         self._local: tuple[bytes, dict[int, np.ndarray]] | None = None
         self._pose: tuple[bytes, Pose] | None = None
         self._columns: dict[tuple[str, int], np.ndarray] = {}
+        #: mesh DEF name -> (unknown's column, parameter index, its table columns) per FAP
+        self._tables: dict[str, list[tuple[int, int, np.ndarray]]] = {}
         #: parameter indices that drive a Transform (the head and eye rotations)
         self._rotating = {int(i) for t in self.engine.transforms.values() for i in t.param}
         faces = []
@@ -134,11 +136,15 @@ class HeadGeometry:
         local = self._locals(params)
         top = self._top(translation)
         out = []
+        done: dict[tuple[int, ...], np.ndarray] = {}  # shapes under the same Transforms share it
         for s in self.shapes:
-            m = top
-            for node in s.chain:
-                m = m @ local[id(node)]
-            out.append(m)
+            key = tuple(id(node) for node in s.chain)
+            if key not in done:
+                m = top
+                for node in s.chain:
+                    m = m @ local[id(node)]
+                done[key] = m
+            out.append(done[key])
         return out
 
     def _matrix_derivatives(
@@ -160,9 +166,14 @@ class HeadGeometry:
         top = self._top(translation)
         slope: dict[int, np.ndarray] = {}
         out: list[np.ndarray | None] = []
+        done: dict[tuple[int, ...], np.ndarray] = {}  # shapes under the same Transforms share it
         for s in self.shapes:
             if not any(n.name in names for n in s.chain):
                 out.append(None)
+                continue
+            key = tuple(id(node) for node in s.chain)
+            if key in done:
+                out.append(done[key])
                 continue
             for n in s.chain:
                 if n.name in names and id(n) not in slope:
@@ -177,6 +188,7 @@ class HeadGeometry:
                 for j, other in enumerate(s.chain):
                     m = m @ (slope[id(node)] if j == i else local[id(other)])
                 total = m if total is None else total + m
+            done[key] = total
             out.append(total)
         return out
 
@@ -274,12 +286,18 @@ class HeadGeometry:
         """Displacement per unit ``(len(points), 3)`` of the Coordinate ``points`` of mesh
         ``name`` for each FAP unknown with an active table interval at ``params``."""
         b = self.engine.meshes[name]
+        tables = self._tables.get(name)
+        if tables is None:  # each unknown's table columns in this mesh, in column order
+            tables = [
+                (j, u - 1, np.flatnonzero(b.param == u - 1))
+                for j, u in enumerate(self.unknowns)
+                if not isinstance(u, str)
+            ]
+            self._tables[name] = tables = [t for t in tables if t[2].size]
         out = {}
-        for j, u in enumerate(self.unknowns):
-            if isinstance(u, str):
-                continue
-            v = params[u - 1]
-            cols = np.flatnonzero((b.param == u - 1) & (b.lo <= v) & (v < b.hi))
+        for j, pi, cols in tables:
+            v = params[pi]
+            cols = cols[(b.lo[cols] <= v) & (v < b.hi[cols])]
             if cols.size == 0:
                 continue
             out[j] = self._column(name, int(cols[0]))[points]
