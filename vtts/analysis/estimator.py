@@ -489,7 +489,7 @@ class Estimator:
         lam, pc = ray_barycentrics(pix, cam, positions[verts])
         uniq, inverse = np.unique(verts, return_inverse=True)
         jac = self.geometry.jacobian(self.params, self.translation, uniq)  # (U, 3, K) world
-        jac = np.einsum("ab,ubk->uak", np.linalg.inv(cam.pose)[:3, :3], jac)  # camera axes
+        jac = np.linalg.inv(cam.pose)[:3, :3] @ jac  # camera axes (U, 3, K)
         # single precision from here on: the image terms carry no more than that
         jac = jac.astype(np.float32)
         lam = lam.astype(np.float32)

@@ -274,7 +274,7 @@ class Tracker(Estimator):
         lam, point = ray_barycentrics(pix, cam, positions[verts])
         uniq, inverse = np.unique(verts, return_inverse=True)
         jac = self.geometry.jacobian(self.params, self.translation, uniq)  # (U, 3, K) world
-        jac = np.einsum("ab,ubk->uak", np.linalg.inv(cam.pose)[:3, :3], jac)
+        jac = np.linalg.inv(cam.pose)[:3, :3] @ jac  # camera axes (U, 3, K)
         motion = np.einsum(
             "nm,nmak->nak", lam.astype(np.float32),
             jac.astype(np.float32)[inverse.reshape(verts.shape)],
