@@ -147,3 +147,44 @@ def test_a_scene_draws_in_the_order_its_nodes_were_added():
             del junk
     assert orders[0] == orders[1] == orders[2]
     assert orders[0][1] == [2.2, 0.8]  # the key light, then the fill light
+
+
+def _unlit_cybatt(folder) -> str:
+    """cybatt with its skin's Material taken out: an unlit face (as a head made for a video),
+    animated by the same tables."""
+    import shutil
+    from pathlib import Path
+
+    models = Path(__file__).resolve().parents[2] / "models"
+    for name in ("cybatt.adt", "cybatt-face.png"):
+        shutil.copy(models / name, folder / name)
+    text = (models / "cybatt.wrl").read_text(encoding="utf-8")
+    skin = "      material Material { diffuseColor 1 1 1 shininess 0.12 }\n"
+    assert text.count(skin) == 1
+    (folder / "cybatt.wrl").write_text(text.replace(skin, ""), encoding="utf-8")
+    return str(folder / "cybatt.wrl")
+
+
+@pytest.mark.parametrize("deferred", [True, False])
+def test_an_unlit_face_needs_no_normals_where_they_do_not_show(tmp_path, monkeypatch, deferred):
+    """An opaque unlit mesh drawn through the G-buffer keeps its template's normals frame after
+    frame (they show nowhere) and its frames are the pixels of normals computed every frame;
+    where the scene falls back to pyrender's lit forward pass, the normals are computed."""
+    import vtts.render.deferred as deferred_module
+
+    model = load_model(_unlit_cybatt(tmp_path))
+    params = _speaking(model, 8)
+    if not deferred:
+        monkeypatch.setattr(deferred_module.DeferredPass, "deferrable", lambda self, scene: False)
+    frames = {}
+    for skip in (True, False):
+        with FaceRenderer(model, size=(176, 144)) as r:
+            assert [am.unlit for am in r.instances[0].meshes if am.name == "FACE"] == [True]
+            if not skip:  # every mesh lit as far as the frames' geometry is concerned
+                for am in r.instances[0].meshes:
+                    am.unlit = False
+            frames[skip] = [f.copy() for f in r.frames(params)]
+            if skip:
+                assert r._draws_unlit() == deferred
+    assert all(np.array_equal(a, b) for a, b in zip(frames[True], frames[False], strict=True))
+    assert not all(np.array_equal(frames[True][0], f) for f in frames[True][1:])  # it moves

@@ -108,6 +108,19 @@ class DeferredPass(ForwardPass):
                 materials.add(p.material)
         return len(materials) <= self.MAX_MATERIALS
 
+    def draws_unlit(self, scene) -> bool:
+        """Whether :meth:`render` draws ``scene`` through the G-buffer, where an opaque unlit
+        material (:data:`~vtts.render.renderer.UNLIT`) shows its colours whatever its normals;
+        where it falls back to pyrender's forward shading such materials are lit like the rest
+        and need their normals."""
+        if not (self.supports(scene) and self.deferrable(scene)):
+            return False
+        self._offscreen._platform.make_current()
+        opaque = [(n, None) for n in scene.mesh_nodes if not n.mesh.is_transparent]
+        colors = self._vertex_colors(opaque)
+        lights = _light_counts(scene)
+        return self._resolve_program(self._offscreen._renderer, colors, lights) is not None
+
     @staticmethod
     def _vertex_colors(opaque) -> bool:
         """Whether any of the ``(node, pose)`` has per-vertex colors (the G-buffer then keeps

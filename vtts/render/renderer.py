@@ -223,6 +223,9 @@ class _AnimatedMesh:
     # buffer): parts of a face that a frame leaves as they were cost nothing
     last: tuple | None = None
     first_triangle: int = 0  # the number of its first triangle (see FaceRenderer.triangle_sets)
+    # opaque and unlit (UNLIT): drawn through the G-buffer its normals show nowhere, so a frame
+    # leaves them as the template has them unless the scene is drawn lit (FaceRenderer.apply)
+    unlit: bool = False
 
 
 @dataclass
@@ -362,6 +365,7 @@ class FaceRenderer:
             pr.DirectionalLight(color=np.ones(3), intensity=0.8), pose=key @ _rot_xy(-0.1, 0.5)
         )
         self._renderer = _offscreen()
+        self._unlit_drawn: bool | None = None  # see _draws_unlit
 
     def set_view(
         self,
@@ -491,6 +495,7 @@ class FaceRenderer:
                         inc,
                         _constant_columns(mesh),
                         first_triangle=first,
+                        unlit=getattr(material, UNLIT, False) and not mesh.is_transparent,
                     )
                 )
         else:
@@ -714,8 +719,12 @@ class FaceRenderer:
             last = pts
         if changed:
             positions = np.stack([points[f] for f in changed])[:, am.template.coord_index]
-            normals = vertex_normals(positions, am.template.faces, am.incidence)
-            data = _vertex_data(am, positions, normals)
+            if am.unlit:  # computed in apply only if the scene is drawn lit after all
+                normals = [None] * len(changed)
+                data = _vertex_data(am, positions, am.template.normals)
+            else:
+                normals = vertex_normals(positions, am.template.faces, am.incidence)
+                data = _vertex_data(am, positions, normals)
         out: list = [None] * len(points)
         k = -1
         for f, pts in enumerate(points):
@@ -757,6 +766,12 @@ class FaceRenderer:
             if root is not None:
                 self.scene.set_pose(inst.root, root)
             for am, positions, normals, vertex_data in meshes:
+                if normals is None:  # an unlit mesh (see _AnimatedMesh.unlit)
+                    if self._draws_unlit():
+                        normals = am.template.normals
+                    else:
+                        normals = vertex_normals(positions, am.template.faces, am.incidence)
+                        vertex_data = _vertex_data(am, positions, normals)
                 if not _update_in_place(am, vertex_data):
                     self.scene.remove_node(am.node)
                     am.node = self.scene.add(
@@ -766,6 +781,14 @@ class FaceRenderer:
             for at, m in matrices:
                 for pn in at.nodes:
                     self.scene.set_pose(pn, m)
+
+    def _draws_unlit(self) -> bool:
+        """Whether this scene's frames are drawn through the G-buffer, where unlit meshes need
+        no normals (:meth:`~vtts.render.deferred.DeferredPass.draws_unlit`; the same for every
+        frame: the scene's materials and lights do not change)."""
+        if self._unlit_drawn is None:
+            self._unlit_drawn = _drawing_pass().draws_unlit(self.scene)
+        return self._unlit_drawn
 
     def pose(
         self,
