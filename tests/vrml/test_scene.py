@@ -63,6 +63,42 @@ def test_transform_matrix_matches_the_spec_order():
     assert np.allclose(rotation_matrix([0, 0, 2, np.pi / 2]) @ [1, 0, 0], [0, 1, 0])
 
 
+def test_identity_factors_left_out_of_a_transform_change_no_number():
+    """Every factor of T·C·R·SR·S·SR⁻¹·C⁻¹ multiplied out, identities included, gives the
+    same numbers as the product without the identity factors, for fields with and without
+    each factor."""
+    from itertools import product
+
+    from vtts.vrml.transform import _homogeneous
+
+    def spelled_out(t, r, s, so, c):
+        sr = rotation_matrix(so)
+        return (
+            _homogeneous(t=t)
+            @ _homogeneous(t=c)
+            @ _homogeneous(rotation_matrix(r))
+            @ _homogeneous(sr)
+            @ _homogeneous(np.diag(s))
+            @ _homogeneous(sr.T)
+            @ _homogeneous(t=-c)
+        )
+
+    rng = np.random.default_rng(7)
+    for given in product([False, True], repeat=5):
+        t, c, s = (
+            rng.normal(size=3) if g else z
+            for g, z in zip(given[:3], (np.zeros(3), np.zeros(3), np.ones(3)), strict=True)
+        )
+        r = np.r_[rng.normal(size=3), rng.normal()] if given[3] else np.array([0, 0, 1, 0.0])
+        so = np.r_[rng.normal(size=3), rng.normal()] if given[4] else np.array([0, 0, 1, 0.0])
+        expected = spelled_out(t, r, s, so, c)
+        assert np.array_equal(compose_transform(t, r, s, so, c), expected), given
+    assert np.array_equal(
+        compose_transform(np.zeros(3), [0, 0, 1, 0], np.ones(3), [0, 0, 1, 0], np.zeros(3)),
+        np.eye(4),
+    )
+
+
 def test_proto_instances_expand_for_traversal():
     scene = parse(
         H

@@ -39,17 +39,41 @@ def compose_transform(
     scale_orientation: np.ndarray,
     center: np.ndarray,
 ) -> np.ndarray:
-    """``(4, 4)`` matrix T·C·R·SR·S·SR⁻¹·C⁻¹ of the VRML97 Transform node (ISO 14772-1 6.52)."""
+    """``(4, 4)`` matrix T·C·R·SR·S·SR⁻¹·C⁻¹ of the VRML97 Transform node (ISO 14772-1 6.52).
+
+    Factors that are exactly the identity (no translation, no center, a zero rotation, unit
+    scale) are left out of the product: the same numbers (a product with the identity is exact)
+    for a fraction of the work, which counts for a head's Transforms posed many times a frame
+    by the estimator."""
+    translation = np.asarray(translation, float)
+    center = np.asarray(center, float)
+    scale = np.asarray(scale, float)
     sr = rotation_matrix(scale_orientation)
-    return (
-        _homogeneous(t=np.asarray(translation, float))
-        @ _homogeneous(t=np.asarray(center, float))
-        @ _homogeneous(rotation_matrix(rotation))
-        @ _homogeneous(sr)
-        @ _homogeneous(np.diag(np.asarray(scale, float)))
-        @ _homogeneous(sr.T)
-        @ _homogeneous(t=-np.asarray(center, float))
-    )
+    r = rotation_matrix(rotation)
+    factors = []
+    if translation.any():
+        factors.append(_homogeneous(t=translation))
+    if center.any():
+        factors.append(_homogeneous(t=center))
+    if not _is_identity(r):
+        factors.append(_homogeneous(r))
+    if not (_is_identity(sr) and (scale == 1.0).all()):
+        factors += [_homogeneous(sr), _homogeneous(np.diag(scale)), _homogeneous(sr.T)]
+    if center.any():
+        factors.append(_homogeneous(t=-center))
+    if not factors:
+        return np.eye(4)
+    out = factors[0]
+    for f in factors[1:]:
+        out = out @ f
+    return out
+
+
+def _is_identity(m3: np.ndarray) -> bool:
+    return bool((m3 == _EYE3).all())
+
+
+_EYE3 = np.eye(3)
 
 
 def transform_matrix(node) -> np.ndarray:
