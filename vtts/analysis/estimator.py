@@ -225,15 +225,12 @@ class Estimator:
         Both come from one rendering at full size: the image is subsampled exactly as the camera
         frame is (a moving average over the same full-size pixels), and each pixel of a smaller
         level takes the triangle of the full-size pixel at its centre."""
-        image, numbers = self._synthesize(self.camera, self.size, triangles=True)
-        faces = np.where(numbers >= 0, self._faces[numbers], -1)
-        if factor > 1:
-            w, h = self._levels[factor][1]
-            c = factor // 2
-            faces = faces[c::factor, c::factor][:h, :w]
-        return _subsample(image, factor), faces
+        image, faces, _ = self._render_window(factor, whole=True)
+        return image, faces
 
-    def _render_window(self, factor: int) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
+    def _render_window(
+        self, factor: int, whole: bool = False
+    ) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
         """What :meth:`render` gives at pyramid ``factor``, cut to the window around the face
         that a solve reads: ``(image, faces, (top, left))``, the window's image ``(h, w, 3)``
         and triangle indices ``(h, w)`` and where its top-left pixel lies in the level's image.
@@ -242,30 +239,30 @@ class Estimator:
         around it (the smoothing's reach and the gradients'), so that the subsampling, the
         smoothing, the erosion of the outline and the gradients give the same numbers over the
         face as on the whole image, for a fraction of the pixels (the face is a sixth of a CIF
-        head-and-shoulders frame). Without face pixels, the whole level."""
+        head-and-shoulders frame). With ``whole``, or without face pixels, the whole level."""
         image, numbers = self._synthesize(self.camera, self.size, triangles=True)
         w, h = self._levels[factor][1]
-        c = factor // 2
         if factor > 1:
+            c = factor // 2
             numbers = numbers[c::factor, c::factor][:h, :w]
-        drawn = numbers >= 0
-        box = _bounds(drawn)  # what is drawn holds the face
-        if box is not None:
-            (y0, y1), (x0, x1) = box
-            faces = np.where(drawn[y0:y1, x0:x1], self._faces[numbers[y0:y1, x0:x1]], -1)
-            inner = _bounds(faces >= 0)
-            box = None
+        box = (0, h), (0, w)
+        drawn = None if whole else _bounds(numbers >= 0)  # what is drawn holds the face
+        if drawn is not None:
+            (y0, y1), (x0, x1) = drawn
+            inner = _bounds(self._face_indices(numbers[y0:y1, x0:x1]) >= 0)
             if inner is not None:
                 m = _window_margin(self.sigma)
                 (i0, i1), (j0, j1) = inner
                 box = (max(0, y0 + i0 - m), min(h, y0 + i1 + m)), (
                     max(0, x0 + j0 - m), min(w, x0 + j1 + m))  # fmt: skip
-        if box is None:
-            box = (0, h), (0, w)
         (y0, y1), (x0, x1) = box
-        faces = np.where(numbers[y0:y1, x0:x1] >= 0, self._faces[numbers[y0:y1, x0:x1]], -1)
         window = image[y0 * factor : y1 * factor, x0 * factor : x1 * factor]
-        return _subsample(window, factor), faces, (y0, x0)
+        return _subsample(window, factor), self._face_indices(numbers[y0:y1, x0:x1]), (y0, x0)
+
+    def _face_indices(self, numbers: np.ndarray) -> np.ndarray:
+        """The renderer's triangle ``numbers`` ``(h, w)`` as indices into ``geometry.faces``
+        (−1: none, or a part left out of the match)."""
+        return np.where(numbers >= 0, self._faces[numbers], -1)
 
     def _synthesize(self, camera: Camera, size: tuple[int, int], triangles: bool = False):
         """The model at the current estimate through ``camera`` at ``size``: the image ``(h, w,
@@ -484,21 +481,7 @@ class Estimator:
         gx_p, gy_p, r_p, s_p = gx_p[keep], gy_p[keep], r_p[keep], s_p[keep]
         tri = ids[rows, cols]
         pix = np.stack([cols + (left + 0.5), rows + (top + 0.5)], axis=1)  # pixels of the level
-        positions = self.geometry.positions(self.params, self.translation)
-        verts = self.geometry.faces[tri]  # (N, 3)
-        lam, pc = ray_barycentrics(pix, cam, positions[verts])
-        uniq, inverse = np.unique(verts, return_inverse=True)
-        jac = self.geometry.jacobian(self.params, self.translation, uniq)  # (U, 3, K) world
-        jac = np.linalg.inv(cam.pose)[:3, :3] @ jac  # camera axes (U, 3, K)
-        # single precision from here on: the image terms carry no more than that
-        jac = jac.astype(np.float32)
-        lam = lam.astype(np.float32)
-        tc = np.einsum("nm,nmak->nak", lam, jac[inverse.reshape(verts.shape)])  # (N, 3, K)
-        depth = (-pc[:, 2:3]).astype(np.float32)  # distance along the view axis, > 0
-        x_rel = (pix[:, 0:1] - cam.cx).astype(np.float32)
-        y_rel = (cam.cy - pix[:, 1:2]).astype(np.float32)
-        du = (np.float32(cam.fx) * tc[:, 0] + x_rel * tc[:, 2]) / depth  # (N, K) px per unit
-        dv = -(np.float32(cam.fy) * tc[:, 1] + y_rel * tc[:, 2]) / depth
+        _, _, du, dv = self._image_motion(pix, tri, cam)
         k = du.shape[1]
         # an unknown whose motion covers too few pixels at this level is held
         speed = np.hypot(du, dv)
@@ -525,6 +508,32 @@ class Estimator:
         self._apply(delta)
         self._last_step = _Step(energy, delta, 0, moved)
         return moved
+
+    def _image_motion(self, pix: np.ndarray, tri: np.ndarray, cam: Camera):
+        """What the unknowns do at the pixel centres ``pix`` ``(N, 2)`` (pixels of ``cam``'s
+        image) showing the triangles ``tri`` ``(N,)`` (indices into ``geometry.faces``), at the
+        current estimate: each pixel's surface point in camera coordinates ``(N, 3)``, its 3D
+        motion per unit of each unknown in camera axes ``(N, 3, K)`` (Equation 9: the vertices'
+        motion combined by the barycentric coordinates), and the image motion it makes, ``du``
+        and ``dv`` ``(N, K)`` pixels per unit (Equations 14–15) — all ``float32``: the image
+        terms carry no more than single precision."""
+        positions = self.geometry.positions(self.params, self.translation)
+        verts = self.geometry.faces[tri]  # (N, 3)
+        lam, point = ray_barycentrics(pix, cam, positions[verts])
+        uniq, inverse = np.unique(verts, return_inverse=True)
+        jac = self.geometry.jacobian(self.params, self.translation, uniq)  # (U, 3, K) world
+        jac = np.linalg.inv(cam.pose)[:3, :3] @ jac  # camera axes (U, 3, K)
+        jac = jac.astype(np.float32)
+        motion = np.einsum(
+            "nm,nmak->nak", lam.astype(np.float32), jac[inverse.reshape(verts.shape)]
+        )
+        point = point.astype(np.float32)
+        depth = -point[:, 2:3]  # distance along the view axis, > 0
+        x_rel = (pix[:, 0:1] - cam.cx).astype(np.float32)
+        y_rel = (cam.cy - pix[:, 1:2]).astype(np.float32)
+        du = (np.float32(cam.fx) * motion[:, 0] + x_rel * motion[:, 2]) / depth
+        dv = -(np.float32(cam.fy) * motion[:, 1] + y_rel * motion[:, 2]) / depth
+        return point, motion, du, dv
 
     def _refine(self, frame: np.ndarray, steps: Sequence[int] = REFINE_STEPS) -> float:
         """Refine the (integer) values of the FAPs :attr:`refined` on the rendered image: a

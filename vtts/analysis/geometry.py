@@ -39,6 +39,12 @@ class _Shape:
     first_vertex: int
     first_face: int  # index of its first triangle in HeadGeometry.faces
 
+    @property
+    def chain_key(self) -> tuple[int, ...]:
+        """Which Transforms are above the shape (shapes with the same key share their world
+        matrix)."""
+        return tuple(id(node) for node in self.chain)
+
 
 class HeadGeometry:
     """Every IndexedFaceSet of ``model`` as one triangle set, placed by ``root`` ``(4, 4)`` (the
@@ -138,7 +144,7 @@ class HeadGeometry:
         out = []
         done: dict[tuple[int, ...], np.ndarray] = {}  # shapes under the same Transforms share it
         for s in self.shapes:
-            key = tuple(id(node) for node in s.chain)
+            key = s.chain_key
             if key not in done:
                 m = top
                 for node in s.chain:
@@ -171,7 +177,7 @@ class HeadGeometry:
             if not any(n.name in names for n in s.chain):
                 out.append(None)
                 continue
-            key = tuple(id(node) for node in s.chain)
+            key = s.chain_key
             if key in done:
                 out.append(done[key])
                 continue

@@ -44,7 +44,6 @@ from vtts.analysis.estimator import (
     _least_squares,
     _smooth,
 )
-from vtts.analysis.raster import ray_barycentrics
 from vtts.analysis.result import TRANSLATION, FrameEstimate
 from vtts.errors import VttsError
 from vtts.threads import one_blas_thread
@@ -269,22 +268,7 @@ class Tracker(Estimator):
         self._box = _window_around(rows + y0, cols + x0, (ww, wh), self.size)
         tri = ids[rows, cols]
         pix = np.stack([cols + 0.5, rows + 0.5], axis=1)
-        positions = self.geometry.positions(self.params, self.translation)
-        verts = self.geometry.faces[tri]
-        lam, point = ray_barycentrics(pix, cam, positions[verts])
-        uniq, inverse = np.unique(verts, return_inverse=True)
-        jac = self.geometry.jacobian(self.params, self.translation, uniq)  # (U, 3, K) world
-        jac = np.linalg.inv(cam.pose)[:3, :3] @ jac  # camera axes (U, 3, K)
-        motion = np.einsum(
-            "nm,nmak->nak", lam.astype(np.float32),
-            jac.astype(np.float32)[inverse.reshape(verts.shape)],
-        )  # fmt: skip
-        point = point.astype(np.float32)
-        depth = -point[:, 2:3]
-        x_rel = (pix[:, 0:1] - cam.cx).astype(np.float32)
-        y_rel = (cam.cy - pix[:, 1:2]).astype(np.float32)
-        du = (np.float32(cam.fx) * motion[:, 0] + x_rel * motion[:, 2]) / depth
-        dv = -(np.float32(cam.fy) * motion[:, 1] + y_rel * motion[:, 2]) / depth
+        point, motion, du, dv = self._image_motion(pix, tri, cam)
         held = self._searched_columns
         du[:, held] = 0.0
         dv[:, held] = 0.0
