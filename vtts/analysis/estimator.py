@@ -169,6 +169,9 @@ class Estimator:
         # columns of the linear solves held for the searched FAPs
         self._searched_columns = np.array([u in alone for u in self.unknowns])
         self.bounds = dict(bounds or {})
+        #: FAP -> the steps the search after the solves (:meth:`_settle`) takes it by, where
+        #: they are not :data:`REFINE_STEPS`
+        self.search_steps: dict[int, tuple[int, ...]] = {}
         self.model = model
         self.size = (int(size[0]), int(size[1]))
         self.pyramid = tuple(pyramid)
@@ -550,22 +553,31 @@ class Estimator:
         side: each rendering tries a move of each of them, and each keeps its own move by the
         match in its own window, exactly as if it were searched alone.
 
+        A FAP with steps of its own in :attr:`search_steps` takes those instead of the
+        ordinary ``steps`` (:data:`REFINE_STEPS`), and is searched beside FAPs with the same
+        steps only.
+
         Returns how far (units) the FAP that moved most was moved."""
-        reach = max(100.0, REFINE_MOVES * sum(steps))
-        windows = {fap: self._window(fap, reach) for fap in self.refined}
+        own = {fap: self.search_steps.get(fap, steps) if steps == REFINE_STEPS else steps
+               for fap in self.refined}  # fmt: skip
+        windows = {
+            fap: self._window(fap, max(100.0, REFINE_MOVES * sum(own[fap]))) for fap in self.refined
+        }
         groups: list[list[int]] = []
         for fap, win in windows.items():
             if win is None:
                 continue
             for group in groups:
-                if not any(_overlap(win, windows[other]) for other in group):
+                if own[group[0]] == own[fap] and not any(
+                    _overlap(win, windows[other]) for other in group
+                ):
                     group.append(fap)
                     break
             else:
                 groups.append([fap])
         before = self.params.copy()
         for group in groups:
-            self._search(frame, {fap: windows[fap] for fap in group}, steps)
+            self._search(frame, {fap: windows[fap] for fap in group}, own[group[0]])
         return float(np.abs(self.params - before).max(initial=0.0))
 
     def _search(

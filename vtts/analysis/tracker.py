@@ -31,6 +31,7 @@ estimator's. See docs/analysis.md, "Tracking mode".
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -45,6 +46,7 @@ from vtts.analysis.estimator import (
     _smooth,
 )
 from vtts.analysis.result import TRANSLATION, FrameEstimate
+from vtts.analysis.unknowns import JAW_AND_CORNERS
 from vtts.errors import VttsError
 from vtts.threads import one_blas_thread
 
@@ -95,6 +97,12 @@ POLISH_PX = 0.02
 #: linearization's error is far below what camera noise and the model's shortcomings leave,
 #: so the solves on the samples are final.
 LIT_SHARE = 0.5
+
+#: The steps (FAP units, largest first) by which the search on the rendered image takes the
+#: FAPs it refines on a lit face only (``Tracker``'s ``lit_refine``: the jaw and the lip
+#: corners), at most :data:`~vtts.analysis.estimator.REFINE_MOVES` times each: within ±12
+#: units of where the solves left them.
+LIT_REFINE_STEPS = (2, 1)
 
 #: Between two frames, samples that moved this far (pixels) are rendered anew
 #: (:meth:`Tracker.between_frames`).
@@ -147,13 +155,24 @@ class _Samples:
 class Tracker(Estimator):
     """An :class:`~vtts.analysis.estimator.Estimator` that tracks with about one rendering per
     frame (see the module's docstring). Takes the same arguments, plus ``stages``
-    (:data:`STAGES`), ``rerender`` (:data:`RERENDER_PX`), ``polish`` (:data:`POLISH_PX`) and
-    ``sample_step`` (:data:`SAMPLE_STEP`)."""
+    (:data:`STAGES`), ``rerender`` (:data:`RERENDER_PX`), ``polish`` (:data:`POLISH_PX`),
+    ``sample_step`` (:data:`SAMPLE_STEP`) and ``lit_refine``: FAPs that, when they are
+    unknowns, the search on the rendered image refines as well on a frame whose samples lie on a
+    lit face (default :data:`~vtts.analysis.unknowns.JAW_AND_CORNERS`)."""
 
     def __init__(self, *args, stages=STAGES, rerender: float = RERENDER_PX,
                  polish: float = POLISH_PX, sample_step: int = SAMPLE_STEP,
-                 **kwargs) -> None:  # fmt: skip
+                 lit_refine: Iterable[int] = JAW_AND_CORNERS, **kwargs) -> None:  # fmt: skip
         super().__init__(*args, **kwargs)
+        # on a lit face the search on the rendered image takes these as well (the jaw and the
+        # lip corners, which stall together where the opening mouth uncovers the teeth)
+        wanted = set(self.refined) | set(lit_refine)
+        self._lit_refined = tuple(u for u in self.unknowns if u in wanted)
+        # … by small steps: the solves leave them a few units off, and a wider search lets a
+        # window's match pull one to make up for another FAP's last unit
+        self.search_steps.update(
+            dict.fromkeys(set(self._lit_refined) - set(self.refined), LIT_REFINE_STEPS)
+        )
         self.stages = tuple(stages)
         self.rerender = float(rerender)
         self.polish = float(polish)
@@ -164,7 +183,8 @@ class Tracker(Estimator):
         # the accurate estimator's finest level
         self._refined_columns = np.array([u in self.refined for u in self.unknowns])
         self.sample_step = int(sample_step)
-        #: renderings of the last frame estimated (the eyelid search's windows included)
+        #: renderings of the last frame estimated (the samples' and the polish's; not the
+        #: search's windows on the rendered image)
         self.renderings = 0
         # the window (x0, y0, width, height) of the frame rendered and matched: the face's box
         # with a margin; None for the whole frame
@@ -214,7 +234,8 @@ class Tracker(Estimator):
                 solves += 1
                 if moved < self.tolerance:
                     break
-        if samples.lit >= LIT_SHARE and self._shift(samples) > self.polish:
+        lit = samples.lit >= LIT_SHARE
+        if lit and self._shift(samples) > self.polish:
             # a lit face: the accurate estimator's finest level, a rendering after every solve
             pyramid = {1: _smooth(frame.astype(np.float32), self.sigma)}
             more, _ = self._descend(pyramid, self.pyramid[-1:])
@@ -222,7 +243,13 @@ class Tracker(Estimator):
             self.renderings += more
             samples = fresh(self.sample_step)
         self._samples = samples
-        return self._finish(frame, samples, index, time, solves)
+        refined = self.refined
+        if lit:  # the jaw and the lip corners searched too (``lit_refine``)
+            self.refined = self._lit_refined
+        try:
+            return self._finish(frame, samples, index, time, solves)
+        finally:
+            self.refined = refined
 
     def between_frames(self) -> None:
         """Render now, after the estimate went out and before the next frame arrives, when the

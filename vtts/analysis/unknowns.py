@@ -39,6 +39,13 @@ TABLE1_FAPS: tuple[int, ...] = (3, 12, 13, 19, 20, 35, 36, 48, 49, 50)
 #: image itself (:class:`vtts.analysis.Estimator`'s ``refine``).
 EYELIDS: tuple[int, ...] = (19, 20, 21, 22)
 
+#: The jaw and the lip-corner raisers. Where the jaw opens, the lips uncover the teeth and the
+#: optical-flow model's smooth change fails at that occlusion: on a lit synthetic face the jaw
+#: and the corners can stall together two or three units off (the solves' steps tiny, the face
+#: at 42 dB). The tracking mode refines them on the rendered image on a lit face
+#: (:class:`vtts.analysis.tracker.Tracker`'s ``lit_refine``).
+JAW_AND_CORNERS: tuple[int, ...] = (3, 12, 13)
+
 #: Named sets for ``--faps``.
 UNKNOWN_SETS: dict[str, tuple[int | str, ...]] = {
     "paper17": DEFAULT_UNKNOWNS,
