@@ -77,3 +77,20 @@ def test_the_first_frame_is_found_far_from_neutral(cybatt):
     assert all(error[f] <= 2 for f in (3, 12, 13, 19, 20, 35, 36)), error
     assert all(error[f] <= 10 for f in (48, 49, 50)), error  # 1e-4 rad
     assert fe.psnr > 45
+
+
+def test_a_lid_closed_past_its_range_early_is_searched_again_from_neutral(cybatt):
+    """Seed 26 starts with the head turned near the range's edge (yaw 18,028 units) and the
+    left eyelid nearly open (123 units). The first lid search, made before the pyramid had found
+    the pose, closed that lid 741 units; the solves that found the pose carried it to 1,080,
+    past its range, where the search meets no better match on the way back: the frame ended
+    with the lid 1,093 units off at 32 dB. The search from neutral after the restarts finds it."""
+    truth = random_truth(26, 100)[0]
+    assert truth[18] == 123 and truth[48] == 18028
+    frame = render_sequence(cybatt, truth[None], size=(352, 288))[0]
+    est = Estimator(cybatt, size=(352, 288), unknowns=TABLE1_FAPS)
+    fe = est.estimate(frame, 0)
+    error = {f: abs(fe.params[f - 1] - truth[f - 1]) for f in TABLE1_FAPS}
+    assert all(error[f] <= 2 for f in (3, 12, 13, 19, 20, 35, 36)), error
+    assert all(error[f] <= 10 for f in (48, 49, 50)), error
+    assert fe.psnr > 45
