@@ -23,9 +23,11 @@ colors are smoothed alike from the same rendering.
 The first frame of a track (and a frame after the track was placed again) is estimated by the
 accurate estimator: it may start far from the truth. A lit face — whose shading, unlike an
 unlit head made for the video, changes with every move — is finished by the accurate
-estimator's finest level (:data:`POLISH_PX`, :data:`LIT_SHARE`). The light model (gain and
-offset per channel), robust weights, held unknowns and the eyelid search are the accurate
-estimator's. See docs/analysis.md, "Tracking mode".
+estimator's finest level (:data:`POLISH_PX`, :data:`LIT_SHARE`) and a search on the rendered
+image of the jaw and the lip corners (:data:`LIT_REFINE_STEPS`), which stall together where the
+opening jaw uncovers the teeth. The light model (gain and offset per channel), robust weights,
+held unknowns and the eyelid search are the accurate estimator's. See docs/analysis.md,
+"Tracking mode".
 """
 
 from __future__ import annotations
