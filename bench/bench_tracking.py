@@ -20,7 +20,8 @@ EstimateStream`). Figures:
 Synthetic: Table 1's sequence and the seeded trajectories of ``bench_analysis``
 (:data:`SEEDS`), every 5th frame, with the tracking mode: each FAP's relative error (the worst
 seed) against the paper's Table 1, and the frames per second (a lit head: the tracker polishes
-each frame on renderings of its own, so this is no live speed).
+each frame on renderings of its own, so this is no live speed); and the same over the seeds
+kept out of every choice made on the synthetic runs (:data:`HELD_OUT_SEEDS`).
 
 Targets: ≥ 25 frames/s end to end and ≤ 40 ms latency at CIF on the 2-core machine; a mean
 face PSNR within 1 dB of the accurate mode; every FAP within the paper on the synthetic runs.
@@ -49,6 +50,9 @@ TARGET_DB = 1.0
 #: Table 1 (None) and the seeds of :func:`vtts.analysis.synthetic.random_truth` run in the
 #: tracking mode (bench_analysis's tuned and held-out seeds).
 SEEDS = (None, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12)
+#: Seeds no setting of the tracking mode was chosen on (13–20 were run once to check the lit
+#: face's mouth search after it was chosen on seeds 4, 9 and 12; 21–28 had not been run).
+HELD_OUT_SEEDS = (13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28)
 
 
 def _row(benchmark: str, case: str, value, unit: str, target: str = "", ok=None) -> dict:
@@ -163,6 +167,30 @@ def _sequence(label: str, path: Path) -> list[dict]:
 
 
 def _synthetic() -> list[dict]:
+    from vtts.analysis import TABLE1_FAPS
+
+    errors, count, seconds = _seeded_errors(SEEDS)
+    held, _, _ = _seeded_errors(HELD_OUT_SEEDS)
+    rows = []
+    for name, table in (("Table 1 and 12 seeds", errors),
+                        (f"{len(HELD_OUT_SEEDS)} held-out seeds", held)):  # fmt: skip
+        for j, fap in enumerate(TABLE1_FAPS):
+            paper = table1.PAPER[fap]
+            worst = float(table[:, j].max())
+            case = (f"FAP {fap} (Table 1: {errors[0, j]:.3f} %)" if table is errors
+                    else f"FAP {fap} (seeds {HELD_OUT_SEEDS[0]}-{HELD_OUT_SEEDS[-1]})")  # fmt: skip
+            rows.append(_row(f"tracking: synthetic, relative error (worst of {name})", case,
+                             round(worst, 3), "%", f"<= {paper} (paper)",
+                             worst <= paper))  # fmt: skip
+    rows.append(_row("tracking: synthetic, frames/s (a lit head, polished)",
+                     f"{len(SEEDS)} sequences of 20 CIF frames", round(count / seconds, 2),
+                     "frames/s"))  # fmt: skip
+    return rows
+
+
+def _seeded_errors(seeds) -> tuple[np.ndarray, int, float]:
+    """The tracking mode's relative error of each FAP of Table 1 on each of ``seeds`` (None:
+    Table 1's own curves) ``(seeds, FAPs)``, with the frames estimated and the seconds taken."""
     import vtts
     from vtts.analysis import TABLE1_FAPS
     from vtts.analysis.synthetic import (
@@ -178,7 +206,7 @@ def _synthetic() -> list[dict]:
     idx = [f - 1 for f in TABLE1_FAPS]
     extremes = np.array([TABLE1_EXTREMES[f] for f in TABLE1_FAPS])
     errors, seconds, count = [], 0.0, 0
-    for seed in SEEDS:
+    for seed in seeds:
         truth = (table1_truth(table1.FRAMES) if seed is None
                  else random_truth(seed, table1.FRAMES))[:: table1.STEP]  # fmt: skip
         frames = render_sequence(cybatt, truth, size=table1.SIZE)
@@ -189,15 +217,4 @@ def _synthetic() -> list[dict]:
         seconds += time.perf_counter() - t0
         count += len(frames)
         errors.append(relative_errors(found[:, idx], truth[:, idx], extremes))
-    errors = np.array(errors)  # (seeds, FAPs)
-    rows = []
-    for j, fap in enumerate(TABLE1_FAPS):
-        paper = table1.PAPER[fap]
-        worst = float(errors[:, j].max())
-        rows.append(_row("tracking: synthetic, relative error (worst of Table 1 and 12 seeds)",
-                         f"FAP {fap} (Table 1: {errors[0, j]:.3f} %)", round(worst, 3), "%",
-                         f"<= {paper} (paper)", worst <= paper))  # fmt: skip
-    rows.append(_row("tracking: synthetic, frames/s (a lit head, polished)",
-                     f"{len(SEEDS)} sequences of 20 CIF frames", round(count / seconds, 2),
-                     "frames/s"))  # fmt: skip
-    return rows
+    return np.array(errors), count, seconds
