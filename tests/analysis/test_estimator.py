@@ -152,6 +152,31 @@ def test_the_eyelids_are_refined_on_the_rendered_image(cybatt):
         assert found[(19, 20)] == found[(20,)]
 
 
+def test_a_fap_with_search_steps_of_its_own_is_searched_by_them_and_apart(cybatt, monkeypatch):
+    """``search_steps``: the jaw takes its own steps in the search after the solves, in a group
+    of its own (FAPs searched side by side share their steps); the eyelids keep REFINE_STEPS;
+    a search with other steps (the first frame's) takes those for every FAP."""
+    from vtts.analysis.estimator import FIRST_REFINE_STEPS, REFINE_STEPS
+
+    frame = FaceRenderer(cybatt, size=SIZE).render(_params({3: 200, 19: 100})).astype(np.float32)
+    est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, refine=(3, 19, 20))
+    est.search_steps[3] = (2, 1)
+    calls = []
+    search = Estimator._search
+
+    def spy(self, image, windows, steps):
+        calls.append((sorted(windows), tuple(steps)))
+        return search(self, image, windows, steps)
+
+    monkeypatch.setattr(Estimator, "_search", spy)
+    est._refine(frame)
+    assert sorted(calls) == [([3], (2, 1)), ([19, 20], REFINE_STEPS)], calls
+    assert est.params[2] == 12.0  # 4 moves of 2 and 4 of 1: the jaw's reach, not REFINE_STEPS'
+    calls.clear()
+    est._refine(frame, FIRST_REFINE_STEPS)
+    assert {steps for _, steps in calls} == {FIRST_REFINE_STEPS}, calls
+
+
 def _estimate_from(est, frame, index):
     """``est.estimate(frame, index)`` and the parameters its first solve started from."""
     starts = []
