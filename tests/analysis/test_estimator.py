@@ -13,6 +13,7 @@ from vtts.analysis.geometry import HeadGeometry
 from vtts.analysis.raster import ray_barycentrics
 from vtts.analysis.synthetic import (
     TABLE1_EXTREMES,
+    random_truth,
     relative_errors,
     render_sequence,
     side_camera,
@@ -154,9 +155,9 @@ def test_the_eyelids_are_refined_on_the_rendered_image(cybatt):
 
 def test_a_fap_with_search_steps_of_its_own_is_searched_by_them_and_apart(cybatt, monkeypatch):
     """``search_steps``: the jaw takes its own steps in the search after the solves, in a group
-    of its own (FAPs searched side by side share their steps); the eyelids keep REFINE_STEPS;
+    of its own (FAPs searched side by side share their steps); the eyelids theirs (LID_STEPS);
     a search with other steps (the first frame's) takes those for every FAP."""
-    from vtts.analysis.estimator import FIRST_REFINE_STEPS, REFINE_STEPS
+    from vtts.analysis.estimator import FIRST_REFINE_STEPS, LID_STEPS
 
     frame = FaceRenderer(cybatt, size=SIZE).render(_params({3: 200, 19: 100})).astype(np.float32)
     est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, refine=(3, 19, 20))
@@ -170,11 +171,28 @@ def test_a_fap_with_search_steps_of_its_own_is_searched_by_them_and_apart(cybatt
 
     monkeypatch.setattr(Estimator, "_search", spy)
     est._refine(frame)
-    assert sorted(calls) == [([3], (2, 1)), ([19, 20], REFINE_STEPS)], calls
+    assert est.search_steps == {3: (2, 1), 19: LID_STEPS, 20: LID_STEPS}
+    assert sorted(calls) == [([3], (2, 1)), ([19, 20], LID_STEPS)], calls
     assert est.params[2] == 12.0  # 4 moves of 2 and 4 of 1: the jaw's reach, not REFINE_STEPS'
+    assert abs(est.params[18] - 100) <= 2  # the lid, 100 units away: beyond REFINE_STEPS' 60
     calls.clear()
     est._refine(frame, FIRST_REFINE_STEPS)
     assert {steps for _, steps in calls} == {FIRST_REFINE_STEPS}, calls
+
+
+def test_a_lid_closing_fast_is_followed(cybatt):
+    """Seed 5's right eyelid closes 57 → 216 units between two analyzed frames. The pyramid
+    holds the lids at its coarse levels and its finest level opened this one (to −29); the
+    search within REFINE_STEPS' ±60 units stopped on the match's plateau, 234 units short.
+    LID_STEPS reach ±252 units."""
+    truth = random_truth(5, 100)[::5]
+    assert (truth[9, 19], truth[10, 19]) == (57, 216)
+    frame = FaceRenderer(cybatt, size=SIZE).render(truth[10])
+    est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS)
+    est.params[:] = truth[9]
+    est._history = [(i * 5, truth[i].copy(), np.zeros(3)) for i in (8, 9)]  # as if tracked
+    found = est.estimate(frame, 50).params
+    assert abs(found[19] - truth[10, 19]) <= 5, found[19]
 
 
 def _estimate_from(est, frame, index):

@@ -79,6 +79,15 @@ FIRST_RESTARTS = 3
 #: no linear solve to bring them near, each frame's search reaches ±252 units.
 SEARCHED_STEPS = (32, 16, 8, 4, 2, 1)
 
+#: The eyelids' steps in the search after the solves (when they are solved, not ``searched``):
+#: from 32 units, each taken at most :data:`REFINE_MOVES` times in a row, so that the search
+#: reaches ±252 units a frame. The pyramid holds the lids at its coarse levels and its finest
+#: level can open a lid that is closing fast (seed 5 of
+#: :func:`~vtts.analysis.synthetic.random_truth`: 57 → 216 → 423 units in two analyzed frames,
+#: the solves took it to −29), where :data:`REFINE_STEPS` (±60 units) stop on the match's
+#: plateau.
+LID_STEPS = SEARCHED_STEPS
+
 #: How many times at most the search of the ``searched`` FAPs and the finest level's solves
 #: take turns on one frame.
 SEARCH_ROUNDS = 3
@@ -170,8 +179,10 @@ class Estimator:
         self._searched_columns = np.array([u in alone for u in self.unknowns])
         self.bounds = dict(bounds or {})
         #: FAP -> the steps the search after the solves (:meth:`_settle`) takes it by, where
-        #: they are not :data:`REFINE_STEPS`
-        self.search_steps: dict[int, tuple[int, ...]] = {}
+        #: they are not :data:`REFINE_STEPS`: the eyelids that are solved, :data:`LID_STEPS`
+        self.search_steps: dict[int, tuple[int, ...]] = {
+            fap: LID_STEPS for fap in self.refined if fap in EYELIDS and fap not in alone
+        }
         self.model = model
         self.size = (int(size[0]), int(size[1]))
         self.pyramid = tuple(pyramid)

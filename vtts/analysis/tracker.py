@@ -170,6 +170,9 @@ class Tracker(Estimator):
         # lip corners, which stall together where the opening mouth uncovers the teeth)
         wanted = set(self.refined) | set(lit_refine)
         self._lit_refined = tuple(u for u in self.unknowns if u in wanted)
+        # the eyelids by REFINE_STEPS: the first stage's wide smoothing follows a closing lid,
+        # which the accurate pyramid holds at its coarse levels (LID_STEPS)
+        self.search_steps.clear()
         # … by small steps: the solves leave them a few units off, and a wider search lets a
         # window's match pull one to make up for another FAP's last unit
         self.search_steps.update(
