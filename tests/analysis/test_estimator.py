@@ -171,7 +171,7 @@ def test_a_fap_with_search_steps_of_its_own_is_searched_by_them_and_apart(cybatt
 
     monkeypatch.setattr(Estimator, "_search", spy)
     est._refine(frame)
-    assert est.search_steps == {3: (2, 1), 19: LID_STEPS, 20: LID_STEPS}
+    assert est.search_steps == {3: (2, 1), 12: (2, 1), 13: (2, 1), 19: LID_STEPS, 20: LID_STEPS}
     assert sorted(calls) == [([3], (2, 1)), ([19, 20], LID_STEPS)], calls
     assert est.params[2] == 12.0  # 4 moves of 2 and 4 of 1: the jaw's reach, not REFINE_STEPS'
     assert abs(est.params[18] - 100) <= 2  # the lid, 100 units away: beyond REFINE_STEPS' 60
@@ -195,6 +195,25 @@ def test_a_lid_closing_fast_is_followed(cybatt):
     assert abs(found[19] - truth[10, 19]) <= 5, found[19]
 
 
+@pytest.mark.parametrize("lit_refine", [(3, 12, 13), ()])
+def test_on_a_lit_face_the_jaw_and_lip_corners_are_searched_after_the_solves(cybatt, lit_refine):
+    """Seed 9's ninth analyzed frame opens the jaw to 328 units: the solves stall with the jaw
+    and both lip-corner raisers a few units short. On a lit face (cybatt) the search after the
+    solves takes them too (``lit_refine``, the default) and finds them."""
+    truth = random_truth(9, 100)[::5]
+    frame = FaceRenderer(cybatt, size=SIZE).render(truth[8])
+    est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, lit_refine=lit_refine)
+    est.params[:] = truth[7]
+    est._history = [(i * 5, truth[i].copy(), np.zeros(3)) for i in (6, 7)]  # as if tracked
+    found = est.estimate(frame, 40).params
+    assert est._lit_frame() and est.refined == (19, 20)
+    error = np.abs(found[[2, 11, 12]] - truth[8, [2, 11, 12]])
+    if lit_refine:
+        assert error.max() <= 1, error
+    else:  # the stall the search is for
+        assert error.max() >= 2, error
+
+
 def _estimate_from(est, frame, index):
     """``est.estimate(frame, index)`` and the parameters its first solve started from."""
     starts = []
@@ -215,7 +234,8 @@ def test_the_head_starts_where_its_motion_leads(cybatt):
     frames = [FaceRenderer(cybatt, size=SIZE).render(t) for t in truth]
     solves = {}
     for predict in (HEAD_MOTION, ()):
-        est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, predict=predict)
+        # (the jaw's search after the solves, on this lit face, left out: the prediction alone)
+        est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, predict=predict, lit_refine=())
         assert est.predicted == ((48, 49, 50) if predict else ())
         ends = [est.estimate(frame, index=5 * i).params for i, frame in enumerate(frames[:2])]
         fe, start = _estimate_from(est, frames[2], 10)

@@ -26,7 +26,8 @@ around the eye.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -40,6 +41,7 @@ from vtts.analysis.unknowns import (  # noqa: F401
     ESTIMABLE,
     EYELIDS,
     HEAD_MOTION,
+    JAW_AND_CORNERS,
     TABLE1_FAPS,
 )
 from vtts.errors import VttsError
@@ -87,6 +89,16 @@ SEARCHED_STEPS = (32, 16, 8, 4, 2, 1)
 #: the solves took it to −29), where :data:`REFINE_STEPS` (±60 units) stop on the match's
 #: plateau.
 LID_STEPS = SEARCHED_STEPS
+
+#: A frame shows "a lit face" when at least this share of its face pixels lie on lit surfaces
+#: (a bundled head, the synthetic Table 1; a head made for the video is drawn unlit but for
+#: its mouth): its shading changes with every move.
+LIT_SHARE = 0.5
+
+#: The steps (FAP units, largest first) by which the search after the solves takes the FAPs it
+#: refines on a lit face only (``lit_refine``: the jaw and the lip corners), at most
+#: :data:`REFINE_MOVES` times each: within ±12 units of where the solves left them.
+LIT_REFINE_STEPS = (2, 1)
 
 #: How many times at most the search of the ``searched`` FAPs and the finest level's solves
 #: take turns on one frame.
@@ -146,6 +158,10 @@ class Estimator:
     the pyramid, with the head's pose and the other FAPs held where the solves left them (a
     second stage on the eye region's pixels: the eyelids then cannot trade against the head's
     pitch in the solves; each frame's search reaches ±252 units, :data:`SEARCHED_STEPS`).
+    ``lit_refine``: FAPs that, when they are unknowns, the search on the rendered image takes
+    as well on a frame that shows a lit face (:data:`LIT_SHARE`; default the jaw and the
+    lip-corner raisers, :data:`~vtts.analysis.unknowns.JAW_AND_CORNERS`, which stall together
+    where the opening jaw uncovers the teeth), by :data:`LIT_REFINE_STEPS`.
     ``bounds``: FAP -> (lowest, highest) value the search on the rendered image may take it to
     (e.g. an eyelid of a head made from a video frame opened no further than that frame shows
     it: its eyeball is textured only where the frame showed it).
@@ -169,6 +185,7 @@ class Estimator:
         ignore: Iterable[str] = (),
         searched: Iterable[int] = (),
         bounds: dict[int, tuple[float, float]] | None = None,
+        lit_refine: Iterable[int] = JAW_AND_CORNERS,
     ) -> None:
         self.unknowns = _check_unknowns(unknowns)
         alone = set(searched)
@@ -183,6 +200,15 @@ class Estimator:
         self.search_steps: dict[int, tuple[int, ...]] = {
             fap: LID_STEPS for fap in self.refined if fap in EYELIDS and fap not in alone
         }
+        # on a lit face the search takes these as well, by small steps: the solves leave them
+        # a few units off, and a wider search lets a window's match pull one to make up for
+        # another FAP's last unit
+        lit_wanted = set(self.refined) | set(lit_refine)
+        self._lit_refined = tuple(u for u in self.unknowns if u in lit_wanted)
+        self.search_steps.update(
+            dict.fromkeys(set(self._lit_refined) - set(self.refined), LIT_REFINE_STEPS)
+        )
+        self._lit = 0.0  # the share of the last solve's face pixels on lit surfaces
         self.model = model
         self.size = (int(size[0]), int(size[1]))
         self.pyramid = tuple(pyramid)
@@ -357,11 +383,29 @@ class Estimator:
                     break
                 best = mismatch
             self._search_from_neutral(full)
-        params, (image, ids) = self._settle(full, index, lambda: self.render(1))
+        with self._refining(self._lit_frame()):
+            params, (image, ids) = self._settle(full, index, lambda: self.render(1))
         synth = np.clip(np.round(image * self.gain + self.offset), 0, 255)
         mask = ids >= 0
         return self._estimate_of(params, index, time, face_psnr(full, synth, mask),
                                  int(mask.sum()), solves)  # fmt: skip
+
+    def _lit_frame(self) -> bool:
+        """Whether the frame being estimated shows a lit face (:data:`LIT_SHARE`), by the face
+        pixels of the last solve's rendering."""
+        return self._lit >= LIT_SHARE
+
+    @contextmanager
+    def _refining(self, lit: bool) -> Iterator[None]:
+        """Within it, the search after the solves takes the FAPs of ``lit_refine`` as well when
+        ``lit``."""
+        refined = self.refined
+        if lit:
+            self.refined = self._lit_refined
+        try:
+            yield
+        finally:
+            self.refined = refined
 
     def _search_from_neutral(self, frame: np.ndarray) -> None:
         """The first frame's last look at the FAPs :attr:`refined` (the eyelids): searched once
@@ -480,6 +524,8 @@ class Estimator:
         moved the image of the unknown that moved most."""
         cam = self._levels[lv.factor][0]
         image, ids, (top, left) = self._render_window(lv.factor)
+        shown = ids[ids >= 0]
+        self._lit = float(self.geometry.lit[shown].mean()) if shown.size else 0.0
         camera_image = camera_image[top : top + ids.shape[0], left : left + ids.shape[1]]
         raw = _smooth(image, self.sigma)
         gain, offset = self.gain.astype(np.float32), self.offset.astype(np.float32)

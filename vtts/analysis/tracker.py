@@ -33,14 +33,15 @@ held unknowns and the eyelid search are the accurate estimator's. See docs/analy
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.ndimage import binary_erosion
 
-from vtts.analysis.estimator import (
+from vtts.analysis.estimator import (  # noqa: F401  (LIT_REFINE_STEPS: the tracker's too)
     EDGE,
+    LIT_REFINE_STEPS,
+    LIT_SHARE,
     LUMA,
     ROBUST_LIMIT,
     Estimator,
@@ -48,7 +49,7 @@ from vtts.analysis.estimator import (
     _smooth,
 )
 from vtts.analysis.result import TRANSLATION, FrameEstimate
-from vtts.analysis.unknowns import JAW_AND_CORNERS
+from vtts.analysis.unknowns import EYELIDS
 from vtts.errors import VttsError
 from vtts.threads import one_blas_thread
 
@@ -93,18 +94,6 @@ LIT_RERENDER_PX = 3.0
 #: level (a rendering after every solve, :meth:`Estimator._descend`): the samples' colors
 #: are the rendering's, and a lit face's shading changes with every move.
 POLISH_PX = 0.02
-
-#: … "a lit face": at least this share of the samples on lit surfaces. Where the face is drawn
-#: unlit (a head made for the video), the colors move with the surface unchanged and the
-#: linearization's error is far below what camera noise and the model's shortcomings leave,
-#: so the solves on the samples are final.
-LIT_SHARE = 0.5
-
-#: The steps (FAP units, largest first) by which the search on the rendered image takes the
-#: FAPs it refines on a lit face only (``Tracker``'s ``lit_refine``: the jaw and the lip
-#: corners), at most :data:`~vtts.analysis.estimator.REFINE_MOVES` times each: within ±12
-#: units of where the solves left them.
-LIT_REFINE_STEPS = (2, 1)
 
 #: Between two frames, samples that moved this far (pixels) are rendered anew
 #: (:meth:`Tracker.between_frames`).
@@ -158,26 +147,17 @@ class Tracker(Estimator):
     """An :class:`~vtts.analysis.estimator.Estimator` that tracks with about one rendering per
     frame (see the module's docstring). Takes the same arguments, plus ``stages``
     (:data:`STAGES`), ``rerender`` (:data:`RERENDER_PX`), ``polish`` (:data:`POLISH_PX`),
-    ``sample_step`` (:data:`SAMPLE_STEP`) and ``lit_refine``: FAPs that, when they are
-    unknowns, the search on the rendered image refines as well on a frame whose samples lie on a
-    lit face (default :data:`~vtts.analysis.unknowns.JAW_AND_CORNERS`)."""
+    ``sample_step`` (:data:`SAMPLE_STEP`); ``lit_refine`` is the estimator's, applied on a
+    frame whose samples lie on a lit face (:data:`~vtts.analysis.estimator.LIT_SHARE`)."""
 
     def __init__(self, *args, stages=STAGES, rerender: float = RERENDER_PX,
                  polish: float = POLISH_PX, sample_step: int = SAMPLE_STEP,
-                 lit_refine: Iterable[int] = JAW_AND_CORNERS, **kwargs) -> None:  # fmt: skip
+                 **kwargs) -> None:  # fmt: skip
         super().__init__(*args, **kwargs)
-        # on a lit face the search on the rendered image takes these as well (the jaw and the
-        # lip corners, which stall together where the opening mouth uncovers the teeth)
-        wanted = set(self.refined) | set(lit_refine)
-        self._lit_refined = tuple(u for u in self.unknowns if u in wanted)
         # the eyelids by REFINE_STEPS: the first stage's wide smoothing follows a closing lid,
         # which the accurate pyramid holds at its coarse levels (LID_STEPS)
-        self.search_steps.clear()
-        # … by small steps: the solves leave them a few units off, and a wider search lets a
-        # window's match pull one to make up for another FAP's last unit
-        self.search_steps.update(
-            dict.fromkeys(set(self._lit_refined) - set(self.refined), LIT_REFINE_STEPS)
-        )
+        for fap in EYELIDS:
+            self.search_steps.pop(fap, None)
         self.stages = tuple(stages)
         self.rerender = float(rerender)
         self.polish = float(polish)
@@ -248,13 +228,14 @@ class Tracker(Estimator):
             self.renderings += more
             samples = fresh(self.sample_step)
         self._samples = samples
-        refined = self.refined
-        if lit:  # the jaw and the lip corners searched too (``lit_refine``)
-            self.refined = self._lit_refined
-        try:
+        with self._refining(lit):  # the jaw and the lip corners searched too (``lit_refine``)
             return self._finish(frame, samples, index, time, solves)
-        finally:
-            self.refined = refined
+
+    def _lit_frame(self) -> bool:
+        """The first frame's accurate estimate searches no more than the eyelids (the tracking
+        mode's synthetic figures were measured so); the other frames decide on their samples
+        (:meth:`estimate`)."""
+        return False
 
     def between_frames(self) -> None:
         """Render now, after the estimate went out and before the next frame arrives, when the
