@@ -208,7 +208,8 @@ class Estimator:
         self.search_steps.update(
             dict.fromkeys(set(self._lit_refined) - set(self.refined), LIT_REFINE_STEPS)
         )
-        self._lit = 0.0  # the share of the last solve's face pixels on lit surfaces
+        # the triangle indices (h, w) of the last solve's rendering, for _lit_frame
+        self._last_faces = np.empty((0, 0), dtype=np.int64)
         self.model = model
         self.size = (int(size[0]), int(size[1]))
         self.pyramid = tuple(pyramid)
@@ -393,7 +394,8 @@ class Estimator:
     def _lit_frame(self) -> bool:
         """Whether the frame being estimated shows a lit face (:data:`LIT_SHARE`), by the face
         pixels of the last solve's rendering."""
-        return self._lit >= LIT_SHARE
+        shown = self._last_faces[self._last_faces >= 0]
+        return shown.size > 0 and float(self.geometry.lit[shown].mean()) >= LIT_SHARE
 
     @contextmanager
     def _refining(self, lit: bool) -> Iterator[None]:
@@ -524,8 +526,7 @@ class Estimator:
         moved the image of the unknown that moved most."""
         cam = self._levels[lv.factor][0]
         image, ids, (top, left) = self._render_window(lv.factor)
-        shown = ids[ids >= 0]
-        self._lit = float(self.geometry.lit[shown].mean()) if shown.size else 0.0
+        self._last_faces = ids
         camera_image = camera_image[top : top + ids.shape[0], left : left + ids.shape[1]]
         raw = _smooth(image, self.sigma)
         gain, offset = self.gain.astype(np.float32), self.offset.astype(np.float32)
