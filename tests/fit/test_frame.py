@@ -107,3 +107,54 @@ def test_a_photo_head_keeps_the_shared_generic_ear(akiyo):
     right = np.asarray(head.scene.node("R_EAR").expand()["texCoord"].expand()["point"])
     assert left[:, 1].min() < EAR_TILES["L_EAR"][1]  # the whole generic tile, not a half
     assert np.allclose(np.sort(left[:, 0]).mean(), np.sort(right[:, 0]).mean(), atol=0.1)
+
+
+CARPHONE = Path(__file__).parents[1] / "data" / "video" / "carphone_qcif.mp4"
+
+
+def _neck_points(head) -> np.ndarray:
+    return np.array(head.scene.node("NECK").expand()["coord"].expand()["point"], np.float64)
+
+
+def test_a_video_head_ends_its_neck_at_the_collar(tmp_path):
+    # Carphone's first frame: a bow tie and a white collar under the neck (vtts.fit.neck)
+    frame = next(iter(read_video(CARPHONE).frames()))
+    head = fit_photo(frame, photo_parts=VIDEO_PARTS)
+    before = _neck_points(head)
+    urls = [n["url"] for n in head.scene.find("ImageTexture")]
+    paths = with_frame(head).write(tmp_path / "carphone.wrl")
+    after = _neck_points(head)
+    assert after[:, 1].min() > before[:, 1].min() + 0.2  # the lowest rings rose to the collar
+    assert np.array_equal(after[-32:], before[-32:])  # the top ring stays where it was
+    assert len(np.unique(after.round(6), axis=0)) < len(before)  # lower rings on one another
+    # the probe rendering that found the collar left the scene's textures as they were
+    assert [n["url"] for n in load_model(str(paths[0])).scene.find("ImageTexture")] != urls
+    # the head still gives the frame back and is a valid model
+    rendered = _render(paths, frame)
+    assert face_psnr_rgb(frame, rendered, coverage(rendered)) > 40.0
+    assert main(["check", str(paths[0])]) == 0
+    # drawn again, its neck shows skin to its bottom: nothing more to cut
+    from vtts.fit.neck import collar_row
+    from vtts.fit.photo import _drawn
+
+    drawn = _drawn(head, ("NECK", "FACE"))
+    assert drawn["NECK"].any()
+    assert collar_row(frame, drawn["NECK"], drawn["FACE"]) is None
+
+
+def test_a_neck_that_shows_skin_to_the_frame_bottom_stays_whole(akiyo, monkeypatch):
+    # Akiyo's neck shows skin from her chin to the opening of her blouse: not cut
+    _, head = akiyo
+    head = copy.deepcopy(head)
+    before = _neck_points(head)
+    with_frame(head)
+    assert np.array_equal(_neck_points(head), before)
+    # and with the cut turned off nothing is cut anywhere
+    import vtts.fit.photo as photo
+
+    monkeypatch.setattr(photo, "CUT_NECK", False)
+    frame = next(iter(read_video(CARPHONE).frames()))
+    head = fit_photo(frame, photo_parts=VIDEO_PARTS)
+    before = _neck_points(head)
+    with_frame(head)
+    assert np.array_equal(_neck_points(head), before)

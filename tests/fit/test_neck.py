@@ -14,7 +14,18 @@ from vtts.errors import FitError
 from vtts.face import N_PARAMS, FaceModel, load_model
 from vtts.face.adt import format_adt
 from vtts.face.miap import Miap
-from vtts.fit.neck import BORDERS, HEAD_ROTATIONS, NECK, free_neck, neck_weights
+from vtts.fit.neck import (
+    BORDERS,
+    HEAD_ROTATIONS,
+    NECK,
+    collar_row,
+    cut_neck,
+    free_neck,
+    neck_rings,
+    neck_weights,
+    skin_chroma,
+)
+from vtts.render.camera import Camera, look_at
 from vtts.resources import models_dir
 from vtts.vrml import dumps, standard_node_types
 
@@ -131,3 +142,102 @@ def test_the_renderer_draws_the_collar_still_while_the_head_nods(heads):
     still = np.abs(images["freed"] - rest)[collar].mean()
     swung = np.abs(images["bundled"] - rest)[collar].mean()
     assert still < 1.0 < 2.0 < swung, (still, swung)  # measured: 0.5 and 3.6 gray levels
+
+
+# ---- the neck cut at the collar ---------------------------------------------------------------
+
+SKIN = np.array([200.0, 150.0, 120.0])
+
+
+def _picture(neck_rows: list[np.ndarray], seed: int = 0):
+    """A 60 × 40 photo: a face of skin (rows 0–19), and a neck (columns 10–29) from row 20
+    whose rows take the colours ``neck_rows``, with a little noise; and the two masks."""
+    rng = np.random.default_rng(seed)
+    photo = np.zeros((60, 40, 3))
+    face = np.zeros((60, 40), bool)
+    neck = np.zeros((60, 40), bool)
+    face[:20, 5:35] = True
+    photo[:20, 5:35] = SKIN * np.linspace(0.5, 1.0, 30)[None, :, None]  # shaded across
+    for k, colour in enumerate(neck_rows):
+        photo[20 + k, 10:30] = colour
+        neck[20 + k, 10:30] = True
+    photo = np.clip(photo + rng.normal(0, 3, photo.shape), 0, 255).astype(np.uint8)
+    return photo, neck, face
+
+
+def test_skin_chroma_does_not_change_with_brightness():
+    bright, shadow = skin_chroma(SKIN), skin_chroma(SKIN * 0.5)
+    assert np.abs(bright - shadow).max() < 2.5  # the constant in the sum: a level or two
+    assert np.abs(skin_chroma(np.array([150.0, 20, 30])) - bright).max() > 40  # a red tie
+    assert np.abs(skin_chroma(np.array([240.0, 240, 240])) - bright).max() > 15  # a white collar
+
+
+def test_the_neck_ends_where_the_collar_begins():
+    # skin under the chin in shadow, more skin, then a red bow tie
+    rows = [SKIN * 0.45] * 5 + [SKIN] * 10 + [np.array([150.0, 20, 30])] * 15
+    photo, neck, face = _picture(rows)
+    assert collar_row(photo, neck, face) == 35
+    # a white collar, as well
+    rows = [SKIN] * 12 + [np.array([235.0, 235, 230])] * 8
+    photo, neck, face = _picture(rows)
+    assert collar_row(photo, neck, face) == 32
+
+
+def test_a_neck_that_shows_skin_to_its_bottom_is_not_cut():
+    photo, neck, face = _picture([SKIN] * 30)
+    assert collar_row(photo, neck, face) is None
+    # hair beside the jaw at the top of the drawn neck does not end it before it began
+    rows = [np.array([25.0, 20, 18])] * 6 + [SKIN] * 24
+    photo, neck, face = _picture(rows)
+    assert collar_row(photo, neck, face) is None
+    # nor do two rows of a necklace
+    rows = [SKIN] * 12 + [np.array([235.0, 200, 40])] * 2 + [SKIN] * 16
+    photo, neck, face = _picture(rows)
+    assert collar_row(photo, neck, face) is None
+    # a neck drawn over no skin at all is left alone (nothing tells where it ends)
+    photo, neck, face = _picture([np.array([30.0, 30, 90])] * 30)
+    assert collar_row(photo, neck, face) is None
+
+
+def test_the_neck_is_rings_bottom_first(heads):
+    bundled, _ = heads
+    points = np.asarray(bundled.scene.node(NECK).expand()["coord"].expand()["point"])
+    rings = neck_rings(points)
+    assert rings.shape == (8, 32, 3)
+    assert np.all(np.diff(rings[..., 1].mean(axis=1)) > 0)
+    shuffled = points[np.random.default_rng(1).permutation(len(points))]
+    with pytest.raises(FitError, match="not rings"):
+        neck_rings(shuffled)
+
+
+def _copy(scene):
+    return copy.deepcopy(scene, {id(t): t for t in standard_node_types().values()})
+
+
+def _front_camera() -> Camera:
+    return Camera(400.0, 400.0, 176.0, 144.0, look_at(np.array([0.0, -0.6, 7.0]),
+                                                      np.array([0.0, -0.6, 0.0])))  # fmt: skip
+
+
+def test_the_cut_moves_the_lower_rings_up_to_the_collar(heads):
+    bundled, _ = heads
+    scene = _copy(bundled.scene)
+    camera = _front_camera()
+    coord = scene.node(NECK).expand()["coord"].expand()
+    rings = neck_rings(coord["point"])
+    front = int(np.argmax(rings[0, :, 2]))  # the camera looks down −z from +z
+    y = camera.project(rings[:, front])[:, 1]
+    row = 0.7 * y[2] + 0.3 * y[3]  # between the third and the fourth ring from the bottom
+    bottom = cut_neck(scene, camera, row)
+    cut = neck_rings(coord["point"])
+    assert np.allclose(cut[3:], rings[3:])  # above the collar: as it was
+    edge = 0.7 * rings[2] + 0.3 * rings[3]
+    for k in range(3):  # the rings below it: on the new edge, point for point
+        assert np.allclose(cut[k], edge)
+    assert bottom == pytest.approx(edge[:, 1].mean())
+    assert camera.project(cut[0, front][None])[0, 1] == pytest.approx(row, abs=0.05)
+    # a collar below the neck's lowest ring leaves it as it is
+    scene = _copy(bundled.scene)
+    assert cut_neck(scene, camera, y[0] + 5.0) is None
+    assert np.array_equal(scene.node(NECK).expand()["coord"].expand()["point"],
+                          bundled.scene.node(NECK).expand()["coord"].expand()["point"])  # fmt: skip

@@ -1,6 +1,14 @@
-"""A neck that does not turn with the head: the head rotation weighed down the neck.
+"""The neck of a head made for a video: ended at the collar, and (optionally) turning less than
+the head.
 
-In the generic heads the neck hangs inside the head's rotation Transforms (``HEAD_YAW`` ⊃
+**Ended at the collar.** The generic neck reaches well below the chin; made for a video
+(:func:`vtts.fit.with_frame`) it would take what the frame shows there as its texture — a
+collar, a bow tie — and turn it with the head over clothes that stay put. :func:`collar_row`
+finds, from the head drawn at the frame's view, the first row from which down the neck shows
+no skin (the face's own skin the reference), and :func:`cut_neck` moves the neck's rings below
+that row up onto it.
+
+**Weighed down.** In the generic heads the neck hangs inside the head's rotation Transforms (``HEAD_YAW`` ⊃
 ``HEAD_PITCH`` ⊃ ``HEAD_ROLL``, all pivoting at the top of the spine), so every nod of the
 model swings the whole neck over the person's collar. A person's head turns on the neck: the
 top of the neck goes with the skull, the bottom stays with the shoulders.
@@ -135,3 +143,111 @@ def free_neck(scene: Scene, tables: AnimationTables, borders: np.ndarray = BORDE
         adt.meshes = [m for m in adt.meshes if m.node != NECK]
         adt.meshes.append(MeshTable(NECK, np.asarray(borders, np.float64), moving,
                                     np.round(slopes, 12) + 0.0))  # fmt: skip
+
+
+# ---- the neck's bottom: where the frame stops showing skin ------------------------------------
+
+#: How far (standard deviations of the face's skin) a pixel's chroma may lie from the face's
+#: skin and still count as skin.
+SKIN_SIGMAS = 3.0
+#: The share of a row's neck pixels that must be skin for the row to show neck.
+SKIN_SHARE = 0.5
+#: Rows of the neck that show no skin, one after the other, that end it (a collar, a scarf, a
+#: bow tie), as a share of the neck's height in the frame; at least :data:`MIN_COLLAR_ROWS`.
+COLLAR_SHARE = 0.1
+MIN_COLLAR_ROWS = 3
+#: Points in each ring of the generic heads' neck.
+RING_POINTS = 32
+
+
+def skin_chroma(rgb: np.ndarray) -> np.ndarray:
+    """``(..., 2)`` chroma of ``rgb (..., 3)`` (0–255) that does not change with brightness: the
+    red and green shares of the sum (a small constant in the sum keeps the darkest pixels from
+    scattering), so that the shadow under the chin reads as skin, as it is."""
+    rgb = np.asarray(rgb, np.float64)
+    total = rgb.sum(axis=-1, keepdims=True) + 10.0
+    return 255.0 * rgb[..., :2] / total
+
+
+def neck_rings(points: np.ndarray) -> np.ndarray:
+    """The neck's ``points (p, 3)`` as rings ``(R, n, 3)``, bottom to top, the k-th point of
+    every ring on the same line down the neck: the generic heads' neck is rings of
+    :data:`RING_POINTS` points, the lowest first (``models/src/modeler.py``), which the fit's
+    warp tilts a little and :func:`cut_neck` may have moved onto one another. Raises
+    :class:`~vtts.errors.FitError` for a neck made otherwise. The rings are a copy."""
+    points = np.array(points, np.float64)
+    if len(points) >= 2 * RING_POINTS and len(points) % RING_POINTS == 0:
+        rings = points.reshape(-1, RING_POINTS, 3)
+        heights = rings[..., 1].mean(axis=1)
+        if np.all(np.diff(heights) >= 0) and heights[-1] > heights[0]:
+            return rings
+    raise FitError(
+        f"the neck's {len(points)} points are not rings of {RING_POINTS}, the lowest first: "
+        "it cannot be cut at the collar"
+    )
+
+
+def collar_row(photo: np.ndarray, neck: np.ndarray, face: np.ndarray) -> int | None:
+    """The first row of ``photo (H, W, 3) uint8`` from which down the neck shows no skin, or
+    None where it shows skin to its bottom (or never): ``neck`` and ``face`` ``(H, W) bool``
+    are the pixels where the head's neck and face are drawn at the photo's view.
+
+    The face's pixels give the skin's chroma (:func:`skin_chroma`; median and covariance of
+    the pixels within 2.5 median distances, so that lips, brows and eyes do not count); a
+    neck pixel is skin within :data:`SKIN_SIGMAS` of it. A row shows neck where
+    :data:`SKIN_SHARE` of its neck pixels are skin; from the first run of such rows down (as
+    many rows as :data:`COLLAR_SHARE` of the neck's height, at least :data:`MIN_COLLAR_ROWS`),
+    the neck ends at the first run of rows as long that are not (rows of fewer than 3 neck
+    pixels count as neither)."""
+    skin = skin_chroma(photo[face])
+    if len(skin) < 10 or not neck.any():
+        return None
+    centre = np.median(skin, axis=0)
+    distance = np.linalg.norm(skin - centre, axis=1)
+    inliers = skin[distance <= 2.5 * max(float(np.median(distance)), 1e-6)]
+    cov = np.cov(inliers.T) + np.eye(2) * 1e-3
+    d = skin_chroma(photo[neck]) - centre
+    is_skin = np.einsum("ni,ij,nj->n", d, np.linalg.inv(cov), d) <= SKIN_SIGMAS**2
+    rows = np.nonzero(neck)[0]
+    top, bottom = int(rows.min()), int(rows.max())
+    count = np.bincount(rows - top, minlength=bottom - top + 1)
+    shown = np.bincount(rows - top, weights=is_skin, minlength=bottom - top + 1)
+    share = shown / np.maximum(count, 1)
+    skin_row = share >= SKIN_SHARE
+    bare = ~skin_row & (count >= 3)  # a row of a pixel or two decides nothing
+    run = max(MIN_COLLAR_ROWS, int(np.ceil(COLLAR_SHARE * (bottom - top + 1))))
+    windows = np.lib.stride_tricks.sliding_window_view
+    if len(share) < run:
+        return None
+    starts = np.flatnonzero(windows(skin_row, run).all(axis=1))  # the neck seen for a while
+    if starts.size == 0:
+        return None
+    ends = np.flatnonzero(windows(bare, run).all(axis=1))
+    ends = ends[ends > starts[0]]
+    return top + int(ends[0]) if ends.size else None
+
+
+def cut_neck(scene: Scene, camera, row: float) -> float | None:
+    """Shorten the ``NECK`` of ``scene`` (changed in place) to end at the frame's ``row`` as
+    ``camera`` (the photo's, in the model's frame) sees it: the lowest ring becomes the one
+    whose side facing the camera reaches down to that row, and the rings below it are moved
+    up onto it (their triangles then have no area). Returns the neck's new bottom height
+    (model units), or None where the row lies below the neck."""
+    ifs = scene.node(NECK).expand()
+    coord = ifs["coord"].expand()
+    rings = neck_rings(coord["point"])
+    eye = camera.pose[:3, 3]
+    lowest = np.empty(len(rings))  # image row of each ring's lowest point the camera sees
+    for r, ring in enumerate(rings):
+        out = ring - ring.mean(axis=0)
+        facing = np.einsum("ij,ij->i", out[:, [0, 2]], (eye - ring)[:, [0, 2]]) > 0
+        lowest[r] = camera.project(ring[facing] if facing.any() else ring)[:, 1].max()
+    if np.any(np.diff(lowest) > 0) or row >= lowest[0]:
+        return None
+    at = float(np.interp(row, lowest[::-1], np.arange(len(rings))[::-1]))  # from the bottom
+    low = min(int(np.floor(at)), len(rings) - 2)
+    s = at - low
+    edge = np.round(rings[low] * (1 - s) + rings[low + 1] * s, 6) + 0.0
+    rings[: low + 1] = edge
+    coord.fields["point"] = rings.reshape(-1, 3)
+    return float(edge[:, 1].mean())

@@ -43,7 +43,7 @@ from vtts.fit.landmarks import (
     choose_face,
     detect_faces,
 )
-from vtts.fit.neck import free_neck
+from vtts.fit.neck import NECK, collar_row, cut_neck, free_neck
 from vtts.fit.shape import ShapeFit, fit_shape, focal_length
 from vtts.fit.texture import (
     ATLAS_SIZE,
@@ -96,6 +96,10 @@ VIDEO_PARTS = (*PHOTO_PARTS, "NECK", *EARS)
 #: moved with its lost tracks both ways: the head translation, which the estimator trades
 #: against the pitch, still moves the whole neck (docs/analysis.md).
 FREE_NECK = False
+#: Whether a head made for a video ends its neck where the frame stops showing skin below the
+#: chin (a collar, a bow tie: :func:`vtts.fit.neck.collar_row`), so that the clothing is not
+#: painted onto a neck that turns with the head.
+CUT_NECK = True
 #: Larger photos are refused (a 16k photo is 270 megapixels).
 MAX_SIZE = 16384
 
@@ -178,11 +182,50 @@ def with_frame(head: FittedHead, neck: bool | None = None) -> FittedHead:
     back; with ``neck`` (default :data:`FREE_NECK`) the neck follows the head's rotation only
     near the skull (:func:`vtts.fit.neck.free_neck`)."""
     h, w = head.photo.shape[:2]
+    if CUT_NECK and NECK in head.scene.defs:
+        drawn = _drawn(head, (NECK, "FACE"))
+        row = collar_row(head.photo, drawn[NECK], drawn["FACE"])
+        if row is not None:
+            cut_neck(head.scene, head.shape.camera, row)
     project_frame(head.scene, head.shape.camera, (w, h))
     if FREE_NECK if neck is None else neck:
         free_neck(head.scene, head.tables)
     head.frame = frame_texture(head.photo)
     return head
+
+
+def _drawn(head: FittedHead, names: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """``{name: (H, W) bool}``: where each IndexedFaceSet of ``names`` shows in ``head`` drawn at
+    its photo's view (the renderer's triangle numbers)."""
+    from vtts.render import FaceRenderer
+
+    h, w = head.photo.shape[:2]
+    nodes = {n: head.scene.node(n).expand() for n in names}
+    with tempfile.TemporaryDirectory(prefix="vtts-fit-") as tmp:
+        folder = Path(tmp)
+        Image.new("RGB", (4, 4), (128, 128, 128)).save(folder / "grey.png")
+        model = FaceModel(head.scene, head.tables, folder / "probe.wrl")
+        textures = head.scene.find("ImageTexture")
+        urls = [node.fields.get("url") for node in textures]
+        set_texture_url(model.scene, "grey.png")
+        try:
+            with FaceRenderer(model, size=(w, h), viewpoint=PHOTO_VIEWPOINT) as r:
+                _, numbers = r.render(model.params(), triangles=True)
+                sets = r.triangle_sets
+        finally:
+            for node, url in zip(textures, urls, strict=True):
+                if url is None:
+                    node.fields.pop("url", None)
+                else:
+                    node.fields["url"] = url
+    out = {}
+    for name, node in nodes.items():
+        mask = np.zeros(numbers.shape, bool)
+        for drawn, first, count in sets:
+            if drawn is node:
+                mask |= (numbers >= first) & (numbers < first + count)
+        out[name] = mask
+    return out
 
 
 def texture_name(wrl: Path) -> str:
