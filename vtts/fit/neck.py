@@ -8,10 +8,10 @@ finds, from the head drawn at the frame's view, the first row from which down th
 no skin (the face's own skin the reference), and :func:`cut_neck` moves the neck's rings below
 that row up onto it.
 
-**Weighed down.** In the generic heads the neck hangs inside the head's rotation Transforms (``HEAD_YAW`` ⊃
-``HEAD_PITCH`` ⊃ ``HEAD_ROLL``, all pivoting at the top of the spine), so every nod of the
-model swings the whole neck over the person's collar. A person's head turns on the neck: the
-top of the neck goes with the skull, the bottom stays with the shoulders.
+**Weighed down.** In the generic heads the neck hangs inside the head's rotation Transforms
+(``HEAD_YAW`` ⊃ ``HEAD_PITCH`` ⊃ ``HEAD_ROLL``, all pivoting at the top of the spine), so every
+nod of the model swings the whole neck over the person's collar. A person's head turns on the
+neck: the top of the neck goes with the skull, the bottom stays with the shoulders.
 
 :func:`free_neck` takes the ``NECK`` Shape out of the head's Transforms (to the top level of
 the scene, where it stands as it did at the neutral pose: the head Transforms are the identity

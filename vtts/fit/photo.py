@@ -179,8 +179,10 @@ def with_frame(head: FittedHead, neck: bool | None = None) -> FittedHead:
     """``head`` (fitted to a video's frame) made for that video, changed in place and returned:
     the parts the frame shows take the frame itself as their texture, unlit
     (:mod:`vtts.fit.frame`), so that the head rendered at the frame's view gives the frame
-    back; with ``neck`` (default :data:`FREE_NECK`) the neck follows the head's rotation only
-    near the skull (:func:`vtts.fit.neck.free_neck`)."""
+    back. First, with :data:`CUT_NECK`, the neck ends where the frame stops showing skin under
+    the chin (:func:`vtts.fit.neck.collar_row`, :func:`vtts.fit.neck.cut_neck`); with ``neck``
+    (default :data:`FREE_NECK`) the neck follows the head's rotation only near the skull
+    (:func:`vtts.fit.neck.free_neck`)."""
     h, w = head.photo.shape[:2]
     if CUT_NECK and NECK in head.scene.defs:
         drawn = _drawn(head, (NECK, "FACE"))
