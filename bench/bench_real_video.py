@@ -61,6 +61,7 @@ def _row(benchmark: str, case: str, value, unit: str, target: str = "", ok=None)
 
 
 def _sequence(label: str, path: Path) -> list[dict]:
+    from vtts.analysis.anchor import choose_anchor
     from vtts.analysis.quality import coverage, decoded_frames, face_psnr_rgb, sequence_psnr
     from vtts.analysis.track import track
     from vtts.analysis.unknowns import DEFAULT_UNKNOWNS, HEAD_MOTION
@@ -82,8 +83,11 @@ def _sequence(label: str, path: Path) -> list[dict]:
         )
         for number, (case, unknowns, tracking) in enumerate(cases):
             t0 = time.perf_counter()
+            # as vtts analyze does for a file: the head made from its most typical frame
+            anchor = choose_anchor(frames, video.fps, len(frames), step=STEP)
             tracked = track(frames, fps=video.fps, model_path=Path(tmp) / f"case{number}.wrl",
-                            step=STEP, unknowns=unknowns, tracking=tracking)  # fmt: skip
+                            step=STEP, unknowns=unknowns, tracking=tracking,
+                            anchor=anchor)  # fmt: skip
             seconds = time.perf_counter() - t0
             results[case] = tracked
             n = len(tracked.analysis.frames)

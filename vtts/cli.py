@@ -915,6 +915,13 @@ def cmd_analyze(args: argparse.Namespace) -> int:
         how = "tracking" if tracking else "analyzing"
         bar = stack.enter_context(progress(total, f"{how} {what}", args.quiet))
         options = {} if unknowns is None else {"unknowns": unknowns}
+        if auto and not pipe:
+            # a file can be looked ahead in: the head is made from its most typical frame
+            from vtts.analysis.anchor import choose_anchor
+
+            again = read_video(args.video, fps=args.fps)
+            options["anchor"] = choose_anchor(again.frames(), again.fps, again.n_frames,
+                                              step=args.step)  # fmt: skip
         tracked = track(
             video.frames(),
             fps=video.fps,

@@ -164,7 +164,7 @@ def test_analyze_fits_writes_the_head_and_codes_the_translation(tmp_path):
     [
         (["--camera", "300,300,88,72"], "--camera is for a given --model"),
         (["--face", "0"], "--face must be 1"),
-        (["--face", "3"], "--face 3: frame 0, the first with a face, shows 1 face(s)"),
+        (["--face", "3"], "--face 3: frame 0, the one the head is fitted to, shows 1 face(s)"),
         (["--rate", "12.5"], "--rate sets the rate of a coded .fbs"),
         (["--model", "auto", "--model", "cybatt"], "fits one model, got 2"),
     ],

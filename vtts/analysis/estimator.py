@@ -511,7 +511,7 @@ class Estimator:
         if len(self._history) < 2:
             return
         (i0, p0, t0), (i1, p1, t1) = self._history
-        if not i0 < i1 < index:
+        if not (i0 < i1 < index or i0 > i1 > index):  # forwards, or backwards from an anchor
             return
         ratio = (index - i1) / (i1 - i0)
         for u in self.predicted:

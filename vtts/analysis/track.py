@@ -125,6 +125,7 @@ def track(
     detector=None,
     tracking: bool = False,
     on_estimate: Callable[[FrameEstimate], None] | None = None,
+    anchor: int | None = None,
     **options,
 ) -> Tracked:
     """Track the face in ``frames`` (each ``(H, W, 3) uint8`` RGB) of a video at ``fps``.
@@ -136,7 +137,12 @@ def track(
     :class:`~vtts.analysis.estimator.Estimator`. ``options`` go to the estimator (defaults here:
     ``robust=True``). BLAS runs on one thread meanwhile (:mod:`vtts.threads`). ``on_estimate``
     is called with each final estimate as soon as it is made, in frame order, the copies for the
-    frames before the first face included (a fitted head is written by then)."""
+    frames before the first face included (a fitted head is written by then).
+
+    ``anchor``: with a head to fit, the index of the frame to fit it on (a multiple of
+    ``step``; :func:`vtts.analysis.anchor.choose_anchor` picks the most typical one of a video
+    file): the frames before it are kept, then tracked from it backwards once it is estimated,
+    and the track goes on forwards from it (default: the first frame with a face)."""
     from vtts.fit.landmarks import detect_faces
 
     if not (math.isfinite(fps) and fps > 0):
@@ -147,61 +153,54 @@ def track(
         raise AnalysisError("fitting a head to the video needs a path to write it to")
     if model is None and camera is not None:
         raise AnalysisError("a fitted head brings the video's camera: give no camera with it")
+    if anchor is not None and model is not None:
+        raise AnalysisError("a frame to fit the head on (anchor) needs a head to fit: no model")
+    if anchor is not None and (anchor < 0 or anchor % step):
+        raise AnalysisError(f"the frame to fit the head on ({anchor}) must be a frame analyzed "
+                            f"(0 or more, a multiple of the step {step})")  # fmt: skip
     options.setdefault("robust", True)
     estimator: Estimator | None = None
     out: list[FrameEstimate] = []
     waiting: list[tuple[int, float]] = []  # frames before the first face
+    before: list[tuple[int, float, np.ndarray]] = []  # frames before the anchor
     result = Tracked(Analysis([], (), fps / step, Camera(1, 1, 0, 0)), model)  # type: ignore
-    recent: list[float] = []
-    kept = None  # the estimator's state after the last good frame
+    run = _Run()
     for i, frame in enumerate(frames):
         if i % step:
             continue
         t = i / fps
+        if estimator is None and anchor is not None and i < anchor:
+            before.append((i, t, frame))
+            _progress(progress, i)
+            continue
         if estimator is None:
             faces = detect_faces(frame, detector)
+            if not faces and anchor is not None:
+                raise AnalysisError(f"frame {i}, the frame to fit the head on, shows no face")
             if not faces and model is None:
                 waiting.append((i, t))
                 _progress(progress, i)
                 continue
-            chosen = _choose(faces, face, i) if faces else None
+            chosen = _choose(faces, face, i, anchor is not None) if faces else None
             kind = Tracker if tracking else Estimator
             estimator = _start(result, frame, chosen, face, model, model_path, camera, unknowns,
                                detector, options, kind)  # fmt: skip
-            result.first = i
-        try:
-            fe = estimator.estimate(frame, i, t)
-        except VttsError as e:  # the model left the view: start again from the landmarks
-            fe = _restart(estimator, frame, i, t, None, detector, kept=kept)
-            if fe is not None:
-                result.restarts.append(i)
-            elif kept is None or not out:
-                raise AnalysisError(f"frame {i}: {e.message}; no face to restart from") from None
-            else:  # hold the last good estimate; a later frame may find the face again
-                fe = _hold(estimator, kept, out[-1], i, t)
-                result.held.append(i)
-        else:
-            away = _run_away(estimator)
-            if away or _lost(fe.psnr, recent, LOST_REFERENCE_CAP_DB if tracking else math.inf):
-                again = _restart(estimator, frame, i, t, None if away else fe, detector,
-                                 kept=kept if away else None, neutral=away)  # fmt: skip
-                if again is not None:
-                    fe = again
-                    result.restarts.append(i)
-                elif away and kept is not None and out:
-                    fe = _hold(estimator, kept, out[-1], i, t)
-                    result.held.append(i)
-        kept = estimator.snapshot()
-        if math.isfinite(fe.psnr):
-            recent = [*recent[-(RECENT - 1) :], fe.psnr]
+            result.first = before[0][0] if before else i
+        fe = _follow(estimator, run, frame, i, t, detector, tracking, result)
         done = [_copy(fe, j, tj) for j, tj in waiting] + [fe]
         waiting = []
+        if before:
+            done = _backwards(estimator, fe, before, detector, tracking, result) + done
+            before = []
         out += done
         if on_estimate is not None:
             for estimate in done:
                 on_estimate(estimate)
         _progress(progress, i)
         estimator.between_frames()  # while the next frame is on its way
+    if estimator is None and before:
+        raise AnalysisError(f"the frame to fit the head on ({anchor}) is past the video's end "
+                            f"(its last frame analyzed is {before[-1][0]})")  # fmt: skip
     if estimator is None:
         if not waiting:
             raise AnalysisError("the video has no frames")
@@ -211,16 +210,81 @@ def track(
     return result
 
 
+@dataclass
+class _Run:
+    """What the rules of losing and finding the track keep along one direction of a track:
+    the estimator's state after the last good frame, the recent frames' PSNRs and the last
+    estimate."""
+
+    kept: tuple | None = None
+    recent: list[float] = field(default_factory=list)
+    last: FrameEstimate | None = None
+
+
+def _follow(estimator: Estimator, run: _Run, frame, i: int, t: float, detector, tracking: bool,
+            result: Tracked) -> FrameEstimate:  # fmt: skip
+    """Frame ``i``'s estimate, placed again from its landmarks where the track was lost or the
+    head ran away, or the last good estimate held (module docstring); ``run`` and ``result``'s
+    lists of restarts and held frames are brought up to date."""
+    try:
+        fe = estimator.estimate(frame, i, t)
+    except VttsError as e:  # the model left the view: start again from the landmarks
+        fe = _restart(estimator, frame, i, t, None, detector, kept=run.kept)
+        if fe is not None:
+            result.restarts.append(i)
+        elif run.kept is None or run.last is None:
+            raise AnalysisError(f"frame {i}: {e.message}; no face to restart from") from None
+        else:  # hold the last good estimate; a later frame may find the face again
+            fe = _hold(estimator, run.kept, run.last, i, t)
+            result.held.append(i)
+    else:
+        away = _run_away(estimator)
+        if away or _lost(fe.psnr, run.recent, LOST_REFERENCE_CAP_DB if tracking else math.inf):
+            again = _restart(estimator, frame, i, t, None if away else fe, detector,
+                             kept=run.kept if away else None, neutral=away)  # fmt: skip
+            if again is not None:
+                fe = again
+                result.restarts.append(i)
+            elif away and run.kept is not None and run.last is not None:
+                fe = _hold(estimator, run.kept, run.last, i, t)
+                result.held.append(i)
+    run.kept = estimator.snapshot()
+    if math.isfinite(fe.psnr):
+        run.recent = [*run.recent[-(RECENT - 1) :], fe.psnr]
+    run.last = fe
+    return fe
+
+
+def _backwards(estimator: Estimator, at_anchor: FrameEstimate,
+               frames: list[tuple[int, float, np.ndarray]], detector, tracking: bool,
+               result: Tracked) -> list[FrameEstimate]:  # fmt: skip
+    """The estimates of ``frames`` ``[(index, time, frame)]`` (those before the anchor, in
+    order), tracked from the anchor's estimate ``at_anchor`` backwards, in frame order; the
+    estimator is left as the anchor left it."""
+    state = estimator.snapshot()
+    run = _Run(kept=state, last=at_anchor)
+    out = []
+    for i, t, frame in reversed(frames):
+        estimator.between_frames()
+        out.append(_follow(estimator, run, frame, i, t, detector, tracking, result))
+    estimator.restore(state)
+    result.restarts.sort()
+    result.held.sort()
+    return out[::-1]
+
+
 def _progress(progress: Callable[[int], None] | None, index: int) -> None:
     if progress is not None:
         progress(index)
 
 
-def _choose(faces: list, face: int | None, index: int):
-    """The face to track among ``faces`` (largest first) of frame ``index``."""
+def _choose(faces: list, face: int | None, index: int, anchored: bool = False):
+    """The face to track among ``faces`` (largest first) of frame ``index`` (the first with a
+    face, or the one the head is fitted to: ``anchored``)."""
     from vtts.fit.landmarks import choose_face
 
-    where = f"frame {index}, the first with a face,"
+    which = "one the head is fitted to" if anchored else "first with a face"
+    where = f"frame {index}, the {which},"
     return choose_face(faces, face, where, "tracking", AnalysisError, stacklevel=4)
 
 
