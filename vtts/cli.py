@@ -1300,7 +1300,8 @@ def build_parser() -> argparse.ArgumentParser:
     an.add_argument(
         "--model",
         action="append",
-        help="auto (default): fit a head to the first face and write it as OUT-model.wrl; or "
+        help="auto (default): fit a head to the video's most typical face (the first face on "
+        "stdin) and write it as OUT-model.wrl; or "
         "a bundled model name or .wrl path, placed on the first face's landmarks",
     )
     _url_root_flag(an)
