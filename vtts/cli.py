@@ -936,6 +936,13 @@ def cmd_analyze(args: argparse.Namespace) -> int:
             **options,
         )
         analysis = tracked.analysis
+        if auto and not pipe and sink is None and args.texture != "anchor":
+            from vtts.analysis.texture import retexture
+
+            frame_png = Path(staging) / fitted[3].name
+            video = read_video(args.video, fps=args.fps)  # again: the frames were not kept
+            tracked.model = retexture(tracked.model, frame_png, analysis.camera, video.size,
+                                      analysis.frames, video.frames())  # fmt: skip
         stream = analysis.stream(name, fapu=tracked.model.fapu)
         if sink is not None:
             sink.end()
@@ -1014,6 +1021,13 @@ def _check_analyze_stream(args: argparse.Namespace, pipe: bool, auto: bool) -> N
         raise AnalysisError(
             "--stream with --model auto needs --model-out HEAD.wrl: the fitted head a reader "
             "of the stream loads (stdout has no name to derive it from)"
+        )
+    if args.texture == "mean" and not auto:
+        raise AnalysisError("--texture chooses the texture of the head --model auto fits")
+    if args.texture == "mean" and (pipe or args.stream_out):
+        raise AnalysisError(
+            "--texture mean needs the whole video before the head is written: frames on stdin "
+            "and --stream keep the texture of the frame the head was fitted to"
         )
     if args.model_out is not None:
         if not auto:
@@ -1369,6 +1383,13 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="F",
         help="frame rate of a PNG folder or of frames on stdin (default 25), or instead of a "
         "video's own",
+    )
+    an.add_argument(
+        "--texture",
+        choices=("mean", "anchor"),
+        help="the fitted head's texture: mean (the default for a video file): what the tracked "
+        "frames show on average; anchor: the frame it was fitted to (always for frames on "
+        "stdin or --stream)",
     )
     an.add_argument(
         "--report",

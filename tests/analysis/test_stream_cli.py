@@ -122,6 +122,7 @@ def test_read_pipe_yields_frames_and_names_a_partial_one():
         (["--size", "4x4", "-o", "x.fap"], "too small"),
         (["--size", "5000x5000", "-o", "x.fap"], "limit"),
         (["--size", "176x144", "-o", "x.fap"], "byte 0: the pipe ends inside frame 0"),
+        (["--size", "176x144", "--texture", "mean", "-o", "x.fap"], "needs the whole video"),
     ],
 )
 def test_analyze_stdin_errors(tmp_path, args, message):

@@ -167,6 +167,7 @@ def test_analyze_fits_writes_the_head_and_codes_the_translation(tmp_path):
         (["--face", "3"], "--face 3: frame 0, the one the head is fitted to, shows 1 face(s)"),
         (["--rate", "12.5"], "--rate sets the rate of a coded .fbs"),
         (["--model", "auto", "--model", "cybatt"], "fits one model, got 2"),
+        (["--model", "cybatt", "--texture", "mean"], "the texture of the head --model auto"),
     ],
 )
 def test_analyze_auto_bad_input(tmp_path, args, fragment):

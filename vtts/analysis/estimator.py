@@ -269,6 +269,23 @@ class Estimator:
         image, faces, _ = self._render_window(factor, whole=True)
         return image, faces
 
+    def surface(self, shrink: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Where the model lies in the full-size image at the current estimate: the pixels it
+        covers ``(N, 2)`` int (row, column), less ``shrink`` pixels along every outline of the
+        covered area, the index into ``geometry.faces`` of the triangle each shows ``(N,)`` and
+        the barycentric coordinates of the point its ray meets there ``(N, 3)``."""
+        _, numbers = self._synthesize(self.camera, self.size, triangles=True)
+        faces = self._face_indices(numbers)
+        covered = faces >= 0
+        if shrink:
+            covered = binary_erosion(covered, iterations=shrink)
+        rows, cols = np.nonzero(covered)
+        tri = faces[rows, cols]
+        positions = self.geometry.positions(self.params, self.translation)
+        pix = np.c_[cols + 0.5, rows + 0.5]
+        lam, _ = ray_barycentrics(pix, self.camera, positions[self.geometry.faces[tri]])
+        return np.c_[rows, cols], tri, lam
+
     def _render_window(
         self, factor: int, whole: bool = False
     ) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
