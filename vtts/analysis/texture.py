@@ -74,8 +74,16 @@ def mean_texture(
             textured[s.first_face : s.first_face + len(s.mesh.faces)] = True
     if not textured.any():
         raise AnalysisError(f"{model.name}: none of its parts {', '.join(parts)} is textured")
-    weight = np.zeros(th * tw)
-    sums = np.zeros((3, th * tw))
+    # the texels the parts can show: the box around their texture coordinates (a video's
+    # texture is the frame's size; the head covers a part of it)
+    corners = uv[np.unique(geometry.faces[textured])]
+    xs, ys = corners[:, 0] * tw - 0.5, (1.0 - corners[:, 1]) * th - 0.5
+    x_lo = min(max(int(np.floor(xs.min())), 0), tw - 1)
+    y_lo = min(max(int(np.floor(ys.min())), 0), th - 1)
+    bw = min(max(int(np.floor(xs.max())) + 2 - x_lo, 1), tw - x_lo)
+    bh = min(max(int(np.floor(ys.max())) + 2 - y_lo, 1), th - y_lo)
+    weight = np.zeros(bh * bw)
+    sums = np.zeros((3, bh * bw))
     wanted = {fe.index: fe for fe in estimates if not np.isnan(fe.psnr)}
     last = max(wanted, default=-1)
     for index, frame in enumerate(frames):
@@ -100,17 +108,18 @@ def mean_texture(
         colors = frame[pixels[:, 0], pixels[:, 1], :3].astype(np.float64)
         for dx, dy, w in ((0, 0, (1 - fx) * (1 - fy)), (1, 0, fx * (1 - fy)),
                           (0, 1, (1 - fx) * fy), (1, 1, fx * fy)):  # fmt: skip
-            at = np.clip(y0 + dy, 0, th - 1) * tw + np.clip(x0 + dx, 0, tw - 1)
-            weight += np.bincount(at, w, minlength=th * tw)
+            at = (np.clip(y0 + dy - y_lo, 0, bh - 1) * bw
+                  + np.clip(x0 + dx - x_lo, 0, bw - 1))  # fmt: skip
+            weight += np.bincount(at, w, minlength=bh * bw)
             for c in range(3):
-                sums[c] += np.bincount(at, w * colors[:, c], minlength=th * tw)
+                sums[c] += np.bincount(at, w * colors[:, c], minlength=bh * bw)
     mean = sums / np.maximum(weight, 1e-12)
     share = np.clip(weight / MIN_WEIGHT, 0.0, 1.0)
-    old = texture[..., :3].reshape(-1, 3).T.astype(np.float64)
+    out = texture.copy()
+    box = out[y_lo : y_lo + bh, x_lo : x_lo + bw, :3]
+    old = box.reshape(-1, 3).T.astype(np.float64)
     new = share * mean + (1.0 - share) * old
-    out = np.clip(np.round(new.T.reshape(th, tw, 3)), 0, 255).astype(np.uint8)
-    if texture.shape[2] > 3:
-        out = np.concatenate([out, texture[..., 3:]], axis=2)
+    box[...] = np.clip(np.round(new.T.reshape(bh, bw, 3)), 0, 255).astype(np.uint8)
     return out
 
 
