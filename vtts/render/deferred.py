@@ -139,9 +139,7 @@ class DeferredPass(ForwardPass):
                 raise RenderError("triangle numbers need a scene the G-buffer holds")
             return super().render(scene, width, height, rgba)
         r = self._begin_frame(scene, width, height)
-        nodes = self._sorted_mesh_nodes(scene)
-        opaque = [(n, pose) for n, pose in nodes if not n.mesh.is_transparent]
-        transparent = [(n, pose) for n, pose in nodes if n.mesh.is_transparent]
+        opaque, transparent = self._mesh_nodes(scene)
         colors = self._vertex_colors(opaque)
         resolve = self._resolve_program(r, colors, _light_counts(scene))
         if resolve is None:
@@ -259,7 +257,7 @@ class DeferredPass(ForwardPass):
         self._uniform_array(
             pid,
             "emissive_metallic_factors",
-            [np.r_[m.emissiveFactor, m.metallicFactor] for m in materials],
+            [[*m.emissiveFactor, m.metallicFactor] for m in materials],
         )
         self._uniform_array(pid, "roughness_factors", [m.roughnessFactor for m in materials])
         self._uniform_array(pid, "unlit", [float(getattr(m, UNLIT, False)) for m in materials])

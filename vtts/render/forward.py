@@ -74,6 +74,11 @@ class ForwardPass:
         # programs only this pass uses: their uniforms keep their values from frame to frame
         self._private: set[int] = set()
         self._state: dict[object, object] = {}  # GL state set this frame
+        # this frame's camera and lights as sent (see _use), and what each of our own programs got
+        self._frame_key: tuple = ()
+        self._frame_got: dict[int, tuple] = {}
+        # node -> (its path to the root, the matrices along it, its world pose): see _pose
+        self._poses: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
     # ---- entry point -------------------------------------------------------------------------
 
@@ -132,7 +137,7 @@ class ForwardPass:
         self._sent = {k: v for k, v in self._sent.items() if k[0] in self._private}
         self._state.clear()
         camera = scene.main_camera_node
-        cam_pose = scene.get_pose(camera)
+        cam_pose = self._pose(scene, camera)
         self._cam_pos = cam_pose[:3, 3]
         uniforms = {
             "V": np.linalg.inv(cam_pose),
@@ -141,6 +146,7 @@ class ForwardPass:
             **self._light_uniforms(scene),
         }
         self._frame_uniforms = {name: _gl_value(v) for name, v in uniforms.items()}
+        self._frame_key = tuple((n, _fingerprint(v)) for n, v in self._frame_uniforms.items())
         GL.glViewport(0, 0, width, height)
         GL.glDepthRange(0.0, 1.0)
         GL.glPolygonMode(GL.GL_FRONT_AND_BACK, GL.GL_FILL)
@@ -172,7 +178,7 @@ class ForwardPass:
         counts = {"point_lights": 0, "spot_lights": 0, "directional_lights": 0}
         for n in scene.light_nodes:
             light = n.light
-            pose = scene.get_pose(n)
+            pose = self._pose(scene, n)
             position, direction = pose[:3, 3], -pose[:3, 2]
             if isinstance(light, pr.PointLight):
                 kind = "point_lights"
@@ -199,9 +205,17 @@ class ForwardPass:
     def _sorted_mesh_nodes(self, scene) -> list[tuple[object, np.ndarray]]:
         """pyrender's drawing order (opaque, then transparent, each farthest first), with each
         node's world pose."""
+        solid, transparent = self._mesh_nodes(scene)
+        return solid + transparent
+
+    def _mesh_nodes(self, scene) -> tuple[list, list]:
+        """The visible opaque and the visible transparent mesh nodes as ``(node, world pose)``,
+        each list in pyrender's drawing order (farthest first)."""
         solid, transparent = [], []
         for node in scene.mesh_nodes:
-            pose = scene.get_pose(node)
+            if not node.mesh.is_visible:
+                continue
+            pose = self._pose(scene, node)
             (transparent if node.mesh.is_transparent else solid).append((node, pose))
         cam = self._cam_pos
 
@@ -210,7 +224,32 @@ class ForwardPass:
 
         solid.sort(key=key)
         transparent.sort(key=key)
-        return [item for item in solid + transparent if item[0].mesh.is_visible]
+        return solid, transparent
+
+    def _pose(self, scene, node) -> np.ndarray:
+        """``scene.get_pose(node)``: the same product in the same order, kept from frame to
+        frame while the nodes on the way to the root keep their matrices (pyrender makes a new
+        array whenever a node's pose is set). Not to be changed by the caller."""
+        path = getattr(scene, "_path_cache", {}).get(node)
+        if path is None:
+            return scene.get_pose(node)  # which finds the path and keeps it
+        matrices = []
+        for n in path[:-1]:
+            if n._matrix is None:
+                _ = n.matrix  # pyrender computes it from the node's pose and keeps it
+            matrices.append(n._matrix)
+        known = self._poses.get(node)
+        if (
+            known is not None
+            and known[0] is path
+            and all(a is b for a, b in zip(known[1], matrices, strict=True))
+        ):
+            return known[2]
+        pose = np.eye(4)
+        for m in matrices:
+            pose = np.dot(m, pose)
+        self._poses[node] = (path, matrices, pose)
+        return pose
 
     def _program(self, primitive, r):
         """pyrender's shader program for ``primitive`` (compiled on first use)."""
@@ -221,11 +260,15 @@ class ForwardPass:
         return program
 
     def _use(self, pid: int) -> None:
-        """Make ``pid`` the current program, with this frame's camera and lights."""
+        """Make ``pid`` the current program, with this frame's camera and lights (which one of
+        vtts's own programs keeps from an earlier frame when they did not change)."""
         self._set(GL.GL_CURRENT_PROGRAM, pid, GL.glUseProgram)
         if pid not in self._frame_sent:
-            for name, value in self._frame_uniforms.items():
-                self._uniform(pid, name, value)
+            if self._frame_got.get(pid) != self._frame_key:
+                for name, value in self._frame_uniforms.items():
+                    self._uniform(pid, name, value)
+                if pid in self._private:
+                    self._frame_got[pid] = self._frame_key
             self._frame_sent.add(pid)
 
     def _draw(self, primitive, pose: np.ndarray, r) -> None:
@@ -289,10 +332,7 @@ class ForwardPass:
         value = _gl_value(value)
         key = (pid, name)
         sent = self._sent.get(key, _UNSET)
-        if isinstance(value, np.ndarray):
-            fingerprint = (value.dtype.char, value.shape, value.tobytes())
-        else:
-            fingerprint = (type(value), value)
+        fingerprint = _fingerprint(value)
         if sent == fingerprint:
             return
         self._sent[key] = fingerprint
@@ -342,6 +382,13 @@ def _gl_value(value):
         want = np.int32 if value.dtype.kind in "iu" else np.float32
         return value if value.dtype == want else value.astype(want)
     return value
+
+
+def _fingerprint(value) -> tuple:
+    """What tells two uniform values (as :func:`_gl_value` makes them) apart."""
+    if isinstance(value, np.ndarray):
+        return (value.dtype.char, value.shape, value.tobytes())
+    return (type(value), value)
 
 
 _UNSET = object()

@@ -234,6 +234,7 @@ class _AnimatedTransform:
     vrml: Node
     nodes: list = field(default_factory=list)  # pyrender nodes (one per instance)
     last: tuple | None = None  # the last animated field values prepared, and their matrix
+    applied: object = None  # the matrix its nodes were last given (set again only when new)
 
 
 @dataclass
@@ -779,8 +780,11 @@ class FaceRenderer:
                         parent_node=am.parent,
                     )
             for at, m in matrices:
+                if m is at.applied:  # the same array: the same pose (pyrender's set_pose is slow)
+                    continue
                 for pn in at.nodes:
                     self.scene.set_pose(pn, m)
+                at.applied = m
 
     def _draws_unlit(self) -> bool:
         """Whether this scene's frames are drawn through the G-buffer, where unlit meshes need
