@@ -134,3 +134,27 @@ def test_analyze_writes_the_mean_texture_unless_told_the_anchor(tmp_path):
     assert any(np.array_equal(textures["anchor"], frame_texture(f)) for f in frames)
     diff = np.abs(textures["mean"].astype(int) - textures["anchor"].astype(int))
     assert 0 < diff.mean() < 3, diff.mean()
+
+
+def test_the_surface_under_each_pixel(tracked):
+    from vtts.analysis import Estimator
+
+    result, frames, folder = tracked
+    model = load_model(str(folder / "car.wrl"))
+    estimator = Estimator(model, size=(176, 144), camera=result.analysis.camera)
+    fe = result.analysis.frames[10]  # the frame the head was fitted to
+    estimator.params, estimator.translation = fe.params.copy(), fe.translation.copy()
+    pixels, tri, lam = estimator.surface()
+    inner, _, _ = estimator.surface(shrink=2)
+    assert len(pixels) == len(tri) == len(lam) > 2000
+    assert 0 < len(inner) < len(pixels)
+    assert set(map(tuple, inner)) <= set(map(tuple, pixels))
+    np.testing.assert_allclose(lam.sum(axis=1), 1.0, atol=1e-9)
+    # each ray meets the triangle its pixel shows (the rasterizer's single precision puts a
+    # pixel centre a hair outside its triangle at times)
+    assert lam.min() > -0.02 and lam.max() < 1.02, (lam.min(), lam.max())
+    # the points the rays meet project back onto their pixels
+    positions = estimator.geometry.positions(estimator.params, estimator.translation)
+    points = np.einsum("nm,nmk->nk", lam, positions[estimator.geometry.faces[tri]])
+    xy = estimator.camera.project(points)
+    np.testing.assert_allclose(xy, pixels[:, ::-1] + 0.5, atol=1e-6)
