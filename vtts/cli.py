@@ -936,6 +936,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
             **options,
         )
         analysis = tracked.analysis
+        textured = 0  # the frames the fitted head's texture is the mean of
         if auto and not pipe and sink is None and args.texture != "anchor":
             from vtts.analysis.texture import retexture
 
@@ -943,6 +944,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
             video = read_video(args.video, fps=args.fps)  # again: the frames were not kept
             tracked.model = retexture(tracked.model, frame_png, analysis.camera, video.size,
                                       analysis.frames, video.frames())  # fmt: skip
+            textured = sum(not np.isnan(fe.psnr) for fe in analysis.frames)
         stream = analysis.stream(name, fapu=tracked.model.fapu)
         if sink is not None:
             sink.end()
@@ -970,7 +972,8 @@ def cmd_analyze(args: argparse.Namespace) -> int:
                 f"{per_frame:.2f} ms a frame)",
             )
         if fitted:
-            written.append(f"the fitted head {fitted[0]} (+ .adt, -face.png, -frame.png)")
+            texture = f": what {textured} frames show" if textured else ""
+            written.append(f"the fitted head {fitted[0]} (+ .adt, -face.png, -frame.png{texture})")
         if args.report:
             written.append(f"report in {args.report}")
         n = len(analysis.frames)

@@ -125,9 +125,11 @@ def test_analyze_writes_the_mean_texture_unless_told_the_anchor(tmp_path):
     for how in ("mean", "anchor"):
         out = tmp_path / how / "talk.fbs"
         args = ["--texture", how] if how == "anchor" else []
-        r = subprocess.run([str(exe), "analyze", str(clip), "-o", str(out), "--track", "--quiet",
-                            *args], capture_output=True, text=True, timeout=300)  # fmt: skip
+        r = subprocess.run([str(exe), "analyze", str(clip), "-o", str(out), "--track", *args],
+                           capture_output=True, text=True, timeout=300)  # fmt: skip
         assert r.returncode == 0, r.stderr
+        # the summary says what the texture is
+        assert ("-frame.png: what 6 frames show)" in r.stdout) == (how == "mean"), r.stdout
         textures[how] = np.asarray(Image.open(out.with_name("talk-model-frame.png")))
         assert not [p for p in out.parent.iterdir() if p.name.startswith(".")]
     # --texture anchor: one of the frames as it is; the mean: close to it, but not it
