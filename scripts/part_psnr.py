@@ -4,6 +4,8 @@ the head (vtts.fit.neck).
 
     .venv/bin/python scripts/part_psnr.py tests/data/video/akiyo_cif.mp4 --frames 60
     .venv/bin/python scripts/part_psnr.py ... --neck weighed      # with vtts.fit.neck
+    .venv/bin/python scripts/part_psnr.py ... --frames 300 --anchor typical --texture mean
+                                              # the head as vtts analyze makes it for a file
 
 Tracks the video's first FRAMES frames (every second one, ``--model auto``, the paper's 17
 parameters, as bench/bench_real_video.py does), then renders the uncoded stream through the
@@ -72,6 +74,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--searched", default="", help="FAPs found by the image search alone")
     ap.add_argument("--lid-floor", type=float, default=None,
                     help="the upper eyelids' lowest value in the search (FAPs 19, 20)")  # fmt: skip
+    ap.add_argument("--track", action="store_true", help="the tracking mode (vtts analyze --track)")
+    ap.add_argument("--anchor", choices=("first", "typical"), default="first",
+                    help="the frame the head is made from: the first with a face, or the most "
+                    "typical one, as vtts analyze chooses it for a file")  # fmt: skip
+    ap.add_argument("--texture", choices=("anchor", "mean"), default="anchor",
+                    help="the head's texture: that frame, or the mean of what the tracked "
+                    "frames show (vtts analyze's default for a file)")  # fmt: skip
     ap.add_argument("--per-frame", action="store_true", help="each frame's figures too")
     args = ap.parse_args(argv)
 
@@ -98,10 +107,23 @@ def main(argv: list[str] | None = None) -> int:
         options["bounds"] = {19: (args.lid_floor, math.inf), 20: (args.lid_floor, math.inf)}
     if args.match_neck:
         options["ignore"] = tuple(p for p in FITTED_IGNORED if p != "NECK")
+    if args.anchor == "typical":
+        from vtts.analysis.anchor import choose_anchor
+
+        options["anchor"] = choose_anchor(frames, video.fps, len(frames), step=args.step)
     with tempfile.TemporaryDirectory(prefix="vtts-parts-") as tmp:
         t0 = time.perf_counter()
-        tracked = track(frames, fps=video.fps, model_path=Path(tmp) / "m.wrl", step=args.step,
-                        unknowns=parse_unknowns(args.faps), **options)  # fmt: skip
+        wrl = Path(tmp) / "m.wrl"
+        tracked = track(frames, fps=video.fps, model_path=wrl, step=args.step,
+                        unknowns=parse_unknowns(args.faps), tracking=args.track,
+                        **options)  # fmt: skip
+        if args.texture == "mean":
+            from vtts.analysis.texture import retexture
+            from vtts.fit.photo import frame_texture_name
+
+            tracked.model = retexture(tracked.model, wrl.with_name(frame_texture_name(wrl)),
+                                      tracked.analysis.camera, (w, h), tracked.analysis.frames,
+                                      frames)  # fmt: skip
         seconds = time.perf_counter() - t0
         model = tracked.model
         stream = tracked.analysis.stream(args.video.stem, fapu=model.fapu)
@@ -164,6 +186,9 @@ def main(argv: list[str] | None = None) -> int:
         "faps": args.faps,
         "searched": args.searched,
         "lid_floor": args.lid_floor,
+        "mode": "tracking" if args.track else "accurate",
+        "anchor": options.get("anchor", "first"),
+        "texture": args.texture,
         "seconds": round(seconds, 1),
         "restarts": len(tracked.restarts),
         "held": len(tracked.held),
