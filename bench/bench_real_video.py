@@ -71,7 +71,6 @@ def _sequence(label: str, path: Path) -> list[dict]:
     from vtts.analysis.unknowns import DEFAULT_UNKNOWNS, HEAD_MOTION
     from vtts.analysis.video import read_video
     from vtts.fap.coding import decode, encode
-    from vtts.fit.photo import frame_texture_name
 
     video = read_video(path)
     limit = int(os.environ.get("VTTS_BENCH_FRAMES", "0")) or None
@@ -93,8 +92,8 @@ def _sequence(label: str, path: Path) -> list[dict]:
         choosing = time.perf_counter() - t0
         for number, (case, unknowns, tracking) in enumerate(cases):
             t0 = time.perf_counter() - choosing
-            wrl = Path(tmp) / f"case{number}.wrl"
-            tracked = track(frames, fps=video.fps, model_path=wrl, step=STEP,
+            tracked = track(frames, fps=video.fps, model_path=Path(tmp) / f"case{number}.wrl",
+                            step=STEP,
                             unknowns=unknowns, tracking=tracking, anchor=anchor)  # fmt: skip
             stream = tracked.analysis.stream(path.stem, fapu=tracked.model.fapu)
             base = f"{label}, {case}"
@@ -104,9 +103,7 @@ def _sequence(label: str, path: Path) -> list[dict]:
             rows += _psnr_rows("real video: face PSNR, uncoded estimates, the anchor's texture",
                                base, anchored)  # fmt: skip
             # as vtts analyze does for a file: the texture is what the tracked frames show
-            tracked.model = retexture(tracked.model, wrl.with_name(frame_texture_name(wrl)),
-                                      tracked.analysis.camera, (w, h), tracked.analysis.frames,
-                                      frames)  # fmt: skip
+            tracked.model = retexture(tracked, frames, (w, h))
             seconds = time.perf_counter() - t0
             results[case] = tracked
             n = len(tracked.analysis.frames)

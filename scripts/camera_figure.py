@@ -33,17 +33,14 @@ def main(out: Path) -> None:
     from vtts.analysis.video import read_video
     from vtts.atomic import atomic_path
     from vtts.fap.coding import decode, encode
-    from vtts.fit.photo import frame_texture_name
 
     video = read_video(VIDEO)
     frames = list(video.frames())
     anchor = choose_anchor(frames, video.fps, len(frames), step=STEP)
     with tempfile.TemporaryDirectory() as tmp:
-        wrl = Path(tmp) / "akiyo.wrl"
-        tracked = track(frames, fps=video.fps, model_path=wrl, step=STEP, anchor=anchor)
-        model = retexture(tracked.model, wrl.with_name(frame_texture_name(wrl)),
-                          tracked.analysis.camera, video.size, tracked.analysis.frames,
-                          frames)  # fmt: skip
+        tracked = track(frames, fps=video.fps, model_path=Path(tmp) / "akiyo.wrl", step=STEP,
+                        anchor=anchor)  # fmt: skip
+        model = retexture(tracked, frames, video.size)
         stream = tracked.analysis.stream("akiyo", fapu=model.fapu)
         data = encode(stream, rate=12.5)
         decoded = decode(data)

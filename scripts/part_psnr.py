@@ -113,17 +113,13 @@ def main(argv: list[str] | None = None) -> int:
         options["anchor"] = choose_anchor(frames, video.fps, len(frames), step=args.step)
     with tempfile.TemporaryDirectory(prefix="vtts-parts-") as tmp:
         t0 = time.perf_counter()
-        wrl = Path(tmp) / "m.wrl"
-        tracked = track(frames, fps=video.fps, model_path=wrl, step=args.step,
+        tracked = track(frames, fps=video.fps, model_path=Path(tmp) / "m.wrl", step=args.step,
                         unknowns=parse_unknowns(args.faps), tracking=args.track,
                         **options)  # fmt: skip
         if args.texture == "mean":
             from vtts.analysis.texture import retexture
-            from vtts.fit.photo import frame_texture_name
 
-            tracked.model = retexture(tracked.model, wrl.with_name(frame_texture_name(wrl)),
-                                      tracked.analysis.camera, (w, h), tracked.analysis.frames,
-                                      frames)  # fmt: skip
+            tracked.model = retexture(tracked, frames, (w, h))
         seconds = time.perf_counter() - t0
         model = tracked.model
         stream = tracked.analysis.stream(args.video.stem, fapu=model.fapu)

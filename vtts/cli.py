@@ -940,10 +940,8 @@ def cmd_analyze(args: argparse.Namespace) -> int:
         if auto and not pipe and sink is None and args.texture != "anchor":
             from vtts.analysis.texture import retexture
 
-            frame_png = Path(staging) / fitted[3].name
             video = read_video(args.video, fps=args.fps)  # again: the frames were not kept
-            tracked.model = retexture(tracked.model, frame_png, analysis.camera, video.size,
-                                      analysis.frames, video.frames())  # fmt: skip
+            tracked.model = retexture(tracked, video.frames(), video.size)
             textured = sum(not np.isnan(fe.psnr) for fe in analysis.frames)
         stream = analysis.stream(name, fapu=tracked.model.fapu)
         if sink is not None:

@@ -7,6 +7,7 @@ import itertools
 import shutil
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -57,8 +58,8 @@ def test_the_mean_texture_brings_the_decoded_frames_closer(tracked, tmp_path):
     png = wrl.with_name("car-frame.png")
     old = np.asarray(Image.open(png).convert("RGB"))
     assert np.array_equal(old, frame_texture(frames[20]))  # the anchor's texture to start
-    again = retexture(model, png, result.analysis.camera, (176, 144), result.analysis.frames,
-                      iter(frames))  # fmt: skip
+    copied = replace(result, model=model, fitted=[wrl.with_name(p.name) for p in result.fitted])
+    again = retexture(copied, iter(frames), (176, 144))
     after = stream_psnr(frames, stream, again, video_fps=FPS)
     # the summed error over the frames falls: more than a dB on these 20 frames (about +1.7
     # dB on the whole sequence); the anchor frame itself, no longer its own texture, falls
@@ -111,6 +112,8 @@ def test_bad_input_is_a_clear_error(tracked):
         mean_texture(model, camera, (176, 144), estimates, small, texture)
     with pytest.raises(AnalysisError, match="none of its parts"):
         mean_texture(model, camera, (176, 144), estimates, frames, texture, parts=("NOSE",))
+    with pytest.raises(AnalysisError, match="only a head fitted to the video"):
+        retexture(replace(result, fitted=[]), frames, (176, 144))
     assert MIN_WEIGHT > 0
 
 

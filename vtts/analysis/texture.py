@@ -25,13 +25,13 @@ PSNR): see ``docs/analysis.md``. Tracking again with the mean texture gained not
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
-from pathlib import Path
 
 import numpy as np
 from PIL import Image
 
 from vtts.analysis.estimator import Estimator
 from vtts.analysis.result import FrameEstimate
+from vtts.analysis.track import Tracked
 from vtts.errors import AnalysisError
 from vtts.face import FaceModel, load_model
 from vtts.fit.frame import FRAME_PARTS
@@ -123,24 +123,25 @@ def mean_texture(
     return out
 
 
-def retexture(
-    model: FaceModel,
-    texture_path: str | Path,
-    camera: Camera,
-    size: tuple[int, int],
-    estimates: Sequence[FrameEstimate],
-    frames: Iterable[np.ndarray],
-) -> FaceModel:
-    """Replace a video head's frame texture (the PNG ``texture_path`` beside ``model``'s
-    ``.wrl``, :func:`vtts.fit.photo.frame_texture_name`) by :func:`mean_texture` of the
-    tracked ``frames`` and return the model loaded again. The file is replaced whole (written
+def retexture(tracked: Tracked, frames: Iterable[np.ndarray], size: tuple[int, int]) -> FaceModel:
+    """Replace the frame texture of the head ``tracked`` fitted to a video (its
+    ``-frame.png``, :func:`vtts.fit.photo.frame_texture_name`, among ``tracked.fitted``) by
+    :func:`mean_texture` of the video's ``frames`` (from frame 0, ``size`` (W, H)) at the
+    track's estimates, and return the head loaded again. The file is replaced whole (written
     to a temporary name first)."""
     from vtts.atomic import atomic_path
+    from vtts.fit.photo import frame_texture_name
 
-    path = Path(texture_path)
+    if not tracked.fitted:
+        raise AnalysisError("only a head fitted to the video has a frame texture to replace")
+    name = frame_texture_name(tracked.fitted[0])
+    path = next((p for p in tracked.fitted if p.name == name), None)
+    if path is None:
+        raise AnalysisError(f"{tracked.model.name}: the fitted head has no {name}")
     with Image.open(path) as im:
         texture = np.asarray(im.convert("RGB"))
-    new = mean_texture(model, camera, size, estimates, frames, texture)
+    analysis = tracked.analysis
+    new = mean_texture(tracked.model, analysis.camera, size, analysis.frames, frames, texture)
     with atomic_path(path) as tmp:
         Image.fromarray(new).save(tmp, format="PNG", compress_level=3)
-    return load_model(str(model.path))
+    return load_model(str(tracked.fitted[0]))
