@@ -33,7 +33,7 @@ from vtts.face.miap import Miap
 from vtts.face.temporal import TemporalTables
 from vtts.fap import AU
 from vtts.limits import MAX_ADT_BYTES, read_bytes_capped
-from vtts.resources import grammar_text
+from vtts.resources import lark_parser
 from vtts.vrml.fields import NumberError, format_number, format_numbers, parse_floats
 
 TRANSFORM_FIELDS = ("rotation", "translation", "scale")
@@ -227,9 +227,7 @@ class AnimationTables:
 
 @cache
 def _lark() -> Lark:
-    return Lark(
-        grammar_text("adt"), parser="lalr", lexer="contextual", maybe_placeholders=False, cache=True
-    )
+    return lark_parser("adt", parser="lalr", lexer="contextual", maybe_placeholders=False)
 
 
 def read_adt(path: str | os.PathLike[str]) -> AnimationTables:

@@ -17,8 +17,9 @@ built through their constructors (which validate) with fields of the annotated k
 else — a planted pickle, a truncated or foreign file, an entry not owned by the current user or in
 a folder others can write — is a miss.
 
-Location: ``$VTTS_CACHE_DIR``, else ``$XDG_CACHE_HOME/vtts``, else ``~/.cache/vtts``; setting
-``VTTS_CACHE_DIR`` to the empty string turns the cache off.
+Location: ``models/`` in :func:`vtts.usercache.cache_dir` (``$VTTS_CACHE_DIR``, else
+``$XDG_CACHE_HOME/vtts``, else ``~/.cache/vtts``); setting ``VTTS_CACHE_DIR`` to the empty
+string turns the cache off.
 """
 
 from __future__ import annotations
@@ -43,6 +44,9 @@ from typing import Any
 import numpy as np
 
 from vtts.limits import MAX_CACHE_ENTRY_BYTES
+from vtts.usercache import cache_dir
+from vtts.usercache import owned as _owned
+from vtts.usercache import safe_folder as _safe_folder
 
 #: Models whose files are smaller than this parse fast enough without a cache.
 MIN_BYTES = 1 << 20
@@ -55,15 +59,6 @@ SUFFIX = ".npz"
 _OLD_SUFFIXES = (".pickle",)
 #: The dtypes an entry's arrays may have (numbers only: no objects, no byte swapping).
 _DTYPES = frozenset({"|b1", "|u1", "|i1", "<i2", "<u2", "<i4", "<u4", "<i8", "<u8", "<f4", "<f8"})
-
-
-def cache_dir() -> Path | None:
-    """Where the cache lives, or None when it is turned off."""
-    env = os.environ.get("VTTS_CACHE_DIR")
-    if env is not None:
-        return Path(env) if env else None
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    return (Path(xdg) if xdg else Path.home() / ".cache") / "vtts"
 
 
 def entry_path(files: list[Path]) -> Path | None:
@@ -134,21 +129,6 @@ def store(entry: Path, model) -> None:
                     old.unlink(missing_ok=True)
         with atomic_path(entry) as tmp:
             tmp.write_bytes(data)
-
-
-def _owned(st: os.stat_result) -> bool:
-    """Owned by the current user and writable by nobody else."""
-    mine = not hasattr(os, "getuid") or st.st_uid == os.getuid()
-    return mine and not st.st_mode & (stat.S_IWGRP | stat.S_IWOTH)
-
-
-def _safe_folder(folder: Path) -> bool:
-    """Whether entries in ``folder`` can only have been written by the current user."""
-    try:
-        st = os.lstat(folder)
-    except OSError:
-        return False
-    return stat.S_ISDIR(st.st_mode) and _owned(st)
 
 
 @cache

@@ -34,7 +34,7 @@ from vtts.errors import (
     VrmlUrlError,
     VttsWarning,
 )
-from vtts.resources import grammar_text
+from vtts.resources import lark_parser
 from vtts.vrml.fields import (
     FIELD_TYPES,
     FieldType,
@@ -100,13 +100,7 @@ _TERMINAL_NAMES = {
 
 @cache
 def _lark() -> Lark:
-    return Lark(
-        grammar_text("vrml97"),
-        parser="lalr",
-        lexer="contextual",
-        maybe_placeholders=False,
-        cache=True,
-    )
+    return lark_parser("vrml97", parser="lalr", lexer="contextual", maybe_placeholders=False)
 
 
 def parse(
