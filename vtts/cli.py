@@ -521,6 +521,36 @@ def _speech_wav(speech: tuple[np.ndarray, int] | None):
         yield wav
 
 
+class _SpeechTrack:
+    """The speech (``(n,)`` int16 samples, rate in Hz) as a temporary WAV and the MP4's AAC
+    track encoded from it in the background (:class:`vtts.render.AacTrack`); :meth:`close`
+    stops the encoding and removes both."""
+
+    def __init__(self, speech: tuple[np.ndarray, int]) -> None:
+        import tempfile
+
+        from vtts.render import AacTrack, write_wav
+
+        self._tmp = tempfile.TemporaryDirectory(prefix="vtts-speech-")
+        try:
+            self.wav = Path(self._tmp.name) / "speech.wav"
+            write_wav(self.wav, *speech)
+            self.aac = AacTrack(self.wav, self._tmp.name)
+        except BaseException:
+            self._tmp.cleanup()
+            raise
+
+    def close(self) -> None:
+        self.aac.close()
+        self._tmp.cleanup()
+
+    def __enter__(self) -> _SpeechTrack:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
 def _play(args: argparse.Namespace, audio: Path | None) -> int:
     """The work of :func:`cmd_play` once its options are checked; ``audio`` is the speech as
     a WAV (or None)."""
@@ -679,9 +709,11 @@ def _write_web(args: argparse.Namespace, models, params, *, audio=None, roots=No
 
 
 def _speak_and_set_up(args, text: str, models: list, known: set[str]):
-    """The utterance of ``text``, each model's timeline and the renderer (None without video or
-    PNG output) for ``vtts say``: espeak-ng speaks (in a process of its own) and the timelines
-    are built in a worker thread while the renderer is set up."""
+    """The utterance of ``text``, each model's timeline, the renderer (None without video or
+    PNG output) and the speech's AAC track for the MP4 (a :class:`_SpeechTrack`, None without
+    ``-o``; the caller closes it) for ``vtts say``: espeak-ng speaks (in a process of its own),
+    then its sound is encoded (by ffmpeg, in another) and the timelines are built in a worker
+    thread while the renderer is set up."""
     from concurrent.futures import ThreadPoolExecutor
 
     from vtts.animate.timeline import build_timeline
@@ -698,42 +730,52 @@ def _speak_and_set_up(args, text: str, models: list, known: set[str]):
             phonemes=args.phonemes,
             audio=args.audio,
         )
-        timelines = [
-            build_timeline(
-                m,
-                utt.phones,
-                utt.bookmarks,
-                utt.duration,
-                fps=args.fps,
-                seed=args.seed,
-                autonomous=not args.no_autonomous,
-            )
-            for m in models
-        ]
-        return utt, timelines
+        # the MP4's sound is encoded now, on a core the renderer's set-up leaves idle
+        track = _SpeechTrack((utt.audio, utt.rate)) if args.output else None
+        try:
+            timelines = [
+                build_timeline(
+                    m,
+                    utt.phones,
+                    utt.bookmarks,
+                    utt.duration,
+                    fps=args.fps,
+                    seed=args.seed,
+                    autonomous=not args.no_autonomous,
+                )
+                for m in models
+            ]
+        except BaseException:
+            if track is not None:
+                track.close()
+            raise
+        return utt, timelines, track
 
     with ThreadPoolExecutor(max_workers=1) as pool:
         speaking = pool.submit(speak)
         renderer = None
-        if args.output or args.png_dir:
-            try:
+        try:
+            if args.output or args.png_dir:
                 renderer = _renderer(args, models, video=bool(args.output))
-            except VttsError:
-                speaking.result()  # a problem with the text is reported first, as it comes first
-                raise
-        utt, timelines = speaking.result()
-    return utt, timelines, renderer
+        except BaseException as e:
+            try:
+                _, _, track = speaking.result()
+            except BaseException:
+                if isinstance(e, VttsError):
+                    raise  # a problem with the text is reported first, as it comes first
+            else:
+                if track is not None:
+                    track.close()
+            raise
+        utt, timelines, track = speaking.result()
+    return utt, timelines, renderer, track
 
 
 def cmd_say(args: argparse.Namespace) -> int:
     """Speak bookmarked text with one or more models into an MP4 (and/or PNGs, WAV, FAP)."""
 
-    from vtts.animate.timeline import timeline_stream
     from vtts.errors import BookmarkError, RenderError
-    from vtts.fap import write_fap
     from vtts.limits import MAX_TEXT_BYTES, read_bytes_capped
-    from vtts.render import PngSequenceWriter, VideoWriter, progress, write_wav
-    from vtts.speech.say import write_utterance_timings
     from vtts.warm import load_model  # kept between the jobs of vtts batch
 
     written = (args.output, args.gltf, args.png_dir, args.web, args.fap_out, args.wav_out)
@@ -764,11 +806,23 @@ def cmd_say(args: argparse.Namespace) -> int:
     models = [load_model(m) for m in args.model]
     known = {x.name for m in models for x in m.tables.adts if x.kind == "expression"}
     try:
-        utt, timelines, renderer = _speak_and_set_up(args, text, models, known)
+        utt, timelines, renderer, track = _speak_and_set_up(args, text, models, known)
     except BookmarkError as e:
         if args.file and e.file is None:
             e.file = args.file  # the text's place is in that file
         raise
+    with track if track is not None else contextlib.nullcontext():
+        return _say(args, models, utt, timelines, renderer, track, written)
+
+
+def _say(args, models, utt, timelines, renderer, track, written) -> int:
+    """The work of :func:`cmd_say` once the speech, its timelines and the renderer are ready;
+    ``track``: the speech's WAV and AAC track for the MP4 (None without ``-o``)."""
+    from vtts.animate.timeline import timeline_stream
+    from vtts.fap import write_fap
+    from vtts.render import PngSequenceWriter, VideoWriter, progress, write_wav
+    from vtts.speech.say import write_utterance_timings
+
     for m in models:
         shown = {x.name for x in m.tables.adts if x.kind == "expression"}
         lacking = sorted({b.written for b in utt.text.check_names(shown)})
@@ -780,13 +834,12 @@ def cmd_say(args: argparse.Namespace) -> int:
     n = timelines[0].n_frames
     if args.output or args.png_dir:
         with contextlib.ExitStack() as stack:
-            wav = stack.enter_context(_speech_wav((utt.audio, utt.rate)))
             renderer = stack.enter_context(renderer)
             sinks = []
             if args.output:
                 sinks.append(
                     stack.enter_context(
-                        VideoWriter(args.output, args.fps, renderer.size, audio=wav)
+                        VideoWriter(args.output, args.fps, renderer.size, audio=track.aac)
                     )
                 )
             if args.png_dir:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import subprocess
 from pathlib import Path
 
 import imageio_ffmpeg
@@ -13,8 +14,10 @@ from PIL import Image
 from vtts.errors import RenderError, VttsError
 from vtts.render.output import (
     FRAME_NAME,
+    AacTrack,
     PngSequenceWriter,
     VideoWriter,
+    ffmpeg_exe,
     probe_media,
     progress,
     write_png,
@@ -186,6 +189,56 @@ def test_mp4_missing_or_unreadable_audio(out: Path) -> None:
     with pytest.raises(RenderError, match="junk.wav.*cannot be read"):
         VideoWriter(out / "c.mp4", 30, (W, H), audio=junk)
     assert listing(out) == ["junk.wav"]
+
+
+def decoded_audio(path: Path) -> bytes:
+    """The sound of a media file as ffmpeg decodes it (16-bit PCM)."""
+    cmd = [ffmpeg_exe(), "-hide_banner", "-loglevel", "error", "-i", str(path), "-vn"]
+    return subprocess.run([*cmd, "-f", "s16le", "-"], capture_output=True, check=True).stdout
+
+
+def test_mp4_with_an_aac_track_encoded_beforehand(out: Path, wav: Path, tmp_path: Path) -> None:
+    """An :class:`AacTrack` (the sound encoded in the background before the frames) is copied
+    into the MP4: the same samples and durations as the WAV encoded beside the frames."""
+    frames = moving_frames(30)
+    with VideoWriter(out / "wav.mp4", 30, (W, H), audio=wav) as video:
+        for frame in frames:
+            video.write(frame)
+    folder = tmp_path / "track"
+    folder.mkdir()
+    with AacTrack(wav, folder) as track:
+        with VideoWriter(out / "aac.mp4", 30, (W, H), audio=track) as video:
+            for frame in frames:
+                video.write(frame)
+        assert track.result() == folder / "sine.m4a"
+    a, b = probe_media(out / "wav.mp4"), probe_media(out / "aac.mp4")
+    assert (b.frames, b.audio_rate, b.audio_channels) == (a.frames, a.audio_rate, a.audio_channels)
+    assert b.duration_audio == a.duration_audio == pytest.approx(WAV_SECONDS, abs=0.05)
+    sound = decoded_audio(out / "aac.mp4")
+    assert len(sound) > 2 * WAV_RATE and sound == decoded_audio(out / "wav.mp4")
+    assert listing(out) == ["aac.mp4", "wav.mp4"]
+
+
+def test_aac_track_bad_input(out: Path, wav: Path, tmp_path: Path) -> None:
+    with pytest.raises(RenderError, match="nope.wav.*does not exist"):
+        AacTrack(out / "nope.wav", out)
+    junk = out / "junk.wav"
+    junk.write_text("not a wave file")
+    with pytest.raises(RenderError, match="junk.wav.*cannot be read"):
+        AacTrack(junk, out)
+    # ffmpeg cannot write the track: its own words are quoted, and no MP4 is made of it
+    track = AacTrack(wav, tmp_path / "no-such-folder")
+    with pytest.raises(RenderError, match="could not encode the sound") as err:
+        track.result()
+    assert "no-such-folder" in str(err.value)
+    with pytest.raises(RenderError, match="could not encode"):
+        VideoWriter(out / "c.mp4", 30, (W, H), audio=track).open()
+    # a track stopped before it was used
+    stopped = AacTrack(wav, out)
+    stopped.close()
+    with pytest.raises(RenderError, match="stopped"):
+        stopped.result()
+    assert not (out / "c.mp4").exists()
 
 
 def test_mp4_ffmpeg_failure_is_reported(out: Path) -> None:

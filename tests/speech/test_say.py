@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -86,6 +87,29 @@ def test_say_writes_mp4_wav_and_fap_with_matching_durations(tmp_path):
     assert abs(stream.n_frames - info.frames) <= 1
     assert probe_media(wav).duration_audio == pytest.approx(info.duration_audio, abs=1 / 30)
     assert "no table for <surprise>" in r.stderr  # the test head has only joy
+
+
+def test_say_leaves_no_speech_files_behind(tmp_path):
+    """The speech's WAV and its AAC track, encoded while the renderer is set up, are temporary:
+    gone after a say that wrote its MP4 (with the whole utterance's sound) and after one whose
+    renderer could not be set up once the speech was made."""
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    exe = str(Path(sys.executable).with_name("vtts"))
+    env = {**os.environ, "TMPDIR": str(tmp)}
+
+    def say(*args: str) -> subprocess.CompletedProcess:
+        argv = [exe, "say", TEXT, "--model", str(HEAD), "--size", "176x144", "--quiet", *args]
+        return subprocess.run(argv, capture_output=True, text=True, timeout=300, env=env)
+
+    r = say("-o", str(tmp_path / "a.mp4"), "--wav-out", str(tmp_path / "a.wav"))
+    assert r.returncode == 0, r.stderr
+    sound = probe_media(tmp_path / "a.wav").duration_audio
+    assert probe_media(tmp_path / "a.mp4").duration_audio == pytest.approx(sound, abs=0.03)
+    r = say("-o", str(tmp_path / "b.mp4"), "--viewpoint", "NoSuchView")
+    assert r.returncode == 1 and "NoSuchView" in r.stderr and "Traceback" not in r.stderr
+    assert not (tmp_path / "b.mp4").exists()
+    assert sorted(p.name for p in tmp.iterdir()) == []
 
 
 @pytest.mark.parametrize(

@@ -5,7 +5,8 @@
   (:func:`find_viewpoint`, :func:`viewpoint_fields`), or automatic framing;
 - :func:`parse_color`, :func:`parse_background` — background colors as the commands write them;
 - :class:`VideoWriter`, :class:`PngSequenceWriter`, :func:`write_png`, :func:`write_wav` — outputs
-  written to a temporary name and renamed when complete;
+  written to a temporary name and renamed when complete; :class:`AacTrack` — a video's sound
+  encoded in the background beforehand;
 - :func:`probe_media` — frame count and durations of an MP4; :func:`progress` — a progress bar;
 - :func:`warm_up` — the process's OpenGL context and drawing pass made before the first frame.
 """
@@ -20,6 +21,7 @@ from vtts.render.camera import (
 )
 from vtts.render.color import parse_background, parse_color
 from vtts.render.output import (
+    AacTrack,
     MediaInfo,
     PngSequenceWriter,
     VideoWriter,
@@ -31,6 +33,7 @@ from vtts.render.output import (
 from vtts.render.renderer import FaceRenderer, vertex_normals, warm_up
 
 __all__ = [
+    "AacTrack",
     "Camera",
     "FaceRenderer",
     "MediaInfo",

@@ -42,7 +42,9 @@ from vtts.atomic import atomic_path, current_umask, replace_folder
 from vtts.errors import RenderError
 
 __all__ = [
+    "AAC_ARGS",
     "FRAME_NAME",
+    "AacTrack",
     "MediaInfo",
     "PngSequenceWriter",
     "ProgressBar",
@@ -56,6 +58,9 @@ __all__ = [
 
 #: File name of frame ``i`` in a PNG sequence folder.
 FRAME_NAME = "frame_{:06d}.png"
+
+#: ffmpeg's encoder settings of an MP4's sound: its native AAC encoder at 128 kbit/s.
+AAC_ARGS = ("-c:a", "aac", "-b:a", "128k")
 
 #: How many lines of ffmpeg's stderr a :class:`RenderError` quotes.
 _STDERR_TAIL_LINES = 12
@@ -166,6 +171,78 @@ def _finish_or_abort(
 ONE_THREAD_PIXELS = 640 * 480
 
 
+class AacTrack:
+    """A sound file encoded as an MP4's AAC track (:data:`AAC_ARGS`) by ffmpeg in the
+    background, for a :class:`VideoWriter` to copy instead of encoding it while the frames
+    arrive; the decoded samples are the same either way.
+
+    ``vtts say`` starts it as soon as the speech is synthesized: the encoding (about 0.15
+    CPU-seconds for 5 s of speech) then runs while the renderer is set up, on a core the
+    start-up leaves idle, instead of beside the frames, which keep both cores of a small
+    machine busy. ``source`` is any file soundfile reads; the track is written into ``folder``
+    (which must outlive it). :meth:`result` waits for the encoding and gives the track's path;
+    :meth:`close` (or leaving a ``with`` block) stops an encoding still running."""
+
+    def __init__(self, source: str | os.PathLike[str], folder: str | os.PathLike[str]) -> None:
+        self.source = _check_audio(source)
+        self.path = Path(folder) / f"{self.source.stem}.m4a"
+        self._stderr: IO[bytes] | None = tempfile.TemporaryFile()
+        self._done, self._error = False, None
+        cmd = [
+            ffmpeg_exe(), "-hide_banner", "-nostats", "-loglevel", "error", "-y",
+            "-i", str(self.source), "-vn", *AAC_ARGS, "-f", "mp4", str(self.path),
+        ]  # fmt: skip
+        try:
+            self._proc: subprocess.Popen[bytes] | None = subprocess.Popen(
+                cmd,
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL,
+                stderr=self._stderr,
+                **_popen_group_kwargs(),
+            )
+        except OSError as exc:
+            self.close()
+            raise RenderError(f"{self.source}: cannot start ffmpeg: {exc}") from exc
+
+    def result(self) -> Path:
+        """Wait for the encoding; the track's path. RenderError if ffmpeg failed."""
+        if self._done:
+            return self.path
+        if self._error is not None:
+            raise self._error
+        if self._proc is None:
+            raise RenderError(f"{self.source}: the AAC encoding was stopped")
+        rc = self._proc.wait()
+        if rc != 0:
+            message = ""
+            if self._stderr is not None:
+                self._stderr.seek(0)
+                message = _tail(self._stderr.read().decode("utf-8", "replace"))
+            self.close()
+            self._error = RenderError(f"{self.source}: ffmpeg could not encode the sound "
+                                      f"(exit status {rc}):\n{message}")  # fmt: skip
+            raise self._error
+        self._done = True
+        return self.path
+
+    def close(self) -> None:
+        """Stop the encoding if it still runs (the file it wrote is the folder owner's)."""
+        proc, self._proc = getattr(self, "_proc", None), None
+        if proc is not None and proc.poll() is None:
+            with contextlib.suppress(OSError):
+                proc.kill()
+            proc.wait()
+        if self._stderr is not None:
+            self._stderr.close()
+            self._stderr = None
+
+    def __enter__(self) -> AacTrack:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
 class VideoWriter:
     """Write frames to an MP4 file (H.264, yuv420p, optionally with a WAV muxed as AAC).
 
@@ -181,8 +258,10 @@ class VideoWriter:
     per second; the video lasts ``frames_written / fps`` seconds.
 
     ``audio`` is any file soundfile reads (WAV, FLAC, ...); it is encoded as AAC at 128 kbit/s
-    and muxed whole. The video is never cut to the audio nor the audio to the video (no
-    ``-shortest``, which can drop the last video frames): each stream keeps its own length.
+    and muxed whole. An :class:`AacTrack` is that encoding made beforehand: it is copied into
+    the file as it is (the same samples). The video is never cut to the audio nor the audio to
+    the video (no ``-shortest``, which can drop the last video frames): each stream keeps its
+    own length.
 
     ``crf`` (0–51, lower is better) and ``preset`` are libx264's quality and speed settings.
     ``threads``: libx264's threads (0: its own choice, 1.5 per core). The default is one for
@@ -201,7 +280,7 @@ class VideoWriter:
         path: str | os.PathLike[str],
         fps: float,
         size: tuple[int, int],
-        audio: str | os.PathLike[str] | None = None,
+        audio: str | os.PathLike[str] | AacTrack | None = None,
         crf: int = 18,
         preset: str = "veryfast",
         threads: int | None = None,
@@ -215,7 +294,11 @@ class VideoWriter:
             raise RenderError(f"crf must be in 0..51, got {crf}")
         self.fps = float(fps)
         self.size = (int(size[0]), int(size[1]))
-        self.audio = _check_audio(audio) if audio is not None else None
+        self._track = audio if isinstance(audio, AacTrack) else None
+        if self._track is not None:
+            self.audio: Path | None = self._track.source
+        else:
+            self.audio = _check_audio(audio) if audio is not None else None
         self.crf = int(crf)
         self.preset = preset
         if threads is None:
@@ -249,7 +332,9 @@ class VideoWriter:
             "-f", "rawvideo", "-pix_fmt", "rgb24", "-s", f"{w}x{h}",
             "-r", _rate_arg(self.fps), "-i", "-",
         ]  # fmt: skip
-        if self.audio is not None:
+        if self._track is not None:
+            cmd += ["-i", str(self._track.result())]  # encoded already: copied as it is
+        elif self.audio is not None:
             cmd += ["-i", str(self.audio)]
         cmd += ["-map", "0:v:0"]
         if self.audio is not None:
@@ -261,7 +346,7 @@ class VideoWriter:
             "-pix_fmt", "yuv420p",
         ]  # fmt: skip
         if self.audio is not None:
-            cmd += ["-c:a", "aac", "-b:a", "128k"]
+            cmd += ["-c:a", "copy"] if self._track is not None else list(AAC_ARGS)
         cmd += ["-movflags", "+faststart", "-f", "mp4", str(output)]
         return cmd
 

@@ -811,8 +811,9 @@ class FaceRenderer:
         ``roots`` alongside, as :meth:`prepare` takes its ``roots``). The geometry of the next
         ``batch`` frames (:data:`BATCH_FRAMES`) is computed together (:meth:`prepare_many`) in a
         worker thread while the current ones rasterize, which hides most of the deformation's
-        cost. A live stream passes ``batch=1``: each frame is rendered as soon as its item
-        arrives (the pixels are the same for any batch)."""
+        cost (the first frame's alone, so that it waits for no more than its own). A live
+        stream passes ``batch=1``: each frame is rendered as soon as its item arrives (the
+        pixels are the same for any batch)."""
         from concurrent.futures import ThreadPoolExecutor
         from itertools import islice
 
@@ -824,20 +825,21 @@ class FaceRenderer:
         if not (isinstance(batch, int) and batch >= 1):
             raise RenderError(f"a batch is a whole number of frames ≥ 1, got {batch!r}")
 
-        def next_batch():
-            items = list(islice(it, batch))
+        def next_batch(size: int):
+            items = list(islice(it, size))
             return self.prepare_many(items) if items else None
 
         pool = ThreadPoolExecutor(max_workers=1)
         done = False
         try:
-            nxt = pool.submit(next_batch)
+            # the first frame alone, so that it does not wait for a whole batch's geometry
+            nxt = pool.submit(next_batch, 1)
             while True:
                 prepared = nxt.result()
                 if prepared is None:
                     done = True
                     return
-                nxt = pool.submit(next_batch)
+                nxt = pool.submit(next_batch, batch)
                 for frame in prepared:
                     self.apply(frame)
                     yield self.render()
