@@ -16,7 +16,10 @@ estimates' face PSNR with the anchor frame's texture is reported too). Figures:
   it is not applied) — mean (of the mean squared error), median and worst frame — for the
   uncoded estimates and for the stream coded at 12.5 Hz with the default quantizer (1) by the
   paper's Huffman coder and by the arithmetic coder, with its bit rate;
-* a rate–PSNR curve: quantizers 1, 2, 4 and 8 at 12.5 and 6.25 Hz (arithmetic coder);
+* the same at 12.5 Hz with the base steps ``vtts analyze`` writes (``--steps face``,
+  :func:`vtts.analysis.steps.analysis_steps`: the bits where the face's image shows them);
+* a rate–PSNR curve: quantizers 1, 2, 4, 8, 16 and 32 at 12.5 and 6.25 Hz (arithmetic coder),
+  with MPEG-4's base steps and with the face steps;
 * H.264 (the bundled ffmpeg's x264, ``-preset veryslow``) of the same sequence at its lowest
   quality (``-crf 51``) and at a fixed 10 kbit/s: its bit rate and face PSNR over the same
   pixels (the decoded model's coverage at each frame);
@@ -47,7 +50,7 @@ STEP = 2
 RATE = 12.5
 TARGET_DB = 31.6
 TARGET_KBPS = 0.58
-QUANTIZERS = (1, 2, 4, 8)
+QUANTIZERS = (1, 2, 4, 8, 16, 32)
 RATES = (12.5, 6.25)
 
 
@@ -66,6 +69,7 @@ def _row(benchmark: str, case: str, value, unit: str, target: str = "", ok=None)
 def _sequence(label: str, path: Path) -> list[dict]:
     from vtts.analysis.anchor import choose_anchor
     from vtts.analysis.quality import coverage, decoded_frames, face_psnr_rgb, sequence_psnr
+    from vtts.analysis.steps import analysis_steps
     from vtts.analysis.texture import retexture
     from vtts.analysis.track import track
     from vtts.analysis.unknowns import DEFAULT_UNKNOWNS, HEAD_MOTION
@@ -79,7 +83,7 @@ def _sequence(label: str, path: Path) -> list[dict]:
     w, h = video.size
     rows = []
     with tempfile.TemporaryDirectory(prefix="vtts-bench-") as tmp:
-        results = {}
+        results, steps_of = {}, {}
         cases = (
             ("17 parameters", DEFAULT_UNKNOWNS, False),
             ("6 (head motion)", HEAD_MOTION, False),
@@ -123,16 +127,27 @@ def _sequence(label: str, path: Path) -> list[dict]:
                 rows.append(_row("real video: bit rate", coded, round(kbps, 3), "kbit/s",
                                  f"<= {TARGET_KBPS}", kbps <= TARGET_KBPS))  # fmt: skip
                 rows += _psnr_rows("real video: face PSNR, decoded", coded, psnr, target=True)
+            # the base steps vtts analyze puts in a .fbs: the bits where the face shows them
+            steps = analysis_steps(tracked.analysis, tracked.model, (w, h))
+            steps_of[case] = steps
+            data = encode(stream, rate=RATE, steps=steps)
+            kbps = len(data) * 8 / duration / 1000
+            psnr = _psnr(frames, decode(data), tracked.model, video.fps)
+            coded = f"{base}, {RATE:g} Hz, quantizer 1, arithmetic, face steps"
+            rows.append(_row("real video: bit rate", coded, round(kbps, 3), "kbit/s",
+                             f"<= {TARGET_KBPS}", kbps <= TARGET_KBPS))  # fmt: skip
+            rows += _psnr_rows("real video: face PSNR, decoded", coded, psnr, target=True)
         tracked = results["17 parameters"]
         stream = tracked.analysis.stream(path.stem, fapu=tracked.model.fapu)
         for rate in RATES:
-            for q in QUANTIZERS:
-                data = encode(stream, rate=rate, quantizer=q)
-                kbps = len(data) * 8 / duration / 1000
-                m = sequence_psnr(_psnr(frames, decode(data), tracked.model, video.fps))
-                rows.append(_row("real video: rate-PSNR curve",
-                                 f"{label}, 17 parameters, {rate:g} Hz, quantizer {q}: "
-                                 f"{kbps:.3f} kbit/s", round(m, 2), "dB"))  # fmt: skip
+            for steps, named in ((None, ""), (steps_of["17 parameters"], ", face steps")):
+                for q in QUANTIZERS:
+                    data = encode(stream, rate=rate, quantizer=q, steps=steps)
+                    kbps = len(data) * 8 / duration / 1000
+                    m = sequence_psnr(_psnr(frames, decode(data), tracked.model, video.fps))
+                    rows.append(_row("real video: rate-PSNR curve",
+                                     f"{label}, 17 parameters, {rate:g} Hz, quantizer {q}"
+                                     f"{named}: {kbps:.3f} kbit/s", round(m, 2), "dB"))  # fmt: skip
         # H.264 over the same pixels: the decoded model's coverage at each frame
         masks = [coverage(rgba) for rgba in decoded_frames(stream, tracked.model, (w, h))]
         for case, args in (("-crf 51", ["-crf", "51"]), ("10 kbit/s", ["-b:v", "10k"])):

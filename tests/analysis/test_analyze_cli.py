@@ -81,7 +81,8 @@ def test_bad_input_is_a_clear_error(tmp_path, args, fragments):
 def test_help_lists_the_options():
     r = vtts("analyze", "--help")
     assert r.returncode == 0
-    for option in ("--model", "-o", "--faps", "--camera", "--step", "--fps", "--report", "--fbs"):
+    for option in ("--model", "-o", "--faps", "--camera", "--step", "--fps", "--report", "--fbs",
+                   "--steps"):  # fmt: skip
         assert option in r.stdout
 
 
@@ -103,6 +104,28 @@ def rendered_frames(tmp_path_factory) -> Path:
             p[47] = pitch
             write_png(d / f"frame_{i}.png", r.render(p))
     return d
+
+
+def test_the_bitstream_carries_the_steps_measured_on_the_head(tmp_path, rendered_frames):
+    """``-o X.fbs`` codes with the base steps measured on the model (``--steps face``, the
+    default): the lip corner's (FAP 6, a few pixels of the test head) coarser than MPEG-4's,
+    the head's pitch (every pixel) finer; ``--steps mpeg4`` the standard's."""
+    from vtts.fap.coding import read_header
+    from vtts.fap.table import FAPS
+
+    headers = {}
+    for steps in ("face", "mpeg4"):
+        out = tmp_path / f"{steps}.fbs"
+        r = vtts("analyze", str(rendered_frames), "--model", HEAD, "-o", str(out),
+                 "--faps", "6,48", "--fps", "30", "--steps", steps, "--quiet")  # fmt: skip
+        assert r.returncode == 0, r.stderr
+        headers[steps] = read_header(out.read_bytes())
+    assert headers["mpeg4"].base_steps == (FAPS[5].quant_step, FAPS[47].quant_step)
+    face = dict(zip(headers["face"].low, headers["face"].base_steps, strict=True))
+    assert face[6] > FAPS[5].quant_step and face[48] < FAPS[47].quant_step, face
+    r = vtts("analyze", str(rendered_frames), "--model", HEAD, "-o", str(tmp_path / "x.fbs"),
+             "--steps", "even")  # fmt: skip
+    assert r.returncode == 2 and "invalid choice: 'even'" in r.stderr
 
 
 def test_a_run_writes_the_fap_file_the_bitstream_and_the_report(tmp_path, rendered_frames):

@@ -63,7 +63,7 @@ import math
 import re
 import struct
 import zlib
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field, replace
 from typing import BinaryIO
 
@@ -274,16 +274,41 @@ def _quantize_translation(translation: np.ndarray, t_steps: np.ndarray) -> np.nd
     return t_index
 
 
+def _check_steps(steps: Mapping[int | str, int] | None) -> dict[int | str, int]:
+    """``steps`` of :func:`encode`, checked: FAP numbers 3–68 and ``tx``/``ty``/``tz`` to whole
+    base steps within 1–:data:`MAX_BASE_STEP`."""
+    if steps is None:
+        return {}
+    if not isinstance(steps, Mapping):
+        raise FapError(f"steps must map FAPs to base steps, got {type(steps).__name__}")
+    out: dict[int | str, int] = {}
+    for key, value in steps.items():
+        if not (key in TRANSLATION_AXES or (isinstance(key, int) and 3 <= key <= N_FAPS)):
+            raise FapError(
+                f"steps: {key!r} is not a low-level FAP (3–{N_FAPS}) nor a translation axis "
+                f"({', '.join(TRANSLATION_AXES)})"
+            )
+        if isinstance(value, bool) or not isinstance(value, int | np.integer):
+            raise FapError(f"steps: the base step of {key} must be a whole number, got {value!r}")
+        if not 1 <= value <= MAX_BASE_STEP:
+            raise FapError(f"steps: the base step of {key} must be within 1–{MAX_BASE_STEP}, "
+                           f"got {value}")  # fmt: skip
+        out[key] = int(value)
+    return out
+
+
 def _prepare(
     stream: FapStream,
     faps: Iterable[int | str] | str | None,
     rate: float | None,
     quantizer: float,
     translation: bool = True,
+    steps: Mapping[int | str, int] | None = None,
 ) -> _Plan:
     if not isinstance(stream, FapStream):
         raise FapError(f"expected a FapStream, got {type(stream).__name__}")
     q32 = _check_quantizer(quantizer)
+    own = _check_steps(steps)
     wanted = set(range(1, N_FAPS + 1)) if faps is None else set(fap_set(faps))
     if rate is not None and float(rate) != stream.fps:
         stream = stream.resample(rate)
@@ -298,16 +323,16 @@ def _prepare(
     present = stream.mask.any(axis=0)
     coded = tuple(k for k in range(1, N_FAPS + 1) if present[k - 1] and k in wanted)
     low = tuple(k for k in coded if k >= 3)
-    base = tuple(FAPS[k - 1].quant_step for k in low)
-    steps = _steps(base, q32)
+    base = tuple(own.get(k, FAPS[k - 1].quant_step) for k in low)
+    grid = _steps(base, q32)
     mask = stream.mask[:, [k - 1 for k in coded]]
-    index = _quantize(stream, low, steps)
+    index = _quantize(stream, low, grid)
     viseme = stream.viseme if 1 in coded else None
     expression = stream.expression if 2 in coded else None
     t_base: tuple[int, ...] = ()
     t_steps = t_index = None
     if translation and stream.translation is not None:
-        t_base = (TRANSLATION_BASE_STEP,) * 3
+        t_base = tuple(own.get(a, TRANSLATION_BASE_STEP) for a in TRANSLATION_AXES)
         t_steps = _steps(t_base, q32)
         t_index = _quantize_translation(stream.translation, t_steps)
     recon = _assemble(
@@ -316,7 +341,7 @@ def _prepare(
         stream.first_frame,
         coded,
         low,
-        steps,
+        grid,
         mask,
         index,
         np.zeros((n, 4), np.int64) if viseme is None else viseme,
@@ -334,6 +359,7 @@ def reconstruct(
     rate: float | None = None,
     quantizer: float = 1.0,
     translation: bool = True,
+    steps: Mapping[int | str, int] | None = None,
 ) -> FapStream:
     """The stream a decoder reconstructs from ``encode(stream, …)`` with the same arguments
     (either coder): the selected FAPs at ``rate``, low-level values on their quantizer grid, the
@@ -342,7 +368,7 @@ def reconstruct(
     ``decode(encode(s, **kw)) == reconstruct(s, **kw)`` holds exactly (same arrays, name, rate,
     first frame; version 2.1).
     """
-    return _prepare(stream, faps, rate, quantizer, translation).reconstruction
+    return _prepare(stream, faps, rate, quantizer, translation, steps).reconstruction
 
 
 def source_stream(
@@ -1521,6 +1547,7 @@ def encode(
     quantizer: float = 1.0,
     coder: str = "arithmetic",
     translation: bool = True,
+    steps: Mapping[int | str, int] | None = None,
 ) -> bytes:
     """Code ``stream`` as a ``.fbs`` bitstream.
 
@@ -1537,12 +1564,18 @@ def encode(
             units, on the grid of :data:`TRANSLATION_BASE_STEP` · ``quantizer``) when it has
             one; ``False`` leaves it out. A stream without translation codes to the same bytes
             as before translation could be sent.
+        steps: base steps of their own for some FAPs (numbers 3–68; FAP units) and translation
+            axes (``"tx"``, ``"ty"``, ``"tz"``; ES units), whole numbers within 1–
+            :data:`MAX_BASE_STEP`, instead of faps.tsv's ``quant_step`` and
+            :data:`TRANSLATION_BASE_STEP` (e.g. :func:`vtts.analysis.coding_steps`, which makes
+            one step of each move the face's image alike). The header carries every base step,
+            so any decoder reads the stream as it reads any other.
 
     Returns the bitstream; ``decode`` of it equals :func:`reconstruct` with the same arguments.
     """
     if coder not in CODERS:
         raise FapError(f"unknown coder {coder!r}: expected one of {', '.join(CODERS)}")
-    plan = _prepare(stream, faps, rate, quantizer, translation)
+    plan = _prepare(stream, faps, rate, quantizer, translation, steps)
     src = plan.source
     constant = bool(plan.mask.all())
     h = FbsHeader(
