@@ -332,6 +332,19 @@ def test_check_says_it_carries_the_translation(tmp_path: Path) -> None:
     assert "translation" not in check_fbs(b) and "17 FAPs, arithmetic" in check_fbs(b)
 
 
+def test_info_names_the_base_steps_of_its_own(tmp_path: Path) -> None:
+    """``vtts info`` of a .fbs lists the base steps that are not MPEG-4's (vtts analyze's steps
+    measured on the face), and nothing of the kind for the standard's."""
+    from vtts.fap.cli_coding import describe_fbs
+
+    a, b = tmp_path / "a.fbs", tmp_path / "b.fbs"
+    a.write_bytes(encode(paper17(25), steps={12: 40, 3: 4, "tz": 9}))
+    b.write_bytes(encode(paper17(25)))
+    lines = describe_fbs(a)
+    assert "base steps of its own (MPEG-4's for the rest): 12 40, tz 9" in lines, lines
+    assert not any("base steps" in line for line in describe_fbs(b))
+
+
 def test_cli_encode_keeps_or_drops_and_decode_warns(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -19,6 +19,7 @@ from vtts.errors import FapError
 from vtts.fap.coding import (
     CODERS,
     FAP_SETS,
+    TRANSLATION_BASE_STEP,
     FbsHeader,
     decode,
     encode,
@@ -27,7 +28,8 @@ from vtts.fap.coding import (
     read_header,
     source_stream,
 )
-from vtts.fap.stream import FapStream, FapWarning, read_fap, write_fap
+from vtts.fap.stream import TRANSLATION_AXES, FapStream, FapWarning, read_fap, write_fap
+from vtts.fap.table import FAPS
 from vtts.limits import MAX_FBS_BYTES, read_bytes_capped
 
 #: The suffix of FAP bitstreams.
@@ -79,6 +81,12 @@ def describe_fbs(path: str | os.PathLike[str]) -> list[str]:
     if h.predictors:
         pairs = ", ".join(f"{k}←{p}" for k, p in sorted(h.predictors.items()))
         lines.append(f"predicted FAPs: {pairs}")
+    own = [f"{k} {b}" for k, b in zip(h.low, h.base_steps, strict=True)
+           if b != FAPS[k - 1].quant_step]  # fmt: skip
+    own += [f"{a} {b}" for a, b in zip(TRANSLATION_AXES, h.translation_base_steps, strict=False)
+            if b != TRANSLATION_BASE_STEP]  # fmt: skip
+    if own:  # e.g. vtts analyze's steps measured on the face
+        lines.append(f"base steps of its own (MPEG-4's for the rest): {', '.join(own)}")
     lines.append(
         f"{h.size} bytes (header {h.header_size}): {h.bits_per_frame:.1f} bits/frame, "
         f"{h.kbit_per_s:.3f} kbit/s"
