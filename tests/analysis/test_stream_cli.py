@@ -88,6 +88,12 @@ def test_webcam_pipeline_with_a_file(tmp_path):
     assert analyze.wait(300) == 0, analyze.stderr.read().decode()
     assert play.wait(300) == 0, play.stderr.read().decode()
     assert decode(saved.read_bytes()).n_frames == FRAMES
+    # the coder's steps measured on the fitted head at the first estimate (--steps face)
+    from vtts.fap.coding import read_header
+    from vtts.fap.table import FAPS
+
+    h = read_header(saved.read_bytes())
+    assert h.base_steps != tuple(FAPS[k - 1].quant_step for k in h.low), h.base_steps
     assert probe_media(out).frames == FRAMES
     r = vtts("play", str(saved), "--model", str(head), "--size", "176x144", "--fps", "25",
              "--png-dir", str(tmp_path / "file"), "--quiet")  # fmt: skip
@@ -242,3 +248,17 @@ def test_estimate_stream_sends_what_a_whole_fbs_codes(model):
     assert (got.translation is None) == (fapu is None) == (want.translation is None)
     assert fapu is None or np.array_equal(got.translation, want.translation)
     assert out.frames == 5 and out.framing_s / 5 < 0.05
+    # with base steps of its own, taken at the first estimate: what encode(steps=) codes
+    steps = {3: 20, 4: 30, 12: 40, 13: 40, 31: 9, 32: 11, 48: 120, "tx": 2, "tz": 9}
+    seen, plain = [], sink.getvalue()
+    sink = io.BytesIO()
+    out = EstimateStream(sink, fps=25.0, unknowns=unknowns, name="clip", fapu=lambda: fapu,
+                         steps=lambda first: seen.append(first.index) or steps)  # fmt: skip
+    for fe in estimates:
+        out(fe)
+    out.end()
+    assert seen == [0]
+    got, want = decode(sink.getvalue()), decode(encode(whole, steps=steps))
+    assert np.array_equal(got.values, want.values) and np.array_equal(got.mask, want.mask)
+    assert fapu is None or np.array_equal(got.translation, want.translation)
+    assert len(sink.getvalue()) < len(plain)  # the lips' steps 15-20 times MPEG-4's: fewer bytes

@@ -38,16 +38,19 @@ from vtts.render.camera import Camera
 
 def coding_steps(
     model: FaceModel,
-    camera: Camera,
+    camera: Camera | None,
     size: tuple[int, int],
     unknowns: Sequence[int | str],
     *,
     params: np.ndarray | None = None,
     translation: np.ndarray | None = None,
+    model_camera: Camera | None = None,
 ) -> dict[int | str, int]:
     """Base steps for :func:`vtts.fap.coding.encode` (its ``steps``) of the FAPs and
     translation axes among ``unknowns``, for ``model`` seen through ``camera`` (the renderer's
-    world, as :attr:`~vtts.analysis.Analysis.camera`) at ``size`` (W, H) pixels, posed at
+    world, as :attr:`~vtts.analysis.Analysis.camera`; or ``model_camera`` in the model's own
+    coordinates, as a fitted head's ``photo`` Viewpoint gives it; neither: the framing ``vtts
+    render`` uses, as the estimator's default) at ``size`` (W, H) pixels, posed at
     ``params`` ``(N_PARAMS,)`` (FAP units; default neutral) and ``translation`` ``(3,)`` (model
     units; default none) — typically the sequence's median pose.
 
@@ -61,9 +64,8 @@ def coding_steps(
     if not unknowns:
         return {}
     # the full-size image only (a small video has no room for the coarser levels)
-    est = Estimator(
-        model, size=size, camera=camera, unknowns=unknowns, illumination=False, pyramid=PYRAMID[-1:]
-    )
+    est = Estimator(model, size=size, camera=camera, model_camera=model_camera,
+                    unknowns=unknowns, illumination=False, pyramid=PYRAMID[-1:])  # fmt: skip
     if params is not None:
         est.params[:] = np.asarray(params, dtype=np.float64).reshape(N_PARAMS)
     if translation is not None:

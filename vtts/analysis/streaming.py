@@ -6,14 +6,16 @@
 header arrives), each estimate one packet (:class:`vtts.fap.coding.StreamEncoder`), flushed at
 once; :meth:`EstimateStream.end` writes the end marker. The frames decode to what ``vtts
 analyze -o OUT.fbs`` codes for the same estimates (the estimated FAPs rounded to integers, the
-head translation in ES units, quantizer 1); the predictor pairs are fixed in advance
-(:func:`~vtts.fap.coding.paired_predictors`), as a stream cannot choose them from its frames.
+head translation in ES units, quantizer 1) with the same base steps — a stream's are taken at its
+first estimate (``steps``), a file's at the sequence's median pose; the predictor pairs are fixed
+in advance (:func:`~vtts.fap.coding.paired_predictors`), as a stream cannot choose them from its
+frames.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import BinaryIO
 
 from vtts.analysis.result import TRANSLATION, Analysis, FrameEstimate
@@ -34,6 +36,9 @@ class EstimateStream:
                    is not sent), called once, at the first estimate (a fitted head exists by
                    then)
     before_header  called once before the header is written
+    steps          given the first estimate, the coder's base steps (``encode``'s ``steps``,
+                   e.g. :func:`vtts.analysis.steps.coding_steps` at that estimate's pose);
+                   None: MPEG-4's
 
     :attr:`framing_s` adds up the seconds spent coding and writing (the latency the streaming
     adds to each estimate), :attr:`bytes_written` the bytes.
@@ -48,6 +53,7 @@ class EstimateStream:
         name: str,
         fapu: Callable[[], Fapu | None],
         before_header: Callable[[], None] | None = None,
+        steps: Callable[[FrameEstimate], Mapping[int | str, int]] | None = None,
     ) -> None:
         self.sink = sink
         self.fps = float(fps)
@@ -56,6 +62,7 @@ class EstimateStream:
         self._fapu_of = fapu
         self._fapu: Fapu | None = None
         self._before = before_header
+        self._steps_of = steps
         self.encoder: StreamEncoder | None = None
         self.framing_s = 0.0
         self.bytes_written = 0
@@ -66,11 +73,12 @@ class EstimateStream:
         self.sink.flush()
         self.bytes_written += len(data)
 
-    def _open(self) -> StreamEncoder:
+    def _open(self, first: FrameEstimate) -> StreamEncoder:
         if self._before is not None:
             self._before()
         self._fapu = self._fapu_of()
         faps = sorted(u for u in self.unknowns if isinstance(u, int))
+        steps = None if self._steps_of is None else self._steps_of(first)
         encoder = StreamEncoder(
             fps=self.fps,
             faps=faps,
@@ -78,14 +86,15 @@ class EstimateStream:
             translation=self._fapu is not None and any(u in TRANSLATION for u in self.unknowns),
             name=self.name,
             constant_mask=True,
-            predictors=paired_predictors(faps),
+            predictors=paired_predictors(faps, steps),
+            steps=steps,
         )
         self._write(encoder.header())
         return encoder
 
     def __call__(self, estimate: FrameEstimate) -> None:
         if self.encoder is None:
-            self.encoder = self._open()
+            self.encoder = self._open(estimate)
         start = time.perf_counter()
         one = Analysis([estimate], self.unknowns, self.fps, Camera(1, 1, 0, 0))
         data = self.encoder.frames(one.stream(self.name, fapu=self._fapu))

@@ -1785,11 +1785,15 @@ class _Packets:
             raise self.error(f"{extra}unexpected bytes after the end marker of the stream", self.at)
 
 
-def paired_predictors(faps: Iterable[int | str] | str) -> dict[int, int]:
+def paired_predictors(
+    faps: Iterable[int | str] | str, steps: Mapping[int | str, int] | None = None
+) -> dict[int, int]:
     """Predictor pairs fixed in advance, for a stream that cannot choose them from its frames:
     each outer-lip FAP (``NAME_o``, 51–60) from its inner-lip FAP (4–13), else each right-side
     FAP from its left-side twin (``…_l`` / ``…_r``, ``lm`` / ``rm``), where both are in
-    ``faps``, the predicting one earlier, with the same unit and base step."""
+    ``faps``, the predicting one earlier, with the same unit and base step (``steps``' where it
+    gives one, as :func:`encode` takes them)."""
+    own = _check_steps(steps)
     coded = set(fap_set(faps)) if isinstance(faps, str) or list(faps) else set()
     by_name = {d.name: d.number for d in FAPS}
     swap = {"l": "r", "r": "l", "lm": "rm", "rm": "lm"}
@@ -1804,7 +1808,7 @@ def paired_predictors(faps: Iterable[int | str] | str) -> dict[int, int]:
             if p is None or p not in coded or not 3 <= p < k:
                 continue
             q = FAPS[p - 1]
-            if q.fapu == d.fapu and q.quant_step == d.quant_step:
+            if q.fapu == d.fapu and own.get(p, q.quant_step) == own.get(k, d.quant_step):
                 out[k] = p
                 break
     return out
@@ -1832,6 +1836,7 @@ class StreamEncoder:
         constant_mask: every frame sets every FAP of ``faps`` (no mask is sent per frame).
         predictors: FAP → the earlier FAP (same unit and base step) whose error in the same
             frame predicts its error, fixed in advance; default none.
+        steps: base steps of their own, as :func:`encode`'s.
     """
 
     def __init__(
@@ -1845,6 +1850,7 @@ class StreamEncoder:
         first_frame: int = 0,
         constant_mask: bool = False,
         predictors: dict[int, int] | None = None,
+        steps: Mapping[int | str, int] | None = None,
     ) -> None:
         fps = float(fps)
         if not (math.isfinite(fps) and MIN_FPS <= fps <= MAX_FPS):
@@ -1852,6 +1858,7 @@ class StreamEncoder:
         coded = fap_set(faps) if isinstance(faps, str) or list(faps) else ()  # () for none
         low = tuple(k for k in coded if k >= 3)
         q32 = _check_quantizer(quantizer)
+        own = _check_steps(steps)
         if not 0 <= first_frame < 1 << 32:
             raise CodingError(f"first frame number {first_frame} must be within 0–2^32")
         if len(name.encode("utf-8")) > MAX_NAME_BYTES:
@@ -1871,11 +1878,15 @@ class StreamEncoder:
             n_frames=0,
             faps=coded,
             quantizer=q32,
-            base_steps=tuple(FAPS[k - 1].quant_step for k in low),
+            base_steps=tuple(own.get(k, FAPS[k - 1].quant_step) for k in low),
             constant_mask=bool(constant_mask),
             name=name,
             predictors=predictors,
-            translation_base_steps=(TRANSLATION_BASE_STEP,) * 3 if translation else (),
+            translation_base_steps=tuple(
+                own.get(a, TRANSLATION_BASE_STEP) for a in TRANSLATION_AXES
+            )
+            if translation
+            else (),
             stream=True,
         )
         self._syntax = _FrameSyntax(self.header_info)
