@@ -522,27 +522,21 @@ def _speech_wav(speech: tuple[np.ndarray, int] | None):
 
 
 class _SpeechTrack:
-    """The speech (``(n,)`` int16 samples, rate in Hz) as a temporary WAV and the MP4's AAC
-    track encoded from it in the background (:class:`vtts.render.AacTrack`); :meth:`close`
-    stops the encoding and removes both."""
+    """The speech (``(n,)`` int16 samples, rate in Hz) as a temporary WAV (:func:`_speech_wav`)
+    and the MP4's AAC track encoded from it in the background (:class:`vtts.render.AacTrack`);
+    :meth:`close` stops the encoding and removes both."""
 
     def __init__(self, speech: tuple[np.ndarray, int]) -> None:
-        import tempfile
+        from vtts.render import AacTrack
 
-        from vtts.render import AacTrack, write_wav
-
-        self._tmp = tempfile.TemporaryDirectory(prefix="vtts-speech-")
-        try:
-            self.wav = Path(self._tmp.name) / "speech.wav"
-            write_wav(self.wav, *speech)
-            self.aac = AacTrack(self.wav, self._tmp.name)
-        except BaseException:
-            self._tmp.cleanup()
-            raise
+        self._files = contextlib.ExitStack()
+        with self._files:  # undone at once if anything fails here, kept otherwise
+            self.wav = self._files.enter_context(_speech_wav(speech))
+            self.aac = self._files.enter_context(AacTrack(self.wav, self.wav.parent))
+            self._files = self._files.pop_all()
 
     def close(self) -> None:
-        self.aac.close()
-        self._tmp.cleanup()
+        self._files.close()
 
     def __enter__(self) -> _SpeechTrack:
         return self
