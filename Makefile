@@ -29,9 +29,11 @@ bench:
 lock:
 	@bash scripts/lock.sh
 
-# Rebuild the bundled heads (models/*.wrl, *.adt, *-face.png) from models/src with the ADI.
+# Rebuild the bundled heads (models/*.wrl, *.adt, *-face.png) from models/src with the ADI, and
+# their progressive meshes (models/lod/: the triangles small frames leave out).
 models: setup
 	$(PY) models/src/build_models.py
+	$(PY) models/src/build_lod.py
 
 # Regenerate the golden images on purpose; look at them (git diff) before committing.
 golden: setup

@@ -30,11 +30,12 @@ from vtts.render.output import (
     write_png,
     write_wav,
 )
-from vtts.render.renderer import FaceRenderer, vertex_normals, warm_up
+from vtts.render.renderer import DETAIL_PX, FaceRenderer, vertex_normals, warm_up
 
 __all__ = [
     "AacTrack",
     "Camera",
+    "DETAIL_PX",
     "FaceRenderer",
     "MediaInfo",
     "PngSequenceWriter",

@@ -226,6 +226,9 @@ class _AnimatedMesh:
     # opaque and unlit (UNLIT): drawn through the G-buffer its normals show nowhere, so a frame
     # leaves them as the template has them unless the scene is drawn lit (FaceRenderer.apply)
     unlit: bool = False
+    # the triangles drawn: the template's, or fewer over the same vertices (FaceRenderer's
+    # ``detail``, vtts.render.lod); the normals are always the template's triangles'
+    faces: np.ndarray | None = None
 
 
 @dataclass
@@ -245,6 +248,8 @@ class _ModelInstance:
     transforms: dict[str, _AnimatedTransform] = field(default_factory=dict)
     lo: np.ndarray = field(default_factory=lambda: np.full(3, np.inf))
     hi: np.ndarray = field(default_factory=lambda: np.full(3, -np.inf))
+    # the animated meshes' points in each pose of _detail_poses (see lod_key), once needed
+    detail_points: dict | None = None
 
 
 def vertex_normals(
@@ -294,6 +299,11 @@ class FaceRenderer:
     where they cover it are those of an opaque render); ``layout`` ``"row"`` (side by side) or
     ``"room"`` (side by side in front of a back wall on a floor).
 
+    ``detail``: how far (pixels of the output image) the drawn surface of an animated mesh may
+    be from the model's, so that fewer triangles are drawn where the image cannot show them
+    (:mod:`vtts.render.lod`; :data:`DETAIL_PX` is what ``vtts say`` and ``vtts play`` use);
+    None (the default): every triangle, as the model has them.
+
     ``triangle_sets`` lists every IndexedFaceSet drawn (of every model, in scene order) as
     ``(node, first, count)``: triangle ``i`` of ``vtts.vrml.triangulate(node)`` has number
     ``first + i`` in the triangle numbers :meth:`render` gives.
@@ -309,6 +319,7 @@ class FaceRenderer:
         background: tuple[float, float, float] | np.ndarray | str = (0.32, 0.36, 0.42),
         layout: str = "row",
         supersample: int = 1,
+        detail: float | None = None,
     ) -> None:
         pr = _pr()
         if isinstance(models, FaceModel):
@@ -320,6 +331,10 @@ class FaceRenderer:
             raise RenderError(f"layout must be 'row' or 'room', got {layout!r}")
         self.size = (w, h)
         self.supersample = _check_supersample(supersample)
+        if detail is not None and not (isinstance(detail, int | float) and 0 <= detail <= 100):
+            raise RenderError(f"detail is a distance in pixels from 0 to 100, got {detail!r}")
+        #: the tolerance (pixels) of the simplified meshes, or None: every triangle
+        self.detail = None if detail is None or detail == 0 else float(detail)
         self.models = list(models)
         if camera is not None and viewpoint is not None:
             raise RenderError("give a camera or a viewpoint to look through, not both")
@@ -402,6 +417,42 @@ class FaceRenderer:
         intrinsics.znear, intrinsics.zfar = camera.znear, camera.zfar
         self.scene.set_pose(self._cam_node, camera.pose)
         self.camera = camera
+        if self.detail is not None:
+            self._simplify()
+
+    def _simplify(self) -> None:
+        """Choose each animated mesh's triangles for the current view: those of its
+        progressive mesh (:func:`vtts.render.lod.simplified_faces`) within :attr:`detail`
+        pixels, measured at the mesh's nearest point to the camera."""
+        from vtts.render.lod import simplified_faces
+
+        view = np.linalg.inv(self.camera.pose)
+        f = min(self.camera.fx, self.camera.fy)
+        for inst in self.instances:
+            for am in inst.meshes:
+                world = self.scene.get_pose(am.node)
+                scale = float(np.linalg.svd(world[:3, :3], compute_uv=False).max())
+                pts = am.template.positions @ (view[:3, :3] @ world[:3, :3]).T
+                depth = -(pts[:, 2] + (view[:3, :3] @ world[:3, 3] + view[:3, 3])[2])
+                near = float(depth.min(initial=np.inf))
+                if not (near > 0 and scale > 0):
+                    faces = am.template.faces  # behind the camera or degenerate: as it is
+                else:
+                    error = self.detail * near / (f * scale)  # model units
+                    faces = simplified_faces(am.template.faces, _progressive(inst, am), error)
+                if am.faces is not None and np.array_equal(am.faces, faces):
+                    continue
+                am.faces = faces
+                prim = am.node.mesh.primitives[0]
+                if prim._in_context():  # drawn before: a new node uploads the new triangles
+                    self.scene.remove_node(am.node)
+                    am.node = self.scene.add(
+                        self._mesh(am.template, prim.positions, prim.normals, am.material,
+                                   am.first_triangle, faces),
+                        parent_node=am.parent,
+                    )  # fmt: skip
+                else:
+                    prim.indices = faces.astype(np.uint32)
 
     def model_matrix(self, index: int = 0) -> np.ndarray:
         """The ``(4, 4)`` matrix that places model ``index`` (its file's coordinates) in the
@@ -510,7 +561,9 @@ class FaceRenderer:
         inst.lo = np.minimum(inst.lo, world_pts.min(axis=0))
         inst.hi = np.maximum(inst.hi, world_pts.max(axis=0))
 
-    def _mesh(self, tm: TriangleMesh, positions, normals, material, first_triangle: int):
+    def _mesh(
+        self, tm: TriangleMesh, positions, normals, material, first_triangle: int, faces=None
+    ):
         pr = _pr()
         colors = None if tm.colors is None else np.c_[tm.colors, np.ones(len(tm.colors))]
         prim = pr.Primitive(
@@ -518,7 +571,7 @@ class FaceRenderer:
             normals=normals.astype(np.float32),
             texcoord_0=None if tm.texcoords is None else tm.texcoords.astype(np.float32),
             color_0=None if colors is None else colors.astype(np.float32),
-            indices=tm.faces.astype(np.uint32),
+            indices=(tm.faces if faces is None else faces).astype(np.uint32),
             material=material,
         )
         self._triangle_numbers[prim] = first_triangle
@@ -776,9 +829,10 @@ class FaceRenderer:
                 if not _update_in_place(am, vertex_data):
                     self.scene.remove_node(am.node)
                     am.node = self.scene.add(
-                        self._mesh(am.template, positions, normals, am.material, am.first_triangle),
+                        self._mesh(am.template, positions, normals, am.material,
+                                   am.first_triangle, am.faces),
                         parent_node=am.parent,
-                    )
+                    )  # fmt: skip
             for at, m in matrices:
                 if m is at.applied:  # the same array: the same pose (pyrender's set_pose is slow)
                     continue
@@ -871,9 +925,10 @@ class FaceRenderer:
         ss = self.supersample
         w, h = self.size[0] * ss, self.size[1] * ss
         if triangles:
-            if ss != 1 or self.background_image is not None:
+            if ss != 1 or self.background_image is not None or self.detail is not None:
                 raise RenderError(
-                    "triangle numbers need a renderer without supersampling or background image"
+                    "triangle numbers need a renderer without supersampling, background image "
+                    "or detail"
                 )
             return _drawing_pass().render(
                 self.scene, w, h, rgba=self.transparent, triangles=self._triangle_numbers
@@ -896,6 +951,122 @@ class FaceRenderer:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+#: The ``detail`` (pixels) ``vtts say`` and ``vtts play`` draw with: half a pixel, where the
+#: frames of a talking cybatt at 352×288 differ from every triangle's by 47 dB at the worst
+#: (docs/rendering.md, "Level of detail").
+DETAIL_PX = 0.5
+
+#: The version of the progressive meshes kept in the cache (a new one makes them again).
+_LOD_VERSION = 1
+#: How far (model units, as a fraction of the mesh's size) the progressive mesh is carried: far
+#: beyond any tolerance a frame asks for.
+_LOD_REACH = 0.01
+
+
+def _detail_poses(model: FaceModel) -> list[np.ndarray]:
+    """The parameter vectors a simplified mesh is checked in: rest, each viseme and each
+    expression at full strength, the eyelids closed and the jaw open — the shapes a talking
+    head takes, and their extremes."""
+    from vtts.face.temporal import EXPRESSION_NAMES
+
+    poses = [model.params()]
+    poses += [model.params(visemes={v: 1.0}) for v in range(1, 15)]
+    poses += [model.params(expressions={e: 1.0}) for e in EXPRESSION_NAMES]
+    poses.append(model.params({19: 1024, 20: 1024, 21: 1024, 22: 1024}))
+    poses.append(model.params({3: 1024}))
+    return poses
+
+
+def lod_key(inst: _ModelInstance, am: _AnimatedMesh) -> tuple[str, np.ndarray, np.ndarray]:
+    """What an animated mesh's progressive mesh is made from — its vertices in each of
+    :func:`_detail_poses` ``(P, V, 3)`` and its triangles ``(T, 3) int64`` — and the name of
+    the file that keeps it (a digest of both, ``.npz``)."""
+    import hashlib
+
+    if inst.detail_points is None:  # every mesh of the model posed at once
+        poses = _detail_poses(inst.model)
+        inst.detail_points = FaceRenderer._points(inst, [(p, None) for p in poses])
+    positions = np.stack(inst.detail_points[am.name])[:, am.template.coord_index]
+    faces = np.ascontiguousarray(am.template.faces, dtype=np.int64)
+    digest = hashlib.sha256()
+    for part in (str(_LOD_VERSION).encode(), faces.tobytes(), positions.tobytes()):
+        digest.update(part)
+    return f"{digest.hexdigest()[:32]}.npz", positions, faces
+
+
+def make_progressive(positions: np.ndarray, faces: np.ndarray):
+    """The progressive mesh of :func:`lod_key`'s ``positions`` and ``faces``, carried to
+    :data:`_LOD_REACH` of the mesh's size."""
+    from vtts.render.lod import progressive_mesh
+
+    size = float(np.ptp(positions[0], axis=0).max(initial=0.0)) or 1.0
+    return progressive_mesh(positions, faces, max_error=_LOD_REACH * size)
+
+
+def save_progressive(path: Path, collapses) -> None:
+    """Write a progressive mesh as arrays (``.npz``, no pickles), complete or not at all."""
+    import tempfile
+
+    with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".npz", delete=False) as f:
+        try:
+            np.savez(f, pairs=collapses.pairs, errors=collapses.errors)
+        except BaseException:
+            f.close()
+            os.unlink(f.name)
+            raise
+    os.replace(f.name, path)
+
+
+def _read_progressive(path: Path, n_vertices: int):
+    """The progressive mesh kept in ``path``, or None when it cannot be read or does not fit a
+    mesh of ``n_vertices`` (made again then)."""
+    from vtts.render.lod import Collapses
+
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            pairs, errors = data["pairs"], data["errors"]
+    except (OSError, ValueError, KeyError):
+        return None
+    if (
+        pairs.dtype == np.int32 and pairs.ndim == 2 and pairs.shape[1] == 2
+        and errors.dtype == np.float32 and errors.shape == (len(pairs),)
+        and (pairs.size == 0 or (pairs.min() >= 0 and pairs.max() < n_vertices))
+        and np.all(np.diff(errors) >= 0)
+    ):  # fmt: skip
+        return Collapses(pairs, errors)
+    return None
+
+
+def _progressive(inst: _ModelInstance, am: _AnimatedMesh):
+    """The progressive mesh (:func:`vtts.render.lod.progressive_mesh`) of an animated mesh over
+    :func:`_detail_poses`: shipped with the bundled heads (``models/lod/``, made by ``make
+    models``), kept in the user's cache (``lod/`` in :func:`vtts.usercache.cache_dir`), or
+    made (a few seconds for a head) and kept there."""
+    from vtts.resources import models_dir
+    from vtts.usercache import private_folder, trusted_file
+
+    name, positions, faces = lod_key(inst, am)
+    n = positions.shape[1]
+    shipped = models_dir() / "lod" / name
+    if shipped.is_file():
+        collapses = _read_progressive(shipped, n)
+        if collapses is not None:
+            return collapses
+    folder = private_folder("lod")
+    path = None if folder is None else folder / name
+    if path is not None and path.is_file() and trusted_file(path):
+        collapses = _read_progressive(path, n)
+        if collapses is not None:
+            return collapses
+    collapses = make_progressive(positions, faces)
+    if path is not None:
+        try:
+            save_progressive(path, collapses)
+        except OSError:
+            pass  # a cache that cannot be written is no cache
+    return collapses
 
 
 def _root_pose(matrix) -> np.ndarray:
