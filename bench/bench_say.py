@@ -21,6 +21,7 @@ itself overlaps synthesis with the renderer's set-up, so its wall time is less t
 
 from __future__ import annotations
 
+import math
 import statistics
 import subprocess
 import sys
@@ -58,7 +59,7 @@ STEPS = (
     ("tts", "synthesis (espeak-ng worker process)"),
     ("pyrender", "pyrender and PyOpenGL import"),
     ("egl", "EGL context"),
-    ("scene", "scene: the model's meshes, materials, camera, lights"),
+    ("scene", "scene: the model's meshes (simplified for the view), materials, camera, lights"),
     ("timeline", "timeline"),
     ("first_frame", "first frame (shaders compiled, buffers uploaded)"),
     ("frames", "the other frames, rendered and piped to ffmpeg"),
@@ -75,7 +76,7 @@ def _model() -> str:
 def run() -> list[dict]:
     from vtts.animate.timeline import build_timeline
     from vtts.face import load_model
-    from vtts.render import FaceRenderer
+    from vtts.render import DETAIL_PX, FaceRenderer
     from vtts.speech.say import prepare_utterance
 
     model_name = _model()
@@ -84,7 +85,7 @@ def run() -> list[dict]:
     model = load_model(model_name)
     utt = prepare_utterance(TEXT)
     tl = build_timeline(model, utt.phones, utt.bookmarks, utt.duration)
-    with FaceRenderer(model) as r:
+    with FaceRenderer(model, detail=DETAIL_PX) as r:
         next(iter(r.frames([tl.params[0]])))
     first = time.perf_counter() - t0
     rows = [
@@ -97,6 +98,7 @@ def run() -> list[dict]:
             "ok": None,
         }
     ]
+    rows += _detail_rows(model, stem)
     rows += _breakdown_rows(model_name)
     vtts = Path(sys.executable).with_name("vtts")
     targets = {TEXT_5S: 0.4, TEXT_10S: 0.35}
@@ -141,6 +143,94 @@ def run() -> list[dict]:
                 }
             )
     return rows
+
+
+def _detail_rows(model, stem: str) -> list[dict]:
+    """The level of detail (``FaceRenderer(detail=...)``): the ~10 s utterance's frames drawn
+    with every triangle and with the command's default :data:`~vtts.render.DETAIL_PX`, in one
+    process (rendering only, the median of :data:`RUNS` passes each, alternating), the worst
+    and the median frame's PSNR between the two, and what making the progressive meshes costs
+    when the cache has none (a model's first use)."""
+    import os
+
+    import numpy as np
+
+    from vtts.animate.timeline import build_timeline
+    from vtts.render import DETAIL_PX, FaceRenderer
+    from vtts.speech.say import prepare_utterance
+
+    utt = prepare_utterance(TEXT_10S)
+    tl = build_timeline(model, utt.phones, utt.bookmarks, utt.duration)
+    with tempfile.TemporaryDirectory() as d:
+        before = os.environ.get("VTTS_CACHE_DIR")
+        os.environ["VTTS_CACHE_DIR"] = d
+        try:
+            t0 = time.perf_counter()
+            FaceRenderer(model, detail=DETAIL_PX).close()
+            cold = time.perf_counter() - t0
+        finally:
+            if before is None:
+                del os.environ["VTTS_CACHE_DIR"]
+            else:
+                os.environ["VTTS_CACHE_DIR"] = before
+    renderers = {None: FaceRenderer(model), DETAIL_PX: FaceRenderer(model, detail=DETAIL_PX)}
+    frames, times = {}, {k: [] for k in renderers}
+    try:
+        for k, r in renderers.items():
+            frames[k] = [f.copy() for f in r.frames(tl.params)]
+            triangles = sum(len(am.faces if am.faces is not None else am.template.faces)
+                            for inst in r.instances for am in inst.meshes)  # fmt: skip
+            frames[k, "triangles"] = triangles
+        for _ in range(RUNS):
+            for k, r in renderers.items():
+                t0 = time.perf_counter()
+                for _frame in r.frames(tl.params):
+                    pass
+                times[k].append((time.perf_counter() - t0) / tl.n_frames)
+    finally:
+        for r in renderers.values():
+            r.close()
+    psnr = []
+    for a, b in zip(frames[None], frames[DETAIL_PX], strict=True):
+        mse = float(np.mean((a.astype(np.float64) - b) ** 2))
+        psnr.append(math.inf if mse == 0 else 10 * math.log10(255**2 / mse))
+    case = f"{utt.duration:.1f} s utterance, {stem}, 352x288, rendering only, median of {RUNS}"
+    every, fewer = (statistics.median(times[k]) * 1000 for k in renderers)
+    triangles = f"{frames[None, 'triangles']} -> {frames[DETAIL_PX, 'triangles']} triangles"
+    return [
+        {
+            "benchmark": "vtts say: per frame, every triangle (--detail 0)",
+            "case": case,
+            "value": round(every, 2),
+            "unit": "ms",
+            "target": "",
+            "ok": None,
+        },
+        {
+            "benchmark": f"vtts say: per frame, the default detail ({DETAIL_PX:g} px)",
+            "case": f"{case}; {triangles}",
+            "value": round(fewer, 2),
+            "unit": "ms",
+            "target": "",
+            "ok": None,
+        },
+        {
+            "benchmark": "vtts say: the default detail against every triangle, worst frame",
+            "case": f"{case}; median frame {statistics.median(psnr):.1f} dB",
+            "value": round(min(psnr), 1),
+            "unit": "dB PSNR",
+            "target": "",
+            "ok": None,
+        },
+        {
+            "benchmark": "vtts say: the progressive meshes made afresh (a model's first use)",
+            "case": f"{stem}, every animated mesh, cache empty",
+            "value": round(cold, 2),
+            "unit": "s",
+            "target": "",
+            "ok": None,
+        },
+    ]
 
 
 def _breakdown_rows(model_name: str) -> list[dict]:
@@ -228,7 +318,7 @@ def _say_steps(text: str, model_name: str, output: str, started: float) -> dict:
     from vtts.animate.timeline import build_timeline
     from vtts.face import load_model
     from vtts.fap import write_fap  # noqa: F401
-    from vtts.render import FaceRenderer, VideoWriter, write_wav
+    from vtts.render import DETAIL_PX, FaceRenderer, VideoWriter, write_wav
     from vtts.render import renderer as _renderer
     from vtts.speech.say import prepare_utterance
 
@@ -242,7 +332,7 @@ def _say_steps(text: str, model_name: str, output: str, started: float) -> dict:
     lap("pyrender")
     _renderer._offscreen()
     lap("egl")
-    renderer = FaceRenderer([model])
+    renderer = FaceRenderer([model], detail=DETAIL_PX)  # as the command draws
     lap("scene")
     tl = build_timeline(model, utt.phones, utt.bookmarks, utt.duration)
     lap("timeline")

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import math
 import os
 import sys
 import warnings
@@ -346,6 +347,18 @@ def _background(args: argparse.Namespace, video: bool):
     return background
 
 
+def _detail(args: argparse.Namespace) -> float | None:
+    """The renderer's ``detail`` for a command: its ``--detail`` (0: None, every triangle),
+    :data:`vtts.render.DETAIL_PX` when not given; None for commands without the option."""
+    if not hasattr(args, "detail"):
+        return None
+    if args.detail is None:
+        from vtts.render import DETAIL_PX
+
+        return DETAIL_PX
+    return args.detail or None
+
+
 def _renderer(args: argparse.Namespace, models, supersample: int = 1, video: bool = False):
     from vtts import warm
     from vtts.errors import RenderError
@@ -362,6 +375,7 @@ def _renderer(args: argparse.Namespace, models, supersample: int = 1, video: boo
         viewpoint=args.viewpoint,
         layout=args.layout,
         supersample=supersample,
+        detail=_detail(args),
         **({} if background is None else {"background": background}),
     )
 
@@ -1306,6 +1320,7 @@ def build_parser() -> argparse.ArgumentParser:
     _curves_flags(pl)
     _web_flag(pl)
     _view_flags(pl)
+    _detail_flag(pl)
     pl.add_argument(
         "-o",
         "--output",
@@ -1374,6 +1389,7 @@ def build_parser() -> argparse.ArgumentParser:
     sy.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     _web_flag(sy)
     _view_flags(sy)
+    _detail_flag(sy)
     sy.add_argument("-o", "--output", help="output .mp4, or an animated .glb/.gltf")
     sy.set_defaults(func=cmd_say, gltf=None)
 
@@ -1617,6 +1633,27 @@ def _view_flags(p: argparse.ArgumentParser) -> None:
         choices=("row", "room"),
         default="row",
         help="several heads side by side, or side by side in a simple room",
+    )
+
+
+def _detail_px(text: str) -> float:
+    """``--detail``'s value: a distance in pixels from 0 to 100."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not 0 <= value <= 100:  # NaN too
+        raise argparse.ArgumentTypeError(f"a distance in pixels from 0 to 100, got {text!r}")
+    return value
+
+
+def _detail_flag(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--detail",
+        type=_detail_px,
+        metavar="PX",
+        help="draw fewer triangles where the heads' surface moves by less than PX pixels of "
+        "the video (default half a pixel, vtts.render.DETAIL_PX; 0: every triangle)",
     )
 
 
