@@ -174,11 +174,29 @@ def test_a_larger_view_draws_more_triangles(tmp_path, monkeypatch):
             counts.append(sum(len(am.faces) for am in r.instances[0].meshes))
     assert counts[0] < counts[1] < counts[2]
     # a view set afterwards chooses again, and draws what a new renderer of that view draws
+    smile = model.params(expressions={"joy": 1.0})
+    with FaceRenderer(model, size=(704, 576), detail=0.5) as big:
+        expected = big.render(smile)
     with FaceRenderer(model, size=(176, 144), detail=0.5) as r:
-        r.render()
+        r.render(smile)  # normals computed for the small view's vertices, then kept
         r.set_view(FaceRenderer(model, size=(704, 576)).camera, size=(704, 576))
         assert sum(len(am.faces) for am in r.instances[0].meshes) == counts[2]
-        r.render()
+        assert np.array_equal(r.render(smile), expected)
+
+
+def test_normals_only_where_triangles_are_drawn_are_the_full_meshs():
+    from vtts.render.renderer import _normals, vertex_normals
+
+    model = load_model("cybatt")
+    with FaceRenderer(model, detail=0.5) as r:
+        inst = r.instances[0]
+        params = [model.params(visemes={v: 1.0}) for v in (2, 9)]
+        points = r._points(inst, [(p, None) for p in params])
+        for am in inst.meshes:
+            pos = np.stack(points[am.name])[:, am.template.coord_index]
+            full = vertex_normals(pos, am.template.faces, am.incidence)
+            used = np.unique(am.faces)
+            assert np.array_equal(_normals(am, pos)[:, used], full[:, used])  # the same bits
 
 
 @pytest.mark.parametrize("detail", [-1, 101, float("nan"), "0.5"])

@@ -229,6 +229,9 @@ class _AnimatedMesh:
     # the triangles drawn: the template's, or fewer over the same vertices (FaceRenderer's
     # ``detail``, vtts.render.lod); the normals are always the template's triangles'
     faces: np.ndarray | None = None
+    # with fewer triangles, the vertices they use, the template's triangles around those and
+    # their incidence: the normals of vertices no triangle draws are never read (_normals)
+    drawn: tuple[np.ndarray, np.ndarray, sp.csr_matrix] | None = None
 
 
 @dataclass
@@ -277,6 +280,20 @@ def vertex_normals(
     norm = np.linalg.norm(vn, axis=2, keepdims=True)
     out = np.divide(vn, norm, out=np.zeros_like(vn), where=norm > 0)
     return out[0] if single else out
+
+
+def _normals(am: _AnimatedMesh, positions: np.ndarray) -> np.ndarray:
+    """An animated mesh's vertex normals for ``positions`` (``(n, 3)`` or ``(T, n, 3)``, as
+    :func:`vertex_normals`) from the template's triangles. With fewer triangles drawn (see
+    :attr:`_AnimatedMesh.drawn`) only the vertices they use get them, from the same triangles
+    summed in the same order (the same bits); the others, never read, are zero."""
+    if am.drawn is None:
+        return vertex_normals(positions, am.template.faces, am.incidence)
+    used, faces, incidence = am.drawn
+    out = np.zeros(positions.shape)
+    # the triangles' corners index the whole vertex list; the incidence's rows are the used ones
+    out[..., used, :] = vertex_normals(positions, faces, incidence)
+    return out
 
 
 def _incidence(faces: np.ndarray, n_vertices: int) -> sp.csr_matrix:
@@ -443,6 +460,14 @@ class FaceRenderer:
                 if am.faces is not None and np.array_equal(am.faces, faces):
                     continue
                 am.faces = faces
+                am.last = None  # its normals were computed for other vertices
+                if len(faces) == len(am.template.faces):
+                    am.drawn = None
+                else:
+                    used = np.unique(faces)
+                    rows = am.incidence[used]
+                    around = np.unique(rows.indices)
+                    am.drawn = (used, am.template.faces[around], rows[:, around].tocsr())
                 prim = am.node.mesh.primitives[0]
                 if prim._in_context():  # drawn before: a new node uploads the new triangles
                     self.scene.remove_node(am.node)
@@ -777,7 +802,7 @@ class FaceRenderer:
                 normals = [None] * len(changed)
                 data = _vertex_data(am, positions, am.template.normals)
             else:
-                normals = vertex_normals(positions, am.template.faces, am.incidence)
+                normals = _normals(am, positions)
                 data = _vertex_data(am, positions, normals)
         out: list = [None] * len(points)
         k = -1
@@ -824,7 +849,7 @@ class FaceRenderer:
                     if self._draws_unlit():
                         normals = am.template.normals
                     else:
-                        normals = vertex_normals(positions, am.template.faces, am.incidence)
+                        normals = _normals(am, positions)
                         vertex_data = _vertex_data(am, positions, normals)
                 if not _update_in_place(am, vertex_data):
                     self.scene.remove_node(am.node)
