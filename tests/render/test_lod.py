@@ -229,3 +229,25 @@ def test_say_draws_within_half_a_pixel_unless_told_every_triangle(tmp_path, caps
             )
         assert e.value.code == 2
         assert "--detail: a distance in pixels from 0 to 100" in capsys.readouterr().err
+
+
+def test_holes_duplicates_and_degenerate_triangles_simplify_cleanly():
+    model = load_model("cybatt")
+    with FaceRenderer(model) as r:
+        meshes = {am.name: am for am in r.instances[0].meshes}
+    rng = np.random.default_rng(0)
+    for trial in range(24):
+        am = meshes[("TONGUE", "L_EAR", "MOUTH", "HAIR")[trial % 4]]
+        pts, faces = am.template.positions, am.template.faces
+        f = faces[rng.random(len(faces)) < rng.uniform(0.5, 1.0)]  # holes
+        if trial % 3 == 0:  # a duplicate, a triangle with a repeated corner, a non-manifold fin
+            f = np.concatenate(
+                [f, f[:1], [[f[0, 0], f[0, 0], f[0, 1]]], [[f[1, 0], f[1, 1], f[5, 2]]]]
+            )
+        poses = pts[None] + rng.normal(0, 0.01, (3, *pts.shape)) * (trial % 2)
+        collapses = progressive_mesh(poses, f, max_error=0.05)
+        assert np.all(np.diff(collapses.errors) >= 0)
+        for error in (0.001, 0.01, 0.05):
+            out = simplified_faces(f, collapses, error)
+            assert len(out) <= len(f)
+            assert out.size == 0 or (out.min() >= 0 and out.max() < len(pts))
