@@ -18,7 +18,8 @@ sys.path.insert(0, str(ROOT))
 
 from vtts.face import bundled_models, load_model  # noqa: E402
 from vtts.render import FaceRenderer  # noqa: E402
-from vtts.render.renderer import lod_key, make_progressive, save_progressive  # noqa: E402
+from vtts.render.lod import save  # noqa: E402
+from vtts.render.renderer import lod_key, make_progressive  # noqa: E402
 
 
 def main() -> None:
@@ -30,7 +31,7 @@ def main() -> None:
             for inst in r.instances:
                 for am in inst.meshes:
                     file, positions, faces = lod_key(inst, am)
-                    save_progressive(folder / file, make_progressive(positions, faces))
+                    save(folder / file, make_progressive(positions, faces))
                     made.add(file)
                     print(f"{name} {am.name}: {folder / file}")
     for old in folder.glob("*.npz"):

@@ -16,14 +16,16 @@ has absorbed in each pose, so that a cheek flat at rest is simplified and a lip 
 it smiles is not. Vertices on an edge of the mesh (the lips' and eyelids' openings, the seams
 where texture coordinates or normals split a vertex) never move, so no crack opens.
 
-:func:`progressive_mesh` orders the collapses once per mesh (a few hundred milliseconds for a
-head's face, kept in the user's cache by :mod:`vtts.render.renderer`); :func:`simplified_faces`
-then gives the triangles for any tolerance, a prefix of that order, in a millisecond.
+:func:`progressive_mesh` orders the collapses once per mesh (about two seconds for a head,
+kept as arrays by :func:`save` and :func:`load`: shipped with the bundled heads, else in the
+user's cache, see :mod:`vtts.render.renderer`); :func:`simplified_faces` then gives the
+triangles for any tolerance, a prefix of that order, in a millisecond.
 """
 
 from __future__ import annotations
 
 import heapq
+import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,6 +44,33 @@ class Collapses:
 
     pairs: np.ndarray
     errors: np.ndarray
+
+
+def save(path: str | os.PathLike[str], collapses: Collapses) -> None:
+    """Write ``collapses`` to ``path`` as two arrays (``.npz``, no pickles), complete or not at
+    all."""
+    from vtts.atomic import atomic_path
+
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+        np.savez(f, pairs=collapses.pairs, errors=collapses.errors)
+
+
+def load(path: str | os.PathLike[str], n_vertices: int) -> Collapses | None:
+    """The collapses :func:`save` wrote to ``path``, or None when the file cannot be read or
+    does not fit a mesh of ``n_vertices`` (vertex numbers outside it, errors that decrease)."""
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            pairs, errors = data["pairs"], data["errors"]
+    except (OSError, ValueError, KeyError):
+        return None
+    if (
+        pairs.dtype == np.int32 and pairs.ndim == 2 and pairs.shape[1] == 2
+        and errors.dtype == np.float32 and errors.shape == (len(pairs),)
+        and (pairs.size == 0 or (pairs.min() >= 0 and pairs.max() < n_vertices))
+        and np.all(np.diff(errors) >= 0)
+    ):  # fmt: skip
+        return Collapses(pairs, errors)
+    return None
 
 
 def _plane_quadrics(positions: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -12,6 +12,7 @@ of Ostermann & Haratsch, Figure 15).
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 import types
@@ -27,8 +28,10 @@ from vtts.deferred import defer_package
 from vtts.errors import RenderError, VttsError
 from vtts.face import N_PARAMS, FaceModel
 from vtts.limits import MAX_IMAGE_SIDE, MAX_RENDER_PIXELS, check_image_size
+from vtts.render import lod
 from vtts.render.camera import Camera, find_viewpoint, frame_bounds, row_layout
 from vtts.render.color import TRANSPARENT, parse_background
+from vtts.render.lod import Collapses, progressive_mesh, simplified_faces
 from vtts.vrml import Node, drawn_children, primitive_mesh, transform_matrix, triangulate
 from vtts.vrml.geometry import TriangleMesh
 from vtts.vrml.scene import GROUPING
@@ -441,8 +444,6 @@ class FaceRenderer:
         """Choose each animated mesh's triangles for the current view: those of its
         progressive mesh (:func:`vtts.render.lod.simplified_faces`) within :attr:`detail`
         pixels, measured at the mesh's nearest point to the camera."""
-        from vtts.render.lod import simplified_faces
-
         view = np.linalg.inv(self.camera.pose)
         f = min(self.camera.fx, self.camera.fy)
         for inst in self.instances:
@@ -470,12 +471,7 @@ class FaceRenderer:
                     am.drawn = (used, am.template.faces[around], rows[:, around].tocsr())
                 prim = am.node.mesh.primitives[0]
                 if prim._in_context():  # drawn before: a new node uploads the new triangles
-                    self.scene.remove_node(am.node)
-                    am.node = self.scene.add(
-                        self._mesh(am.template, prim.positions, prim.normals, am.material,
-                                   am.first_triangle, faces),
-                        parent_node=am.parent,
-                    )  # fmt: skip
+                    self._replace_node(am, prim.positions, prim.normals)
                 else:
                     prim.indices = faces.astype(np.uint32)
 
@@ -585,6 +581,15 @@ class FaceRenderer:
         world_pts = pts @ world[:3, :3].T + world[:3, 3]
         inst.lo = np.minimum(inst.lo, world_pts.min(axis=0))
         inst.hi = np.maximum(inst.hi, world_pts.max(axis=0))
+
+    def _replace_node(self, am: _AnimatedMesh, positions, normals) -> None:
+        """Put an animated mesh into the scene anew: a node with these positions and normals
+        and the triangles it draws (pyrender uploads it at the next frame)."""
+        self.scene.remove_node(am.node)
+        am.node = self.scene.add(
+            self._mesh(am.template, positions, normals, am.material, am.first_triangle, am.faces),
+            parent_node=am.parent,
+        )
 
     def _mesh(
         self, tm: TriangleMesh, positions, normals, material, first_triangle: int, faces=None
@@ -852,12 +857,7 @@ class FaceRenderer:
                         normals = _normals(am, positions)
                         vertex_data = _vertex_data(am, positions, normals)
                 if not _update_in_place(am, vertex_data):
-                    self.scene.remove_node(am.node)
-                    am.node = self.scene.add(
-                        self._mesh(am.template, positions, normals, am.material,
-                                   am.first_triangle, am.faces),
-                        parent_node=am.parent,
-                    )  # fmt: skip
+                    self._replace_node(am, positions, normals)
             for at, m in matrices:
                 if m is at.applied:  # the same array: the same pose (pyrender's set_pose is slow)
                     continue
@@ -1021,50 +1021,14 @@ def lod_key(inst: _ModelInstance, am: _AnimatedMesh) -> tuple[str, np.ndarray, n
     return f"{digest.hexdigest()[:32]}.npz", positions, faces
 
 
-def make_progressive(positions: np.ndarray, faces: np.ndarray):
+def make_progressive(positions: np.ndarray, faces: np.ndarray) -> Collapses:
     """The progressive mesh of :func:`lod_key`'s ``positions`` and ``faces``, carried to
     :data:`_LOD_REACH` of the mesh's size."""
-    from vtts.render.lod import progressive_mesh
-
     size = float(np.ptp(positions[0], axis=0).max(initial=0.0)) or 1.0
     return progressive_mesh(positions, faces, max_error=_LOD_REACH * size)
 
 
-def save_progressive(path: Path, collapses) -> None:
-    """Write a progressive mesh as arrays (``.npz``, no pickles), complete or not at all."""
-    import tempfile
-
-    with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".npz", delete=False) as f:
-        try:
-            np.savez(f, pairs=collapses.pairs, errors=collapses.errors)
-        except BaseException:
-            f.close()
-            os.unlink(f.name)
-            raise
-    os.replace(f.name, path)
-
-
-def _read_progressive(path: Path, n_vertices: int):
-    """The progressive mesh kept in ``path``, or None when it cannot be read or does not fit a
-    mesh of ``n_vertices`` (made again then)."""
-    from vtts.render.lod import Collapses
-
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            pairs, errors = data["pairs"], data["errors"]
-    except (OSError, ValueError, KeyError):
-        return None
-    if (
-        pairs.dtype == np.int32 and pairs.ndim == 2 and pairs.shape[1] == 2
-        and errors.dtype == np.float32 and errors.shape == (len(pairs),)
-        and (pairs.size == 0 or (pairs.min() >= 0 and pairs.max() < n_vertices))
-        and np.all(np.diff(errors) >= 0)
-    ):  # fmt: skip
-        return Collapses(pairs, errors)
-    return None
-
-
-def _progressive(inst: _ModelInstance, am: _AnimatedMesh):
+def _progressive(inst: _ModelInstance, am: _AnimatedMesh) -> Collapses:
     """The progressive mesh (:func:`vtts.render.lod.progressive_mesh`) of an animated mesh over
     :func:`_detail_poses`: shipped with the bundled heads (``models/lod/``, made by ``make
     models``), kept in the user's cache (``lod/`` in :func:`vtts.usercache.cache_dir`), or
@@ -1075,22 +1039,16 @@ def _progressive(inst: _ModelInstance, am: _AnimatedMesh):
     name, positions, faces = lod_key(inst, am)
     n = positions.shape[1]
     shipped = models_dir() / "lod" / name
-    if shipped.is_file():
-        collapses = _read_progressive(shipped, n)
-        if collapses is not None:
-            return collapses
+    collapses = lod.load(shipped, n) if shipped.is_file() else None
     folder = private_folder("lod")
     path = None if folder is None else folder / name
-    if path is not None and path.is_file() and trusted_file(path):
-        collapses = _read_progressive(path, n)
-        if collapses is not None:
-            return collapses
-    collapses = make_progressive(positions, faces)
-    if path is not None:
-        try:
-            save_progressive(path, collapses)
-        except OSError:
-            pass  # a cache that cannot be written is no cache
+    if collapses is None and path is not None and path.is_file() and trusted_file(path):
+        collapses = lod.load(path, n)
+    if collapses is None:
+        collapses = make_progressive(positions, faces)
+        if path is not None:
+            with contextlib.suppress(OSError):  # a cache that cannot be written is no cache
+                lod.save(path, collapses)
     return collapses
 
 
