@@ -29,7 +29,7 @@ from lark.exceptions import UnexpectedInput
 from vtts.errors import BookmarkError, FapError
 from vtts.face.miap import EXPRESSION_ALIASES, Miap
 from vtts.limits import MAX_DURATION_S, MAX_FAP_VALUE
-from vtts.resources import grammar_text
+from vtts.resources import lark_parser
 from vtts.speech.tts import escape
 
 EXPRESSIONS = ("joy", "sadness", "anger", "fear", "disgust", "surprise")
@@ -111,9 +111,8 @@ class BookmarkedText:
 
 @cache
 def _lark() -> Lark:
-    return Lark(
-        grammar_text("bookmarks"), parser="lalr", lexer="contextual", maybe_placeholders=False
-    )
+    # the tables kept between processes (40 ms of every vtts say to build)
+    return lark_parser("bookmarks", parser="lalr", lexer="contextual", maybe_placeholders=False)
 
 
 def known_names(expressions: set[str] | None = None) -> list[str]:
