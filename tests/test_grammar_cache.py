@@ -15,12 +15,13 @@ import pytest
 
 from vtts.usercache import trusted_file
 
-#: Builds both cached parsers and parses a line with each, in a fresh process (the parsers are
-#: made once per process).
+#: Builds the three cached parsers and parses a line with each, in a fresh process (the parsers
+#: are made once per process).
 SCRIPT = """
-import vtts.face.adt as A, vtts.vrml.parser as P
+import vtts.face.adt as A, vtts.vrml.parser as P, vtts.speech.bookmarks as B
 P.parse('#VRML V2.0 utf8\\nTransform { children [] }')
 A.parse_adt('#AnimationDefinitionTables\\n')
+assert [b.name for b in B.parse_bookmarks('Hi <smile 2s> there.').bookmarks] == ['joy']
 print("parsed")
 """
 
@@ -59,7 +60,7 @@ def test_the_tables_are_kept_in_the_users_cache_not_the_temporary_folder(folders
     r = _run(cache, tmp)
     assert r.returncode == 0 and "parsed" in r.stdout, r.stderr
     kept = sorted((cache / "grammars").iterdir())
-    assert [p.name.split("-")[0] for p in kept] == ["adt", "vrml97"]
+    assert [p.name.split("-")[0] for p in kept] == ["adt", "bookmarks", "vrml97"]
     assert all(trusted_file(p) for p in kept)
     assert stat.S_IMODE(os.stat(cache / "grammars").st_mode) == 0o700
     assert list(tmp.iterdir()) == []  # lark's own cache=True would write /tmp/.lark_cache_*
