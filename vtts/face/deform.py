@@ -40,6 +40,15 @@ class Pose:
     transforms: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
 
 
+def _row_slice(m: sp.csr_matrix, start: int, stop: int) -> sp.csr_matrix:
+    """Rows ``start:stop`` of ``m``, sharing its arrays (``m[start:stop]`` copies them)."""
+    a, b = m.indptr[start], m.indptr[stop]
+    return sp.csr_matrix(
+        (m.data[a:b], m.indices[a:b], m.indptr[start : stop + 1] - a),
+        shape=(stop - start, m.shape[1]),
+    )
+
+
 @dataclass
 class _MeshBlock:
     neutral: np.ndarray  # (p, 3)
@@ -88,37 +97,49 @@ class DeformationEngine:
         self._compile_transforms(tables, neutral_transforms)
 
     def _compile_meshes(self, tables: AnimationTables, neutral_points) -> None:
+        # each (MIAP, IndexedFaceSet, interval) is one column; its rows are the coordinates of
+        # the table's vertices, so the column-major matrix is the tables' arrays laid end to end
         cols: dict[str, list] = {}
+        xyz = np.arange(3)
         for adt in tables.adts.values():
             pi = adt.miap.index
             for m in adt.meshes:
                 entry = cols.setdefault(m.node, [])
+                rows = (3 * m.vertices[:, None] + xyz).reshape(-1)
                 n = m.borders.size - 1
                 for k in range(n):
                     lo = -np.inf if k == 0 else m.borders[k]
                     hi = np.inf if k == n - 1 else m.borders[k + 1]
-                    rows = (3 * m.vertices[:, None] + np.arange(3)).reshape(-1)
                     entry.append((pi, lo, hi, rows, m.displacements[k].reshape(-1), k,
                                   m.borders[k], m.borders[k + 1]))  # fmt: skip
         for name, entries in cols.items():
             neutral = np.asarray(neutral_points[name], dtype=np.float64)
             nrows = 3 * neutral.shape[0]
-            rows = np.concatenate([e[3] for e in entries])
-            vals = np.concatenate([e[4] for e in entries])
-            colidx = np.repeat(np.arange(len(entries)), [e[3].size for e in entries])
-            coo = sp.coo_matrix((vals, (rows, colidx)), shape=(nrows, len(entries)))
-            lo = np.array([e[1] for e in entries])
-            hi = np.array([e[2] for e in entries])
-            csr = coo.tocsr()
+            shape = (nrows, len(entries))
+            sizes = np.array([e[3].size for e in entries], dtype=np.int64)
+            indptr = np.zeros(len(entries) + 1, dtype=np.int64)
+            np.cumsum(sizes, out=indptr[1:])
+            index = np.int32 if max(nrows, int(indptr[-1])) < 2**31 else np.int64
+            csc = sp.csc_matrix(
+                (
+                    np.concatenate([e[4] for e in entries]),
+                    np.concatenate([e[3] for e in entries]).astype(index),
+                    indptr.astype(index),
+                ),
+                shape=shape,
+            )
+            csr = csc.tocsr()
             halves = None
             if csr.nnz >= self.SPLIT_ABOVE:
                 h = (nrows // 6) * 3
-                halves = (csr[:h], csr[h:])
+                halves = (_row_slice(csr, 0, h), _row_slice(csr, h, nrows))
+            lo = np.array([e[1] for e in entries])
+            hi = np.array([e[2] for e in entries])
             self.meshes[name] = _MeshBlock(
                 neutral=neutral,
                 halves=halves,
                 csr=csr,
-                csc=coo.tocsc(),
+                csc=csc,
                 param=np.array([e[0] for e in entries], dtype=np.int64),
                 lo=lo,
                 hi=hi,
