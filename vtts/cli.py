@@ -349,7 +349,7 @@ def _background(args: argparse.Namespace, video: bool):
 
 
 def _detail(args: argparse.Namespace) -> float | None:
-    """The renderer's ``detail`` for a command: its ``--detail`` (0: None, every triangle),
+    """The renderer's ``detail`` for a command: its ``--detail`` (0: every triangle),
     :data:`vtts.render.DETAIL_PX` when not given; None for commands without the option."""
     if not hasattr(args, "detail"):
         return None
@@ -357,7 +357,7 @@ def _detail(args: argparse.Namespace) -> float | None:
         from vtts.render import DETAIL_PX
 
         return DETAIL_PX
-    return args.detail or None
+    return args.detail
 
 
 def _renderer(args: argparse.Namespace, models, supersample: int = 1, video: bool = False):

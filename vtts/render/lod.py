@@ -73,17 +73,16 @@ def load(path: str | os.PathLike[str], n_vertices: int) -> Collapses | None:
     return None
 
 
-def _plane_quadrics(positions: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _plane_quadrics(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Each face's plane in each pose as a quadric ``(T, P, 4, 4)`` (the squared distance of a
-    point to the plane: ``h Kᵀ h`` for ``h = (x, y, z, 1)``) and its unit normal ``(P, T, 3)``.
-    ``positions`` ``(P, V, 3)``."""
+    point to the plane: ``h Kᵀ h`` for ``h = (x, y, z, 1)``). ``positions`` ``(P, V, 3)``."""
     a, b, c = (positions[:, faces[:, i]] for i in range(3))
     n = np.cross(b - a, c - a)
     length = np.linalg.norm(n, axis=-1, keepdims=True)
     n = np.divide(n, length, out=np.zeros_like(n), where=length > 0)
     plane = np.concatenate([n, -np.sum(n * a, axis=-1, keepdims=True)], axis=-1)  # (P, T, 4)
     plane = plane.transpose(1, 0, 2)
-    return plane[..., :, None] * plane[..., None, :], n
+    return plane[..., :, None] * plane[..., None, :]
 
 
 def progressive_mesh(positions: np.ndarray, faces: np.ndarray, *, max_error: float) -> Collapses:
@@ -103,7 +102,7 @@ def progressive_mesh(positions: np.ndarray, faces: np.ndarray, *, max_error: flo
     if len(faces) == 0:
         return empty
     homog = np.concatenate([pos, np.ones((n_poses, n_vertices, 1))], axis=-1)  # (P, V, 4)
-    face_q, _ = _plane_quadrics(pos, faces)
+    face_q = _plane_quadrics(pos, faces)
     quadric = np.zeros((n_vertices, n_poses, 4, 4))
     for i in range(3):
         np.add.at(quadric, faces[:, i], face_q)

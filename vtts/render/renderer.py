@@ -235,6 +235,8 @@ class _AnimatedMesh:
     # with fewer triangles, the vertices they use, the template's triangles around those and
     # their incidence: the normals of vertices no triangle draws are never read (_normals)
     drawn: tuple[np.ndarray, np.ndarray, sp.csr_matrix] | None = None
+    # its progressive mesh, once a view has asked for it (_progressive: read or made once)
+    collapses: Collapses | None = None
 
 
 @dataclass
@@ -1032,10 +1034,12 @@ def _progressive(inst: _ModelInstance, am: _AnimatedMesh) -> Collapses:
     """The progressive mesh (:func:`vtts.render.lod.progressive_mesh`) of an animated mesh over
     :func:`_detail_poses`: shipped with the bundled heads (``models/lod/``, made by ``make
     models``), kept in the user's cache (``lod/`` in :func:`vtts.usercache.cache_dir`), or
-    made (a few seconds for a head) and kept there."""
+    made (a few seconds for a head) and kept there; kept on ``am`` for the views after."""
     from vtts.resources import models_dir
     from vtts.usercache import private_folder, trusted_file
 
+    if am.collapses is not None:
+        return am.collapses
     name, positions, faces = lod_key(inst, am)
     n = positions.shape[1]
     shipped = models_dir() / "lod" / name
@@ -1049,6 +1053,7 @@ def _progressive(inst: _ModelInstance, am: _AnimatedMesh) -> Collapses:
         if path is not None:
             with contextlib.suppress(OSError):  # a cache that cannot be written is no cache
                 lod.save(path, collapses)
+    am.collapses = collapses
     return collapses
 
 
