@@ -108,6 +108,17 @@ SEARCH_ROUNDS = 3
 #: level) in the last one.
 TOLERANCE = 0.003
 
+#: With robust matching (camera video), a level ends when it has settled — when its last
+#: step lowered the match's energy (the truncated mean squared luminance difference) by less
+#: than this share: what is left is the camera's noise and what the model cannot show, and
+#: more solves (a rendering each) move the estimate about without bettering the match.
+SETTLED_GAIN: float | None = 0.005
+
+#: A step that made the match worse is halved, at most three times, before the next solve;
+#: with robust matching, when the step before it gained less than this share, the step is
+#: taken back whole and the level ends there instead.
+STALL_GAIN: float | None = 0.01
+
 #: Pixels around the image of what a refined FAP moves that its match is measured over.
 REFINE_MARGIN = 4
 
@@ -251,6 +262,10 @@ class Estimator:
             if node.name in self.ignored:  # drawn (they hide what is behind them), not matched
                 self._faces[first : first + count] = -1
         self._last_step: _Step | None = None
+        self._stalled = False  # the level being solved ended on a step taken back
+        #: the triangle indices of the last frame's final rendering (full size), or None
+        self._shown: np.ndarray | None = None
+        self._fewest = 4 * len(self.unknowns)  # face pixels a level needs for a solve
         self.params = np.zeros(N_PARAMS)
         self.translation = np.zeros(3)
         self.gain = np.ones(3)
@@ -403,6 +418,7 @@ class Estimator:
             self._search_from_neutral(full)
         with self._refining(self._lit_frame()):
             params, (image, ids) = self._settle(full, index, lambda: self.render(1))
+        self._shown = ids
         synth = np.clip(np.round(image * self.gain + self.offset), 0, 255)
         mask = ids >= 0
         return self._estimate_of(params, index, time, face_psnr(full, synth, mask),
@@ -514,10 +530,11 @@ class Estimator:
         solves, step = 0, math.inf
         for lv in self.pyramid if levels is None else levels:
             self._last_step = None  # energies of different levels do not compare
+            self._stalled = False
             for _ in range(lv.iterations):
                 step = self._solve(pyramid[lv.factor], lv)
                 solves += 1
-                if step < self.tolerance:
+                if step < self.tolerance or self._stalled:
                     break
         return solves, step < self.tolerance
 
@@ -541,6 +558,8 @@ class Estimator:
     def _solve(self, camera_image: np.ndarray, lv: Level) -> float:
         """One Gauss–Newton step at one level; returns how far (pixels of that level) the step
         moved the image of the unknown that moved most."""
+        if lv.factor > 1 and self._history and self._too_small(self._shown, lv.factor):
+            return 0.0  # as at the last frame's estimate: the finer levels solve
         cam = self._levels[lv.factor][0]
         image, ids, (top, left) = self._render_window(lv.factor)
         self._last_faces = ids
@@ -550,9 +569,9 @@ class Estimator:
         # pixels within the model's outline: at the outline the synthetic background (which a
         # camera never shows) and antialiasing would read as motion
         rows, cols = np.nonzero(binary_erosion(ids >= 0, iterations=EDGE))
-        if rows.size < 4 * len(self.unknowns) and lv.factor > 1:
+        if rows.size < self._fewest and lv.factor > 1:
             return 0.0  # too small a face for this level (QCIF at 1/4): the finer levels solve
-        if rows.size < 4 * len(self.unknowns):
+        if rows.size < self._fewest:
             raise VttsError(
                 f"the model covers only {rows.size} pixels at 1/{lv.factor} size: it is out of "
                 "view (check --camera and the first frame)"
@@ -564,10 +583,14 @@ class Estimator:
         # occlusion, not texture motion, dominates what an unknown does to the image
         energy = float(np.mean(np.minimum((r_p @ LUMA) ** 2, TRUNCATE**2)))
         last = self._last_step
+        if self.robust and last is not None and self._settled(energy, last):
+            self._last_step, self._stalled = None, True
+            return 0.0
         if last is not None and energy > last.energy and last.halvings < 3:
             half = last.delta / 2
             self._apply(-half)
-            self._last_step = _Step(last.energy, half, last.halvings + 1, last.reach / 2)
+            self._last_step = replace(last, delta=half, halvings=last.halvings + 1,
+                                      reach=last.reach / 2)  # fmt: skip
             return last.reach / 2
         # gradients of the camera frame and of gain · synthetic + offset
         gy_p, gx_p = _gradients_at(camera_image, raw, rows, cols, gain)
@@ -604,8 +627,35 @@ class Estimator:
         delta[:k] *= np.minimum(1.0, lv.limit / np.maximum(reach, 1e-12))
         moved = float(np.minimum(reach, lv.limit).max(initial=0.0))
         self._apply(delta)
-        self._last_step = _Step(energy, delta, 0, moved)
+        gain = math.inf if last is None else (last.energy - energy) / max(last.energy, 1e-12)
+        self._last_step = _Step(energy, delta, 0, moved, gain)
         return moved
+
+    def _too_small(self, faces: np.ndarray | None, factor: int) -> bool:
+        """Whether the face the full-size triangle indices ``faces`` ``(H, W)`` show (the last
+        frame's estimate) covers too few pixels for a solve at pyramid ``factor``: as
+        :meth:`_solve` counts them at that level (each level pixel takes the triangle at its
+        centre, less :data:`EDGE` pixels along the outline), fewer than four per unknown. A
+        frame after the first skips such a level without rendering it (Carphone's QCIF face at
+        1/4 is on the edge)."""
+        if faces is None:
+            return False
+        w, h = self._levels[factor][1]
+        c = factor // 2
+        covered = faces[c::factor, c::factor][:h, :w] >= 0
+        return int(binary_erosion(covered, iterations=EDGE).sum()) < self._fewest
+
+    def _settled(self, energy: float, last: _Step) -> bool:
+        """Whether a level ends at a rendering whose match has the ``energy`` after the
+        ``last`` step (:data:`SETTLED_GAIN`, :data:`STALL_GAIN`); a step that made the match
+        worse after one that gained little is taken back here."""
+        if energy <= last.energy:
+            gain = (last.energy - energy) / max(last.energy, 1e-12)
+            return SETTLED_GAIN is not None and gain < SETTLED_GAIN
+        if STALL_GAIN is None or last.halvings or last.gain >= STALL_GAIN:
+            return False
+        self._apply(-last.delta)  # back where the match was best
+        return True
 
     def _image_motion(self, pix: np.ndarray, tri: np.ndarray, cam: Camera):
         """What the unknowns do at the pixel centres ``pix`` ``(N, 2)`` (pixels of ``cam``'s
@@ -777,13 +827,15 @@ class Estimator:
 @dataclass
 class _Step:
     """The last change made at a level: the match before it (``energy``), the change, how
-    often it has been halved, and how far (pixels) it moved the image of the unknown that moved
-    most."""
+    often it has been halved, how far (pixels) it moved the image of the unknown that moved
+    most, and the share by which the step before it lowered the match (``gain``; infinite for
+    a level's first)."""
 
     energy: float
     delta: np.ndarray
     halvings: int
     reach: float
+    gain: float = math.inf
 
 
 def analyze(
