@@ -314,10 +314,8 @@ class Estimator:
         face as on the whole image, for a fraction of the pixels (the face is a sixth of a CIF
         head-and-shoulders frame). With ``whole``, or without face pixels, the whole level."""
         image, numbers = self._synthesize(self.camera, self.size, triangles=True)
+        numbers = self._at_level(numbers, factor)
         w, h = self._levels[factor][1]
-        if factor > 1:
-            c = factor // 2
-            numbers = numbers[c::factor, c::factor][:h, :w]
         box = (0, h), (0, w)
         drawn = None if whole else _bounds(numbers >= 0)  # what is drawn holds the face
         if drawn is not None:
@@ -331,6 +329,15 @@ class Estimator:
         (y0, y1), (x0, x1) = box
         window = image[y0 * factor : y1 * factor, x0 * factor : x1 * factor]
         return _subsample(window, factor), self._face_indices(numbers[y0:y1, x0:x1]), (y0, x0)
+
+    def _at_level(self, full: np.ndarray, factor: int) -> np.ndarray:
+        """A full-size per-pixel array ``(H, W)`` (triangle numbers or indices) at pyramid
+        ``factor``: each level pixel takes the value at its centre."""
+        if factor == 1:
+            return full
+        w, h = self._levels[factor][1]
+        c = factor // 2
+        return full[c::factor, c::factor][:h, :w]
 
     def _face_indices(self, numbers: np.ndarray) -> np.ndarray:
         """The renderer's triangle ``numbers`` ``(h, w)`` as indices into ``geometry.faces``
@@ -531,6 +538,10 @@ class Estimator:
         for lv in self.pyramid if levels is None else levels:
             self._last_step = None  # energies of different levels do not compare
             self._stalled = False
+            if lv.factor > 1 and self._history and self._too_small(self._shown, lv.factor):
+                # as at the last frame's estimate: not rendered, the finer levels solve
+                solves, step = solves + 1, 0.0
+                continue
             for _ in range(lv.iterations):
                 step = self._solve(pyramid[lv.factor], lv)
                 solves += 1
@@ -558,8 +569,6 @@ class Estimator:
     def _solve(self, camera_image: np.ndarray, lv: Level) -> float:
         """One Gauss–Newton step at one level; returns how far (pixels of that level) the step
         moved the image of the unknown that moved most."""
-        if lv.factor > 1 and self._history and self._too_small(self._shown, lv.factor):
-            return 0.0  # as at the last frame's estimate: the finer levels solve
         cam = self._levels[lv.factor][0]
         image, ids, (top, left) = self._render_window(lv.factor)
         self._last_faces = ids
@@ -568,7 +577,7 @@ class Estimator:
         gain, offset = self.gain.astype(np.float32), self.offset.astype(np.float32)
         # pixels within the model's outline: at the outline the synthetic background (which a
         # camera never shows) and antialiasing would read as motion
-        rows, cols = np.nonzero(binary_erosion(ids >= 0, iterations=EDGE))
+        rows, cols = np.nonzero(_inside(ids))
         if rows.size < self._fewest and lv.factor > 1:
             return 0.0  # too small a face for this level (QCIF at 1/4): the finer levels solve
         if rows.size < self._fewest:
@@ -583,7 +592,8 @@ class Estimator:
         # occlusion, not texture motion, dominates what an unknown does to the image
         energy = float(np.mean(np.minimum((r_p @ LUMA) ** 2, TRUNCATE**2)))
         last = self._last_step
-        if self.robust and last is not None and self._settled(energy, last):
+        improved = math.inf if last is None else (last.energy - energy) / max(last.energy, 1e-12)
+        if self.robust and last is not None and self._settled(improved, last):
             self._last_step, self._stalled = None, True
             return 0.0
         if last is not None and energy > last.energy and last.halvings < 3:
@@ -627,31 +637,26 @@ class Estimator:
         delta[:k] *= np.minimum(1.0, lv.limit / np.maximum(reach, 1e-12))
         moved = float(np.minimum(reach, lv.limit).max(initial=0.0))
         self._apply(delta)
-        gain = math.inf if last is None else (last.energy - energy) / max(last.energy, 1e-12)
-        self._last_step = _Step(energy, delta, 0, moved, gain)
+        self._last_step = _Step(energy, delta, 0, moved, improved)
         return moved
 
     def _too_small(self, faces: np.ndarray | None, factor: int) -> bool:
         """Whether the face the full-size triangle indices ``faces`` ``(H, W)`` show (the last
-        frame's estimate) covers too few pixels for a solve at pyramid ``factor``: as
-        :meth:`_solve` counts them at that level (each level pixel takes the triangle at its
-        centre, less :data:`EDGE` pixels along the outline), fewer than four per unknown. A
-        frame after the first skips such a level without rendering it (Carphone's QCIF face at
-        1/4 is on the edge)."""
+        frame's final rendering, :attr:`_shown`) covers too few pixels for a solve at pyramid
+        ``factor``, counted as :meth:`_solve` counts them at that level: fewer than four per
+        unknown. A frame after the first skips such a level without rendering it (Carphone's
+        QCIF face at 1/4 is on the edge)."""
         if faces is None:
             return False
-        w, h = self._levels[factor][1]
-        c = factor // 2
-        covered = faces[c::factor, c::factor][:h, :w] >= 0
-        return int(binary_erosion(covered, iterations=EDGE).sum()) < self._fewest
+        return int(_inside(self._at_level(faces, factor)).sum()) < self._fewest
 
-    def _settled(self, energy: float, last: _Step) -> bool:
-        """Whether a level ends at a rendering whose match has the ``energy`` after the
-        ``last`` step (:data:`SETTLED_GAIN`, :data:`STALL_GAIN`); a step that made the match
-        worse after one that gained little is taken back here."""
-        if energy <= last.energy:
-            gain = (last.energy - energy) / max(last.energy, 1e-12)
-            return SETTLED_GAIN is not None and gain < SETTLED_GAIN
+    def _settled(self, improved: float, last: _Step) -> bool:
+        """Whether a level ends at a rendering that shows the ``last`` step lowered the match
+        by the share ``improved`` (negative: made it worse) (:data:`SETTLED_GAIN`,
+        :data:`STALL_GAIN`); a step that made the match worse after one that gained little is
+        taken back here."""
+        if improved >= 0:
+            return SETTLED_GAIN is not None and improved < SETTLED_GAIN
         if STALL_GAIN is None or last.halvings or last.gain >= STALL_GAIN:
             return False
         self._apply(-last.delta)  # back where the match was best
@@ -946,6 +951,12 @@ def _blocks(lo: int, hi: int, n: int, block: int = 16) -> tuple[int, int]:
     size = min(n, -(-(hi - lo) // block) * block)
     start = min(max(0, lo - (size - (hi - lo)) // 2), n - size)
     return start, start + size
+
+
+def _inside(ids: np.ndarray) -> np.ndarray:
+    """The pixels ``(h, w) bool`` of the face indices ``ids`` ``(h, w)`` that a solve reads:
+    within the model's outline by :data:`EDGE` pixels."""
+    return binary_erosion(ids >= 0, iterations=EDGE)
 
 
 def _bounds(mask: np.ndarray) -> tuple[tuple[int, int], tuple[int, int]] | None:
