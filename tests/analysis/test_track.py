@@ -15,6 +15,7 @@ import pytest
 from vtts.analysis import Estimator
 from vtts.analysis.landmark_pose import feature_vertices, landmark_pose, project
 from vtts.analysis.track import FITTED_IGNORED, track
+from vtts.analysis.tracker import Tracker
 from vtts.analysis.video import read_video
 from vtts.errors import AnalysisError
 from vtts.face import load_model
@@ -186,7 +187,7 @@ def test_analyze_auto_bad_input(tmp_path, args, fragment):
 def test_a_frame_that_loses_the_model_is_started_again_from_its_landmarks(tmp_path, monkeypatch):
     from vtts.errors import VttsError
 
-    real = Estimator.estimate
+    real = Tracker.estimate  # the accurate mode's estimator too (finish=True)
     calls = []
 
     def estimate(self, frame, index=0, time=0.0):
@@ -196,7 +197,7 @@ def test_a_frame_that_loses_the_model_is_started_again_from_its_landmarks(tmp_pa
             raise VttsError("the model covers only 0 pixels at 1/1 size")
         return real(self, frame, index, time)
 
-    monkeypatch.setattr(Estimator, "estimate", estimate)
+    monkeypatch.setattr(Tracker, "estimate", estimate)
     tracked = track(_frames(2), fps=25.0, model_path=tmp_path / "m.wrl")
     assert tracked.restarts == [1]
     assert calls == [0, 1, 1]
@@ -208,7 +209,7 @@ def test_a_frame_that_cannot_be_restarted_holds_the_last_estimate(tmp_path, monk
     import vtts.analysis.track as track_module
     from vtts.errors import VttsError
 
-    real = Estimator.estimate
+    real = Tracker.estimate  # the accurate mode's estimator too (finish=True)
 
     def estimate(self, frame, index=0, time=0.0):
         if index == 1:
@@ -216,7 +217,7 @@ def test_a_frame_that_cannot_be_restarted_holds_the_last_estimate(tmp_path, monk
             raise VttsError("the model covers only 0 pixels at 1/1 size")
         return real(self, frame, index, time)
 
-    monkeypatch.setattr(Estimator, "estimate", estimate)
+    monkeypatch.setattr(Tracker, "estimate", estimate)
     monkeypatch.setattr(track_module, "_restart", lambda *a, **k: None)
     tracked = track(_frames(3), fps=25.0, model_path=tmp_path / "m.wrl")
     assert tracked.held == [1] and tracked.restarts == []
@@ -232,7 +233,7 @@ def test_a_head_that_ran_away_is_placed_again_from_the_neutral_face(tmp_path, mo
     neutral face and pose rather than from where the estimate ran to."""
     import vtts.analysis.track as track_module
 
-    real = Estimator.estimate
+    real = Tracker.estimate  # the accurate mode's estimator too (finish=True)
     calls = []
     placed_from = []
 
@@ -250,7 +251,7 @@ def test_a_head_that_ran_away_is_placed_again_from_the_neutral_face(tmp_path, mo
         placed_from.append((estimator.params.copy(), estimator.translation.copy()))
         return real_pose(estimator, landmarks, *args, **kwargs)
 
-    monkeypatch.setattr(Estimator, "estimate", estimate)
+    monkeypatch.setattr(Tracker, "estimate", estimate)
     monkeypatch.setattr(track_module, "landmark_pose", pose)
     tracked = track(_frames(3), fps=25.0, model_path=tmp_path / "m.wrl")
     assert tracked.restarts == [1] and tracked.held == []
@@ -290,7 +291,7 @@ def test_a_held_frame_carries_no_motion_on(tmp_path, monkeypatch):
     import vtts.analysis.track as track_module
     from vtts.errors import VttsError
 
-    real = Estimator.estimate
+    real = Tracker.estimate  # the accurate mode's estimator too (finish=True)
     history_at_start = {}
 
     def estimate(self, frame, index=0, time=0.0):
@@ -299,7 +300,7 @@ def test_a_held_frame_carries_no_motion_on(tmp_path, monkeypatch):
             raise VttsError("the model covers only 0 pixels at 1/1 size")
         return real(self, frame, index, time)
 
-    monkeypatch.setattr(Estimator, "estimate", estimate)
+    monkeypatch.setattr(Tracker, "estimate", estimate)
     monkeypatch.setattr(track_module, "_restart", lambda *a, **k: None)
     tracked = track(_frames(4), fps=25.0, model_path=tmp_path / "m.wrl")
     assert tracked.held == [2]

@@ -252,3 +252,111 @@ def test_a_lit_face_renders_within_a_frame_sooner(cybatt):
     assert tracker._rerender(lit) == tracker_module.LIT_RERENDER_PX
     tracker.rerender = 2.0  # a smaller choice holds for both
     assert tracker._rerender(lit) == tracker._rerender(unlit) == 2.0
+
+
+@pytest.fixture(scope="module")
+def carphone_head(tmp_path_factory):
+    """A head fitted to Carphone's first frame, and the camera it looks through."""
+    folder = tmp_path_factory.mktemp("finish")
+    fitted = track(_carphone(1), fps=30.0, model_path=folder / "car.wrl")
+    return load_model(str(folder / "car.wrl")), fitted.analysis.camera
+
+
+def test_the_accurate_mode_starts_each_frame_on_the_last_frames_final_rendering(
+    carphone_head, monkeypatch
+):
+    """With ``finish`` (the accurate mode of ``track``) a frame after the first is solved on
+    the samples of the last frame's final rendering — no rendering for them, none of the
+    pyramid's coarse levels — then by the finest level, a rendering after every solve; its
+    final rendering gives the next frame's samples, taken at the integer FAPs it shows."""
+    model, camera = carphone_head
+    frames = _carphone(5)
+    est = Tracker(model, size=(176, 144), camera=camera, ignore=FITTED_IGNORED, robust=True,
+                  finish=True)  # fmt: skip
+    factors, sampled = [], []
+    window, sample = Tracker._render_window, Tracker._sample
+
+    def window_spy(self, factor, whole=False):
+        factors.append((factor, whole))
+        return window(self, factor, whole)
+
+    def sample_spy(self, step=1):
+        sampled.append(step)
+        return sample(self, step)
+
+    monkeypatch.setattr(Tracker, "_render_window", window_spy)
+    monkeypatch.setattr(Tracker, "_sample", sample_spy)
+    est.estimate(frames[0], 0)
+    assert {f for f, _ in factors} == {4, 2, 1}  # the first frame: the whole pyramid
+    for i, frame in enumerate(frames[1:], 1):
+        factors.clear()
+        found = est.estimate(frame, i, i / 30.0)
+        finest = [f for f, whole in factors if not whole]
+        assert set(finest) == {1}, factors  # no coarse level
+        assert factors[-1] == (1, True)  # the final rendering
+        assert est.renderings == len(factors), (est.renderings, factors)
+        assert found.iterations > len(finest)  # the samples' solves too
+        s = est._samples
+        values = np.r_[found.params[[u - 1 for u in est.unknowns if not isinstance(u, str)]],
+                       found.translation]  # fmt: skip
+        order = [u for u in est.unknowns if not isinstance(u, str)] + ["tx", "ty", "tz"]
+        assert np.array_equal(s.at, values[[order.index(u) for u in est.unknowns]])
+    assert not sampled  # every frame's samples came from the one before
+    # the same samples as a rendering of them at that estimate gives
+    kept = s
+    est.params[:], est.translation[:] = found.params, found.translation
+    fresh = sample(est, est.sample_step)
+    for s in (fresh, kept):  # to the frame's pixels (the windows may lie a pixel apart)
+        s.rows, s.cols = s.rows + s.box[0].start, s.cols + s.box[1].start
+    np.testing.assert_array_equal(fresh.rows, kept.rows)
+    np.testing.assert_array_equal(fresh.cols, kept.cols)
+    np.testing.assert_allclose(fresh.point, kept.point, atol=1e-4)
+    np.testing.assert_allclose(fresh.motion, kept.motion, rtol=1e-4, atol=1e-6)
+    colors = [s.raw[s.rows - s.box[0].start, s.cols - s.box[1].start] for s in (fresh, kept)]
+    np.testing.assert_allclose(*colors, atol=1.0)  # a window's rasterization, a gray level
+
+
+def test_the_accurate_mode_matches_as_well_as_the_pyramid_with_fewer_renderings(
+    carphone_head,
+):
+    """Carphone's first frames: the samples' solves standing in for the coarse levels leave
+    the face PSNR where the whole pyramid of renderings puts it, for fewer renderings."""
+    model, camera = carphone_head
+    frames = _carphone(7)
+    options = dict(size=(176, 144), camera=camera, ignore=FITTED_IGNORED, robust=True)
+    finish = Tracker(model, finish=True, **options)
+    pyramid = Estimator(model, **options)
+    drawn = []
+    synthesize = pyramid._synthesize
+
+    def counted(*args, **kwargs):
+        drawn.append(1)
+        return synthesize(*args, **kwargs)
+
+    pyramid._synthesize = counted
+    psnr, renderings = [], []
+    for i, frame in enumerate(frames):
+        drawn.clear()
+        a = finish.estimate(frame, i, i / 30.0)
+        b = pyramid.estimate(frame, i, i / 30.0)
+        if i:
+            psnr.append((a.psnr, b.psnr))
+            renderings.append((finish.renderings, len(drawn)))
+    a, b = np.array(psnr).T
+    assert a.mean() >= b.mean() - 0.5 and a.min() >= b.min() - 1.5, psnr
+    ours, theirs = np.array(renderings).sum(axis=0)
+    assert ours <= 0.7 * theirs, renderings
+
+
+def test_track_runs_the_accurate_mode_with_finish(tmp_path, monkeypatch):
+    made = []
+    init = Tracker.__init__
+
+    def spy(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        made.append(self.finish)
+
+    monkeypatch.setattr(Tracker, "__init__", spy)
+    track(_carphone(2), fps=30.0, model_path=tmp_path / "a.wrl")
+    track(_carphone(2), fps=30.0, model_path=tmp_path / "t.wrl", tracking=True)
+    assert made == [True, False]

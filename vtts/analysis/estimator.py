@@ -423,13 +423,26 @@ class Estimator:
                     break
                 best = mismatch
             self._search_from_neutral(full)
-        with self._refining(self._lit_frame()):
-            params, (image, ids) = self._settle(full, index, lambda: self.render(1))
+        return self._final_estimate(full, index, time, solves, self._lit_frame())
+
+    def _final_estimate(self, full: np.ndarray, index: int, time: float, solves: int,
+                        lit: bool) -> FrameEstimate:  # fmt: skip
+        """Frame ``index``'s estimate once the solves (``solves`` of them) are done: the integer
+        FAPs and the search (:meth:`_settle`; the jaw and lip corners too when ``lit``), and the
+        face PSNR of one full-size rendering (:meth:`_final_rendering`) against the camera frame
+        ``full`` ``(H, W, 3) float32``."""
+        with self._refining(lit):
+            params, (image, ids) = self._settle(full, index, self._final_rendering)
         self._shown = ids
         synth = np.clip(np.round(image * self.gain + self.offset), 0, 255)
         mask = ids >= 0
         return self._estimate_of(params, index, time, face_psnr(full, synth, mask),
                                  int(mask.sum()), solves)  # fmt: skip
+
+    def _final_rendering(self) -> tuple[np.ndarray, np.ndarray]:
+        """The full-size rendering a frame's estimate ends with, at the integer FAPs the
+        estimate gives (:meth:`render` at factor 1)."""
+        return self.render(1)
 
     def _lit_frame(self) -> bool:
         """Whether the frame being estimated shows a lit face (:data:`LIT_SHARE`), by the face

@@ -1,7 +1,10 @@
 """Tracking a real person through a camera video: the model, its start and its recoveries.
 
-:func:`track` drives the :class:`~vtts.analysis.estimator.Estimator` over a camera video where
-nothing is known in advance (Eisert & Girod's "Camera sequences"):
+:func:`track` drives the estimator (a :class:`~vtts.analysis.tracker.Tracker`: in the accurate
+mode one that ends every frame with the finest level of the accurate
+:class:`~vtts.analysis.estimator.Estimator`'s pyramid, ``finish``; in the tracking mode one that
+renders about once a frame) over a camera video where nothing is known in advance (Eisert &
+Girod's "Camera sequences"):
 
 1. **The model.** Without one (``model=None``, ``vtts analyze --model auto``), a personalized
    head is fitted to the first frame where a face is found, with ``adi fit``'s code
@@ -133,11 +136,13 @@ def track(
     ``model`` None fits a head on the first frame with a face and writes it to ``model_path``
     (a ``.wrl``; required then). ``camera`` (renderer frame) is for a given model only (default:
     the framing ``vtts render`` uses). ``face``: 1 = the largest face. ``tracking``: the fast
-    :class:`~vtts.analysis.tracker.Tracker` (about one rendering a frame) instead of the accurate
-    :class:`~vtts.analysis.estimator.Estimator`. ``options`` go to the estimator (defaults here:
-    ``robust=True``). BLAS runs on one thread meanwhile (:mod:`vtts.threads`). ``on_estimate``
-    is called with each final estimate as soon as it is made, in frame order, the copies for the
-    frames before the first face included (a fitted head is written by then).
+    :class:`~vtts.analysis.tracker.Tracker` (about one rendering a frame) instead of the
+    accurate mode, the same class with ``finish`` (each frame ends with the accurate
+    estimator's finest level, a rendering after every solve). ``options`` go to the estimator
+    (defaults here: ``robust=True``). BLAS runs on one thread meanwhile (:mod:`vtts.threads`).
+    ``on_estimate`` is called with each final estimate as soon as it is made, in frame order,
+    the copies for the frames before the first face included (a fitted head is written by
+    then).
 
     ``anchor``: with a head to fit, the index of the frame to fit it on (a multiple of
     ``step``; :func:`vtts.analysis.anchor.choose_anchor` picks the most typical one of a video
@@ -182,9 +187,8 @@ def track(
                 _progress(progress, i)
                 continue
             chosen = _choose(faces, face, i, anchor is not None) if faces else None
-            kind = Tracker if tracking else Estimator
             estimator = _start(result, frame, chosen, face, model, model_path, camera, unknowns,
-                               detector, options, kind)  # fmt: skip
+                               detector, {"finish": not tracking, **options})  # fmt: skip
             result.first = before[0][0] if before else i
         fe = _follow(estimator, run, frame, i, t, detector, tracking, result)
         done = [_copy(fe, j, tj) for j, tj in waiting] + [fe]
@@ -289,7 +293,7 @@ def _choose(faces: list, face: int | None, index: int, anchored: bool = False):
 
 
 def _start(result: Tracked, frame, chosen, face, model, model_path, camera, unknowns, detector,
-           options, kind: type[Estimator] = Estimator) -> Estimator:  # fmt: skip
+           options) -> Tracker:  # fmt: skip
     """The estimator for the first frame with a face: a head fitted to it, or ``model`` placed
     on its landmarks."""
     h, w = frame.shape[:2]
@@ -306,9 +310,9 @@ def _start(result: Tracked, frame, chosen, face, model, model_path, camera, unkn
         result.fitted = head.write(model_path)
         result.model = load_model(str(result.fitted[0]))
         options = {"ignore": FITTED_IGNORED, **options}
-        return kind(result.model, size=(w, h), model_camera=head.shape.camera,
+        return Tracker(result.model, size=(w, h), model_camera=head.shape.camera,
                     unknowns=unknowns, **options)  # fmt: skip
-    estimator = kind(model, size=(w, h), camera=camera, unknowns=unknowns, **options)
+    estimator = Tracker(model, size=(w, h), camera=camera, unknowns=unknowns, **options)
     if chosen is None:
         return estimator  # no face seen: the model starts where the camera frames it
     error = placement_error(estimator, chosen.landmarks)
