@@ -360,3 +360,18 @@ def test_track_runs_the_accurate_mode_with_finish(tmp_path, monkeypatch):
     track(_carphone(2), fps=30.0, model_path=tmp_path / "a.wrl")
     track(_carphone(2), fps=30.0, model_path=tmp_path / "t.wrl", tracking=True)
     assert made == [True, False]
+
+
+def test_the_accurate_mode_estimates_a_lit_face_with_the_whole_pyramid(cybatt):
+    """A lit face's shading changes with every move, so the samples' colors go stale: the
+    accurate mode (``finish``) estimates its frames as the estimator does, to the bit."""
+    truth = random_truth(3, 100)[::5][:4]
+    frames = render_sequence(cybatt, truth, size=(352, 288))
+    options = dict(size=(352, 288), unknowns=TABLE1_FAPS, robust=True)
+    finish = Tracker(cybatt, finish=True, **options)
+    pyramid = Estimator(cybatt, **options)
+    for i, frame in enumerate(frames):
+        a, b = finish.estimate(frame, i * 5), pyramid.estimate(frame, i * 5)
+        np.testing.assert_array_equal(a.params, b.params)
+        np.testing.assert_array_equal(a.translation, b.translation)
+        assert finish._samples is None  # none taken from a lit face's rendering

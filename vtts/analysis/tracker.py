@@ -34,7 +34,9 @@ With ``finish`` a :class:`Tracker` is the **accurate mode** of
 the accurate estimator's finest level (a rendering after every solve, as the pyramid ends),
 and the stages' solves on the samples stand in for the pyramid's coarse levels — the samples
 those of the last frame's final rendering, which the frame's estimate renders anyway (its face
-PSNR), so the coarse levels' three or four renderings a frame become none. On the real
+PSNR), so the coarse levels' three or four renderings a frame become none. That holds for a
+face drawn unlit, as a head made for the video is: a lit face's frames (a bundled head) are
+estimated by the whole pyramid, exactly as the estimator does. On the real
 sequences that takes half the time or less of the whole pyramid, and the face PSNR is as good
 or better (docs/analysis.md, "The accurate mode on samples").
 """
@@ -159,7 +161,8 @@ class Tracker(Estimator):
     ``sample_step`` (:data:`SAMPLE_STEP`); ``lit_refine`` is the estimator's, applied on a
     frame whose samples lie on a lit face (:data:`~vtts.analysis.estimator.LIT_SHARE`).
     ``finish``: every frame ends with the estimator's finest level and its final rendering
-    gives the next frame's samples (the accurate mode; the module's docstring)."""
+    gives the next frame's samples; a lit face's frames are estimated by the whole pyramid (the
+    accurate mode; the module's docstring)."""
 
     def __init__(self, *args, stages=STAGES, rerender: float = RERENDER_PX,
                  polish: float = POLISH_PX, sample_step: int = SAMPLE_STEP,
@@ -196,10 +199,14 @@ class Tracker(Estimator):
     @one_blas_thread()
     def estimate(self, frame: np.ndarray, index: int = 0, time: float = 0.0) -> FrameEstimate:
         """Update the estimate to the camera ``frame`` ``(H, W, 3) uint8`` and return it."""
-        if not self._history:
-            self.forget_motion()
+        if not self._history or (self.finish and super()._lit_frame()):
+            # a first frame: the accurate start; with ``finish``, a frame of a lit face (by the
+            # last frame's last solve): the whole pyramid, as the estimator — its shading changes
+            # with every move, and the samples' colors are those of the last rendering
+            if not self._history:
+                self.forget_motion()
             self.renderings = 0
-            return super().estimate(frame, index, time)  # a first frame: the accurate start
+            return super().estimate(frame, index, time)
         frame = np.asarray(frame)
         w, h = self.size
         if frame.shape != (h, w, 3):
@@ -258,8 +265,8 @@ class Tracker(Estimator):
     def _lit_frame(self) -> bool:
         """The first frame's accurate estimate searches no more than the eyelids (the tracking
         mode's synthetic figures were measured so); the other frames decide on their samples
-        (:meth:`estimate`)."""
-        return False
+        (:meth:`estimate`). With :attr:`finish` the accurate estimator's rule."""
+        return self.finish and super()._lit_frame()
 
     def between_frames(self) -> None:
         """Render now, after the estimate went out and before the next frame arrives, when the
@@ -273,12 +280,13 @@ class Tracker(Estimator):
 
     def _final_rendering(self) -> tuple[np.ndarray, np.ndarray]:
         """The frame's final rendering; with :attr:`finish`, its face also gives the samples for
-        the next frame (none where it shows too little of the face: the next frame renders)."""
+        the next frame (none where it shows too little of the face: the next frame renders; none
+        on a lit face, whose next frame takes the whole pyramid)."""
         image, ids = super()._final_rendering()
         if self.finish:
             self._samples = None
             rows, cols = np.nonzero(ids >= 0)
-            if rows.size:
+            if rows.size and not super()._lit_frame():
                 x0, y0, ww, wh = _window_around(rows, cols, self._box_size(), self.size)
                 box = (slice(y0, y0 + wh), slice(x0, x0 + ww))
                 try:
