@@ -311,7 +311,7 @@ def _start(result: Tracked, frame, chosen, face, model, model_path, camera, unkn
         result.model = load_model(str(result.fitted[0]))
         options = {"ignore": FITTED_IGNORED, **options}
         return Tracker(result.model, size=(w, h), model_camera=head.shape.camera,
-                    unknowns=unknowns, **options)  # fmt: skip
+                       unknowns=unknowns, **options)  # fmt: skip
     estimator = Tracker(model, size=(w, h), camera=camera, unknowns=unknowns, **options)
     if chosen is None:
         return estimator  # no face seen: the model starts where the camera frames it

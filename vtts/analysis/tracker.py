@@ -222,8 +222,7 @@ class Tracker(Estimator):
             full = frame.astype(np.float32)
             more, _ = self._descend({1: _smooth(full, self.sigma)}, self.pyramid[-1:])
             self.renderings += more + 1
-            return self._final_estimate(full, index, time, solves + more,
-                                        samples.lit >= LIT_SHARE)  # fmt: skip
+            return self._final_estimate(full, index, time, solves + more, self._lit_frame())
         lit = samples.lit >= LIT_SHARE
         if lit and self._shift(samples) > self.polish:
             # a lit face: the accurate estimator's finest level, a rendering after every solve
