@@ -1482,8 +1482,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--accurate",
         dest="track",
         action="store_false",
-        help="the accurate mode: a rendering after every solve, over a pyramid (the default "
-        "for a video file or folder)",
+        help="the accurate mode: each frame ends with a rendering after every solve at full "
+        "size, started by solves on surface samples (the first frame: the whole pyramid); the "
+        "default for a video file or folder",
     )
     an.add_argument(
         "--fps",
