@@ -68,14 +68,28 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--reach", type=int, default=3, help="largest shift, pixels (default 3)")
     args = ap.parse_args(argv)
 
+    from vtts.analysis.video import read_video
+    from vtts.errors import VttsError
+
+    try:
+        video = read_video(args.video)
+        frames = list(video.frames())
+        result = _measure(args, video, frames)
+    except VttsError as e:  # a bad video, or one without a face: said, no traceback
+        print(f"mc_bound: {args.video}: {e.message}", file=sys.stderr)
+        return 2
+    print(json.dumps(result, indent=1))
+    return 0
+
+
+def _measure(args: argparse.Namespace, video, frames: list[np.ndarray]) -> dict:
+    """The figures of the module's docstring for ``frames`` of ``video`` (a
+    :func:`~vtts.analysis.video.read_video`), as a dict."""
     from vtts.analysis.anchor import choose_anchor
     from vtts.analysis.quality import coverage, decoded_frames
     from vtts.analysis.texture import retexture
     from vtts.analysis.track import track
-    from vtts.analysis.video import read_video
 
-    video = read_video(args.video)
-    frames = list(video.frames())
     h, w = frames[0].shape[:2]
     anchor = choose_anchor(frames, video.fps, len(frames), step=2)
     sums = dict.fromkeys(("decoded", "decoded_block_shifted", "previous_frame",
@@ -108,8 +122,7 @@ def main(argv: list[str] | None = None) -> int:
     result = {"video": args.video.name, "block": args.block, "reach": args.reach,
               "analyzed": stream.n_frames, "anchor": anchor}  # fmt: skip
     result.update({key: round(_psnr(sums[key] / (3 * counts[key])), 2) for key in sums})
-    print(json.dumps(result, indent=1))
-    return 0
+    return result
 
 
 if __name__ == "__main__":

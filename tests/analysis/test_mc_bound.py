@@ -35,3 +35,14 @@ def test_blocks_moved_within_reach_are_found_and_beyond_it_are_not():
     noisy = target.copy()
     noisy[:, :8] += 100.0
     assert mc_bound.block_shifted_sse(noisy, source, mask, block=8, reach=3)[0] == 0.0
+
+
+def test_a_bad_video_is_a_clear_error(tmp_path, capsys):
+    missing = tmp_path / "nope.mp4"
+    assert mc_bound.main([str(missing)]) == 2
+    err = capsys.readouterr().err
+    assert "nope.mp4" in err and "Traceback" not in err
+    broken = tmp_path / "broken.mp4"
+    broken.write_bytes(b"not a video")
+    assert mc_bound.main([str(broken)]) == 2
+    assert "broken.mp4" in capsys.readouterr().err
