@@ -31,7 +31,7 @@ TARGET_S = 0.5
 def _demo():
     from vtts.animate.timeline import build_timeline
     from vtts.face import load_model
-    from vtts.speech.say import prepare_utterance
+    from vtts.utterance import prepare_utterance
 
     model = load_model("cybatt")
     utt = prepare_utterance(TEXT.read_text(encoding="utf-8"))

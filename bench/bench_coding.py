@@ -311,7 +311,7 @@ def _real_say_rows() -> list[dict]:
     from vtts.animate.timeline import build_timeline, timeline_stream
     from vtts.face import bundled_models, load_model
     from vtts.fap.coding import PAPER_17
-    from vtts.speech.say import prepare_utterance
+    from vtts.utterance import prepare_utterance
 
     if "cybatt" not in bundled_models():  # pragma: no cover - the models ship with vtts
         return []

@@ -32,7 +32,7 @@ TARGET_MB = 5.0
 def _timelines(names: list[str]):
     from vtts.animate.timeline import build_timeline
     from vtts.face import load_model
-    from vtts.speech.say import prepare_utterance
+    from vtts.utterance import prepare_utterance
 
     models = [load_model(n) for n in names]
     utt = prepare_utterance(TEXT.read_text(encoding="utf-8"))

@@ -77,7 +77,7 @@ def run() -> list[dict]:
     from vtts.animate.timeline import build_timeline
     from vtts.face import load_model
     from vtts.render import DETAIL_PX, FaceRenderer
-    from vtts.speech.say import prepare_utterance
+    from vtts.utterance import prepare_utterance
 
     model_name = _model()
     stem = Path(model_name).stem
@@ -156,7 +156,7 @@ def _detail_rows(model, stem: str) -> list[dict]:
     from vtts.animate.timeline import build_timeline
     from vtts.render import DETAIL_PX, FaceRenderer
     from vtts.render.renderer import lod_key, make_progressive
-    from vtts.speech.say import prepare_utterance
+    from vtts.utterance import prepare_utterance
 
     utt = prepare_utterance(TEXT_10S)
     tl = build_timeline(model, utt.phones, utt.bookmarks, utt.duration)
@@ -312,7 +312,7 @@ def _say_steps(text: str, model_name: str, output: str, started: float) -> dict:
     from vtts.fap import write_fap  # noqa: F401
     from vtts.render import DETAIL_PX, FaceRenderer, VideoWriter, write_wav
     from vtts.render import renderer as _renderer
-    from vtts.speech.say import prepare_utterance
+    from vtts.utterance import prepare_utterance
 
     lap("import")
     model = load_model(model_name)

@@ -38,7 +38,7 @@ def _web_folder(names: list[str], out: Path) -> tuple[Path, float]:
     from vtts.export.web import write_web
     from vtts.face import load_model
     from vtts.render import write_wav
-    from vtts.speech.say import prepare_utterance
+    from vtts.utterance import prepare_utterance
 
     models = [load_model(n) for n in names]
     known = {x.name for m in models for x in m.tables.adts if x.kind == "expression"}

@@ -728,7 +728,7 @@ def _speak_and_set_up(args, text: str, models: list, known: set[str]):
     from concurrent.futures import ThreadPoolExecutor
 
     from vtts.animate.timeline import build_timeline
-    from vtts.speech.say import prepare_utterance
+    from vtts.utterance import prepare_utterance
 
     def speak():
         utt = prepare_utterance(
@@ -832,7 +832,7 @@ def _say(args, models, utt, timelines, renderer, track, written) -> int:
     from vtts.animate.timeline import timeline_stream
     from vtts.fap import write_fap
     from vtts.render import PngSequenceWriter, VideoWriter, progress, write_wav
-    from vtts.speech.say import write_utterance_timings
+    from vtts.utterance import write_utterance_timings
 
     for m in models:
         shown = {x.name for x in m.tables.adts if x.kind == "expression"}

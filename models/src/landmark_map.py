@@ -31,9 +31,9 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 
 from vtts import load_model  # noqa: E402
-from vtts.analysis.raster import ray_barycentrics  # noqa: E402
 from vtts.fit.generic import LANDMARK_TABLE  # noqa: E402
 from vtts.fit.landmarks import FACE_OVAL, MediaPipeDetector  # noqa: E402
+from vtts.mesh import ray_barycentrics  # noqa: E402
 from vtts.render import FaceRenderer  # noqa: E402
 from vtts.render.camera import Camera, look_at  # noqa: E402
 from vtts.vrml import triangulate  # noqa: E402

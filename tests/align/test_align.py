@@ -22,8 +22,8 @@ from vtts.render import probe_media
 from vtts.speech import festival
 from vtts.speech.audio import resample
 from vtts.speech.bookmarks import parse_bookmarks
-from vtts.speech.say import prepare_utterance
 from vtts.speech.tts import synthesize
+from vtts.utterance import prepare_utterance
 
 HEAD = Path(__file__).parents[1] / "data" / "models" / "head.wrl"
 #: Rich in bilabials, with a comma's pause.

@@ -10,7 +10,6 @@ import vtts
 from vtts.analysis import TABLE1_FAPS, Estimator, analyze, face_psnr
 from vtts.analysis.estimator import PYRAMID
 from vtts.analysis.geometry import HeadGeometry
-from vtts.analysis.raster import ray_barycentrics
 from vtts.analysis.synthetic import (
     TABLE1_EXTREMES,
     random_truth,
@@ -23,6 +22,7 @@ from vtts.analysis.unknowns import HEAD_MOTION
 from vtts.errors import VttsError
 from vtts.face import N_PARAMS
 from vtts.fap.stream import format_fap, parse_fap
+from vtts.mesh import ray_barycentrics
 from vtts.render.camera import Camera
 from vtts.render.renderer import FaceRenderer
 

@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from vtts.animate.timeline import (
-    TimedPhone,
     build_timeline,
     closure,
     timeline_stream,
@@ -18,6 +17,7 @@ from vtts.face import load_model
 from vtts.face.miap import EXPRESSION_BASE, VISEME_BASE
 from vtts.fap import format_fap, parse_fap
 from vtts.speech.bookmarks import Bookmark
+from vtts.speech.timings import TimedPhone
 
 HEAD = Path(__file__).parents[1] / "data" / "models" / "head.wrl"
 

@@ -8,7 +8,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vtts.animate.timeline import TimedPhone
 from vtts.avatar import ARKIT_NAMES, OCULUS_VISEMES, recipes
 from vtts.avatar.arkit import ARKIT_INDEX
 from vtts.avatar.curves import (
@@ -23,7 +22,7 @@ from vtts.avatar.curves import (
 from vtts.avatar.sapi import FROM_MPEG4, sapi_viseme
 from vtts.errors import AvatarError
 from vtts.face.miap import EXPRESSION_BASE, N_PARAMS, VISEME_BASE
-from vtts.speech.timings import TimedWord
+from vtts.speech.timings import TimedPhone, TimedWord
 
 FPS = 25.0
 

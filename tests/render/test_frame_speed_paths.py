@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 from vtts.face import load_model
+from vtts.mesh import vertex_normals
 from vtts.render import FaceRenderer
 from vtts.render.mipmaps import mip_levels, power_of_two
-from vtts.render.renderer import _offscreen, _pr, vertex_normals
+from vtts.render.renderer import _offscreen, _pr
 
 
 def _speaking(model, n: int = 14) -> list[np.ndarray]:
@@ -66,7 +67,7 @@ def test_points_many_is_deform():
 
 
 def test_vertex_normals_of_many_shapes_are_each_shapes():
-    from vtts.render.renderer import _incidence
+    from vtts.mesh import incidence as _incidence
 
     rng = np.random.default_rng(0)
     faces = rng.integers(0, 40, (70, 3))

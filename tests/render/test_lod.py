@@ -185,7 +185,8 @@ def test_a_larger_view_draws_more_triangles(tmp_path, monkeypatch):
 
 
 def test_normals_only_where_triangles_are_drawn_are_the_full_meshs():
-    from vtts.render.renderer import _normals, vertex_normals
+    from vtts.mesh import vertex_normals
+    from vtts.render.renderer import _normals
 
     model = load_model("cybatt")
     with FaceRenderer(model, detail=0.5) as r:

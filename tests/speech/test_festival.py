@@ -16,7 +16,7 @@ from vtts.errors import SpeechError
 from vtts.render import probe_media
 from vtts.speech import festival
 from vtts.speech.festival import PHONE_SET, SILENCES, festival_viseme, synthesize
-from vtts.speech.say import prepare_utterance
+from vtts.utterance import prepare_utterance
 
 HEAD = Path(__file__).parents[1] / "data" / "models" / "head.wrl"
 TEXT = "Hello <smile 1s> my name is Bob. Maybe <blink> we meet at 3 pm, Dr. Müller."

@@ -15,7 +15,7 @@ from vtts.face import load_model
 from vtts.face.miap import EXPRESSION_BASE
 from vtts.fap import read_fap
 from vtts.render import probe_media
-from vtts.speech.say import prepare_utterance
+from vtts.utterance import prepare_utterance
 
 HEAD = Path(__file__).parents[1] / "data" / "models" / "head.wrl"
 TEXT = "Hello <smile 1s> my name is Bob. <surprise 0.5s 0.7> Maybe <blink> we meet."

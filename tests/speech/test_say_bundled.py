@@ -8,7 +8,7 @@ import pytest
 from vtts.animate.timeline import build_timeline
 from vtts.face import load_model
 from vtts.face.miap import EXPRESSION_BASE, N_PARAMS
-from vtts.speech.say import prepare_utterance
+from vtts.utterance import prepare_utterance
 
 TEXT = "<surprise 3s> My mom bought a big map, maybe a bamboo boat, by the pub."
 

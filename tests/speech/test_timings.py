@@ -11,13 +11,12 @@ from pathlib import Path
 
 import pytest
 
-from vtts.animate.timeline import TimedPhone
 from vtts.errors import SpeechError, VttsWarning
 from vtts.limits import LimitError
 from vtts.render import write_wav
 from vtts.speech.phonemes import read_phoneme_file
-from vtts.speech.say import prepare_utterance, write_utterance_timings
-from vtts.speech.timings import HEADER, TimedWord, format_timings, word_ends
+from vtts.speech.timings import HEADER, TimedPhone, TimedWord, format_timings, word_ends
+from vtts.utterance import prepare_utterance, write_utterance_timings
 
 HEAD = Path(__file__).parents[1] / "data" / "models" / "head.wrl"
 TEXT = 'Hello <smile 1s> my name is Bob, and 123 "friends". Maybe <blink> we meet.'

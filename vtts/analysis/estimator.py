@@ -6,9 +6,10 @@ sense over all face pixels. Each pixel gives, per color channel, the optical-flo
 (Equation 10) with the image motion written as a linear function of the parameter changes
 (Equations 14–15, 16): the pixel's 3D point moves by ``T · ΔFAP`` (Equation 9), where T combines
 the model's per-vertex motion (:mod:`vtts.analysis.geometry`) with the pixel's barycentric
-coordinates in the triangle it shows (:mod:`vtts.analysis.raster`), and the depth comes from the
-model. Because the estimate is always made between the camera frame and the model rendered with
-the current parameters — never between two camera frames — errors do not accumulate.
+coordinates in the triangle it shows (:func:`vtts.mesh.ray_barycentrics`), and the depth comes
+from the model. Because the estimate is always made between the camera frame and the model
+rendered with the current parameters — never between two camera frames — errors do not
+accumulate.
 
 A three-level pyramid (88×72, 176×144, 352×288 for CIF: moving-average subsampling, then a
 Gaussian filter on both images) handles large motion; pixels whose displacement estimate
@@ -34,7 +35,6 @@ import numpy as np
 from scipy.ndimage import binary_erosion, gaussian_filter
 
 from vtts.analysis.geometry import HeadGeometry
-from vtts.analysis.raster import ray_barycentrics
 from vtts.analysis.result import TRANSLATION, Analysis, FrameEstimate
 from vtts.analysis.unknowns import (  # noqa: F401
     DEFAULT_UNKNOWNS,
@@ -46,6 +46,7 @@ from vtts.analysis.unknowns import (  # noqa: F401
 )
 from vtts.errors import VttsError
 from vtts.face import N_PARAMS, FaceModel
+from vtts.mesh import ray_barycentrics
 from vtts.render.camera import Camera
 from vtts.render.renderer import FaceRenderer
 from vtts.threads import one_blas_thread

@@ -29,6 +29,7 @@ import numpy as np
 from vtts.face.miap import EXPRESSION_BASE, N_PARAMS, VISEME_BASE, Miap
 from vtts.fap import FapStream
 from vtts.speech.bookmarks import Bookmark
+from vtts.speech.timings import TimedPhone
 
 VOWEL_VISEMES = frozenset({10, 11, 12, 13, 14})
 BILABIAL = 1
@@ -36,16 +37,6 @@ BILABIAL = 1
 MOUTH_FAPS = (3, 4, 5, 8, 9, 10, 11, 16, 17, 51, 52, 55, 56, 57, 58)
 #: Ramp time of a ``<fap …>`` bookmark's values, s.
 FAP_RAMP = 0.12
-
-
-@dataclass
-class TimedPhone:
-    """A phone in the audio's clock: ``start``/``end`` in s, its MPEG-4 ``viseme`` (0–14)."""
-
-    start: float
-    end: float
-    viseme: int
-    phoneme: str = ""
 
 
 @dataclass

@@ -161,7 +161,7 @@ def viseme_segments(
 ) -> list[VisemeSegment]:
     """The viseme track as segments covering ``0 … n / fps`` s: from ``phones`` (objects with
     ``start``, ``end`` in s, ``viseme`` and ``phoneme``, such as
-    :class:`~vtts.animate.timeline.TimedPhone`) when given, else from each frame's strongest
+    :class:`~vtts.speech.timings.TimedPhone`) when given, else from each frame's strongest
     Oculus viseme. Gaps between phones are silence (viseme 0)."""
     p = _params(params)
     duration = p.shape[0] / fps

@@ -40,7 +40,6 @@ from vtts.export.morph import (
     MorphTargets,
     VertexLayout,
     gather,
-    incidence,
     morph_targets,
     unit_normals,
     vertex_layout,
@@ -48,6 +47,7 @@ from vtts.export.morph import (
 from vtts.export.scene import HeadScene, Placement, SceneNode, ShapeItem, place
 from vtts.face import N_PARAMS, FaceModel
 from vtts.limits import MAX_FPS, MAX_FRAMES, MIN_FPS, check_image_size
+from vtts.mesh import incidence
 from vtts.render.camera import Camera
 from vtts.vrml import Node, rotation_matrix
 

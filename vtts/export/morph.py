@@ -29,6 +29,7 @@ import scipy.sparse as sp
 from vtts.errors import FapError
 from vtts.face.miap import Miap
 from vtts.fap import fap
+from vtts.mesh import incidence, vertex_normals
 from vtts.vrml import TriangleMesh
 
 #: Normal deltas of a morph target smaller than this (in every component) are left out. Summing
@@ -126,21 +127,11 @@ def gather(values: np.ndarray, layout: VertexLayout, fill: float | np.ndarray = 
 
 def unit_normals(positions: np.ndarray, faces: np.ndarray, incidence: sp.csr_matrix) -> np.ndarray:
     """Area-weighted unit vertex normals ``(V, 3)`` as the renderer computes them for animated
-    meshes (:func:`vtts.render.vertex_normals`), +z where a vertex has none (no face, or only
+    meshes (:func:`vtts.mesh.vertex_normals`), +z where a vertex has none (no face, or only
     degenerate ones: glTF wants unit normals)."""
-    from vtts.render.renderer import vertex_normals
-
     n = vertex_normals(positions, faces, incidence)
     n[~(np.abs(n).sum(axis=1) > 0)] = (0.0, 0.0, 1.0)
     return n
-
-
-def incidence(faces: np.ndarray, n_vertices: int) -> sp.csr_matrix:
-    """``(V, m)``: which triangles touch each vertex."""
-    m = faces.shape[0]
-    return sp.csr_matrix(
-        (np.ones(3 * m), (faces.reshape(-1), np.repeat(np.arange(m), 3))), shape=(n_vertices, m)
-    )
 
 
 # ---- targets -------------------------------------------------------------------------------------

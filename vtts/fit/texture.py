@@ -29,8 +29,8 @@ import numpy as np
 from PIL import Image
 from scipy import ndimage
 
-from vtts.analysis.raster import ray_barycentrics
 from vtts.face.atlas import EAR_TILE, EYE_TILE, GAMMA, INSET, SKIN_TILE
+from vtts.mesh import ray_barycentrics
 from vtts.render.camera import Camera
 from vtts.vrml import triangulate
 

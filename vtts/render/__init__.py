@@ -30,7 +30,7 @@ from vtts.render.output import (
     write_png,
     write_wav,
 )
-from vtts.render.renderer import DETAIL_PX, FaceRenderer, vertex_normals, warm_up
+from vtts.render.renderer import DETAIL_PX, FaceRenderer, warm_up
 
 __all__ = [
     "AacTrack",
@@ -47,7 +47,6 @@ __all__ = [
     "parse_color",
     "probe_media",
     "progress",
-    "vertex_normals",
     "viewpoint_fields",
     "viewpoints",
     "warm_up",

@@ -28,6 +28,7 @@ from vtts.deferred import defer_package
 from vtts.errors import RenderError, VttsError
 from vtts.face import N_PARAMS, FaceModel
 from vtts.limits import MAX_IMAGE_SIDE, MAX_RENDER_PIXELS, check_image_size
+from vtts.mesh import incidence, vertex_normals
 from vtts.render import lod
 from vtts.render.camera import Camera, find_viewpoint, frame_bounds, row_layout
 from vtts.render.color import TRANSPARENT, parse_background
@@ -260,33 +261,6 @@ class _ModelInstance:
     detail_points: dict | None = None
 
 
-def vertex_normals(
-    positions: np.ndarray, faces: np.ndarray, incidence: sp.csr_matrix
-) -> np.ndarray:
-    """Area-weighted unit vertex normals ``(n, 3)`` from ``positions (n, 3)`` and
-    ``faces (m, 3)``, summing over each vertex's triangles through ``incidence (n, m)``; for
-    ``positions (T, n, 3)``, the normals of each of the T shapes ``(T, n, 3)``, the same
-    numbers as one by one (one sparse product for all)."""
-    single = positions.ndim == 2
-    p = positions[None] if single else positions
-    # np.cross on gathered (m, 3, 3) corners, computed per coordinate on contiguous columns:
-    # the same arithmetic (so the same bits), without the strided gathers
-    x, y, z = (np.ascontiguousarray(p[..., k]) for k in range(3))  # (T, n)
-    i0, i1, i2 = faces[:, 0], faces[:, 1], faces[:, 2]
-    ax, ay, az = x[:, i0], y[:, i0], z[:, i0]
-    ux, uy, uz = x[:, i1] - ax, y[:, i1] - ay, z[:, i1] - az
-    vx, vy, vz = x[:, i2] - ax, y[:, i2] - ay, z[:, i2] - az
-    t = p.shape[0]
-    fn = np.empty((faces.shape[0], t, 3))  # triangle-major: one product sums them all
-    fn[:, :, 0] = (uy * vz - uz * vy).T
-    fn[:, :, 1] = (uz * vx - ux * vz).T
-    fn[:, :, 2] = (ux * vy - uy * vx).T
-    vn = (incidence @ fn.reshape(faces.shape[0], 3 * t)).reshape(-1, t, 3).transpose(1, 0, 2)
-    norm = np.linalg.norm(vn, axis=2, keepdims=True)
-    out = np.divide(vn, norm, out=np.zeros_like(vn), where=norm > 0)
-    return out[0] if single else out
-
-
 def _normals(am: _AnimatedMesh, positions: np.ndarray) -> np.ndarray:
     """An animated mesh's vertex normals for ``positions`` (``(n, 3)`` or ``(T, n, 3)``, as
     :func:`vertex_normals`) from the template's triangles. With fewer triangles drawn (see
@@ -299,13 +273,6 @@ def _normals(am: _AnimatedMesh, positions: np.ndarray) -> np.ndarray:
     # the triangles' corners index the whole vertex list; the incidence's rows are the used ones
     out[..., used, :] = vertex_normals(positions, faces, incidence)
     return out
-
-
-def _incidence(faces: np.ndarray, n_vertices: int) -> sp.csr_matrix:
-    m = faces.shape[0]
-    rows = faces.reshape(-1)
-    cols = np.repeat(np.arange(m), 3)
-    return sp.csr_matrix((np.ones(rows.size), (rows, cols)), shape=(n_vertices, m))
 
 
 class FaceRenderer:
@@ -559,7 +526,7 @@ class FaceRenderer:
             node = self.scene.add(mesh, parent_node=parent)
             pts = tm.positions
             if geom.name in animated:
-                inc = _incidence(tm.faces, tm.positions.shape[0])
+                inc = incidence(tm.faces, tm.positions.shape[0])
                 inst.meshes.append(
                     _AnimatedMesh(
                         geom.name,

@@ -26,13 +26,23 @@ from typing import Protocol
 
 from vtts.atomic import write_text
 
-__all__ = ["HEADER", "TimedWord", "format_timings", "word_ends", "write_timings"]
+__all__ = ["HEADER", "TimedPhone", "TimedWord", "format_timings", "word_ends", "write_timings"]
 
 #: The header line's columns.
 HEADER = ("kind", "start", "end", "label", "viseme")
 #: Characters a label cannot hold in a TSV cell (each becomes one space, then runs of spaces an
 #: underscore, so that a label stays one field).
 _SEPARATORS = re.compile(r"[\t\r\n\v\f\x1c-\x1f\x85\u2028\u2029 ]+")
+
+
+@dataclass
+class TimedPhone:
+    """A phone in the audio's clock: ``start``/``end`` in s, its MPEG-4 ``viseme`` (0–14)."""
+
+    start: float
+    end: float
+    viseme: int
+    phoneme: str = ""
 
 
 @dataclass(frozen=True)
@@ -57,7 +67,7 @@ def _label(text: str) -> str:
 
 def format_timings(phones: Sequence[_Phone], words: Sequence[TimedWord] = ()) -> str:
     """The table (see the module docstring) of ``phones`` (anything with ``start``, ``end``,
-    ``phoneme`` and ``viseme``, e.g. :class:`~vtts.animate.timeline.TimedPhone`) and ``words``."""
+    ``phoneme`` and ``viseme``, e.g. :class:`TimedPhone`) and ``words``."""
     rows: list[tuple[float, int, str]] = []
     for w in words:
         line = f"word\t{w.start:.4f}\t{w.end:.4f}\t{_label(w.label)}\t-"

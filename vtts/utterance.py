@@ -3,7 +3,8 @@
 ``prepare_utterance`` runs the bookmark parser, then a speech engine (espeak-ng, with its own
 phoneme, word and mark events, or festival, with its utterance structure, both in the audio's
 clock) or another engine's timings (``--phonemes FILE`` with its audio), and returns what the
-timeline needs. It knows nothing about models or rendering.
+timeline needs. It knows nothing about models or rendering; it sits above `vtts.speech` and
+`vtts.align` (a recording with its transcript is aligned), which both import nothing of it.
 """
 
 from __future__ import annotations
@@ -16,11 +17,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from vtts.animate.timeline import TimedPhone
 from vtts.errors import SpeechError, VttsWarning
 from vtts.speech.audio import read_for_mp4
 from vtts.speech.bookmarks import Bookmark, BookmarkedText, parse_bookmarks
-from vtts.speech.timings import TimedWord, write_timings
+from vtts.speech.timings import TimedPhone, TimedWord, write_timings
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
