@@ -40,14 +40,14 @@ def _row(case: str, value: float, unit: str, target: str = "", ok: bool | None =
 def streamed(stream, quantizer: float = 1.0) -> tuple[bytes, float, float]:
     """``stream`` coded frame by frame: the bytes, and the mean seconds a frame takes to encode
     and to decode."""
-    from vtts.fap.coding import StreamDecoder, StreamEncoder, _frame_of, paired_predictors
+    from vtts.fap.coding import StreamDecoder, StreamEncoder, frame_of, paired_predictors
 
     faps = sorted(set(np.flatnonzero(stream.mask.any(axis=0)) + 1))
     const = bool(stream.mask[:, [k - 1 for k in faps]].all())
     enc = StreamEncoder(fps=stream.fps, faps=faps, quantizer=quantizer, name=stream.name,
                         translation=stream.translation is not None, constant_mask=const,
                         predictors=paired_predictors(faps))  # fmt: skip
-    frames = [_frame_of(stream, i) for i in range(stream.n_frames)]
+    frames = [frame_of(stream, i) for i in range(stream.n_frames)]
     parts = [enc.header()]
     start = time.perf_counter()
     for f in frames:

@@ -18,7 +18,7 @@ import pytest
 from vtts.analysis.video import read_pipe
 from vtts.errors import AnalysisError
 from vtts.fap import FapStream
-from vtts.fap.coding import PAPER_17, StreamEncoder, _frame_of, decode, encode, paired_predictors
+from vtts.fap.coding import PAPER_17, StreamEncoder, decode, encode, frame_of, paired_predictors
 from vtts.render import probe_media
 
 DATA = Path(__file__).parents[1] / "data"
@@ -53,7 +53,7 @@ def streamed(s: FapStream) -> list[bytes]:
         constant_mask=True,
         predictors=paired_predictors(PAPER_17),
     )
-    return [enc.header(), *(enc.frames(_frame_of(s, i)) for i in range(s.n_frames)), enc.end()]
+    return [enc.header(), *(enc.frames(frame_of(s, i)) for i in range(s.n_frames)), enc.end()]
 
 
 def pngs(folder: Path) -> list[bytes]:

@@ -24,7 +24,6 @@ from vtts.fap.coding import (
     MAX_CODE_LENGTH,
     MAX_INDEX,
     PAPER_17,
-    _pack_header,
     decode,
     encode,
     error_stats,
@@ -34,6 +33,7 @@ from vtts.fap.coding import (
     reconstruct,
     source_stream,
 )
+from vtts.fap.coding.header import pack_header
 
 DATA = Path(__file__).resolve().parent.parent / "data" / "fap"
 REAL = sorted(DATA.glob("*.fap"))
@@ -260,7 +260,9 @@ def test_steps_are_stored_not_looked_up(monkeypatch: pytest.MonkeyPatch) -> None
     from vtts.fap import coding
 
     changed = tuple(dataclasses.replace(f, quant_step=99) for f in FAPS)
-    monkeypatch.setattr(coding, "FAPS", changed)
+    for module in vars(coding).values():  # wherever the package looks the table up
+        if getattr(module, "FAPS", None) is FAPS:
+            monkeypatch.setattr(module, "FAPS", changed)
     assert decode(data).values[:, 2].tolist() == [0.0, 8.0, 20.0]
 
 
@@ -382,7 +384,7 @@ def crafted(data: bytes, **changes) -> bytes:
     beyond the CRCs can find."""
     h = read_header(data)
     payload = data[h.header_size : -4]
-    return _pack_header(dataclasses.replace(h, **changes), len(payload)) + data[h.header_size :]
+    return pack_header(dataclasses.replace(h, **changes), len(payload)) + data[h.header_size :]
 
 
 def test_crafted_headers_that_pass_the_crc() -> None:
