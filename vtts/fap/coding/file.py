@@ -9,6 +9,7 @@ streamed one's packets (:mod:`~vtts.fap.coding.packets`) each against its CRC-8 
 
 from __future__ import annotations
 
+import io
 import struct
 import zlib
 from collections.abc import Iterable, Iterator, Mapping
@@ -33,6 +34,7 @@ from vtts.fap.coding.packets import Packets, frame_of
 from vtts.fap.coding.quantizer import assemble, grid_steps, prepare
 from vtts.fap.coding.range_coder import RangeReader, RangeWriter, choose_predictors
 from vtts.fap.stream import FapStream
+from vtts.limits import MAX_FBS_BYTES
 
 
 def encode(
@@ -113,8 +115,6 @@ def decode(data: bytes, *, file: str | None = None) -> FapStream:
         raise CodingError(f"expected bytes, got {type(data).__name__}", file=file)
     cur = Cursor(bytes(data), file)
     if parse_header(cur).stream:
-        import io
-
         dec = StreamDecoder(io.BytesIO(bytes(data)), file=file)
         rows = list(dec.rows())
         return _assemble_rows(dec.header, rows, dec.header.first_frame, file)
@@ -188,8 +188,6 @@ class StreamDecoder:
         self.header = parse_header(self._cur)
         self._whole: FapStream | None = None
         if not self.header.stream:
-            from vtts.limits import MAX_FBS_BYTES
-
             rest = read_up_to(source, MAX_FBS_BYTES + 1 - len(self._cur.data))
             data = self._cur.data + rest
             if len(data) > MAX_FBS_BYTES:
