@@ -41,11 +41,11 @@ import numpy as np
 
 from vtts.avatar.arkit import OCULUS_VISEMES, RecipeTable, recipes
 from vtts.avatar.names import match_names, name_key
-from vtts.avatar.reader import GltfAsset, Image, Material, Primitive
 from vtts.errors import AvatarError, VttsError, VttsWarning
 from vtts.face.adt import Adt, AnimationTables, MeshTable, TransformTable
 from vtts.face.miap import Miap
 from vtts.fap import AU
+from vtts.gltf import GLTF_SUFFIXES, GltfReader, Image, Material, Primitive
 from vtts.vrml import Node, Scene, standard_node_types
 
 #: Target displacements smaller than this fraction of the mesh's size are left out of tables.
@@ -134,7 +134,12 @@ def import_avatar(path: str | Path, *, table: RecipeTable | None = None) -> Impo
     docstring). ``table``: the recipe table (default: vtts's, :func:`vtts.avatar.recipes`).
     Raises :class:`~vtts.errors.AvatarError` for a file that cannot be imported; warns
     (:class:`~vtts.errors.VttsWarning`) about unknown target names and dropped textures."""
-    asset = GltfAsset(path)
+    path = Path(path)
+    if path.suffix.lower() not in GLTF_SUFFIXES:
+        raise AvatarError(
+            f"an avatar is a .glb or .gltf file, not {path.suffix or 'no suffix'}", file=str(path)
+        )
+    asset = GltfReader(path, error=AvatarError)
     try:
         return _Importer(asset, table or recipes()).run()
     except VttsError as e:
@@ -150,7 +155,7 @@ def import_avatar(path: str | Path, *, table: RecipeTable | None = None) -> Impo
 
 
 class _Importer:
-    def __init__(self, asset: GltfAsset, table: RecipeTable) -> None:
+    def __init__(self, asset: GltfReader, table: RecipeTable) -> None:
         self.asset = asset
         self.table = table
         self.types = standard_node_types()
