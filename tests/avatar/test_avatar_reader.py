@@ -388,9 +388,9 @@ def test_fap_tables_follow_the_recipe(tmp_path):
      ("eyelash_L", None), ("EyelidLeft", None), ("Eyebrow.L", None), ("Head", None)],
 )  # fmt: skip
 def test_eye_names(name, side):
-    from vtts.avatar.importer import _eye_side
+    from vtts.avatar.names import eye_side
 
-    assert _eye_side(name) == side
+    assert eye_side(name) == side
 
 
 def _sphere(n: int = 8, radius: float = 0.1):

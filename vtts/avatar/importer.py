@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from vtts.avatar.arkit import OCULUS_VISEMES, RecipeTable, recipes
-from vtts.avatar.names import match_names, name_key
+from vtts.avatar.names import eye_side, match_names
 from vtts.errors import AvatarError, VttsError, VttsWarning
 from vtts.face.adt import Adt, AnimationTables, MeshTable, TransformTable
 from vtts.face.miap import Miap
@@ -55,7 +55,6 @@ MAX_DEPTH = 128
 #: Eye FAPs: (yaw, pitch) per eye.
 EYE_FAPS = {"left": (23, 25), "right": (24, 26)}
 
-_EYE_KEY = re.compile(r"^(?:(left|l)?eye(?:ball)?(left|l|right|r)?|(right|r)eye(?:ball)?)$")
 _VRML_ID = re.compile(r"[^A-Za-z0-9_]")
 
 
@@ -243,10 +242,10 @@ class _Importer:
         children: list[Node] = []
         if gn.mesh is not None:
             mesh = self.asset.mesh(gn.mesh)
-            eye = _eye_side(gn.name) or _eye_side(mesh.name)
+            eye = eye_side(gn.name) or eye_side(mesh.name)
             if gn.skin is not None:
                 joints = self._skin_joint_names(gn.skin)
-                eye = eye or (_eye_side(joints[0]) if len(joints) == 1 else None)
+                eye = eye or (eye_side(joints[0]) if len(joints) == 1 else None)
                 start = len(self.face_sets)
                 shapes = self._shapes(mesh, gn, eye, skin=gn.skin)
                 top_level.append(self._eye_wrap(shapes, eye, np.eye(4), start) if eye else
@@ -647,18 +646,3 @@ def _trs(m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     angle = float(np.linalg.norm(rv))
     r = np.r_[rv / angle, angle] if angle > 1e-12 else np.array([0.0, 0.0, 1.0, 0.0])
     return np.round(t, 9) + 0.0, np.round(r, 9) + 0.0, np.round(s, 9) + 0.0
-
-
-def _eye_side(name: str | None) -> str | None:
-    """``"left"``/``"right"`` when ``name`` names an eyeball (``EyeLeft``, ``eye_L``,
-    ``LeftEye``, ``Eye.R``, ``eyeball_l``), else None."""
-    if not name:
-        return None
-    key = name_key(str(name).replace(".", "_"))
-    m = _EYE_KEY.match(key.replace("left", "l").replace("right", "r"))
-    if not m:
-        return None
-    side = m.group(1) or m.group(2) or m.group(3)
-    if side is None:
-        return None
-    return "left" if side.startswith("l") else "right"
