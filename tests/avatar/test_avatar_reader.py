@@ -381,18 +381,6 @@ def test_fap_tables_follow_the_recipe(tmp_path):
 # ---- node tree, skins, eyes -------------------------------------------------------------------
 
 
-@pytest.mark.parametrize(
-    "name,side",
-    [("EyeLeft", "left"), ("LeftEye", "left"), ("eye_L", "left"), ("Eye.R", "right"),
-     ("L_EYEBALL", "left"), ("eyeball_right", "right"), ("EYE_R", "right"), ("Eye", None),
-     ("eyelash_L", None), ("EyelidLeft", None), ("Eyebrow.L", None), ("Head", None)],
-)  # fmt: skip
-def test_eye_names(name, side):
-    from vtts.avatar.names import eye_side
-
-    assert eye_side(name) == side
-
-
 def _sphere(n: int = 8, radius: float = 0.1):
     """The front half of a sphere around the origin: positions, triangles."""
     th, ph = np.meshgrid(np.linspace(0, np.pi / 2, n), np.linspace(0, 2 * np.pi, n))
