@@ -244,3 +244,12 @@ def test_local_files_stay_in_the_folder(tmp_path):
     for uri in ["../secret.bin", str(tmp_path / "secret.bin"), "link.bin", "http://x/a.bin",
                 "C:/a.bin", "sub", "missing.bin"]:  # fmt: skip
         assert local_file(uri, folder) is None, uri
+
+
+@pytest.mark.parametrize("n_vertices, component", [(65535, 5123), (65536, 5125)])
+def test_triangle_indices_are_16_bit_while_they_fit(n_vertices, component):
+    """65535 is the primitive restart value of 16-bit indices, which glTF forbids as an index."""
+    b = BufferBuilder()
+    acc = b.accessors[b.indices(np.array([[0, 1, 2]]), n_vertices)]
+    assert acc.componentType == component and acc.count == 3
+    assert b.views[acc.bufferView].target == 34963  # ELEMENT_ARRAY_BUFFER

@@ -28,13 +28,7 @@ from vtts.export.morph import gather, vertex_layout
 from vtts.export.scene import SceneNode, ShapeItem, walk_head
 from vtts.face import N_PARAMS, FaceModel
 from vtts.face.miap import Miap
-from vtts.gltf import (
-    ARRAY_BUFFER,
-    ELEMENT_ARRAY_BUFFER,
-    BufferBuilder,
-    image_file,
-    write_document,
-)
+from vtts.gltf import BufferBuilder, image_file, write_document
 
 
 def arkit_targets(model: FaceModel, table: RecipeTable | None = None, *, oculus: bool = True):
@@ -133,21 +127,12 @@ def arkit_avatar_gltf(model: FaceModel, table: RecipeTable | None = None, *,
         normals[bad] = (0.0, 0.0, 1.0)
         mat, textured = material(item)
         attrs = gl.Attributes(
-            POSITION=blob.accessor(positions.astype(np.float32), target=ARRAY_BUFFER,
-                                   bounds=True),
-            NORMAL=blob.accessor(normals.astype(np.float32), target=ARRAY_BUFFER),
-        )  # fmt: skip
+            POSITION=blob.attribute(positions, bounds=True), NORMAL=blob.attribute(normals)
+        )
         if textured and uv is not None:
-            attrs.TEXCOORD_0 = blob.accessor(
-                np.c_[uv[:, 0], 1.0 - uv[:, 1]].astype(np.float32), target=ARRAY_BUFFER
-            )
+            attrs.TEXCOORD_0 = blob.attribute(np.c_[uv[:, 0], 1.0 - uv[:, 1]])
         n = len(positions)
-        index_type = np.uint16 if n <= 65535 else np.uint32
-        prim = gl.Primitive(
-            attributes=attrs, material=mat,
-            indices=blob.accessor(np.asarray(faces).reshape(-1).astype(index_type),
-                                  target=ELEMENT_ARRAY_BUFFER),
-        )  # fmt: skip
+        prim = gl.Primitive(attributes=attrs, material=mat, indices=blob.indices(faces, n))
         names = list(targets)
         for name in names:
             d = targets[name].astype(np.float32)

@@ -35,7 +35,6 @@ import pygltflib as gl
 from vtts.errors import ExportError, VttsWarning
 from vtts.export.morph import (
     MorphTargets,
-    VertexLayout,
     gather,
     morph_targets,
     unit_normals,
@@ -43,7 +42,7 @@ from vtts.export.morph import (
 )
 from vtts.export.scene import HeadScene, Placement, SceneNode, ShapeItem, place
 from vtts.face import N_PARAMS, FaceModel
-from vtts.gltf import ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER, BufferBuilder, image_file, write_document
+from vtts.gltf import BufferBuilder, image_file, write_document
 from vtts.gltf.images import png_bytes
 from vtts.gltf.spec import CLAMP_TO_EDGE, LINEAR, LINEAR_MIPMAP_LINEAR, REPEAT, UNLIT
 from vtts.gltf.uri import data_uri
@@ -385,18 +384,15 @@ class _Exporter:
             normals[~(np.abs(normals).sum(axis=1) > 0)] = (0.0, 0.0, 1.0)
         b = self.blob
         attributes = gl.Attributes(
-            POSITION=b.accessor(positions.astype(np.float32), target=ARRAY_BUFFER, bounds=True),
-            NORMAL=b.accessor(normals.astype(np.float32), target=ARRAY_BUFFER),
+            POSITION=b.attribute(positions, bounds=True), NORMAL=b.attribute(normals)
         )
         if uses_texture:
             st = gather(tm.texcoords, layout)
             # VRML's t runs up the image, glTF's v down it
-            uv = np.c_[st[:, 0], 1.0 - st[:, 1]].astype(np.float32)
-            attributes.TEXCOORD_0 = b.accessor(uv, target=ARRAY_BUFFER)
+            attributes.TEXCOORD_0 = b.attribute(np.c_[st[:, 0], 1.0 - st[:, 1]])
         if tm.colors is not None:
-            colors = np.clip(gather(tm.colors, layout), 0.0, 1.0).astype(np.float32)
-            attributes.COLOR_0 = b.accessor(colors, target=ARRAY_BUFFER)
-        prim = gl.Primitive(attributes=attributes, indices=self._indices(layout, len(positions)))
+            attributes.COLOR_0 = b.attribute(np.clip(gather(tm.colors, layout), 0.0, 1.0))
+        prim = gl.Primitive(attributes=attributes, indices=b.indices(layout.faces, len(positions)))
         extras = {"vtts": {"points": layout.n_points}}
         if block is None:
             return prim, None, extras
@@ -414,13 +410,6 @@ class _Exporter:
         ]
         return prim, targets, extras
 
-    def _indices(self, layout: VertexLayout, n_vertices: int) -> int:
-        # 65535 is the primitive restart value of 16-bit indices: glTF forbids it as an index
-        dtype = np.uint16 if n_vertices <= 65535 else np.uint32
-        return self.blob.accessor(
-            layout.faces.reshape(-1).astype(dtype), target=ELEMENT_ARRAY_BUFFER
-        )
-
     def _primitive_geometry(self, item: ShapeItem) -> gl.Primitive:
         tri = item.primitive
         faces = np.asarray(tri.faces)
@@ -436,18 +425,12 @@ class _Exporter:
 
     def _plain_primitive(self, positions, normals, faces) -> gl.Primitive:
         b = self.blob
-        n = positions.shape[0]
-        dtype = np.uint16 if n <= 65535 else np.uint32
         return gl.Primitive(
             attributes=gl.Attributes(
-                POSITION=b.accessor(
-                    np.asarray(positions, np.float32), target=ARRAY_BUFFER, bounds=True
-                ),
-                NORMAL=b.accessor(np.asarray(normals, np.float32), target=ARRAY_BUFFER),
+                POSITION=b.attribute(positions, bounds=True), NORMAL=b.attribute(normals)
             ),
-            indices=b.accessor(np.asarray(faces).reshape(-1).astype(dtype),
-                               target=ELEMENT_ARRAY_BUFFER),
-        )  # fmt: skip
+            indices=b.indices(faces, len(positions)),
+        )
 
     def _room_node(self, name: str, tri, color) -> int:
         faces = np.asarray(tri.faces)

@@ -8,6 +8,7 @@ import pygltflib as gl
 
 from vtts.gltf.spec import (
     ARRAY_BUFFER,
+    ELEMENT_ARRAY_BUFFER,
     FLOAT,
     UNSIGNED_BYTE,
     UNSIGNED_INT,
@@ -63,6 +64,21 @@ class BufferBuilder:
             acc.min, acc.max = bounds_of(flat.min(axis=0), flat.max(axis=0), a.dtype)
         self.accessors.append(acc)
         return len(self.accessors) - 1
+
+    def attribute(self, values: np.ndarray, *, bounds: bool = False) -> int:
+        """A vertex attribute accessor (POSITION, NORMAL, TEXCOORD_0, …) of ``values``
+        ``(v, k)`` stored as float32, with its ``min``/``max`` when ``bounds`` (POSITION needs
+        them); its index."""
+        return self.accessor(np.asarray(values).astype(np.float32), target=ARRAY_BUFFER,
+                             bounds=bounds)  # fmt: skip
+
+    def indices(self, faces: np.ndarray, n_vertices: int) -> int:
+        """The triangle indices accessor of ``faces`` ``(m, 3)`` into ``n_vertices`` vertices:
+        16-bit while they fit, else 32-bit; its index."""
+        # 65535 is the primitive restart value of 16-bit indices: glTF forbids it as an index
+        dtype = np.uint16 if n_vertices <= 65535 else np.uint32
+        return self.accessor(np.asarray(faces).reshape(-1).astype(dtype),
+                             target=ELEMENT_ARRAY_BUFFER)  # fmt: skip
 
     def sparse(self, count: int, indices: np.ndarray, values: np.ndarray) -> int:
         """A VEC3 float accessor of ``count`` elements, zero but for ``values`` ``(k, 3)`` at
