@@ -26,7 +26,7 @@ import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -34,10 +34,11 @@ from vtts.errors import AdtError, FapError, VttsError, VttsWarning
 from vtts.face import Adt, AnimationTables, MeshTable, Miap, TransformTable
 from vtts.face.adt import strip_tables, tables_from_scene
 from vtts.fap import AU
-from vtts.gltf import GltfReader
-from vtts.gltf.reader import target_names
 from vtts.vrml import Node, Scene, read
 from vtts.vrml.fields import format_number
+
+if TYPE_CHECKING:
+    from vtts.gltf import GltfReader
 
 TRANSFORM_FIELDS = ("rotation", "translation", "scale")
 
@@ -459,6 +460,8 @@ class GltfMesh:
 def read_gltf_meshes(path: str | os.PathLike[str]) -> list[GltfMesh]:
     """Every mesh of a ``.glb``/``.gltf`` file with its morph targets (see :class:`GltfMesh`),
     read with :class:`vtts.gltf.GltfReader`. Raises :class:`AdtError` naming the file."""
+    from vtts.gltf import GltfReader  # pygltflib only when a glTF is read
+
     reader = GltfReader(path, error=AdtError)
     try:
         return [_gltf_mesh(reader, mi) for mi in range(len(reader.doc.meshes or []))]
@@ -474,6 +477,8 @@ def read_gltf_meshes(path: str | os.PathLike[str]) -> list[GltfMesh]:
 def _gltf_mesh(reader: GltfReader, index: int) -> GltfMesh:
     """Mesh ``index``: every primitive's POSITION, concatenated in order, and its morph targets
     by name."""
+    from vtts.gltf.reader import target_names
+
     mesh = reader.item(reader.doc.meshes, index, "mesh")
     label = f"mesh {mesh.name or index}"
     names = target_names(mesh)
