@@ -14,8 +14,10 @@ def decode_draco(data: bytes) -> tuple[dict[int, np.ndarray], np.ndarray]:
     """The attributes and triangles of a Draco-compressed mesh: ``{unique id: (v, k) array}``
     (the integer or float values as decoded) and ``(m, 3) int64`` vertex indices. Raises
     :class:`DracoError`."""
-    import DracoPy
-
+    try:
+        import DracoPy
+    except ImportError:  # pragma: no cover - a dependency of vtts
+        raise DracoError("the DracoPy package is not installed") from None
     try:
         mesh = DracoPy.decode(bytes(data))
     except Exception as e:  # DracoPy raises its own exception types and ValueError

@@ -22,8 +22,10 @@ def decode_view(source: bytes, count: int, stride: int, mode, filt) -> bytes:
     """The ``count × stride`` bytes of a compressed bufferView: ``source`` decoded as
     ``mode`` (``ATTRIBUTES``, ``TRIANGLES`` or ``INDICES``) and its ``filt`` (``NONE``,
     ``OCTAHEDRAL``, ``QUATERNION``, ``EXPONENTIAL``) undone. Raises :class:`MeshoptError`."""
-    import meshoptimizer
-
+    try:
+        import meshoptimizer
+    except ImportError:  # pragma: no cover - a dependency of vtts
+        raise MeshoptError("the meshoptimizer package is not installed") from None
     if mode == "ATTRIBUTES":
         if not (stride % 4 == 0 and 4 <= stride <= 256):
             raise MeshoptError(f"ATTRIBUTES need a byteStride of 4–256 in steps of 4, got {stride}")
