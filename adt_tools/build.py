@@ -19,7 +19,6 @@ exactly and extends the outer intervals beyond the borders.
 
 from __future__ import annotations
 
-import base64
 import math
 import os
 import re
@@ -27,8 +26,7 @@ import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
-from urllib.parse import unquote
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -36,9 +34,11 @@ from vtts.errors import AdtError, FapError, VttsError, VttsWarning
 from vtts.face import Adt, AnimationTables, MeshTable, Miap, TransformTable
 from vtts.face.adt import strip_tables, tables_from_scene
 from vtts.fap import AU
-from vtts.limits import MAX_ACCESSOR_COUNT, MAX_GLTF_BYTES, read_bytes_capped
-from vtts.vrml import Node, Scene, read, resolve_url
+from vtts.vrml import Node, Scene, read
 from vtts.vrml.fields import format_number
+
+if TYPE_CHECKING:
+    from vtts.gltf import GltfReader
 
 TRANSFORM_FIELDS = ("rotation", "translation", "scale")
 
@@ -432,20 +432,8 @@ def _check_finite(a: np.ndarray, file: str) -> None:
 
 # ---- glTF ----------------------------------------------------------------------------------------
 # trimesh's glTF loader ignores morph targets (primitive "targets") entirely, and flattens meshes
-# into world coordinates; the ADI needs mesh-local positions and the target displacements, so it
-# reads the accessors itself from the document pygltflib parses.
-
-_COMPONENT_TYPES: dict[int, str] = {
-    5120: "<i1",
-    5121: "<u1",
-    5122: "<i2",
-    5123: "<u2",
-    5125: "<u4",
-    5126: "<f4",
-}
-_NORMALIZE = {5120: 127.0, 5121: 255.0, 5122: 32767.0, 5123: 65535.0}
-_SPARSE_INDEX_TYPES = (5121, 5123, 5125)
-_COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
+# into world coordinates; the ADI needs mesh-local positions and the target displacements: vtts's
+# own reader (vtts.gltf) gives them.
 
 
 @dataclass
@@ -469,290 +457,104 @@ class GltfMesh:
     intervals: dict[str, tuple[float, float]] = field(default_factory=dict)
 
 
-class _GltfReader:
-    def __init__(self, path: Path) -> None:
-        from pygltflib import GLTF2
-
-        self.path = path
-        self.file = str(path)
-        try:
-            size = path.stat().st_size
-        except OSError as e:
-            raise AdtError(f"cannot read file: {e.strerror}", file=self.file) from None
-        if size > MAX_GLTF_BYTES or not path.is_file():
-            raise AdtError(
-                f"not a glTF file of at most {MAX_GLTF_BYTES >> 20} MiB (vtts.limits)",
-                file=self.file,
-            )
-        try:
-            self.doc = GLTF2.load(str(path))
-        except Exception as e:  # pygltflib raises IOError, json and struct errors alike
-            raise AdtError(f"not a readable glTF file: {e}", file=self.file) from None
-        if self.doc is None:
-            raise AdtError("not a readable glTF file: no JSON chunk", file=self.file)
-        self.buffers: dict[int, bytes] = {}
-
-    def error(self, msg: str) -> AdtError:
-        return AdtError(msg, file=self.file)
-
-    def item(self, items: list | None, index: Any, what: str) -> Any:
-        """``items[index]`` for a glTF index: an integer (not a bool), 0 or more (Python's -1
-        would be the last), within the array."""
-        valid = isinstance(index, int) and not isinstance(index, bool)
-        if not (valid and 0 <= index < len(items or [])):
-            raise self.error(f"{what} {index!r} does not exist")
-        return items[index]
-
-    def buffer(self, index: int) -> bytes:
-        buf = self.item(self.doc.buffers, index, "buffer")
-        if index in self.buffers:
-            return self.buffers[index]
-        uri = buf.uri
-        if uri is None:
-            data = self.doc.binary_blob()
-            if data is None:
-                raise self.error(f"buffer {index} has no uri and the file no binary chunk")
-        elif uri.startswith("data:"):
-            head, _, payload = uri.partition(",")
-            if not head.endswith(";base64"):
-                raise self.error(f"buffer {index}: only base64 data uris are supported")
-            try:
-                data = base64.b64decode(payload, validate=False)
-            except ValueError as e:
-                raise self.error(f"buffer {index}: bad base64 data: {e}") from None
-        else:
-            found = resolve_url([unquote(uri)], self.path.parent)
-            if found is None:
-                raise self.error(
-                    f"buffer {index}: '{uri}' is not a file inside the glTF file's folder"
-                )
-            try:
-                data = read_bytes_capped(found, MAX_GLTF_BYTES, what=f"buffer {index}")
-            except OSError as e:
-                raise self.error(f"buffer {index}: cannot read '{uri}': {e.strerror}") from None
-        self.buffers[index] = data
-        return data
-
-    def view_bytes(self, view_index: int) -> tuple[bytes, int, int, int | None]:
-        """(buffer bytes, view start, view length, byte stride) of a bufferView."""
-        view = self.item(self.doc.bufferViews, view_index, "bufferView")
-        data = self.buffer(view.buffer)
-        start, length = view.byteOffset or 0, view.byteLength
-        if not all(isinstance(v, int) and v >= 0 for v in (start, length)):
-            raise self.error(
-                f"bufferView {view_index}: byteOffset and byteLength must be integers >= 0, "
-                f"got {start!r} and {length!r}"
-            )
-        if start + view.byteLength > len(data):
-            raise self.error(f"bufferView {view_index} reaches past the end of its buffer")
-        return data, start, view.byteLength, view.byteStride
-
-    def read(
-        self, view_index: int, offset: int, count: int, ctype: int, ncomp: int, what: str
-    ) -> np.ndarray:
-        """``(count, ncomp)`` values of a (possibly strided) view region."""
-        dtype = np.dtype(_COMPONENT_TYPES[ctype])
-        data, start, length, stride = self.view_bytes(view_index)
-        item = dtype.itemsize * ncomp
-        if stride is not None and not (isinstance(stride, int) and item <= stride <= 252):
-            raise self.error(
-                f"{what}: bufferView {view_index} has byteStride {stride!r}; it must be "
-                f"{item}–252 (the element size to the glTF maximum)"
-            )
-        if not (isinstance(offset, int) and offset >= 0):
-            raise self.error(f"{what}: byteOffset must be an integer >= 0, got {offset!r}")
-        stride = stride or item
-        end = offset + stride * (count - 1) + item if count else offset
-        if end > length:
-            raise self.error(f"{what} reaches past the end of bufferView {view_index}")
-        return np.ndarray(
-            (count, ncomp),
-            dtype=dtype,
-            buffer=data,
-            offset=start + offset,
-            strides=(stride, dtype.itemsize),
-        ).copy()
-
-    def accessor(self, index: int, what: str) -> np.ndarray:
-        """``(count, components) float64`` values of an accessor (sparse and normalized
-        accessors included)."""
-        acc = self.item(self.doc.accessors, index, f"{what}: accessor")
-        ncomp = _COMPONENTS.get(acc.type)
-        if ncomp is None or acc.componentType not in _COMPONENT_TYPES:
-            raise self.error(f"{what}: accessor {index} has type {acc.type}/{acc.componentType}")
-        what = f"{what} (accessor {index})"
-        counts = (("count", acc.count), ("sparse count", getattr(acc.sparse, "count", 0)))
-        for name, count in counts:
-            if isinstance(count, bool) or not (
-                isinstance(count, int) and 0 <= count <= MAX_ACCESSOR_COUNT
-            ):
-                raise self.error(
-                    f"{what}: {name} {count!r} is not an integer within 0–{MAX_ACCESSOR_COUNT} "
-                    "(vtts.limits)"
-                )
-        if acc.bufferView is None:
-            values = np.zeros((acc.count, ncomp))
-        else:
-            values = self.read(
-                acc.bufferView, acc.byteOffset or 0, acc.count, acc.componentType, ncomp, what
-            ).astype(np.float64)
-        if acc.normalized and acc.componentType in _NORMALIZE:
-            values = np.maximum(values / _NORMALIZE[acc.componentType], -1.0)
-        sparse = acc.sparse
-        if sparse is not None and sparse.count:
-            if getattr(sparse.indices, "componentType", None) not in _SPARSE_INDEX_TYPES or (
-                getattr(sparse, "values", None) is None
-            ):
-                raise self.error(
-                    f"{what}: sparse indices need a componentType of 5121, 5123 or 5125 "
-                    "(unsigned integers), and sparse values"
-                )
-            idx = (
-                self.read(
-                    sparse.indices.bufferView,
-                    sparse.indices.byteOffset or 0,
-                    sparse.count,
-                    sparse.indices.componentType,
-                    1,
-                    f"{what} sparse indices",
-                )
-                .reshape(-1)
-                .astype(np.int64)
-            )
-            vals = self.read(
-                sparse.values.bufferView,
-                sparse.values.byteOffset or 0,
-                sparse.count,
-                acc.componentType,
-                ncomp,
-                f"{what} sparse values",
-            ).astype(np.float64)
-            if acc.normalized and acc.componentType in _NORMALIZE:
-                vals = np.maximum(vals / _NORMALIZE[acc.componentType], -1.0)
-            if idx.size and (idx.min() < 0 or idx.max() >= acc.count):
-                raise self.error(f"{what}: a sparse index is out of range")
-            values[idx] = vals
-        return values
-
-    def meshes(self) -> list[GltfMesh]:
-        out = []
-        for mi, mesh in enumerate(self.doc.meshes or []):
-            label = f"mesh {mesh.name or mi}"
-            names = _target_names(mesh)
-            bases: list[np.ndarray] = []
-            deltas: list[list[np.ndarray]] = []
-            for pi, prim in enumerate(mesh.primitives):
-                pos = _attr(prim.attributes, "POSITION")
-                if pos is None:
-                    raise self.error(f"{label}, primitive {pi} has no POSITION")
-                bases.append(self.accessor(pos, f"{label} POSITION"))
-                targets = prim.targets or []
-                if pi and len(targets) != len(deltas):
-                    raise self.error(
-                        f"{label}: primitive {pi} has {len(targets)} morph targets but primitive "
-                        f"0 has {len(deltas)} (glTF requires the same number)"
-                    )
-                if not pi:
-                    deltas = [[] for _ in targets]
-                for ti, t in enumerate(targets):
-                    tpos = _attr(t, "POSITION")
-                    n = len(bases[-1])
-                    delta = (
-                        np.zeros((n, 3))
-                        if tpos is None
-                        else self.accessor(tpos, f"{label} morph target {ti} POSITION")
-                    )
-                    if len(delta) != n:
-                        raise self.error(
-                            f"{label}, primitive {pi}: morph target {ti} has {len(delta)} "
-                            f"POSITIONs but the primitive {n} (glTF requires the same number)"
-                        )
-                    deltas[ti].append(delta)
-            base = np.concatenate(bases) if bases else np.zeros((0, 3))
-            if base.shape[1:] != (3,):
-                raise self.error(f"{label}: POSITION must be VEC3")
-            if deltas and len(names) != len(deltas):
-                raise self.error(
-                    f"{label} has {len(deltas)} morph targets but "
-                    f"{'no' if not names else len(names)} target names: name each target after "
-                    "its MIAP (mesh extras 'targetNames', e.g. close_t_l_eyelid@1024, viseme3, joy)"
-                )
-            targets_by_name: dict[str, np.ndarray] = {}
-            for tname, parts in zip(names, deltas, strict=False):
-                if tname in targets_by_name:
-                    raise self.error(f"{label}: morph target '{tname}' is named twice")
-                delta = np.concatenate(parts)
-                if delta.shape[1:] != (3,):
-                    raise self.error(f"{label}: morph target '{tname}' POSITION must be VEC3")
-                targets_by_name[tname] = delta
-            points, intervals = self._vtts_extras(mesh, label, len(base), names)
-            if points is not None:
-                base = base[:points]
-                targets_by_name = {k: v[:points] for k, v in targets_by_name.items()}
-            out.append(GltfMesh(mesh.name, base, targets_by_name, intervals))
-        return out
-
-    def _vtts_extras(
-        self, mesh: Any, label: str, n_vertices: int, names: list[str]
-    ) -> tuple[int | None, dict[str, tuple[float, float]]]:
-        """(points, intervals) from a vtts export's mesh ``extras.vtts`` (see :class:`GltfMesh`);
-        (None, {}) for other files."""
-        extras = getattr(mesh, "extras", None)
-        info = extras.get("vtts") if isinstance(extras, dict) else None
-        if not isinstance(info, dict):
-            return None, {}
-        points = info.get("points")
-        if points is not None and (
-            isinstance(points, bool) or not isinstance(points, int) or not 0 <= points <= n_vertices
-        ):
-            raise self.error(
-                f"{label}: extras.vtts.points must be an integer within 0–{n_vertices} (the "
-                f"vertices that are Coordinate points), got {points!r}"
-            )
-        given = info.get("intervals")
-        if given is None:
-            return points, {}
-        ok = isinstance(given, list) and len(given) == len(names)
-        pairs: dict[str, tuple[float, float]] = {}
-        for tname, pair in zip(names, given if ok else [], strict=False):
-            valid = (
-                isinstance(pair, list)
-                and len(pair) == 2
-                and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in pair)
-                and all(math.isfinite(v) for v in pair)
-                and pair[0] != pair[1]
-            )
-            if not valid:
-                ok = False
-                break
-            pairs[tname] = (float(pair[0]), float(pair[1]))
-        if not ok:
-            raise self.error(
-                f"{label}: extras.vtts.intervals must give [from, to] (two different finite "
-                f"numbers) for each of its {len(names)} morph targets"
-            )
-        return points, pairs
-
-
-def _attr(attributes: Any, name: str) -> int | None:
-    if isinstance(attributes, dict):
-        return attributes.get(name)
-    return getattr(attributes, name, None)
-
-
-def _target_names(mesh: Any) -> list[str]:
-    """Morph target names: mesh ``extras.targetNames`` (the de-facto convention of Blender and
-    three.js), else the first primitive's."""
-    for holder in [mesh, *(mesh.primitives[:1])]:
-        extras = getattr(holder, "extras", None)
-        if isinstance(extras, dict) and isinstance(extras.get("targetNames"), list):
-            return [str(n) for n in extras["targetNames"]]
-    return []
-
-
 def read_gltf_meshes(path: str | os.PathLike[str]) -> list[GltfMesh]:
-    """Every mesh of a ``.glb``/``.gltf`` file with its morph targets (see :class:`GltfMesh`)."""
-    return _GltfReader(Path(path)).meshes()
+    """Every mesh of a ``.glb``/``.gltf`` file with its morph targets (see :class:`GltfMesh`),
+    read with :class:`vtts.gltf.GltfReader`. Raises :class:`AdtError` naming the file."""
+    from vtts.gltf import GltfReader  # pygltflib only when a glTF is read
+
+    reader = GltfReader(path, error=AdtError)
+    try:
+        return [_gltf_mesh(reader, mi) for mi in range(len(reader.doc.meshes or []))]
+    except (TypeError, AttributeError, KeyError, IndexError, ValueError, OverflowError) as e:
+        # a property of the wrong JSON type somewhere the reader takes the file's word for it
+        raise AdtError(
+            f"malformed glTF: a property has the wrong type or value ({type(e).__name__}: "
+            f"{str(e)[:200]})",
+            file=reader.file,
+        ) from None
+
+
+def _gltf_mesh(reader: GltfReader, index: int) -> GltfMesh:
+    """Mesh ``index``: every primitive's POSITION, concatenated in order, and its morph targets
+    by name."""
+    from vtts.gltf.reader import target_names
+
+    mesh = reader.item(reader.doc.meshes, index, "mesh")
+    label = f"mesh {mesh.name or index}"
+    names = target_names(mesh)
+    bases: list[np.ndarray] = []
+    deltas: list[list[np.ndarray]] = []
+    for pi, p in enumerate(reader.primitives(mesh, label)):
+        prim = reader.primitive(p, f"{label}, primitive {pi}")
+        bases.append(prim.positions)
+        if pi and len(prim.targets) != len(deltas):
+            raise reader.error(
+                f"{label}: primitive {pi} has {len(prim.targets)} morph targets but primitive "
+                f"0 has {len(deltas)} (glTF requires the same number)"
+            )
+        if not pi:
+            deltas = [[] for _ in prim.targets]
+        for ti, delta in enumerate(prim.targets):
+            deltas[ti].append(delta)
+    base = np.concatenate(bases) if bases else np.zeros((0, 3))
+    if deltas and len(names) != len(deltas):
+        raise reader.error(
+            f"{label} has {len(deltas)} morph targets but "
+            f"{'no' if not names else len(names)} target names: name each target after "
+            "its MIAP (mesh extras 'targetNames', e.g. close_t_l_eyelid@1024, viseme3, joy)"
+        )
+    targets_by_name: dict[str, np.ndarray] = {}
+    for tname, parts in zip(names, deltas, strict=False):
+        if tname in targets_by_name:
+            raise reader.error(f"{label}: morph target '{tname}' is named twice")
+        targets_by_name[tname] = np.concatenate(parts)
+    points, intervals = _vtts_extras(reader, mesh, label, len(base), names)
+    if points is not None:
+        base = base[:points]
+        targets_by_name = {k: v[:points] for k, v in targets_by_name.items()}
+    return GltfMesh(mesh.name, base, targets_by_name, intervals)
+
+
+def _vtts_extras(
+    reader: GltfReader, mesh: Any, label: str, n_vertices: int, names: list[str]
+) -> tuple[int | None, dict[str, tuple[float, float]]]:
+    """(points, intervals) from a vtts export's mesh ``extras.vtts`` (see :class:`GltfMesh`);
+    (None, {}) for other files."""
+    extras = getattr(mesh, "extras", None)
+    info = extras.get("vtts") if isinstance(extras, dict) else None
+    if not isinstance(info, dict):
+        return None, {}
+    points = info.get("points")
+    if points is not None and (
+        isinstance(points, bool) or not isinstance(points, int) or not 0 <= points <= n_vertices
+    ):
+        raise reader.error(
+            f"{label}: extras.vtts.points must be an integer within 0–{n_vertices} (the "
+            f"vertices that are Coordinate points), got {points!r}"
+        )
+    given = info.get("intervals")
+    if given is None:
+        return points, {}
+    ok = isinstance(given, list) and len(given) == len(names)
+    pairs: dict[str, tuple[float, float]] = {}
+    for tname, pair in zip(names, given if ok else [], strict=False):
+        valid = (
+            isinstance(pair, list)
+            and len(pair) == 2
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in pair)
+            and all(math.isfinite(v) for v in pair)
+            and pair[0] != pair[1]
+        )
+        if not valid:
+            ok = False
+            break
+        pairs[tname] = (float(pair[0]), float(pair[1]))
+    if not ok:
+        raise reader.error(
+            f"{label}: extras.vtts.intervals must give [from, to] (two different finite "
+            f"numbers) for each of its {len(names)} morph targets"
+        )
+    return points, pairs
 
 
 def _load_gltf(path: Path, neutral: Scene, node: str | None) -> list[DeformedPose]:

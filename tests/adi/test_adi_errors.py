@@ -292,12 +292,12 @@ def _hostile_gltf(model, tmp_path, change):
                 setattr(d.accessors[0], "bufferView", None)
                 or setattr(d.accessors[0], "count", 10**10)
             ),
-            "count 10000000000 is not an integer within 0–50000000",
+            "count 10000000000 is more than the limit of 50000000",
         ),
         (lambda d: setattr(d.accessors[0], "count", -1), "count -1 is not an integer"),
         (
             lambda d: setattr(d.bufferViews[d.accessors[0].bufferView], "byteStride", -12),
-            "byteStride -12; it must be 12–252",
+            "byteStride -12 is not positive",
         ),
         (lambda d: setattr(d.accessors[0], "byteOffset", -4), "byteOffset must be an integer >= 0"),
     ],

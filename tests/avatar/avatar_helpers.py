@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pygltflib as gl
 
-from vtts.export.gltf import glb_chunks
+from vtts.gltf import glb_chunks
 
 FLOAT, BYTE, UBYTE, SHORT, USHORT, UINT = 5126, 5120, 5121, 5122, 5123, 5125
 DTYPE = {FLOAT: np.float32, BYTE: np.int8, UBYTE: np.uint8, SHORT: np.int16, USHORT: np.uint16,

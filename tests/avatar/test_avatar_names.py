@@ -10,7 +10,7 @@ from avatar_helpers import simple_avatar
 
 from vtts.avatar.arkit import ARKIT_NAMES, OCULUS_VISEMES
 from vtts.avatar.importer import import_avatar
-from vtts.avatar.names import canonical_name, match_names, name_key
+from vtts.avatar.names import canonical_name, eye_side, match_names, name_key
 from vtts.errors import VttsWarning
 from vtts.face import Miap
 
@@ -79,3 +79,13 @@ def test_oculus_visemes_are_used_directly(tmp_path):
     (th,) = avatar.tables.adts[Miap("viseme", 3)].meshes  # T, D: jawOpen 0.25 in its recipe
     assert th.vertices.tolist() == [2]
     assert th.displacements[0, 0, 1] == pytest.approx(-0.1 * 0.25)
+
+
+@pytest.mark.parametrize(
+    "name,side",
+    [("EyeLeft", "left"), ("LeftEye", "left"), ("eye_L", "left"), ("Eye.R", "right"),
+     ("L_EYEBALL", "left"), ("eyeball_right", "right"), ("EYE_R", "right"), ("Eye", None),
+     ("eyelash_L", None), ("EyelidLeft", None), ("Eyebrow.L", None), ("Head", None)],
+)  # fmt: skip
+def test_eye_names(name, side):
+    assert eye_side(name) == side

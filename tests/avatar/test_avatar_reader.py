@@ -1,4 +1,4 @@
-"""Reading glTF avatars (vtts.avatar.reader): quantized, strided and sparse accessors, Draco and
+"""Reading glTF avatars (vtts.gltf.reader): quantized, strided and sparse accessors, Draco and
 meshopt compression, KTX2 textures dropped with a warning, and clear errors for broken or hostile
 files. Every file is built by hand in the test (tests/avatar/avatar_helpers.py)."""
 
@@ -22,9 +22,9 @@ from avatar_helpers import (
 )
 
 from vtts.avatar.importer import import_avatar
-from vtts.avatar.reader import GltfAsset
 from vtts.errors import AvatarError, VttsWarning
 from vtts.face import Miap
+from vtts.gltf import GltfReader
 from vtts.limits import MAX_ACCESSOR_COUNT, MAX_MORPH_TARGETS
 
 
@@ -35,7 +35,7 @@ def rotated(faces: np.ndarray) -> np.ndarray:
 
 
 def read_mesh(path):
-    return GltfAsset(path).mesh(0)
+    return GltfReader(path, error=AvatarError).mesh(0)
 
 
 def test_a_float_avatar_reads_back_exactly(tmp_path):
@@ -381,18 +381,6 @@ def test_fap_tables_follow_the_recipe(tmp_path):
 # ---- node tree, skins, eyes -------------------------------------------------------------------
 
 
-@pytest.mark.parametrize(
-    "name,side",
-    [("EyeLeft", "left"), ("LeftEye", "left"), ("eye_L", "left"), ("Eye.R", "right"),
-     ("L_EYEBALL", "left"), ("eyeball_right", "right"), ("EYE_R", "right"), ("Eye", None),
-     ("eyelash_L", None), ("EyelidLeft", None), ("Eyebrow.L", None), ("Head", None)],
-)  # fmt: skip
-def test_eye_names(name, side):
-    from vtts.avatar.importer import _eye_side
-
-    assert _eye_side(name) == side
-
-
 def _sphere(n: int = 8, radius: float = 0.1):
     """The front half of a sphere around the origin: positions, triangles."""
     th, ph = np.meshgrid(np.linspace(0, np.pi / 2, n), np.linspace(0, 2 * np.pi, n))
@@ -605,13 +593,13 @@ def test_texture_coordinates_set_and_transform(tmp_path):
 
 
 def test_the_file_size_is_capped(tmp_path, monkeypatch):
-    import vtts.avatar.reader as reader
+    import vtts.gltf.reader as reader
     from vtts.limits import LimitError
 
     path = simple_avatar(tmp_path / "a.glb")
     monkeypatch.setattr(reader, "MAX_GLTF_BYTES", 100)
     with pytest.raises(LimitError, match="larger than the limit of 100 bytes") as e:
-        GltfAsset(path)
+        GltfReader(path, error=AvatarError)
     assert e.value.file == str(path)
 
 

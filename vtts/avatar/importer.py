@@ -40,12 +40,12 @@ from pathlib import Path
 import numpy as np
 
 from vtts.avatar.arkit import OCULUS_VISEMES, RecipeTable, recipes
-from vtts.avatar.names import match_names, name_key
-from vtts.avatar.reader import GltfAsset, Image, Material, Primitive
+from vtts.avatar.names import eye_side, match_names
 from vtts.errors import AvatarError, VttsError, VttsWarning
 from vtts.face.adt import Adt, AnimationTables, MeshTable, TransformTable
 from vtts.face.miap import Miap
 from vtts.fap import AU
+from vtts.gltf import GLTF_SUFFIXES, GltfReader, Image, Material, Primitive
 from vtts.vrml import Node, Scene, standard_node_types
 
 #: Target displacements smaller than this fraction of the mesh's size are left out of tables.
@@ -55,7 +55,6 @@ MAX_DEPTH = 128
 #: Eye FAPs: (yaw, pitch) per eye.
 EYE_FAPS = {"left": (23, 25), "right": (24, 26)}
 
-_EYE_KEY = re.compile(r"^(?:(left|l)?eye(?:ball)?(left|l|right|r)?|(right|r)eye(?:ball)?)$")
 _VRML_ID = re.compile(r"[^A-Za-z0-9_]")
 
 
@@ -134,7 +133,12 @@ def import_avatar(path: str | Path, *, table: RecipeTable | None = None) -> Impo
     docstring). ``table``: the recipe table (default: vtts's, :func:`vtts.avatar.recipes`).
     Raises :class:`~vtts.errors.AvatarError` for a file that cannot be imported; warns
     (:class:`~vtts.errors.VttsWarning`) about unknown target names and dropped textures."""
-    asset = GltfAsset(path)
+    path = Path(path)
+    if path.suffix.lower() not in GLTF_SUFFIXES:
+        raise AvatarError(
+            f"an avatar is a .glb or .gltf file, not {path.suffix or 'no suffix'}", file=str(path)
+        )
+    asset = GltfReader(path, error=AvatarError)
     try:
         return _Importer(asset, table or recipes()).run()
     except VttsError as e:
@@ -150,7 +154,7 @@ def import_avatar(path: str | Path, *, table: RecipeTable | None = None) -> Impo
 
 
 class _Importer:
-    def __init__(self, asset: GltfAsset, table: RecipeTable) -> None:
+    def __init__(self, asset: GltfReader, table: RecipeTable) -> None:
         self.asset = asset
         self.table = table
         self.types = standard_node_types()
@@ -238,10 +242,10 @@ class _Importer:
         children: list[Node] = []
         if gn.mesh is not None:
             mesh = self.asset.mesh(gn.mesh)
-            eye = _eye_side(gn.name) or _eye_side(mesh.name)
+            eye = eye_side(gn.name) or eye_side(mesh.name)
             if gn.skin is not None:
                 joints = self._skin_joint_names(gn.skin)
-                eye = eye or (_eye_side(joints[0]) if len(joints) == 1 else None)
+                eye = eye or (eye_side(joints[0]) if len(joints) == 1 else None)
                 start = len(self.face_sets)
                 shapes = self._shapes(mesh, gn, eye, skin=gn.skin)
                 top_level.append(self._eye_wrap(shapes, eye, np.eye(4), start) if eye else
@@ -642,18 +646,3 @@ def _trs(m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     angle = float(np.linalg.norm(rv))
     r = np.r_[rv / angle, angle] if angle > 1e-12 else np.array([0.0, 0.0, 1.0, 0.0])
     return np.round(t, 9) + 0.0, np.round(r, 9) + 0.0, np.round(s, 9) + 0.0
-
-
-def _eye_side(name: str | None) -> str | None:
-    """``"left"``/``"right"`` when ``name`` names an eyeball (``EyeLeft``, ``eye_L``,
-    ``LeftEye``, ``Eye.R``, ``eyeball_l``), else None."""
-    if not name:
-        return None
-    key = name_key(str(name).replace(".", "_"))
-    m = _EYE_KEY.match(key.replace("left", "l").replace("right", "r"))
-    if not m:
-        return None
-    side = m.group(1) or m.group(2) or m.group(3)
-    if side is None:
-        return None
-    return "left" if side.startswith("l") else "right"

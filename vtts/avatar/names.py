@@ -5,7 +5,8 @@ Apple spells ``eyeBlinkLeft``; exporters and rigs write ``eyeBlink_L``, ``EyeBli
 from (``blendShape1.eyeBlinkLeft``, ``Face|eyeBlinkLeft``, ``head:eyeBlinkLeft``). Oculus visemes
 come as ``viseme_PP``, ``Viseme_PP``, ``visemePP`` or ``V_PP``. :func:`name_key` reduces each to one
 key (lower case, no prefix, no separators, ``L``/``R``/``Lt``/``Rt`` spelled ``left``/``right``),
-and :func:`match_names` maps a file's names onto the canonical ones by that key.
+and :func:`match_names` maps a file's names onto the canonical ones by that key; :func:`eye_side`
+tells which eyeball a mesh or node name names (``EyeLeft``, ``eye_L``, ``L_EYEBALL``).
 """
 
 from __future__ import annotations
@@ -20,6 +21,8 @@ from vtts.avatar.arkit import ARKIT_NAMES, OCULUS_VISEMES
 _PREFIX = re.compile(r"^.*[.|:/\\]")
 #: The words of a name: camelCase humps, digits, and runs between separators.
 _WORD = re.compile(r"[A-Z]+(?![a-z])|[A-Z]?[a-z]+|[0-9]+")
+#: The key of an eyeball's name (its side spelled ``l``/``r``): ``eyel``, ``lefteye``, ``eyeball``…
+_EYE_KEY = re.compile(r"^(?:(left|l)?eye(?:ball)?(left|l|right|r)?|(right|r)eye(?:ball)?)$")
 _SIDES = {"l": "left", "lt": "left", "left": "left", "r": "right", "rt": "right", "right": "right"}
 
 
@@ -61,3 +64,18 @@ def match_names(names: Iterable[str]) -> tuple[dict[str, str], list[str]]:
         matched[n] = c
         taken.add(c)
     return matched, unknown
+
+
+def eye_side(name: str | None) -> str | None:
+    """``"left"``/``"right"`` when ``name`` names an eyeball (``EyeLeft``, ``eye_L``,
+    ``LeftEye``, ``Eye.R``, ``eyeball_l``), else None."""
+    if not name:
+        return None
+    key = name_key(str(name).replace(".", "_"))
+    m = _EYE_KEY.match(key.replace("left", "l").replace("right", "r"))
+    if not m:
+        return None
+    side = m.group(1) or m.group(2) or m.group(3)
+    if side is None:
+        return None
+    return "left" if side.startswith("l") else "right"

@@ -4,12 +4,7 @@
 See ``docs/web.md`` ("glTF encoding") for what the file holds.
 """
 
-from vtts.export.gltf import (
-    CAMERA_NODE,
-    GLTF_SUFFIXES,
-    animation_gltf,
-    placement,
-    write_gltf,
-)
+from vtts.export.gltf import CAMERA_NODE, animation_gltf, placement, write_gltf
+from vtts.gltf import GLTF_SUFFIXES
 
 __all__ = ["CAMERA_NODE", "GLTF_SUFFIXES", "animation_gltf", "placement", "write_gltf"]

@@ -24,11 +24,11 @@ import pygltflib as gl
 
 from vtts.avatar.arkit import ARKIT_NAMES, OCULUS_VISEMES, RecipeTable, recipes
 from vtts.errors import ExportError
-from vtts.export.gltf import _ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER, _Blob, _image_file, glb_chunks
 from vtts.export.morph import gather, vertex_layout
 from vtts.export.scene import SceneNode, ShapeItem, walk_head
 from vtts.face import N_PARAMS, FaceModel
 from vtts.face.miap import Miap
+from vtts.gltf import BufferBuilder, image_file, write_document
 
 
 def arkit_targets(model: FaceModel, table: RecipeTable | None = None, *, oculus: bool = True):
@@ -61,7 +61,7 @@ def arkit_avatar_gltf(model: FaceModel, table: RecipeTable | None = None, *,
     poses = arkit_targets(model, table, oculus=oculus)
     deformed = {name: model.deform(p) for name, p in poses.items()}
     head = walk_head(model)
-    blob = _Blob()
+    blob = BufferBuilder()
     nodes: list[gl.Node] = []
     meshes: list[gl.Mesh] = []
     materials: list[gl.Material] = []
@@ -86,7 +86,7 @@ def arkit_avatar_gltf(model: FaceModel, table: RecipeTable | None = None, *,
             path = model.texture_file(tex.expand())
             if path is not None:
                 if path not in image_cache:
-                    data, mime = _image_file(path)
+                    data, mime = image_file(path)
                     images.append(gl.Image(bufferView=blob.view(data), mimeType=mime))
                     textures.append(gl.Texture(source=len(images) - 1))
                     image_cache[path] = len(textures) - 1
@@ -127,21 +127,12 @@ def arkit_avatar_gltf(model: FaceModel, table: RecipeTable | None = None, *,
         normals[bad] = (0.0, 0.0, 1.0)
         mat, textured = material(item)
         attrs = gl.Attributes(
-            POSITION=blob.accessor(positions.astype(np.float32), target=_ARRAY_BUFFER,
-                                   bounds=True),
-            NORMAL=blob.accessor(normals.astype(np.float32), target=_ARRAY_BUFFER),
-        )  # fmt: skip
+            POSITION=blob.attribute(positions, bounds=True), NORMAL=blob.attribute(normals)
+        )
         if textured and uv is not None:
-            attrs.TEXCOORD_0 = blob.accessor(
-                np.c_[uv[:, 0], 1.0 - uv[:, 1]].astype(np.float32), target=_ARRAY_BUFFER
-            )
+            attrs.TEXCOORD_0 = blob.attribute(np.c_[uv[:, 0], 1.0 - uv[:, 1]])
         n = len(positions)
-        index_type = np.uint16 if n <= 65535 else np.uint32
-        prim = gl.Primitive(
-            attributes=attrs, material=mat,
-            indices=blob.accessor(np.asarray(faces).reshape(-1).astype(index_type),
-                                  target=_ELEMENT_ARRAY_BUFFER),
-        )  # fmt: skip
+        prim = gl.Primitive(attributes=attrs, material=mat, indices=blob.indices(faces, n))
         names = list(targets)
         for name in names:
             d = targets[name].astype(np.float32)
@@ -169,12 +160,8 @@ def arkit_avatar_gltf(model: FaceModel, table: RecipeTable | None = None, *,
         scene=0,
         scenes=[gl.Scene(name=model.name, nodes=list(range(len(nodes))))],
         nodes=nodes, meshes=meshes, materials=materials, textures=textures, images=images,
-        accessors=blob.accessors, bufferViews=blob.views,
     )  # fmt: skip
-    data = blob.data()
-    doc.buffers = [gl.Buffer(byteLength=len(data))]
-    doc.set_binary_blob(data)
-    return doc
+    return blob.attach(doc)
 
 
 def write_arkit_avatar(
@@ -186,13 +173,8 @@ def write_arkit_avatar(
 ) -> Path:
     """Write ``model`` as an ARKit-blendshape ``.glb`` (see the module docstring), atomically.
     Returns the path."""
-    from vtts.atomic import atomic_path
-
     path = Path(path)
     if path.suffix.lower() != ".glb":
         raise ExportError(f"an ARKit avatar is written as .glb, not {path.suffix or 'nothing'}",
                           file=str(path))  # fmt: skip
-    doc = arkit_avatar_gltf(model, table, oculus=oculus)
-    with atomic_path(path) as tmp, open(tmp, "wb") as f:
-        f.writelines(glb_chunks(doc))
-    return path
+    return write_document(arkit_avatar_gltf(model, table, oculus=oculus), path)

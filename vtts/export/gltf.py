@@ -23,11 +23,8 @@ At every keyframe the file reproduces vtts's own deformation to float32 rounding
 
 from __future__ import annotations
 
-import base64
-import io
 import math
 import os
-import struct
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,7 +35,6 @@ import pygltflib as gl
 from vtts.errors import ExportError, VttsWarning
 from vtts.export.morph import (
     MorphTargets,
-    VertexLayout,
     gather,
     morph_targets,
     unit_normals,
@@ -46,25 +42,20 @@ from vtts.export.morph import (
 )
 from vtts.export.scene import HeadScene, Placement, SceneNode, ShapeItem, place
 from vtts.face import N_PARAMS, FaceModel
-from vtts.limits import MAX_FPS, MAX_FRAMES, MIN_FPS, check_image_size
+from vtts.gltf import BufferBuilder, image_file, write_document
+from vtts.gltf.images import png_bytes
+from vtts.gltf.spec import CLAMP_TO_EDGE, LINEAR, LINEAR_MIPMAP_LINEAR, REPEAT, UNLIT
+from vtts.gltf.uri import data_uri
+from vtts.gltf.writer import GLTF_SUFFIXES
+from vtts.limits import MAX_FPS, MAX_FRAMES, MIN_FPS
 from vtts.mesh import incidence
 from vtts.render.camera import Camera
 from vtts.vrml import Node, rotation_matrix
 
-#: What ``write_gltf`` writes, by suffix: binary glTF, or JSON with everything embedded.
-GLTF_SUFFIXES = (".glb", ".gltf")
 #: The name of the camera node (the web player looks through it).
 CAMERA_NODE = "vtts"
 #: The name of the one animation.
 ANIMATION = "vtts"
-#: The glTF extension of materials drawn without lighting.
-UNLIT = "KHR_materials_unlit"
-
-_ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
-_FLOAT, _UINT8, _UINT16, _UINT32 = 5126, 5121, 5123, 5125
-_COMPONENTS = {1: "SCALAR", 2: "VEC2", 3: "VEC3", 4: "VEC4"}
-_REPEAT, _CLAMP = 10497, 33071
-_LINEAR, _LINEAR_MIPMAP_LINEAR = 9729, 9987
 
 
 def write_gltf(
@@ -92,15 +83,7 @@ def write_gltf(
     doc = _Exporter(
         models, params, fps, roots, camera, size, layout, viewpoint, embed=suffix == ".gltf"
     ).build()
-    from vtts.atomic import atomic_path
-
-    with atomic_path(path) as tmp:
-        if suffix == ".glb":
-            with open(tmp, "wb") as f:
-                f.writelines(glb_chunks(doc))
-        else:
-            tmp.write_text(doc.gltf_to_json(separators=(",", ":"), indent=None), "utf-8")
-    return path
+    return write_document(doc, path)
 
 
 def animation_gltf(
@@ -141,116 +124,6 @@ def placement(
     ``placement(models).matrices[i]`` is ``FaceRenderer.model_matrix(i)``, the root pose that
     :func:`vtts.animate.fapstream.model_roots` moves."""
     return place(_model_list(models), size=size, camera=camera, viewpoint=viewpoint, layout=layout)
-
-
-def glb_chunks(doc: gl.GLTF2) -> list[bytes]:
-    """The binary glTF (GLB) of a document whose one buffer is its binary blob, as the byte
-    strings to write one after the other: the 12-byte header, the JSON chunk (padded with
-    spaces) and the BIN chunk (padded with zeros), each chunk 4-byte aligned."""
-    blob = doc.binary_blob() or b""
-    text = doc.gltf_to_json(separators=(",", ":"), indent=None).encode("utf-8")
-    text += b" " * (-len(text) % 4)
-    blob += b"\0" * (-len(blob) % 4)
-    total = 12 + 8 + len(text) + (8 + len(blob) if blob else 0)
-    out = [struct.pack("<4sII", b"glTF", 2, total), struct.pack("<I4s", len(text), b"JSON"), text]
-    if blob:
-        out += [struct.pack("<I4s", len(blob), b"BIN\0"), blob]
-    return out
-
-
-# ---- the binary buffer --------------------------------------------------------------------------
-
-
-class _Blob:
-    """The one buffer: bufferViews (4-byte aligned) and the accessors on them."""
-
-    def __init__(self) -> None:
-        self.parts: list[bytes] = []
-        self.size = 0
-        self.views: list[gl.BufferView] = []
-        self.accessors: list[gl.Accessor] = []
-
-    def view(self, data: bytes, target: int | None = None) -> int:
-        pad = -self.size % 4
-        if pad:
-            self.parts.append(b"\0" * pad)
-            self.size += pad
-        self.views.append(
-            gl.BufferView(buffer=0, byteOffset=self.size, byteLength=len(data), target=target)
-        )
-        self.parts.append(data)
-        self.size += len(data)
-        return len(self.views) - 1
-
-    def accessor(
-        self, array: np.ndarray, *, target: int | None = None, bounds: bool = False
-    ) -> int:
-        """An accessor of ``array`` ``(n,)`` or ``(n, k)`` (float32, uint16 or uint32)."""
-        a = np.ascontiguousarray(array)
-        k = 1 if a.ndim == 1 else a.shape[1]
-        acc = gl.Accessor(
-            bufferView=self.view(a.tobytes(), target),
-            componentType=_component(a.dtype),
-            count=int(a.shape[0]),
-            type=_COMPONENTS[k],
-        )
-        if bounds:
-            flat = a.reshape(a.shape[0], k)
-            acc.min, acc.max = _bounds(flat.min(axis=0), flat.max(axis=0), a.dtype)
-        self.accessors.append(acc)
-        return len(self.accessors) - 1
-
-    def sparse(self, count: int, indices: np.ndarray, values: np.ndarray) -> int:
-        """A VEC3 float accessor of ``count`` elements, zero but for ``values`` ``(k, 3)`` at
-        ``indices`` ``(k,)`` (increasing): sparse when that is smaller, else dense."""
-        values = np.asarray(values, dtype=np.float32)
-        k = indices.size
-        lo = values.min(axis=0) if k else np.zeros(3, np.float32)
-        hi = values.max(axis=0) if k else np.zeros(3, np.float32)
-        if k < count:
-            lo, hi = np.minimum(lo, 0), np.maximum(hi, 0)
-        index_type = np.uint16 if count <= 1 << 16 else np.uint32
-        if k * (12 + np.dtype(index_type).itemsize) >= 12 * count:
-            dense = np.zeros((count, 3), dtype=np.float32)
-            dense[indices] = values
-            acc = gl.Accessor(
-                bufferView=self.view(dense.tobytes(), _ARRAY_BUFFER),
-                componentType=_FLOAT,
-                count=count,
-                type="VEC3",
-            )
-        else:
-            acc = gl.Accessor(componentType=_FLOAT, count=count, type="VEC3", byteOffset=None)
-            if k:
-                idx = self.view(np.ascontiguousarray(indices, dtype=index_type).tobytes())
-                val = self.view(np.ascontiguousarray(values).tobytes())
-                acc.sparse = gl.Sparse(
-                    count=int(k),
-                    indices=gl.AccessorSparseIndices(
-                        bufferView=idx, componentType=_component(np.dtype(index_type))
-                    ),
-                    values=gl.AccessorSparseValues(bufferView=val),
-                )
-        acc.min, acc.max = _bounds(lo, hi, np.float32)
-        self.accessors.append(acc)
-        return len(self.accessors) - 1
-
-    def data(self) -> bytes:
-        pad = -self.size % 4
-        return b"".join(self.parts) + b"\0" * pad
-
-
-def _component(dtype: np.dtype) -> int:
-    return {"float32": _FLOAT, "uint8": _UINT8, "uint16": _UINT16, "uint32": _UINT32}[
-        np.dtype(dtype).name
-    ]
-
-
-def _bounds(lo: np.ndarray, hi: np.ndarray, dtype) -> tuple[list, list]:
-    if np.dtype(dtype).kind == "f":
-        # the exact float32 values, as the validator compares them
-        return [float(v) for v in np.float32(lo)], [float(v) for v in np.float32(hi)]
-    return [int(v) for v in lo], [int(v) for v in hi]
 
 
 # ---- the exporter -------------------------------------------------------------------------------
@@ -297,7 +170,7 @@ class _Exporter:
             self.models, size=size, camera=camera, viewpoint=viewpoint, layout=layout
         )
         self.embed = embed
-        self.blob = _Blob()
+        self.blob = BufferBuilder()
         self.nodes: list[gl.Node] = []
         self.meshes: list[gl.Mesh] = []
         self.materials: list[gl.Material] = []
@@ -350,17 +223,8 @@ class _Exporter:
             samplers=self.samplers,
             cameras=[self._camera(pl.camera, pl.size)],
             animations=[animation] if animation is not None else [],
-            accessors=self.blob.accessors,
-            bufferViews=self.blob.views,
         )
-        data = self.blob.data()
-        if self.embed:
-            uri = "data:application/octet-stream;base64," + base64.b64encode(data).decode("ascii")
-            doc.buffers = [gl.Buffer(byteLength=len(data), uri=uri)]
-        else:
-            doc.buffers = [gl.Buffer(byteLength=len(data))]
-            doc.set_binary_blob(data)
-        return doc
+        return self.blob.attach(doc, embed=self.embed)
 
     def _node(self, node: gl.Node) -> int:
         self.nodes.append(node)
@@ -520,18 +384,15 @@ class _Exporter:
             normals[~(np.abs(normals).sum(axis=1) > 0)] = (0.0, 0.0, 1.0)
         b = self.blob
         attributes = gl.Attributes(
-            POSITION=b.accessor(positions.astype(np.float32), target=_ARRAY_BUFFER, bounds=True),
-            NORMAL=b.accessor(normals.astype(np.float32), target=_ARRAY_BUFFER),
+            POSITION=b.attribute(positions, bounds=True), NORMAL=b.attribute(normals)
         )
         if uses_texture:
             st = gather(tm.texcoords, layout)
             # VRML's t runs up the image, glTF's v down it
-            uv = np.c_[st[:, 0], 1.0 - st[:, 1]].astype(np.float32)
-            attributes.TEXCOORD_0 = b.accessor(uv, target=_ARRAY_BUFFER)
+            attributes.TEXCOORD_0 = b.attribute(np.c_[st[:, 0], 1.0 - st[:, 1]])
         if tm.colors is not None:
-            colors = np.clip(gather(tm.colors, layout), 0.0, 1.0).astype(np.float32)
-            attributes.COLOR_0 = b.accessor(colors, target=_ARRAY_BUFFER)
-        prim = gl.Primitive(attributes=attributes, indices=self._indices(layout, len(positions)))
+            attributes.COLOR_0 = b.attribute(np.clip(gather(tm.colors, layout), 0.0, 1.0))
+        prim = gl.Primitive(attributes=attributes, indices=b.indices(layout.faces, len(positions)))
         extras = {"vtts": {"points": layout.n_points}}
         if block is None:
             return prim, None, extras
@@ -549,13 +410,6 @@ class _Exporter:
         ]
         return prim, targets, extras
 
-    def _indices(self, layout: VertexLayout, n_vertices: int) -> int:
-        # 65535 is the primitive restart value of 16-bit indices: glTF forbids it as an index
-        dtype = np.uint16 if n_vertices <= 65535 else np.uint32
-        return self.blob.accessor(
-            layout.faces.reshape(-1).astype(dtype), target=_ELEMENT_ARRAY_BUFFER
-        )
-
     def _primitive_geometry(self, item: ShapeItem) -> gl.Primitive:
         tri = item.primitive
         faces = np.asarray(tri.faces)
@@ -571,18 +425,12 @@ class _Exporter:
 
     def _plain_primitive(self, positions, normals, faces) -> gl.Primitive:
         b = self.blob
-        n = positions.shape[0]
-        dtype = np.uint16 if n <= 65535 else np.uint32
         return gl.Primitive(
             attributes=gl.Attributes(
-                POSITION=b.accessor(
-                    np.asarray(positions, np.float32), target=_ARRAY_BUFFER, bounds=True
-                ),
-                NORMAL=b.accessor(np.asarray(normals, np.float32), target=_ARRAY_BUFFER),
+                POSITION=b.attribute(positions, bounds=True), NORMAL=b.attribute(normals)
             ),
-            indices=b.accessor(np.asarray(faces).reshape(-1).astype(dtype),
-                               target=_ELEMENT_ARRAY_BUFFER),
-        )  # fmt: skip
+            indices=b.indices(faces, len(positions)),
+        )
 
     def _room_node(self, name: str, tri, color) -> int:
         faces = np.asarray(tri.faces)
@@ -660,22 +508,22 @@ class _Exporter:
             img = tex["image"]
             if img.width == 0 or img.height == 0:
                 return None
-            image = self._image(("pixel", id(tex)), lambda: (_png(img.to_rgba()), "image/png"))
+            image = self._image(("pixel", id(tex)), lambda: (png_bytes(img.to_rgba()), "image/png"))
         elif tex.type.name == "ImageTexture":
             path = model.texture_file(tex)
             if path is None:
                 if list(tex["url"]):
                     warnings.warn(model.texture_warning(tex, list(tex["url"])), stacklevel=4)
                 return None
-            image = self._image(path, lambda: _image_file(path))
+            image = self._image(path, lambda: image_file(path))
         else:
             return None
-        wrap = (_REPEAT if tex["repeatS"] else _CLAMP, _REPEAT if tex["repeatT"] else _CLAMP)
+        wrap = tuple(REPEAT if tex[f] else CLAMP_TO_EDGE for f in ("repeatS", "repeatT"))
         sampler = self._sampler_cache.get(wrap)
         if sampler is None:
             self.samplers.append(
                 gl.Sampler(
-                    magFilter=_LINEAR, minFilter=_LINEAR_MIPMAP_LINEAR, wrapS=wrap[0], wrapT=wrap[1]
+                    magFilter=LINEAR, minFilter=LINEAR_MIPMAP_LINEAR, wrapS=wrap[0], wrapT=wrap[1]
                 )
             )
             sampler = self._sampler_cache[wrap] = len(self.samplers) - 1
@@ -687,7 +535,7 @@ class _Exporter:
             return self._image_cache[key]
         data, mime = load()
         if self.embed:
-            image = gl.Image(uri=f"data:{mime};base64," + base64.b64encode(data).decode("ascii"))
+            image = gl.Image(uri=data_uri(data, mime))
         else:
             image = gl.Image(bufferView=self.blob.view(data), mimeType=mime)
         if isinstance(key, Path):
@@ -901,34 +749,6 @@ def unique_names(names: list[str]) -> list[str]:
         seen[n] = seen.get(n, 0) + 1
         out.append(n if seen[n] == 1 else f"{n}-{seen[n]}")
     return out
-
-
-def _png(rgba: np.ndarray) -> bytes:
-    from PIL import Image
-
-    buf = io.BytesIO()
-    Image.fromarray(np.ascontiguousarray(rgba)).save(buf, format="PNG")
-    return buf.getvalue()
-
-
-def _image_file(path: Path) -> tuple[bytes, str]:
-    """A texture image's bytes and MIME type: PNG and JPEG files as they are, anything else
-    converted to PNG."""
-    from PIL import Image
-
-    from vtts.limits import read_bytes_capped
-
-    try:
-        data = read_bytes_capped(path, 256 << 20, what="texture image")
-        with Image.open(io.BytesIO(data)) as im:
-            check_image_size(*im.size, file=str(path), what="texture image")
-            if im.format == "PNG":
-                return data, "image/png"
-            if im.format == "JPEG":
-                return data, "image/jpeg"
-            return _png(np.asarray(im.convert("RGBA"))), "image/png"
-    except (OSError, Image.DecompressionBombError) as e:
-        raise ExportError(f"cannot read texture image {path}: {e}") from None
 
 
 def _version() -> str:

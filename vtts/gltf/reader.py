@@ -1,83 +1,82 @@
-"""Reading a glTF 2.0 avatar: its node tree, meshes with their morph targets, materials and images,
-as plain arrays (:class:`GltfAsset`).
+"""Reading a glTF 2.0 file (:class:`GltfReader`): its node tree, meshes with their morph targets,
+materials and images, as plain arrays. ``adi import`` reads avatars with it
+(:mod:`vtts.avatar.importer`), ``adi build`` deformed poses (:mod:`adt_tools.build`).
 
-What real avatar files use is read:
+What real files use is read:
 
 - accessors of every component type, normalized or not, strided (``byteStride``), sparse; in
   particular ``KHR_mesh_quantization`` (positions, normals, texture coordinates and morph targets
   as 8- or 16-bit integers, their scale in the node's transform);
-- ``KHR_draco_mesh_compression``, decoded with DracoPy (Google's Draco library);
+- ``KHR_draco_mesh_compression``, decoded with DracoPy (:mod:`vtts.gltf.draco`);
 - ``EXT_meshopt_compression`` (and ``KHR_meshopt_compression``), decoded with the ``meshoptimizer``
-  package (zeux's meshoptimizer library), filters included;
+  package, filters included (:mod:`vtts.gltf.meshopt`);
 - images embedded, in data uris or in files beside the ``.gltf`` (never outside its folder); a
   ``KHR_texture_basisu`` (KTX2) texture, or any image Pillow cannot read, is dropped with a
-  warning: the mesh imports untextured.
+  warning: the mesh reads untextured.
 
 Every size comes from the file, so each is checked before anything is allocated: the file itself
 (:data:`~vtts.limits.MAX_GLTF_BYTES`), each accessor's count
 (:data:`~vtts.limits.MAX_ACCESSOR_COUNT`), the morph targets of a mesh
-(:data:`~vtts.limits.MAX_MORPH_TARGETS`), strides and offsets against their buffers. A broken
-file fails with :class:`~vtts.errors.AvatarError` naming the file and the glTF object.
+(:data:`~vtts.limits.MAX_MORPH_TARGETS`), strides and offsets against their buffers. Every index
+must name an object of its array. A broken file fails with the error class the caller gives
+(:class:`~vtts.errors.AvatarError` for ``adi import``, :class:`~vtts.errors.AdtError` for
+``adi build``) naming the file, the glTF object (``bufferView 3``, ``mesh 0 (Face), primitive 1
+NORMAL (accessor 4)``) and the rule it breaks.
 """
 
 from __future__ import annotations
 
-import base64
-import io
-import math
 import os
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-from urllib.parse import unquote
 
 import numpy as np
 
-from vtts.errors import AvatarError, VttsWarning
+from vtts.errors import VttsError, VttsWarning
+from vtts.gltf.draco import DracoError, decode_draco, short_reason
+from vtts.gltf.geometry import floats, quat_matrix, triangles, uv_transform
+from vtts.gltf.images import KTX2_MAGIC, web_image
+from vtts.gltf.meshopt import MeshoptError, decode_view
+from vtts.gltf.spec import (
+    BASISU,
+    COMPONENT_TYPES,
+    COMPONENTS,
+    DRACO,
+    INDEX_TYPES,
+    MAX_STRIDE,
+    MESHOPT,
+    MODE_NAMES,
+    NORMALIZE,
+    SUPPORTED_REQUIRED,
+    TEXTURE_TRANSFORM,
+    TRIANGLE_FAN,
+    TRIANGLE_STRIP,
+    TRIANGLES,
+    UNLIT,
+    WEBP,
+)
+from vtts.gltf.uri import data_uri_bytes, is_data_uri, local_file
 from vtts.limits import (
     MAX_ACCESSOR_COUNT,
     MAX_GLTF_BYTES,
     MAX_MORPH_TARGETS,
-    check_image_size,
+    LimitError,
     read_bytes_capped,
 )
 
-#: numpy dtype of each glTF componentType.
-COMPONENT_TYPES: dict[int, np.dtype] = {
-    5120: np.dtype("<i1"),
-    5121: np.dtype("<u1"),
-    5122: np.dtype("<i2"),
-    5123: np.dtype("<u2"),
-    5125: np.dtype("<u4"),
-    5126: np.dtype("<f4"),
-}
-#: What a normalized integer component is divided by (signed ones are then clamped at −1).
-NORMALIZE = {5120: 127.0, 5121: 255.0, 5122: 32767.0, 5123: 65535.0, 5125: 4294967295.0}
-COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
-#: The largest byteStride glTF allows.
-MAX_STRIDE = 252
-
-DRACO = "KHR_draco_mesh_compression"
-MESHOPT = ("EXT_meshopt_compression", "KHR_meshopt_compression")
-BASISU = "KHR_texture_basisu"
-QUANTIZATION = "KHR_mesh_quantization"
-#: Extensions a file may require: read (or, for textures, dropped with a warning).
-SUPPORTED_REQUIRED = frozenset(
-    {QUANTIZATION, DRACO, *MESHOPT, BASISU, "KHR_materials_unlit", "KHR_texture_transform",
-     "EXT_texture_webp"}
-)  # fmt: skip
-
-_TRIANGLES, _STRIP, _FAN = 4, 5, 6
-_MODE_NAMES = {0: "POINTS", 1: "LINES", 2: "LINE_LOOP", 3: "LINE_STRIP"}
+#: The primitive modes drawn as triangles.
+TRIANGLE_MODES = (TRIANGLES, TRIANGLE_STRIP, TRIANGLE_FAN)
 
 
 @dataclass(eq=False)
 class Primitive:
-    """One triangle primitive of a mesh, its vertices as the file gives them.
+    """One primitive of a mesh, its vertices as the file gives them.
 
     positions  ``(v, 3) float64``  mesh-local coordinates
-    faces      ``(m, 3) int64``    triangles (strips and fans turned into triangles)
+    faces      ``(m, 3) int64``    triangles (strips and fans turned into triangles; none for
+                                   points and lines)
     normals    ``(v, 3) float64`` or None
     uv, uv1    ``(v, 2) float64`` TEXCOORD_0 and _1 (glTF's v runs down the image) or None
     colors     ``(v, 3) float64`` COLOR_0 (alpha dropped) or None
@@ -128,7 +127,7 @@ class Material:
 
 @dataclass(eq=False)
 class Image:
-    """An image the avatar's textures use: its bytes and format (``"png"`` or ``"jpeg"``; other
+    """An image the file's textures use: its bytes and format (``"png"`` or ``"jpeg"``; other
     formats Pillow reads are converted to PNG)."""
 
     name: str | None
@@ -136,47 +135,43 @@ class Image:
     format: str
 
 
-class GltfAsset:
-    """A glTF 2.0 file (``.glb`` or ``.gltf``) read for import: ``doc`` is the pygltflib document;
-    :meth:`mesh`, :meth:`material`, :meth:`image` and :meth:`accessor` decode its parts (once
-    each). Raises :class:`~vtts.errors.AvatarError` for a file that cannot be read."""
+class GltfReader:
+    """A glTF 2.0 file (``.glb`` or ``.gltf``, told apart by its first bytes) read: ``doc`` is
+    the pygltflib document; :meth:`mesh`, :meth:`material`, :meth:`image` and :meth:`accessor`
+    decode its parts (once each). ``error``: the :class:`~vtts.errors.VttsError` subclass raised
+    for a file that cannot be read (a file over the size limit raises
+    :class:`~vtts.limits.LimitError`)."""
 
-    def __init__(self, path: str | os.PathLike[str]) -> None:
+    def __init__(self, path: str | os.PathLike[str], *, error: type[VttsError] = VttsError) -> None:
         from pygltflib import GLTF2
 
         self.path = Path(path)
         self.file = str(self.path)
-        if self.path.suffix.lower() not in (".glb", ".gltf"):
-            raise AvatarError(
-                f"an avatar is a .glb or .gltf file, not {self.path.suffix or 'no suffix'}",
-                file=self.file,
-            )
+        self.error_type = error
         try:
             data = read_bytes_capped(self.path, MAX_GLTF_BYTES, what="glTF file")
         except IsADirectoryError:
-            raise AvatarError("is a folder, not a glTF file", file=self.file) from None
+            raise self.error("is a folder, not a glTF file") from None
         except OSError as e:
-            raise AvatarError(f"cannot read file: {e.strerror or e}", file=self.file) from None
+            raise self.error(f"cannot read file: {e.strerror or e}") from None
         try:
             if data[:4] == b"glTF":
                 doc = GLTF2.load_from_bytes(data)
             else:
                 doc = GLTF2.gltf_from_json(data.decode("utf-8"))
         except Exception as e:  # pygltflib raises json, struct, type and value errors alike
-            raise AvatarError(f"not a readable glTF file: {_short(e)}", file=self.file) from None
+            raise self.error(f"not a readable glTF file: {short_reason(e)}") from None
         if doc is None or getattr(doc, "asset", None) is None:
-            raise AvatarError("not a readable glTF file: no asset", file=self.file)
+            raise self.error("not a readable glTF file: no asset")
         version = str(getattr(doc.asset, "version", "") or "")
         if not version.startswith("2."):
-            raise AvatarError(f"only glTF 2.x is read, this file is version {version or '?'}",
-                              file=self.file)  # fmt: skip
+            raise self.error(f"only glTF 2.x is read, this file is version {version or '?'}")
         self.doc = doc
         required = [e for e in (doc.extensionsRequired or []) if e not in SUPPORTED_REQUIRED]
         if required:
-            raise AvatarError(
+            raise self.error(
                 f"the file requires the glTF extension {', '.join(map(str, required))}, which vtts "
-                f"cannot read (it reads {', '.join(sorted(SUPPORTED_REQUIRED))})",
-                file=self.file,
+                f"cannot read (it reads {', '.join(sorted(SUPPORTED_REQUIRED))})"
             )
         #: the files besides ``path`` that were read (buffers and images a ``.gltf`` names)
         self.sources: list[Path] = []
@@ -187,25 +182,29 @@ class GltfAsset:
 
     # ---- errors -------------------------------------------------------------------------------
 
-    def error(self, message: str) -> AvatarError:
-        return AvatarError(message, file=self.file)
+    def error(self, message: str) -> VttsError:
+        """The error to raise for ``message``, naming the file."""
+        return self.error_type(message, file=self.file)
 
     def item(self, items: list | None, index: Any, what: str) -> Any:
-        """``items[index]`` for a glTF index: an integer (not a bool) within the array."""
+        """``items[index]`` for a glTF index: an integer (not a bool, not negative: Python's -1
+        would be the last) within the array, naming a glTF object (not a number, string, list
+        or null)."""
         if not isinstance(items, list):
             items = []
         if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < len(items):
             raise self.error(f"{what} {index!r} does not exist")
-        if items[index] is None or isinstance(items[index], (str, int, float, list)):
+        if not is_object(items[index]):
             raise self.error(f"{what} {index} is not a glTF object")
         return items[index]
 
     # ---- buffers ------------------------------------------------------------------------------
 
-    def buffer(self, index: int) -> bytes:
+    def buffer(self, index: Any) -> bytes:
+        """The bytes of buffer ``index``: its uri's, or the GLB binary chunk's (buffer 0)."""
+        buf = self.item(self.doc.buffers, index, "buffer")
         if index in self._buffers:
             return self._buffers[index]
-        buf = self.item(self.doc.buffers, index, "buffer")
         uri = buf.uri
         if uri is None:
             data = self.doc.binary_blob() if index == 0 else None
@@ -214,33 +213,28 @@ class GltfAsset:
                     f"buffer {index} has no data (no uri, and it is not the GLB binary chunk)"
                 )
         else:
-            data = self._uri_bytes(str(uri), f"buffer {index}", MAX_GLTF_BYTES)
+            data = self.uri_bytes(str(uri), f"buffer {index}", MAX_GLTF_BYTES)
         self._buffers[index] = data
         return data
 
-    def _uri_bytes(self, uri: str, what: str, limit: int) -> bytes:
-        if uri.startswith("data:"):
-            head, _, payload = uri.partition(",")
-            if not head.endswith(";base64"):
-                raise self.error(f"{what}: only base64 data uris are read")
-            if len(payload) > limit * 4 // 3 + 4:
-                raise self.error(f"{what}: a data uri larger than {limit >> 20} MiB")
+    def uri_bytes(self, uri: str, what: str, limit: int) -> bytes:
+        """The bytes a uri names: a base64 data uri, or a file inside the glTF file's folder
+        (recorded in :attr:`sources`)."""
+        if is_data_uri(uri):
             try:
-                return base64.b64decode(payload, validate=False)
+                return data_uri_bytes(uri, limit)
             except ValueError as e:
-                raise self.error(f"{what}: bad base64 data: {e}") from None
-        from vtts.vrml import resolve_url
-
-        found = resolve_url([unquote(uri)], self.path.parent)
+                raise self.error(f"{what}: {e}") from None
+        found = local_file(uri, self.path.parent)
         if found is None:
             raise self.error(f"{what}: '{uri}' is not a file inside the glTF file's folder")
-        self.sources.append(Path(found))
+        self.sources.append(found)
         try:
             return read_bytes_capped(found, limit, what=what)
         except OSError as e:
             raise self.error(f"{what}: cannot read '{uri}': {e.strerror or e}") from None
 
-    def view(self, index: int) -> tuple[bytes, int | None]:
+    def view(self, index: Any) -> tuple[bytes, int | None]:
         """The bytes of bufferView ``index`` (decompressed when meshopt-compressed) and its
         byteStride."""
         view = self.item(self.doc.bufferViews, index, "bufferView")
@@ -251,12 +245,12 @@ class GltfAsset:
             raise self.error(
                 f"bufferView {index}: byteStride {stride} is not positive (glTF: 4–{MAX_STRIDE})"
             )
-        ext = _extension(view, *MESHOPT)
+        ext = extension(view, *MESHOPT)
         if ext is not None:
             return self._meshopt_view(index, ext), stride
-        data = self.buffer(_int(view.buffer, f"bufferView {index} buffer", self))
-        start = _int(view.byteOffset or 0, f"bufferView {index} byteOffset", self)
-        length = _int(view.byteLength, f"bufferView {index} byteLength", self)
+        data = self.buffer(view.buffer)
+        start = self._int(view.byteOffset or 0, f"bufferView {index} byteOffset")
+        length = self._int(view.byteLength, f"bufferView {index} byteLength")
         if start + length > len(data):
             raise self.error(
                 f"bufferView {index} (bytes {start}–{start + length}) reaches past the end of its "
@@ -264,23 +258,18 @@ class GltfAsset:
             )
         return data[start : start + length], stride
 
-    def _meshopt_view(self, index: int, ext: dict) -> bytes:
+    def _meshopt_view(self, index: int, ext: Any) -> bytes:
         """A bufferView compressed by EXT_meshopt_compression, decoded (and its filter undone)."""
         if index in self._meshopt:
             return self._meshopt[index]
         what = f"bufferView {index} (EXT_meshopt_compression)"
-        try:
-            import meshoptimizer
-        except ImportError:  # pragma: no cover - a dependency of vtts
-            raise self.error(f"{what}: the meshoptimizer package is not installed") from None
         if not isinstance(ext, dict):
             raise self.error(f"{what}: the extension must be an object")
-        data = self.buffer(_int(ext.get("buffer"), f"{what} buffer", self))
-        start = _int(ext.get("byteOffset", 0), f"{what} byteOffset", self)
-        length = _int(ext.get("byteLength"), f"{what} byteLength", self)
-        stride = _int(ext.get("byteStride"), f"{what} byteStride", self)
-        count = _int(ext.get("count"), f"{what} count", self)
-        mode, filt = ext.get("mode"), ext.get("filter", "NONE")
+        data = self.buffer(ext.get("buffer"))
+        start = self._int(ext.get("byteOffset", 0), f"{what} byteOffset")
+        length = self._int(ext.get("byteLength"), f"{what} byteLength")
+        stride = self._int(ext.get("byteStride"), f"{what} byteStride")
+        count = self._int(ext.get("count"), f"{what} count")
         if start + length > len(data):
             raise self.error(f"{what} reaches past the end of its buffer")
         if count > MAX_ACCESSOR_COUNT:
@@ -288,86 +277,45 @@ class GltfAsset:
                 f"{what}: count {count} is more than the limit of {MAX_ACCESSOR_COUNT} "
                 "(vtts.limits)"
             )
-        source = data[start : start + length]
         try:
-            if mode == "ATTRIBUTES":
-                if not (stride % 4 == 0 and 4 <= stride <= 256):
-                    raise self.error(f"{what}: ATTRIBUTES need a byteStride of 4–256 in steps of "
-                                     f"4, got {stride}")  # fmt: skip
-                # the package's default (float32) mode holds count·stride bytes; its dtype= mode
-                # allocates count elements only and overflows for strides above the itemsize
-                out = meshoptimizer.decode_vertex_buffer(count, stride, source)
-                raw = np.ascontiguousarray(out).view(np.uint8).reshape(-1)[: count * stride]
-                raw = self._meshopt_filter(meshoptimizer, raw, count, stride, filt, what)
-            elif mode in ("TRIANGLES", "INDICES"):
-                if stride not in (2, 4):
-                    raise self.error(f"{what}: {mode} need a byteStride of 2 or 4, got {stride}")
-                decode = (meshoptimizer.decode_index_buffer if mode == "TRIANGLES"
-                          else meshoptimizer.decode_index_sequence)  # fmt: skip
-                out = decode(count, stride, source)
-                raw = np.ascontiguousarray(out).view(np.uint8).reshape(-1)[: count * stride]
-            else:
-                raise self.error(f"{what}: mode must be ATTRIBUTES, TRIANGLES or INDICES, got "
-                                 f"{mode!r}")  # fmt: skip
-        except (RuntimeError, ValueError) as e:
-            raise self.error(f"{what}: cannot decode: {e}") from None
-        result = raw.tobytes()
+            result = decode_view(data[start : start + length], count, stride, ext.get("mode"),
+                                 ext.get("filter", "NONE"))  # fmt: skip
+        except MeshoptError as e:
+            raise self.error(f"{what}: {e}") from None
         self._meshopt[index] = result
         return result
-
-    def _meshopt_filter(self, lib, raw: np.ndarray, count: int, stride: int, filt, what: str):
-        if filt in (None, "NONE"):
-            return raw
-        funcs = {"OCTAHEDRAL": lib.decode_filter_oct, "QUATERNION": lib.decode_filter_quat,
-                 "EXPONENTIAL": lib.decode_filter_exp}  # fmt: skip
-        if filt not in funcs:
-            raise self.error(f"{what}: unknown filter {filt!r}")
-        need = {"OCTAHEDRAL": (4, 8), "QUATERNION": (8,)}.get(filt)
-        if need is not None and stride not in need:
-            raise self.error(f"{what}: the {filt} filter needs a byteStride of "
-                             f"{' or '.join(map(str, need))}, got {stride}")  # fmt: skip
-        if filt == "EXPONENTIAL" and stride % 4:
-            raise self.error(f"{what}: the EXPONENTIAL filter needs a byteStride in steps of 4")
-        return np.asarray(funcs[filt](raw.copy(), count, stride), dtype=np.uint8)
 
     # ---- accessors ----------------------------------------------------------------------------
 
     def accessor(self, index: Any, what: str, *, normalize: bool = True) -> np.ndarray:
         """``(count, components)`` values of accessor ``index``: float64 (normalized integers
-        divided out) or, with ``normalize=False``, the stored numbers as int64/float64."""
+        divided out) or, with ``normalize=False``, the stored numbers as int64/float64. Float
+        values must be finite."""
         acc = self.item(self.doc.accessors, index, f"{what}: accessor")
         what = f"{what} (accessor {index})"
-        ncomp = COMPONENTS.get(acc.type)
+        ncomp = COMPONENTS.get(acc.type) if isinstance(acc.type, str) else None
         ctype = acc.componentType
-        if ncomp is None or ctype not in COMPONENT_TYPES:
+        if ncomp is None or not isinstance(ctype, int) or ctype not in COMPONENT_TYPES:
             raise self.error(f"{what}: unknown type {acc.type!r}/componentType {ctype!r}")
-        count = _count(acc.count, f"{what} count", self)
+        count = self._count(acc.count, f"{what}: count")
         sparse = acc.sparse
         if acc.bufferView is None:
             values = np.zeros((count, ncomp), dtype=COMPONENT_TYPES[ctype])
         else:
             values = self._read(acc.bufferView, acc.byteOffset or 0, count, ctype, ncomp, what)
         if sparse is not None:
-            k = _count(sparse.count, f"{what} sparse count", self)
+            if not is_object(sparse):
+                raise self.error(f"{what}: sparse must be an object")
+            k = self._count(sparse.count, f"{what}: sparse count")
             if k > count:
                 raise self.error(f"{what}: {k} sparse values for {count} elements")
             ind, val = sparse.indices, sparse.values
-            if ind is None or val is None or ind.componentType not in (5121, 5123, 5125):
+            if not (is_object(ind) and is_object(val)) or ind.componentType not in INDEX_TYPES:
                 raise self.error(f"{what}: sparse indices must be unsigned integers (5121, 5123 "
                                  "or 5125), and sparse values are needed")  # fmt: skip
-            idx = (
-                self._read(
-                    ind.bufferView,
-                    ind.byteOffset or 0,
-                    k,
-                    ind.componentType,
-                    1,
-                    f"{what} sparse indices",
-                    plain=True,
-                )
-                .reshape(-1)
-                .astype(np.int64)
-            )
+            idx = self._read(ind.bufferView, ind.byteOffset or 0, k, ind.componentType, 1,
+                             f"{what} sparse indices", plain=True)  # fmt: skip
+            idx = idx.reshape(-1).astype(np.int64)
             vals = self._read(val.bufferView, val.byteOffset or 0, k, ctype, ncomp,
                               f"{what} sparse values", plain=True)  # fmt: skip
             if idx.size and (idx.min() < 0 or idx.max() >= count):
@@ -388,8 +336,8 @@ class GltfAsset:
         """``(count, ncomp)`` elements of a bufferView region, strided as the view says (sparse
         parts, ``plain``, are tightly packed)."""
         dtype = COMPONENT_TYPES[ctype]
-        data, stride = self.view(_int(view_index, f"{what} bufferView", self))
-        offset = _int(offset, f"{what} byteOffset", self)
+        data, stride = self.view(self._int(view_index, f"{what} bufferView"))
+        offset = self._int(offset, f"{what} byteOffset")
         item = dtype.itemsize * ncomp
         if plain or stride is None:
             stride = item
@@ -407,29 +355,44 @@ class GltfAsset:
         return np.ndarray((count, ncomp), dtype=dtype, buffer=data, offset=offset,
                           strides=(stride, dtype.itemsize)).copy()  # fmt: skip
 
+    def _int(self, value: Any, what: str) -> int:
+        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+            raise self.error(f"{what} must be an integer >= 0, got {value!r}")
+        return value
+
+    def _count(self, value: Any, what: str) -> int:
+        """An element count: an integer >= 0 within :data:`~vtts.limits.MAX_ACCESSOR_COUNT`."""
+        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+            raise self.error(f"{what} {value!r} is not an integer >= 0")
+        if value > MAX_ACCESSOR_COUNT:
+            raise self.error(f"{what} {value} is more than the limit of {MAX_ACCESSOR_COUNT} "
+                             "(vtts.limits)")  # fmt: skip
+        return value
+
     # ---- meshes -------------------------------------------------------------------------------
 
-    def mesh(self, index: int) -> Mesh:
+    def mesh(self, index: Any) -> Mesh:
+        """Mesh ``index`` with its triangle primitives (others are skipped with a warning)."""
+        m = self.item(self.doc.meshes, index, "mesh")
         if index in self._meshes:
             return self._meshes[index]
-        m = self.item(self.doc.meshes, index, "mesh")
         label = f"mesh {index}" + (f" ({m.name})" if m.name else "")
         prims = []
         n_targets = None
-        for pi, p in enumerate(m.primitives or []):
-            mode = 4 if p.mode is None else p.mode
-            if mode not in (_TRIANGLES, _STRIP, _FAN):
-                warnings.warn(VttsWarning(f"{label}, primitive {pi}: {_MODE_NAMES.get(mode, mode)}"
+        for pi, p in enumerate(self.primitives(m, label)):
+            mode = primitive_mode(p)
+            if mode not in TRIANGLE_MODES:
+                warnings.warn(VttsWarning(f"{label}, primitive {pi}: {MODE_NAMES.get(mode, mode)}"
                                           " primitives are not drawn (only triangles)",
                                           file=self.file), stacklevel=2)  # fmt: skip
                 continue
-            prim = self._primitive(p, f"{label}, primitive {pi}", mode)
+            prim = self.primitive(p, f"{label}, primitive {pi}")
             if n_targets is not None and len(prim.targets) != n_targets:
                 raise self.error(f"{label}: its primitives have different numbers of morph "
                                  "targets (glTF requires the same number)")  # fmt: skip
             n_targets = len(prim.targets)
             prims.append(prim)
-        names = _target_names(m)
+        names = target_names(m)
         n = n_targets or 0
         if len(names) != n:
             if names:
@@ -440,11 +403,24 @@ class GltfAsset:
         mesh = self._meshes[index] = Mesh(m.name, names, prims)
         return mesh
 
-    def _primitive(self, p, label: str, mode: int) -> Primitive:
-        attrs = _attributes(p.attributes)
+    def primitives(self, mesh: Any, label: str) -> list[Any]:
+        """The primitives of a glTF mesh object, each checked to be an object."""
+        prims = mesh.primitives or []
+        if not isinstance(prims, list):
+            raise self.error(f"{label}: primitives must be a list")
+        for pi, p in enumerate(prims):
+            if not is_object(p):
+                raise self.error(f"{label}, primitive {pi} is not a glTF object")
+        return prims
+
+    def primitive(self, p: Any, label: str) -> Primitive:
+        """A glTF primitive object decoded (Draco included): its attributes, morph targets and,
+        for a triangle mode, triangles (points and lines have none)."""
+        mode = primitive_mode(p)
+        attrs = attributes(p.attributes)
         if attrs is None:
             raise self.error(f"{label}: attributes must be an object")
-        draco = _extension(p, DRACO)
+        draco = extension(p, DRACO)
         decoded: dict[str, np.ndarray] = {}
         faces = None
         if draco is not None:
@@ -489,13 +465,13 @@ class GltfAsset:
                 raise self.error(f"{label}: JOINTS_0 and WEIGHTS_0 must be VEC4 per vertex")
             out.joints, out.weights = j.astype(np.int64), w
         targets = p.targets or []
+        if not isinstance(targets, list):
+            raise self.error(f"{label}: targets must be a list")
         if len(targets) > MAX_MORPH_TARGETS:
             raise self.error(f"{label} has {len(targets)} morph targets, more than the limit of "
                              f"{MAX_MORPH_TARGETS} (vtts.limits)")  # fmt: skip
-        if not isinstance(targets, list):
-            raise self.error(f"{label}: targets must be a list")
         for ti, t in enumerate(targets):
-            ta = _attributes(t)
+            ta = attributes(t)
             if ta is None:
                 raise self.error(f"{label}: morph target {ti} must be an object")
             if "POSITION" not in ta:
@@ -506,6 +482,8 @@ class GltfAsset:
                 raise self.error(f"{label}: morph target {ti} POSITION is {d.shape[0]}×"
                                  f"{d.shape[1]}, the primitive has {v} VEC3 positions")  # fmt: skip
             out.targets.append(d)
+        if mode not in TRIANGLE_MODES:
+            return out
         if faces is None:
             if p.indices is None:
                 idx = np.arange(v, dtype=np.int64)
@@ -513,7 +491,7 @@ class GltfAsset:
                 idx = self.accessor(p.indices, f"{label} indices", normalize=False).reshape(-1)
                 if idx.dtype.kind == "f":
                     raise self.error(f"{label}: indices must be unsigned integers")
-            faces = _triangles(idx, mode)
+            faces = triangles(idx, mode)
         faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
         if faces.size and (faces.min() < 0 or faces.max() >= v):
             raise self.error(f"{label}: a triangle names vertex {int(faces.max())}, but the "
@@ -524,29 +502,20 @@ class GltfAsset:
     def _draco(self, ext: Any, attrs: dict, label: str) -> tuple[dict[str, np.ndarray], np.ndarray]:
         """The attributes and triangles of a KHR_draco_mesh_compression primitive."""
         what = f"{label} ({DRACO})"
-        try:
-            import DracoPy
-        except ImportError:  # pragma: no cover - a dependency of vtts
-            raise self.error(f"{what}: the DracoPy package is not installed") from None
         if not isinstance(ext, dict) or not isinstance(ext.get("attributes"), dict):
             raise self.error(f"{what}: the extension needs a bufferView and attributes")
-        data, _ = self.view(_int(ext.get("bufferView"), f"{what} bufferView", self))
+        data, _ = self.view(self._int(ext.get("bufferView"), f"{what} bufferView"))
         try:
-            mesh = DracoPy.decode(bytes(data))
-        except Exception as e:  # DracoPy raises its own exception types and ValueError
-            raise self.error(f"{what}: cannot decode the Draco data: {_short(e)}") from None
-        faces = getattr(mesh, "faces", None)
-        if faces is None or not len(faces):
-            raise self.error(f"{what}: the Draco data is a point cloud, not triangles")
+            decoded, faces = decode_draco(data)
+        except DracoError as e:
+            raise self.error(f"{what}: {e}") from None
         out: dict[str, np.ndarray] = {}
         for name, uid in ext["attributes"].items():
             if name not in attrs:
                 continue
-            att = mesh.get_attribute_by_unique_id(_int(uid, f"{what} {name} id", self))
-            if att is None:
+            a = decoded.get(self._int(uid, f"{what} {name} id"))
+            if a is None:
                 raise self.error(f"{what}: no Draco attribute with id {uid} for {name}")
-            a = np.asarray(att["data"])
-            a = a.reshape(len(a), -1)
             acc = self.item(self.doc.accessors, attrs[name], f"{what} {name}: accessor")
             if acc.count != len(a):
                 raise self.error(f"{what}: {name} decodes to {len(a)} values, its accessor says "
@@ -554,7 +523,7 @@ class GltfAsset:
             if a.dtype.kind in "iu" and acc.normalized and acc.componentType in NORMALIZE:
                 a = np.maximum(a / NORMALIZE[acc.componentType], -1.0)
             out[name] = a if name == "JOINTS_0" else a.astype(np.float64)
-        return out, np.asarray(faces, dtype=np.int64)
+        return out, faces
 
     # ---- materials and images -----------------------------------------------------------------
 
@@ -563,22 +532,22 @@ class GltfAsset:
             return Material(None, np.array([1.0, 1, 1, 1]), np.zeros(3), 1.0, False, None, False)
         m = self.item(self.doc.materials, index, "material")
         pbr = m.pbrMetallicRoughness
-        base = np.array(_floats(getattr(pbr, "baseColorFactor", None), [1, 1, 1, 1], 4))
-        rough = _floats([getattr(pbr, "roughnessFactor", None)], [1.0], 1)[0]
-        emissive = np.array(_floats(m.emissiveFactor, [0, 0, 0], 3))
+        base = np.array(floats(getattr(pbr, "baseColorFactor", None), [1, 1, 1, 1], 4))
+        rough = floats([getattr(pbr, "roughnessFactor", None)], [1.0], 1)[0]
+        emissive = np.array(floats(m.emissiveFactor, [0, 0, 0], 3))
         image, texcoord, transform = None, 0, np.eye(3)
         info = getattr(pbr, "baseColorTexture", None)
         if info is not None:
             image = self.texture_image(info.index)
             texcoord = info.texCoord if info.texCoord in (0, 1) else 0
-            ext = _extension(info, "KHR_texture_transform")
+            ext = extension(info, TEXTURE_TRANSFORM)
             if isinstance(ext, dict):
-                transform = _uv_transform(ext)
+                transform = uv_transform(ext)
                 if isinstance(ext.get("texCoord"), int) and ext["texCoord"] in (0, 1):
                     texcoord = ext["texCoord"]
         return Material(
             m.name, np.clip(base, 0, 1), np.clip(emissive, 0, 1), float(np.clip(rough, 0, 1)),
-            bool(m.doubleSided), image, bool(_extension(m, "KHR_materials_unlit") is not None),
+            bool(m.doubleSided), image, bool(extension(m, UNLIT) is not None),
             texcoord, transform,
         )  # fmt: skip
 
@@ -586,8 +555,8 @@ class GltfAsset:
         """The image a texture shows, or None (with a warning) when it cannot be decoded."""
         tex = self.item(self.doc.textures, index, "texture")
         source = tex.source
-        basis = _extension(tex, BASISU)
-        webp = _extension(tex, "EXT_texture_webp")
+        basis = extension(tex, BASISU)
+        webp = extension(tex, WEBP)
         if source is None and webp is not None:
             source = webp.get("source") if isinstance(webp, dict) else None
         if source is None:
@@ -601,10 +570,10 @@ class GltfAsset:
 
     def image(self, index: Any) -> Image | None:
         """Image ``index`` (PNG or JPEG bytes), or None with a warning when it cannot be read
-        (KTX2, a broken file): the texture is dropped, never the import."""
+        (KTX2, a broken file): the texture is dropped, never the mesh."""
+        img = self.item(self.doc.images, index, "image")
         if index in self._images:
             return self._images[index]
-        img = self.item(self.doc.images, index, "image")
         what = f"image {index}" + (f" ({img.name})" if img.name else "")
         result = None
         try:
@@ -612,20 +581,22 @@ class GltfAsset:
                 data, _ = self.view(img.bufferView)
                 data = bytes(data)
             elif img.uri is not None:
-                data = self._uri_bytes(str(img.uri), what, MAX_GLTF_BYTES)
+                data = self.uri_bytes(str(img.uri), what, MAX_GLTF_BYTES)
             else:
                 raise self.error(f"{what} has neither a bufferView nor a uri")
             result = self._decode_image(data, img, what)
-        except AvatarError as e:
+        except self.error_type as e:
+            if isinstance(e, LimitError):
+                raise
             warnings.warn(VttsWarning(f"{e.message}: the texture is dropped", file=self.file),
                           stacklevel=3)  # fmt: skip
         self._images[index] = result
         return result
 
-    def _decode_image(self, data: bytes, img, what: str) -> Image | None:
+    def _decode_image(self, data: bytes, img: Any, what: str) -> Image | None:
         from PIL import Image as PilImage
 
-        if data[:12] == b"\xabKTX 20\xbb\r\n\x1a\n" or img.mimeType == "image/ktx2":
+        if data[:12] == KTX2_MAGIC or img.mimeType == "image/ktx2":
             warnings.warn(
                 VttsWarning(
                     f"{what} is KTX2 (Basis Universal), which vtts cannot decode: the texture is "
@@ -636,17 +607,10 @@ class GltfAsset:
             )
             return None
         try:
-            with PilImage.open(io.BytesIO(data)) as im:
-                check_image_size(*im.size, file=self.file, what=what)
-                fmt = (im.format or "").lower()
-                if fmt in ("png", "jpeg"):
-                    im.load()
-                    return Image(img.name, data, fmt)
-                buf = io.BytesIO()
-                im.convert("RGBA").save(buf, format="PNG")
-                return Image(img.name, buf.getvalue(), "png")
+            data, fmt = web_image(data, file=self.file, what=what)
         except (OSError, ValueError, PilImage.DecompressionBombError) as e:
-            raise self.error(f"{what} is not an image vtts can read ({_short(e)})") from None
+            raise self.error(f"{what} is not an image vtts can read ({short_reason(e)})") from None
+        return Image(img.name, data, fmt)
 
     # ---- nodes --------------------------------------------------------------------------------
 
@@ -657,11 +621,12 @@ class GltfAsset:
         if scenes:
             index = self.doc.scene if isinstance(self.doc.scene, int) else 0
             scene = self.item(scenes, index, "scene")
-            return [self._node_index(n) for n in scene.nodes or []]
+            return [self.node_index(n) for n in scene.nodes or []]
         children = {c for n in self.doc.nodes or [] for c in (n.children or [])}
         return [i for i in range(len(self.doc.nodes or [])) if i not in children]
 
-    def _node_index(self, n: Any) -> int:
+    def node_index(self, n: Any) -> int:
+        """``n``, checked to name a node."""
         self.item(self.doc.nodes, n, "node")
         return n
 
@@ -669,11 +634,11 @@ class GltfAsset:
         """``(4, 4) float64`` a node's local matrix (``matrix``, else T·R·S)."""
         n = self.item(self.doc.nodes, index, "node")
         if n.matrix is not None:
-            m = np.array(_floats(n.matrix, list(np.eye(4).reshape(-1)), 16)).reshape(4, 4).T
+            m = np.array(floats(n.matrix, list(np.eye(4).reshape(-1)), 16)).reshape(4, 4).T
             return m
-        t = np.array(_floats(n.translation, [0, 0, 0], 3))
-        q = np.array(_floats(n.rotation, [0, 0, 0, 1], 4))
-        s = np.array(_floats(n.scale, [1, 1, 1], 3))
+        t = np.array(floats(n.translation, [0, 0, 0], 3))
+        q = np.array(floats(n.rotation, [0, 0, 0, 1], 4))
+        s = np.array(floats(n.scale, [1, 1, 1], 3))
         m = np.eye(4)
         m[:3, :3] = quat_matrix(q) @ np.diag(s)
         m[:3, 3] = t
@@ -693,31 +658,23 @@ class GltfAsset:
             ibm = a.reshape(-1, 4, 4).transpose(0, 2, 1)
         mats = []
         for k, j in enumerate(joints):
-            self._node_index(j)
+            self.node_index(j)
             mats.append(world.get(j, np.eye(4)) @ ibm[k])
         return np.array(mats).reshape(-1, 4, 4)
-
-
-def quat_matrix(q: np.ndarray) -> np.ndarray:
-    """The rotation matrix ``(3, 3)`` of a glTF quaternion ``(x, y, z, w)`` (normalized here;
-    a zero quaternion is the identity)."""
-    n = float(np.linalg.norm(q))
-    if not n > 0 or not math.isfinite(n):
-        return np.eye(3)
-    x, y, z, w = np.asarray(q, dtype=np.float64) / n
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
 
 
 # ---- helpers -------------------------------------------------------------------------------------
 
 
-def _extension(obj: Any, *names: str) -> Any:
+def is_object(value: Any) -> bool:
+    """Whether a value pygltflib parsed is a glTF object (not null, a number, a string or a
+    list)."""
+    return value is not None and not isinstance(value, (str, int, float, list))
+
+
+def extension(obj: Any, *names: str) -> Any:
+    """The first of the extensions ``names`` that ``obj`` has (``{}`` for a null one), else
+    None."""
     ext = getattr(obj, "extensions", None)
     if not isinstance(ext, dict):
         return None
@@ -727,7 +684,7 @@ def _extension(obj: Any, *names: str) -> Any:
     return None
 
 
-def _attributes(attributes: Any) -> dict[str, Any] | None:
+def attributes(attributes: Any) -> dict[str, Any] | None:
     """A primitive's or target's attributes as ``{name: accessor index}`` (None when they are not
     an object)."""
     if attributes is None:
@@ -741,72 +698,17 @@ def _attributes(attributes: Any) -> dict[str, Any] | None:
     return {k: v for k, v in items if v is not None}
 
 
-def _target_names(mesh: Any) -> list[str]:
+def primitive_mode(p: Any) -> Any:
+    """A primitive's mode (TRIANGLES when it has none)."""
+    return TRIANGLES if p.mode is None else p.mode
+
+
+def target_names(mesh: Any) -> list[str]:
     """Morph target names: the mesh's ``extras.targetNames`` (Blender's and three.js's
     convention), else its first primitive's."""
-    for holder in [mesh, *(mesh.primitives or [])[:1]]:
+    prims = mesh.primitives if isinstance(mesh.primitives, list) else []
+    for holder in [mesh, *prims[:1]]:
         extras = getattr(holder, "extras", None)
         if isinstance(extras, dict) and isinstance(extras.get("targetNames"), list):
             return [str(n) for n in extras["targetNames"]]
     return []
-
-
-def _uv_transform(ext: dict) -> np.ndarray:
-    """``(3, 3)`` the KHR_texture_transform matrix (translation · rotation · scale) on
-    ``(u, v, 1)``; bad values are left at their defaults."""
-    offset = _floats(ext.get("offset"), [0.0, 0.0], 2)
-    scale = _floats(ext.get("scale"), [1.0, 1.0], 2)
-    (rotation,) = _floats([ext.get("rotation")], [0.0], 1)
-    c, s = math.cos(rotation), math.sin(rotation)
-    t = np.array([[1, 0, offset[0]], [0, 1, offset[1]], [0, 0, 1]])
-    # the extension's GLSL: mat3(cos, sin, 0, -sin, cos, 0, 0, 0, 1), filled column by column
-    r = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
-    return t @ r @ np.diag([scale[0], scale[1], 1.0])
-
-
-def _triangles(idx: np.ndarray, mode: int) -> np.ndarray:
-    """``(m, 3)`` triangles of an index list drawn as TRIANGLES, TRIANGLE_STRIP or _FAN."""
-    n = idx.size
-    if mode == _TRIANGLES:
-        return idx[: n - n % 3].reshape(-1, 3)
-    if n < 3:
-        return np.zeros((0, 3), dtype=np.int64)
-    k = np.arange(n - 2)
-    if mode == _FAN:
-        return np.c_[np.full(n - 2, idx[0]), idx[k + 1], idx[k + 2]]
-    even = k % 2 == 0  # a strip's odd triangles are wound the other way round
-    a = np.where(even, idx[k], idx[k + 1])
-    b = np.where(even, idx[k + 1], idx[k])
-    return np.c_[a, b, idx[k + 2]]
-
-
-def _int(value: Any, what: str, asset: GltfAsset) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-        raise asset.error(f"{what} must be an integer >= 0, got {value!r}")
-    return value
-
-
-def _count(value: Any, what: str, asset: GltfAsset) -> int:
-    v = _int(value, what, asset)
-    if v > MAX_ACCESSOR_COUNT:
-        raise asset.error(f"{what} is {v}, more than the limit of {MAX_ACCESSOR_COUNT} "
-                          "(vtts.limits)")  # fmt: skip
-    return v
-
-
-def _floats(values: Any, default: list, n: int) -> list[float]:
-    """``values`` as n finite floats, else ``default``."""
-    if values is None or (len(values) == 1 and values[0] is None):
-        return [float(v) for v in default]
-    try:
-        out = [float(v) for v in values]
-    except (TypeError, ValueError):
-        return [float(v) for v in default]
-    if len(out) != n or not all(math.isfinite(v) for v in out):
-        return [float(v) for v in default]
-    return out
-
-
-def _short(e: BaseException) -> str:
-    text = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
-    return text[:200]

@@ -1,0 +1,57 @@
+"""The images of glTF textures: PNG and JPEG as they are, anything else Pillow reads as PNG."""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import numpy as np
+
+from vtts.errors import ExportError
+from vtts.limits import check_image_size, read_bytes_capped
+
+#: MIME type of each image format glTF core allows.
+MIME_TYPES = {"png": "image/png", "jpeg": "image/jpeg"}
+#: The largest texture image file embedded in an export, bytes.
+MAX_TEXTURE_FILE_BYTES = 256 << 20
+#: The signature that opens a KTX2 file (Basis Universal textures).
+KTX2_MAGIC = b"\xabKTX 20\xbb\r\n\x1a\n"
+
+
+def png_bytes(rgba: np.ndarray) -> bytes:
+    """The PNG file of an image ``(h, w, 4) uint8`` RGBA (or ``(h, w, 3)`` RGB)."""
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(rgba)).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def web_image(data: bytes, *, file: str | None, what: str) -> tuple[bytes, str]:
+    """An image's bytes and format (``"png"`` or ``"jpeg"``): PNG and JPEG ``data`` as it is,
+    any other format Pillow reads converted to PNG. Its size is checked
+    (:func:`~vtts.limits.check_image_size`, naming ``file`` and ``what``) before its pixels are
+    decoded. Raises ``OSError``, ``ValueError`` or Pillow's ``DecompressionBombError`` for data
+    Pillow cannot read."""
+    from PIL import Image
+
+    with Image.open(io.BytesIO(data)) as im:
+        check_image_size(*im.size, file=file, what=what)
+        fmt = (im.format or "").lower()
+        if fmt in MIME_TYPES:
+            im.load()  # a truncated or corrupt file fails here, not in a viewer
+            return data, fmt
+        return png_bytes(np.asarray(im.convert("RGBA"))), "png"
+
+
+def image_file(path: Path) -> tuple[bytes, str]:
+    """A texture image file's bytes and MIME type for embedding (:func:`web_image`). Raises
+    :class:`~vtts.errors.ExportError` for a file that cannot be read."""
+    from PIL import Image
+
+    try:
+        data = read_bytes_capped(path, MAX_TEXTURE_FILE_BYTES, what="texture image")
+        data, fmt = web_image(data, file=str(path), what="texture image")
+    except (OSError, ValueError, Image.DecompressionBombError) as e:
+        raise ExportError(f"cannot read texture image {path}: {e}") from None
+    return data, MIME_TYPES[fmt]
