@@ -93,6 +93,9 @@ def _scene(*, colors=False, transparent=False, no_normals=False, points=False, l
     if lights == "dir":
         scene.add(pr.DirectionalLight(color=np.ones(3), intensity=2.0), pose=_look_from(1.0))
         scene.add(pr.DirectionalLight(color=[1.0, 0.9, 0.8], intensity=0.7))
+    elif lights == "many":
+        for k in range(6):
+            scene.add(pr.DirectionalLight(color=np.ones(3), intensity=0.4), pose=_look_from(k))
     else:
         scene.add(pr.PointLight(color=np.ones(3), intensity=6.0), pose=_look_from(2.0))
         scene.add(
@@ -115,6 +118,7 @@ CASES = {
     "no normals": {"no_normals": True},
     "point and spot lights": {"lights": "point"},
     "points (forward only)": {"points": True},
+    "more lights than its shader holds (pyrender's render)": {"lights": "many"},
 }
 
 

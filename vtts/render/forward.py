@@ -54,7 +54,7 @@ class ForwardPass:
     def __init__(self, offscreen) -> None:
         from pyrender.constants import GLTF, MAX_N_LIGHTS, ProgramFlags, RenderFlags, TexFlags
 
-        self._pyrender = load_pyrender()
+        self._pyrender_module = load_pyrender()
         self._offscreen = offscreen
         self._max_lights = MAX_N_LIGHTS
         self._points_mode = GLTF.POINTS
@@ -98,7 +98,7 @@ class ForwardPass:
 
     def supports(self, scene) -> bool:
         """Whether this pass draws ``scene`` as pyrender would (else use pyrender's render)."""
-        pr = self._pyrender
+        pr = self._pyrender_module
         if max(light_counts(scene)) > self._max_lights:
             return False
         if scene.main_camera_node is None:
@@ -132,7 +132,8 @@ class ForwardPass:
         """pyrender's own render (for scenes this pass does not cover)."""
         offscreen = self._offscreen
         offscreen.viewport_width, offscreen.viewport_height = width, height
-        flags = self._pyrender.RenderFlags.RGBA if rgba else self._pyrender.RenderFlags.NONE
+        flags = self._pyrender_module.RenderFlags
+        flags = flags.RGBA if rgba else flags.NONE
         return offscreen.render(scene, flags=flags)[0]
 
     # ---- one frame ---------------------------------------------------------------------------
@@ -184,7 +185,7 @@ class ForwardPass:
 
     def _light_uniforms(self, scene) -> dict[str, object]:
         """The lighting uniforms of pyrender's ``_bind_lighting`` (without shadows)."""
-        pr = self._pyrender
+        pr = self._pyrender_module
         u: dict[str, object] = {"ambient_light": scene.ambient_light}
         for kind, n in zip(LIGHT_KINDS, light_counts(scene), strict=True):
             u[f"n_{kind}"] = n
