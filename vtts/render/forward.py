@@ -433,6 +433,8 @@ def _blend_func(factors: tuple[int, int]) -> None:
 
 
 def cull_back(cull: bool) -> None:
+    """Cull back faces (``cull``), as pyrender does for a material that is not double-sided, or
+    draw both sides."""
     if cull:
         GL.glEnable(GL.GL_CULL_FACE)
         GL.glCullFace(GL.GL_BACK)
