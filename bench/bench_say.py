@@ -311,7 +311,7 @@ def _say_steps(text: str, model_name: str, output: str, started: float) -> dict:
     from vtts.face import load_model
     from vtts.fap import write_fap  # noqa: F401
     from vtts.render import DETAIL_PX, FaceRenderer, VideoWriter, write_wav
-    from vtts.render import renderer as _renderer
+    from vtts.render.pyrender_adapter import load_pyrender, offscreen
     from vtts.utterance import prepare_utterance
 
     lap("import")
@@ -320,9 +320,9 @@ def _say_steps(text: str, model_name: str, output: str, started: float) -> dict:
     known = {x.name for x in model.tables.adts if x.kind == "expression"}
     utt = prepare_utterance(text, known=known)
     lap("tts")
-    _renderer._pr()
+    load_pyrender()
     lap("pyrender")
-    _renderer._offscreen()
+    offscreen()
     lap("egl")
     renderer = FaceRenderer([model], detail=DETAIL_PX)  # as the command draws
     lap("scene")

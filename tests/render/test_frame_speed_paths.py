@@ -11,7 +11,7 @@ from vtts.face import load_model
 from vtts.mesh import vertex_normals
 from vtts.render import FaceRenderer
 from vtts.render.mipmaps import mip_levels, power_of_two
-from vtts.render.renderer import _offscreen, _pr
+from vtts.render.pyrender_adapter import make_current, offscreen, pyrender_texture
 
 
 def _speaking(model, n: int = 14) -> list[np.ndarray]:
@@ -82,8 +82,7 @@ def test_vertex_normals_of_many_shapes_are_each_shapes():
 @pytest.mark.parametrize("shape", [(64, 64), (512, 256), (16, 1), (1, 8), (2, 32)])
 def test_mipmaps_are_the_rasterizers(shape):
     """:func:`mip_levels` gives the texels of llvmpipe's ``glGenerateMipmap``."""
-    _pr()
-    _offscreen()._platform.make_current()
+    make_current(offscreen())
     from OpenGL import GL
 
     if "llvmpipe" not in GL.glGetString(GL.GL_RENDERER).decode():
@@ -117,11 +116,8 @@ def test_mip_levels_refuse_other_sizes():
 
 def test_a_texture_of_another_size_keeps_gl_mipmaps(tmp_path):
     """A texture whose sides are not powers of two renders (GL makes its levels)."""
-    from vtts.render.renderer import _pyrender_texture
-
-    tex = _pyrender_texture(np.full((6, 10, 4), 200, np.uint8))
-    _pr()
-    _offscreen()._platform.make_current()
+    tex = pyrender_texture(np.full((6, 10, 4), 200, np.uint8))
+    make_current(offscreen())
     tex._add_to_context()
     try:
         assert tex._texid is not None
@@ -132,7 +128,7 @@ def test_a_texture_of_another_size_keeps_gl_mipmaps(tmp_path):
 def test_a_scene_draws_in_the_order_its_nodes_were_added():
     """pyrender keeps a scene's nodes in sets (address order); a FaceRenderer's scene iterates
     its meshes and lights in the order they were added, so two renderers of one model draw
-    alike (renderer._order_scene)."""
+    alike (pyrender_adapter.order_scene)."""
     model = load_model("cybatt")
     orders = []
     for _ in range(3):

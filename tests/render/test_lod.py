@@ -186,18 +186,18 @@ def test_a_larger_view_draws_more_triangles(tmp_path, monkeypatch):
 
 def test_normals_only_where_triangles_are_drawn_are_the_full_meshs():
     from vtts.mesh import vertex_normals
-    from vtts.render.renderer import _normals
+    from vtts.render.renderer import deformed_points
 
     model = load_model("cybatt")
     with FaceRenderer(model, detail=0.5) as r:
         inst = r.instances[0]
         params = [model.params(visemes={v: 1.0}) for v in (2, 9)]
-        points = r._points(inst, [(p, None) for p in params])
+        points = deformed_points(inst, [(p, None) for p in params])
         for am in inst.meshes:
             pos = np.stack(points[am.name])[:, am.template.coord_index]
             full = vertex_normals(pos, am.template.faces, am.incidence)
             used = np.unique(am.faces)
-            assert np.array_equal(_normals(am, pos)[:, used], full[:, used])  # the same bits
+            assert np.array_equal(am.normals(pos)[:, used], full[:, used])  # the same bits
 
 
 def test_the_drawn_vertices_are_found_without_numpy_ma():
@@ -207,13 +207,13 @@ def test_the_drawn_vertices_are_found_without_numpy_ma():
     import subprocess
     import sys
 
-    from vtts.render.renderer import _present
+    from vtts.render.lod import present
 
     rng = np.random.default_rng(3)
     for n in (1, 7, 500):
         ids = rng.integers(0, n, size=(40, 3))
-        assert np.array_equal(_present(ids, n), np.unique(ids))
-    assert _present(np.zeros((0, 3), dtype=np.int64), 4).size == 0
+        assert np.array_equal(present(ids, n), np.unique(ids))
+    assert present(np.zeros((0, 3), dtype=np.int64), 4).size == 0
     code = (
         "import sys\n"
         "from vtts.face import load_model\n"

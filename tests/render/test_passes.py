@@ -8,14 +8,15 @@ import pytest
 
 from vtts.face import load_model
 from vtts.render import FaceRenderer
-from vtts.render.renderer import _drawing_pass, _offscreen, _pr
+from vtts.render.pyrender_adapter import load_pyrender, offscreen
+from vtts.render.renderer import drawing_pass
 
 W, H = 160, 120
 
 
 def _pyrender(scene, rgba=False) -> np.ndarray:
-    pr = _pr()
-    off = _offscreen()
+    pr = load_pyrender()
+    off = offscreen()
     off.viewport_width, off.viewport_height = W, H
     flags = pr.RenderFlags.RGBA if rgba else pr.RenderFlags.NONE
     return off.render(scene, flags=flags)[0]
@@ -24,7 +25,7 @@ def _pyrender(scene, rgba=False) -> np.ndarray:
 def _forward():
     from vtts.render.forward import ForwardPass
 
-    return ForwardPass(_offscreen())
+    return ForwardPass(offscreen())
 
 
 def _grid(n: int = 24, z: float = 0.0, wave: float = 0.15) -> tuple[np.ndarray, np.ndarray]:
@@ -39,7 +40,7 @@ def _grid(n: int = 24, z: float = 0.0, wave: float = 0.15) -> tuple[np.ndarray, 
 
 def _scene(*, colors=False, transparent=False, no_normals=False, points=False, lights="dir"):
     """A small scene exercising one feature at a time on top of a textured, lit wavy surface."""
-    pr = _pr()
+    pr = load_pyrender()
     scene = pr.Scene(bg_color=[0.2, 0.3, 0.4, 0.0], ambient_light=[0.3, 0.3, 0.3])
     pos, faces = _grid()
     normals = np.tile([0.0, 0.0, 1.0], (len(pos), 1)) + 0.3 * pos
@@ -92,6 +93,9 @@ def _scene(*, colors=False, transparent=False, no_normals=False, points=False, l
     if lights == "dir":
         scene.add(pr.DirectionalLight(color=np.ones(3), intensity=2.0), pose=_look_from(1.0))
         scene.add(pr.DirectionalLight(color=[1.0, 0.9, 0.8], intensity=0.7))
+    elif lights == "many":
+        for k in range(6):
+            scene.add(pr.DirectionalLight(color=np.ones(3), intensity=0.4), pose=_look_from(k))
     else:
         scene.add(pr.PointLight(color=np.ones(3), intensity=6.0), pose=_look_from(2.0))
         scene.add(
@@ -114,6 +118,7 @@ CASES = {
     "no normals": {"no_normals": True},
     "point and spot lights": {"lights": "point"},
     "points (forward only)": {"points": True},
+    "more lights than its shader holds (pyrender's render)": {"lights": "many"},
 }
 
 
@@ -123,7 +128,7 @@ def test_passes_give_pyrenders_pixels(case, rgba):
     scene = _scene(**CASES[case])
     want = _pyrender(scene, rgba)
     assert np.array_equal(_forward().render(scene, W, H, rgba), want)
-    assert np.array_equal(_drawing_pass().render(scene, W, H, rgba), want)
+    assert np.array_equal(drawing_pass().render(scene, W, H, rgba), want)
     assert np.array_equal(_pyrender(scene, rgba), want)  # and pyrender after them
 
 
@@ -131,8 +136,8 @@ def test_the_deferred_pass_covers_the_heads():
     from vtts.render.deferred import DeferredPass
 
     with FaceRenderer(load_model("cybatt")) as r:
-        assert isinstance(_drawing_pass(), DeferredPass)
-        assert _drawing_pass().deferrable(r.scene)
+        assert isinstance(drawing_pass(), DeferredPass)
+        assert drawing_pass().deferrable(r.scene)
 
 
 def test_warm_up_makes_the_pass_before_any_renderer(monkeypatch):
@@ -144,7 +149,7 @@ def test_warm_up_makes_the_pass_before_any_renderer(monkeypatch):
     made = renderer._DRAWING_PASS
     assert isinstance(made, DeferredPass)
     warm_up()  # once is enough: every renderer shares it
-    assert renderer._DRAWING_PASS is made and _drawing_pass() is made
+    assert renderer._DRAWING_PASS is made and drawing_pass() is made
 
 
 @pytest.mark.parametrize("supersample", [1, 2])
@@ -164,11 +169,11 @@ def test_animated_heads_match_pyrender(supersample):
 
 
 def _pyrender_frame(r: FaceRenderer) -> np.ndarray:
-    from vtts.render.renderer import _downsample
+    from vtts.render.renderer import downsample
 
-    off = _offscreen()
+    off = offscreen()
     off.viewport_width, off.viewport_height = r.size[0] * r.supersample, r.size[1] * r.supersample
-    return _downsample(off.render(r.scene)[0], r.supersample)
+    return downsample(off.render(r.scene)[0], r.supersample)
 
 
 def test_frames_match_frames_rendered_one_by_one():

@@ -8,7 +8,7 @@ import sys
 
 import numpy as np
 
-from vtts.render.renderer import LLVMPIPE_MIN_THREADS, llvmpipe_threads
+from vtts.render.pyrender_adapter import LLVMPIPE_MIN_THREADS, llvmpipe_threads
 
 
 def test_llvmpipe_gets_at_least_the_minimum_of_threads():
@@ -17,7 +17,7 @@ def test_llvmpipe_gets_at_least_the_minimum_of_threads():
 
 def _lp_after_loading(env: dict) -> str:
     code = (
-        "import os; from vtts.render.renderer import _pr; _pr(); "
+        "import os; from vtts.render.pyrender_adapter import load_pyrender; load_pyrender(); "
         "print(os.environ['LP_NUM_THREADS'])"
     )
     out = subprocess.run(

@@ -1,11 +1,12 @@
-"""pyrender's scene graph without networkx (vtts.render.renderer._SceneTree) behaves as before."""
+"""pyrender's scene graph without networkx (`vtts.render.pyrender_adapter.SceneTree`) behaves
+as before."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from vtts.render import renderer
+from vtts.render import pyrender_adapter as adapter
 
 
 def _translation(x: float) -> np.ndarray:
@@ -15,9 +16,9 @@ def _translation(x: float) -> np.ndarray:
 
 
 def test_poses_compose_along_the_tree_and_removal_takes_the_subtree():
-    pr = renderer._pr()
+    pr = adapter.load_pyrender()
     scene = pr.Scene()
-    assert isinstance(scene._digraph, renderer._SceneTree)
+    assert isinstance(scene._digraph, adapter.SceneTree)
     top = pr.Node(matrix=_translation(1.0))
     scene.add_node(top)
     mid = pr.Node(matrix=_translation(2.0))
@@ -36,11 +37,11 @@ def test_poses_compose_along_the_tree_and_removal_takes_the_subtree():
 
 
 def test_shortest_path_walks_up_to_the_target():
-    tree = renderer._SceneTree()
+    tree = adapter.SceneTree()
     tree.add_edge("a", "b")
     tree.add_edge("b", "world")
-    assert renderer._SceneTrees.shortest_path(tree, "a", "world") == ["a", "b", "world"]
+    assert adapter.SceneTrees.shortest_path(tree, "a", "world") == ["a", "b", "world"]
     tree.remove_node("b")
     assert list(tree.neighbors("a")) == []
     with pytest.raises(ValueError, match="no path"):
-        renderer._SceneTrees.shortest_path(tree, "a", "world")
+        adapter.SceneTrees.shortest_path(tree, "a", "world")

@@ -1,9 +1,10 @@
 """Deferred shading of pyrender scenes: pyrender's pixels for half of the rasterizer's work.
 
 Mesa's software rasterizer runs the fragment shader on 4×4 pixel blocks, the whole block for
-every triangle that touches it. A head of 16,000 triangles covering 18,000 pixels therefore runs
-pyrender's physically based shader (two lights, five ``pow`` per fragment) on ten times more
-fragments than there are pixels, and that was most of a frame's time.
+every triangle that touches it. A head of about as many triangles as the pixels it covers
+therefore runs pyrender's physically based shader (two lights, five ``pow`` per fragment) on
+many times more fragments than there are pixels (docs/rendering.md, "Speed", has the numbers),
+and that was most of a frame's time.
 
 :class:`DeferredPass` draws the opaque geometry once with a cheap shader that only stores what
 pyrender's ``mesh.frag`` would read for the fragment — position, normal, texture sample,
@@ -31,8 +32,17 @@ from OpenGL import GL
 from OpenGL.GL import shaders
 
 from vtts.errors import RenderError
-from vtts.render.forward import LIGHT_KINDS, ForwardPass, _cull_back, _light_counts, _read_color
-from vtts.render.renderer import UNLIT
+from vtts.render.forward import LIGHT_KINDS, ForwardPass, cull_back, light_counts, read_color
+from vtts.render.pyrender_adapter import (
+    compiled_program,
+    make_current,
+    program_id,
+    scene_renderer,
+    shader_dir,
+    shader_source,
+    texture_id,
+)
+from vtts.render.scene import UNLIT
 
 SHADER_DIR = Path(__file__).resolve().parent / "shaders"
 
@@ -110,16 +120,16 @@ class DeferredPass(ForwardPass):
 
     def draws_unlit(self, scene) -> bool:
         """Whether :meth:`render` draws ``scene`` through the G-buffer, where an opaque unlit
-        material (:data:`~vtts.render.renderer.UNLIT`) shows its colours whatever its normals;
+        material (:data:`~vtts.render.scene.UNLIT`) shows its colours whatever its normals;
         where it falls back to pyrender's forward shading such materials are lit like the rest
         and need their normals."""
         if not (self.supports(scene) and self.deferrable(scene)):
             return False
-        self._offscreen._platform.make_current()
+        make_current(self._offscreen)
         opaque = [(n, None) for n in scene.mesh_nodes if not n.mesh.is_transparent]
         colors = self._vertex_colors(opaque)
-        lights = _light_counts(scene)
-        return self._resolve_program(self._offscreen._renderer, colors, lights) is not None
+        lights = light_counts(scene)
+        return self._resolve_program(scene_renderer(self._offscreen), colors, lights) is not None
 
     @staticmethod
     def _vertex_colors(opaque) -> bool:
@@ -141,7 +151,7 @@ class DeferredPass(ForwardPass):
         r = self._begin_frame(scene, width, height)
         opaque, transparent = self._mesh_nodes(scene)
         colors = self._vertex_colors(opaque)
-        resolve = self._resolve_program(r, colors, _light_counts(scene))
+        resolve = self._resolve_program(r, colors, light_counts(scene))
         if resolve is None:
             if triangles is not None:
                 raise RenderError("triangle numbers need pyrender's shader as vtts knows it")
@@ -182,7 +192,7 @@ class DeferredPass(ForwardPass):
                 for primitive in node.mesh.primitives:
                     self._draw(primitive, pose, r)
         self._end_frame()
-        image = _read_color(targets.color_fb, width, height, rgba)
+        image = read_color(targets.color_fb, width, height, rgba)
         if triangles is None:
             return image
         return image, _read_triangles(targets.gbuffer, width, height)
@@ -194,7 +204,7 @@ class DeferredPass(ForwardPass):
     ) -> None:
         """Store what pyrender's shader would read for ``primitive``'s fragments (and, with
         ``triangles``, the numbers of its triangles)."""
-        pid = self._gbuffer_program(primitive, r, colors, triangles is not None)._program_id
+        pid = program_id(self._gbuffer_program(primitive, r, colors, triangles is not None))
         self._use(pid)
         self._uniform(pid, "M", pose)
         material = primitive.material
@@ -206,36 +216,31 @@ class DeferredPass(ForwardPass):
             self._uniform(pid, "first_triangle", -1.0 if first is None else float(first + 1))
         texture = material.baseColorTexture
         if texture is not None:
-            self._texture(pid, "base_color_texture", 0, texture.tex_type, texture._texid)
-        self._set(GL.GL_CULL_FACE, not material.doubleSided, _cull_back)
+            self._texture(pid, "base_color_texture", 0, texture.tex_type, texture_id(texture))
+        self._set(GL.GL_CULL_FACE, not material.doubleSided, cull_back)
         self._draw_call(primitive)
 
     def _gbuffer_program(self, primitive, r, colors: bool, triangles: bool = False):
         """pyrender's mesh.vert with the G-buffer shader, under the defines pyrender uses for
         ``primitive`` (so that the vertex stage is exactly pyrender's); ``colors``: with the
         per-vertex color target; ``triangles``: with the triangle-number target."""
-        from pyrender.shader_program import ShaderProgram
-
         variant = (colors, triangles)
         known = self._gbuffer_of.get(primitive)
-        if known is not None and known[0] == variant and known[1]._program_id is not None:
+        if known is not None and known[0] == variant and program_id(known[1]) is not None:
             return known[1]
         defines = dict(self._program(primitive, r).defines)
         key = (frozenset(defines.items()), variant)
         program = self._gbuffer_programs.get(key)
-        if program is None or program._program_id is None:
+        if program is None or program_id(program) is None:
             if colors:
                 defines["VERTEX_COLORS"] = 1
             if triangles:
                 defines["TRIANGLE_NUMBERS"] = 1
-            program = ShaderProgram(
-                os.path.join(r._program_cache.shader_dir, "mesh.vert"),
-                str(SHADER_DIR / "gbuffer.frag"),
-                defines=defines,
+            program = compiled_program(
+                os.path.join(shader_dir(r), "mesh.vert"), str(SHADER_DIR / "gbuffer.frag"), defines
             )
-            program._add_to_context()
             self._gbuffer_programs[key] = program
-            self._private.add(program._program_id)
+            self._private.add(program_id(program))
         self._gbuffer_of[primitive] = (variant, program)
         return program
 
@@ -248,7 +253,7 @@ class DeferredPass(ForwardPass):
         pid, vertex_array = resolve
         GL.glDepthFunc(GL.GL_GREATER)  # the far-plane triangle passes where geometry was drawn
         GL.glDepthMask(GL.GL_FALSE)
-        self._set(GL.GL_CULL_FACE, False, _cull_back)
+        self._set(GL.GL_CULL_FACE, False, cull_back)
         self._use(pid)
         n_targets = len(G_TARGETS) if colors else len(G_TARGETS) - 1
         for unit in range(n_targets):
@@ -272,18 +277,17 @@ class DeferredPass(ForwardPass):
         """The resolve program: pyrender's mesh.frag (as pyrender would compile it for an
         untextured metallic-roughness material with normals, and with vertex colors if
         ``colors``) with its inputs loaded from the G-buffer, made for ``lights`` (the scene's
-        directional, point and spot lights: :func:`_light_counts`). None when this pyrender's
+        directional, point and spot lights: :func:`light_counts`). None when this pyrender's
         shader does not read as expected.
 
         The light counts, uniforms in pyrender's shader, are constants here: its light loops
         then have fixed bounds that the compiler unrolls, and the loops for kinds the scene
-        lacks vanish. Same arithmetic, a quarter less of a frame's rasterizer time (llvmpipe
-        runs a loop with a uniform bound as a masked loop over every lane)."""
+        lacks vanish. Same arithmetic, less of a frame's rasterizer time (llvmpipe runs a loop
+        with a uniform bound as a masked loop over every lane; docs/rendering.md has the
+        figure)."""
         key = (colors, lights)
         if key in self._resolve:
             return self._resolve[key]
-        from pyrender.shader_program import ShaderProgram
-
         n_lights = self._max_lights
         defines = {
             "USE_METALLIC_MATERIAL": 1,
@@ -294,8 +298,7 @@ class DeferredPass(ForwardPass):
         }
         if colors:
             defines["COLOR_0_LOC"] = 2
-        mesh_frag = os.path.join(r._program_cache.shader_dir, "mesh.frag")
-        source = ShaderProgram(None, mesh_frag, defines=defines)._load(mesh_frag)
+        source = shader_source(os.path.join(shader_dir(r), "mesh.frag"), defines)
         edits = _RESOLVE_EDITS + tuple(
             (f"uniform int n_{kind};", f"const int n_{kind} = {n};")
             for kind, n in zip(LIGHT_KINDS, lights, strict=True)
@@ -393,9 +396,9 @@ def _filters_in_8_bits() -> bool:
     """Whether the current context is Mesa's llvmpipe, which filters 8-bit textures in 8-bit
     arithmetic: every sample of the (8-bit) textures vtts draws is then a multiple of 1/255,
     which an ``RGBA8`` G-buffer target keeps exactly, for a third of the bytes the rasterizer's
-    threads write and read (about 0.5 ms of a frame of ``vtts say``; ``tests/render`` compares
-    the textured pixels with pyrender's). Other drivers filter in floats: their samples stay in a
-    float target."""
+    threads write and read (docs/rendering.md, "Speed"; ``tests/render`` compares the textured
+    pixels with pyrender's). Other drivers filter in floats: their samples stay in a float
+    target."""
     renderer = GL.glGetString(GL.GL_RENDERER) or b""
     return b"llvmpipe" in renderer
 

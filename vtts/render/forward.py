@@ -2,7 +2,7 @@
 
 pyrender draws each primitive by looking up every uniform by name, re-sending the camera and all
 lights, re-binding GL state and querying GL limits — a few hundred OpenGL calls through PyOpenGL
-per frame, several milliseconds of Python for a head of a dozen primitives. :class:`ForwardPass`
+per frame, a large part of a frame's Python for a head of a dozen primitives. :class:`ForwardPass`
 draws the same scene with the same shader programs, vertex arrays and textures that pyrender put
 on the GPU, sets the same uniform values and GL state before every draw and draws in the same
 order, so the pixels are the same; it only leaves out what would not change them: a uniform is
@@ -16,8 +16,9 @@ programs their uniforms again. Only programs of vtts's own (see :mod:`vtts.rende
 their uniforms from frame to frame: nobody else uses them.
 
 Scenes this pass does not cover (more lights of a kind than pyrender's shaders hold, wireframe,
-specular-glossiness materials) go through pyrender's own ``render``. Import this module only
-after :func:`vtts.render.renderer._pr` has chosen the OpenGL platform.
+specular-glossiness materials) go through pyrender's own ``render``. What it reads of pyrender's
+internals goes through :mod:`vtts.render.pyrender_adapter`; import this module only after
+:func:`~vtts.render.pyrender_adapter.load_pyrender` has chosen the OpenGL platform.
 """
 
 from __future__ import annotations
@@ -28,6 +29,20 @@ import weakref
 import numpy as np
 from OpenGL import GL
 
+from vtts.render.pyrender_adapter import (
+    load_pyrender,
+    main_framebuffers,
+    make_current,
+    node_matrices,
+    node_path,
+    primitive_program,
+    program_id,
+    scene_renderer,
+    texture_id,
+    upload_scene,
+    vertex_array,
+)
+
 
 class ForwardPass:
     """Renders pyrender scenes on the context of ``offscreen`` (a ``pyrender.OffscreenRenderer``).
@@ -37,10 +52,9 @@ class ForwardPass:
     """
 
     def __init__(self, offscreen) -> None:
-        import pyrender
         from pyrender.constants import GLTF, MAX_N_LIGHTS, ProgramFlags, RenderFlags, TexFlags
 
-        self._pr = pyrender
+        self._pyrender_module = load_pyrender()
         self._offscreen = offscreen
         self._max_lights = MAX_N_LIGHTS
         self._points_mode = GLTF.POINTS
@@ -84,8 +98,8 @@ class ForwardPass:
 
     def supports(self, scene) -> bool:
         """Whether this pass draws ``scene`` as pyrender would (else use pyrender's render)."""
-        pr = self._pr
-        if max(_light_counts(scene)) > self._max_lights:
+        pr = self._pyrender_module
+        if max(light_counts(scene)) > self._max_lights:
             return False
         if scene.main_camera_node is None:
             return False
@@ -100,26 +114,26 @@ class ForwardPass:
         if not self.supports(scene):
             return self._pyrender(scene, width, height, rgba)
         r = self._begin_frame(scene, width, height)
-        r._configure_main_framebuffer()
-        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, r._main_fb_ms)
+        drawn_fb, read_fb, (w, h) = main_framebuffers(r)
+        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, drawn_fb)
         GL.glClearColor(*scene.bg_color)
         GL.glClear(GL.GL_COLOR_BUFFER_BIT | GL.GL_DEPTH_BUFFER_BIT)
         self._forward_state()
         for node, pose in self._sorted_mesh_nodes(scene):
             for primitive in node.mesh.primitives:
                 self._draw(primitive, pose, r)
-        w, h = r._main_fb_dims
-        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, r._main_fb_ms)
-        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, r._main_fb)
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, drawn_fb)
+        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, read_fb)
         GL.glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL.GL_COLOR_BUFFER_BIT, GL.GL_LINEAR)
         self._end_frame()
-        return _read_color(r._main_fb, w, h, rgba)
+        return read_color(read_fb, w, h, rgba)
 
     def _pyrender(self, scene, width: int, height: int, rgba: bool) -> np.ndarray:
         """pyrender's own render (for scenes this pass does not cover)."""
         offscreen = self._offscreen
         offscreen.viewport_width, offscreen.viewport_height = width, height
-        flags = self._pr.RenderFlags.RGBA if rgba else self._pr.RenderFlags.NONE
+        flags = self._pyrender_module.RenderFlags
+        flags = flags.RGBA if rgba else flags.NONE
         return offscreen.render(scene, flags=flags)[0]
 
     # ---- one frame ---------------------------------------------------------------------------
@@ -128,10 +142,10 @@ class ForwardPass:
         """Make the context current, put new meshes and textures on the GPU, forget the last
         frame's state and compute this frame's camera and light uniforms. Returns pyrender's
         renderer."""
-        self._offscreen._platform.make_current()
-        r = self._offscreen._renderer
+        make_current(self._offscreen)
+        r = scene_renderer(self._offscreen)
         r.viewport_width, r.viewport_height = width, height
-        r._update_context(scene, self._flags)
+        upload_scene(r, scene, self._flags)
         self._frame_sent.clear()
         # pyrender's own programs may have been used by pyrender in between: forget what they got
         self._sent = {k: v for k, v in self._sent.items() if k[0] in self._private}
@@ -171,9 +185,9 @@ class ForwardPass:
 
     def _light_uniforms(self, scene) -> dict[str, object]:
         """The lighting uniforms of pyrender's ``_bind_lighting`` (without shadows)."""
-        pr = self._pr
+        pr = self._pyrender_module
         u: dict[str, object] = {"ambient_light": scene.ambient_light}
-        for kind, n in zip(LIGHT_KINDS, _light_counts(scene), strict=True):
+        for kind, n in zip(LIGHT_KINDS, light_counts(scene), strict=True):
             u[f"n_{kind}"] = n
         counts = {"point_lights": 0, "spot_lights": 0, "directional_lights": 0}
         for n in scene.light_nodes:
@@ -230,14 +244,10 @@ class ForwardPass:
         """``scene.get_pose(node)``: the same product in the same order, kept from frame to
         frame while the nodes on the way to the root keep their matrices (pyrender makes a new
         array whenever a node's pose is set). Not to be changed by the caller."""
-        path = getattr(scene, "_path_cache", {}).get(node)
+        path = node_path(scene, node)
         if path is None:
             return scene.get_pose(node)  # which finds the path and keeps it
-        matrices = []
-        for n in path[:-1]:
-            if n._matrix is None:
-                _ = n.matrix  # pyrender computes it from the node's pose and keeps it
-            matrices.append(n._matrix)
+        matrices = node_matrices(path)
         known = self._poses.get(node)
         if (
             known is not None
@@ -254,8 +264,8 @@ class ForwardPass:
     def _program(self, primitive, r):
         """pyrender's shader program for ``primitive`` (compiled on first use)."""
         program = self._programs.get(primitive)
-        if program is None or program._program_id is None:
-            program = r._get_primitive_program(primitive, self._flags, self._use_material)
+        if program is None or program_id(program) is None:
+            program = primitive_program(r, primitive, self._flags, self._use_material)
             self._programs[primitive] = program
         return program
 
@@ -273,7 +283,7 @@ class ForwardPass:
 
     def _draw(self, primitive, pose: np.ndarray, r) -> None:
         """Draw one primitive as pyrender's ``_bind_and_draw_primitive`` does."""
-        pid = self._program(primitive, r)._program_id
+        pid = program_id(self._program(primitive, r))
         self._use(pid)
         self._uniform(pid, "M", pose)
         material = primitive.material
@@ -281,7 +291,7 @@ class ForwardPass:
         for flag, attribute, uniform in self._texture_slots:
             if material.tex_flags & flag:
                 texture = getattr(material, attribute)
-                self._texture(pid, uniform, unit, texture.tex_type, texture._texid)
+                self._texture(pid, uniform, unit, texture.tex_type, texture_id(texture))
                 unit += 1
         self._uniform(pid, "material.emissive_factor", material.emissiveFactor)
         self._uniform(pid, "material.base_color_factor", material.baseColorFactor)
@@ -293,13 +303,13 @@ class ForwardPass:
             else (GL.GL_ONE, GL.GL_ZERO)
         )
         self._set(GL.GL_BLEND_SRC, blend, _blend_func)
-        self._set(GL.GL_CULL_FACE, not material.doubleSided, _cull_back)
+        self._set(GL.GL_CULL_FACE, not material.doubleSided, cull_back)
         points = primitive.mode == self._points_mode
         self._set(GL.GL_PROGRAM_POINT_SIZE, points and r.point_size, _point_size)
         self._draw_call(primitive)
 
     def _draw_call(self, primitive) -> None:
-        GL.glBindVertexArray(primitive._vaid)
+        GL.glBindVertexArray(vertex_array(primitive))
         n_instances = 1 if primitive.poses is None else len(primitive.poses)
         if primitive.indices is not None:
             GL.glDrawElementsInstanced(
@@ -354,11 +364,11 @@ class ForwardPass:
 
 
 #: pyrender's kinds of light, as its uniforms name them (``n_directional_lights``, …), in the
-#: order of :func:`_light_counts`.
+#: order of :func:`light_counts`.
 LIGHT_KINDS = ("directional_lights", "point_lights", "spot_lights")
 
 
-def _light_counts(scene) -> tuple[int, int, int]:
+def light_counts(scene) -> tuple[int, int, int]:
     """The numbers of directional, point and spot lights of ``scene`` (:data:`LIGHT_KINDS`)."""
     return (
         len(scene.directional_light_nodes),
@@ -367,7 +377,7 @@ def _light_counts(scene) -> tuple[int, int, int]:
     )
 
 
-def _read_color(framebuffer: int, width: int, height: int, rgba: bool) -> np.ndarray:
+def read_color(framebuffer: int, width: int, height: int, rgba: bool) -> np.ndarray:
     """The color buffer of ``framebuffer``, top row first, ``(H, W, 3 or 4) uint8``."""
     GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, framebuffer)
     channels, fmt = (4, GL.GL_RGBA) if rgba else (3, GL.GL_RGB)
@@ -422,7 +432,9 @@ def _blend_func(factors: tuple[int, int]) -> None:
     GL.glBlendFunc(*factors)
 
 
-def _cull_back(cull: bool) -> None:
+def cull_back(cull: bool) -> None:
+    """Cull back faces (``cull``), as pyrender does for a material that is not double-sided, or
+    draw both sides."""
     if cull:
         GL.glEnable(GL.GL_CULL_FACE)
         GL.glCullFace(GL.GL_BACK)

@@ -16,10 +16,11 @@ has absorbed in each pose, so that a cheek flat at rest is simplified and a lip 
 it smiles is not. Vertices on an edge of the mesh (the lips' and eyelids' openings, the seams
 where texture coordinates or normals split a vertex) never move, so no crack opens.
 
-:func:`progressive_mesh` orders the collapses once per mesh (about two seconds for a head,
-kept as arrays by :func:`save` and :func:`load`: shipped with the bundled heads, else in the
-user's cache, see :mod:`vtts.render.renderer`); :func:`simplified_faces` then gives the
-triangles for any tolerance, a prefix of that order, in a millisecond.
+:func:`progressive_mesh` orders the collapses once per mesh (seconds for a head, see
+docs/rendering.md; kept as arrays by :func:`save` and :func:`load`: shipped with the bundled
+heads, else in the user's cache, see :func:`vtts.render.renderer.progressive`);
+:func:`simplified_faces` then gives the triangles for any tolerance, a prefix of that order,
+cheaply enough for every change of view.
 """
 
 from __future__ import annotations
@@ -248,3 +249,11 @@ def simplified_faces(faces: np.ndarray, collapses: Collapses, error: float) -> n
     out = target[faces]
     keep = (out[:, 0] != out[:, 1]) & (out[:, 1] != out[:, 2]) & (out[:, 0] != out[:, 2])
     return out[keep].astype(faces.dtype, copy=False)
+
+
+def present(ids: np.ndarray, n: int) -> np.ndarray:
+    """The distinct values of ``ids`` (whole numbers in ``0..n-1``), ascending: the vertices a
+    simplified mesh's triangles use. ``np.unique``'s answer without its look for masked arrays,
+    which imports ``numpy.ma`` (a cost at every ``vtts say``'s start-up that
+    :mod:`vtts.deferred` puts off)."""
+    return np.flatnonzero(np.bincount(ids.ravel(), minlength=n))

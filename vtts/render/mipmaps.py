@@ -1,10 +1,11 @@
 """Mipmaps of a texture, made on the CPU.
 
 pyrender has OpenGL make a texture's mipmaps (``glGenerateMipmap``). Mesa's software rasterizer
-does that by drawing each level with a blit shader that it compiles on the first call: 70 ms of
-every process's first frame on the 2-core machine, a third of the time to the first frame of
-``vtts say``, for a 512×512 texture whose levels NumPy computes in about 2 ms. vtts therefore
-uploads the levels itself (:func:`mip_levels`), the same texels as llvmpipe's own.
+does that by drawing each level with a blit shader that it compiles on the first call, a large
+part of every process's time to its first frame, for levels that NumPy computes in a fraction
+of that (docs/rendering.md, "Start-up", has the timings). vtts therefore uploads the levels
+itself (:func:`mip_levels`; :func:`vtts.render.pyrender_adapter.pyrender_texture`), the same
+texels as llvmpipe's own.
 """
 
 from __future__ import annotations

@@ -176,12 +176,12 @@ class AacTrack:
     background, for a :class:`VideoWriter` to copy instead of encoding it while the frames
     arrive; the decoded samples are the same either way.
 
-    ``vtts say`` starts it as soon as the speech is synthesized: the encoding (about 0.15
-    CPU-seconds for 5 s of speech) then runs while the renderer is set up, on a core the
-    start-up leaves idle, instead of beside the frames, which keep both cores of a small
-    machine busy. ``source`` is any file soundfile reads; the track is written into ``folder``
-    (which must outlive it). :meth:`result` waits for the encoding and gives the track's path;
-    :meth:`close` (or leaving a ``with`` block) stops an encoding still running."""
+    ``vtts say`` starts it as soon as the speech is synthesized: the encoding then runs while
+    the renderer is set up, on a core the start-up leaves idle, instead of beside the frames,
+    which keep both cores of a small machine busy (docs/rendering.md, "Speed"). ``source`` is
+    any file soundfile reads; the track is written into ``folder`` (which must outlive it).
+    :meth:`result` waits for the encoding and gives the track's path; :meth:`close` (or leaving
+    a ``with`` block) stops an encoding still running."""
 
     def __init__(self, source: str | os.PathLike[str], folder: str | os.PathLike[str]) -> None:
         self.source = _check_audio(source)
@@ -265,10 +265,10 @@ class VideoWriter:
 
     ``crf`` (0–51, lower is better) and ``preset`` are libx264's quality and speed settings.
     ``threads``: libx264's threads (0: its own choice, 1.5 per core). The default is one for
-    frames up to :data:`ONE_THREAD_PIXELS` and libx264's choice above: a small frame encodes in
-    a few milliseconds on one core, while the rasterizer keeps both cores of a small machine
-    busy, and libx264's threads then only contend with it (``vtts say`` of 5 s at 352×288: 0.5
-    CPU-seconds less on the 2-core machine, the same video quality).
+    frames up to :data:`ONE_THREAD_PIXELS` and libx264's choice above: a small frame encodes
+    quickly on one core, while the rasterizer keeps both cores of a small machine busy, and
+    libx264's threads then only contend with it (the same video quality, less CPU time:
+    docs/rendering.md, "Speed").
 
     On a clean exit ffmpeg is closed and the temporary file renamed to ``path``; on an exception
     (including KeyboardInterrupt) ffmpeg is killed and neither ``path`` nor the temporary file is
