@@ -10,6 +10,7 @@ import vtts
 from vtts.analysis import TABLE1_FAPS, Estimator, analyze, face_psnr
 from vtts.analysis.estimator import PYRAMID
 from vtts.analysis.geometry import HeadGeometry
+from vtts.analysis.solve import smooth, subsample
 from vtts.analysis.synthetic import (
     TABLE1_EXTREMES,
     random_truth,
@@ -265,9 +266,7 @@ def test_a_solve_on_the_window_around_the_face_is_the_solve_on_the_whole_image(
             monkeypatch.setattr(estimator_module, "_bounds", lambda mask: None)
         est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, robust=robust)
         for lv in est.pyramid:
-            camera = estimator_module._smooth(
-                estimator_module._subsample(frame, lv.factor), est.sigma
-            )
+            camera = smooth(subsample(frame, lv.factor), est.sigma)
             image, faces, _ = est._render_window(lv.factor)
             moved = est._solve(camera, lv)
             steps[whole, lv.factor] = (moved, est.params.copy(), est.gain.copy(), faces.size)
@@ -295,7 +294,7 @@ def test_a_worse_step_after_one_that_gained_little_is_taken_back_and_ends_the_le
     delta[est.unknowns.index(48)] = 400.0  # far off: the match gets worse
     est._apply(delta)
     est._last_step = _Step(energy=0.0, delta=delta, halvings=0, reach=1.0, gain=gain)
-    moved = est._solve(estimator_module._smooth(frame, est.sigma), est.pyramid[-1])
+    moved = est._solve(smooth(frame, est.sigma), est.pyramid[-1])
     if gain < estimator_module.STALL_GAIN:
         assert est._stalled and moved == 0.0 and est._last_step is None
         assert np.allclose(est.params, before)
@@ -311,7 +310,7 @@ def test_a_level_whose_last_step_gained_little_ends_without_another(cybatt):
     import vtts.analysis.estimator as estimator_module
     from vtts.analysis.estimator import _Step
 
-    frame = estimator_module._smooth(_noisy(cybatt, _params({3: 150}), seed=4), 0.6)
+    frame = smooth(_noisy(cybatt, _params({3: 150}), seed=4), 0.6)
     est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, robust=True)
     est.params[:] = _params({3: 140})
     lv = est.pyramid[-1]

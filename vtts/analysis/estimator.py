@@ -32,10 +32,11 @@ from contextlib import contextmanager
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.ndimage import binary_erosion, gaussian_filter
+from scipy.ndimage import binary_erosion
 
 from vtts.analysis.geometry import HeadGeometry
 from vtts.analysis.result import TRANSLATION, Analysis, FrameEstimate
+from vtts.analysis.solve import SMOOTH_REACH, least_squares, smooth, subsample
 from vtts.analysis.unknowns import (  # noqa: F401
     DEFAULT_UNKNOWNS,
     ESTIMABLE,
@@ -53,10 +54,6 @@ from vtts.threads import one_blas_thread
 
 #: Pixels next to the model's outline left out of the estimation.
 EDGE = 2
-
-#: The Gaussian filter's reach in standard deviations (its radius: ``int(SMOOTH_REACH · σ + 0.5)``
-#: pixels).
-SMOOTH_REACH = 2.0
 
 #: Residuals beyond this many gray levels count as this many in the match energy (robust).
 TRUNCATE = 10.0
@@ -329,7 +326,7 @@ class Estimator:
                     max(0, x0 + j0 - m), min(w, x0 + j1 + m))  # fmt: skip
         (y0, y1), (x0, x1) = box
         window = image[y0 * factor : y1 * factor, x0 * factor : x1 * factor]
-        return _subsample(window, factor), self._face_indices(numbers[y0:y1, x0:x1]), (y0, x0)
+        return subsample(window, factor), self._face_indices(numbers[y0:y1, x0:x1]), (y0, x0)
 
     def _at_level(self, full: np.ndarray, factor: int) -> np.ndarray:
         """A full-size per-pixel array ``(H, W)`` (triangle numbers or indices) at pyramid
@@ -394,7 +391,7 @@ class Estimator:
         pyramid: dict[int, np.ndarray] = {}
         for lv in self.pyramid:
             if lv.factor not in pyramid:
-                pyramid[lv.factor] = _smooth(_subsample(full, lv.factor), self.sigma)
+                pyramid[lv.factor] = smooth(subsample(full, lv.factor), self.sigma)
         solves, converged = self._descend(pyramid)
         if self.searched and self._history:
             # the second stage: the searched FAPs, with everything else held where the solves
@@ -587,7 +584,7 @@ class Estimator:
         image, ids, (top, left) = self._render_window(lv.factor)
         self._last_faces = ids
         camera_image = camera_image[top : top + ids.shape[0], left : left + ids.shape[1]]
-        raw = _smooth(image, self.sigma)
+        raw = smooth(image, self.sigma)
         gain, offset = self.gain.astype(np.float32), self.offset.astype(np.float32)
         # pixels within the model's outline: at the outline the synthetic background (which a
         # camera never shows) and antialiasing would read as motion
@@ -644,7 +641,7 @@ class Estimator:
         ata, atb = _normal_equations(
             du, dv, gx_p, gy_p, r_p, s_p if self.illumination else None, weights
         )
-        delta = _least_squares(ata, atb)
+        delta = least_squares(ata, atb)
         # the linearization holds for small motion: no unknown may move any of its pixels
         # further than the level's step limit in one solve
         reach = speed.max(axis=0, initial=0.0) * np.abs(delta[:k])  # held columns: delta 0
@@ -984,27 +981,9 @@ def _bounds(mask: np.ndarray) -> tuple[tuple[int, int], tuple[int, int]] | None:
 
 def _window_margin(sigma: float) -> int:
     """Pixels (of a level) around the face that a solve's numbers depend on: the Gaussian
-    filter's radius (:func:`_smooth`, scipy's ``int(truncate · σ + 0.5)``), one more for the
-    central differences of the gradients, and one to spare."""
+    filter's radius (:func:`~vtts.analysis.solve.smooth`, scipy's ``int(truncate · σ + 0.5)``),
+    one more for the central differences of the gradients, and one to spare."""
     return int(SMOOTH_REACH * sigma + 0.5) + 2
-
-
-def _subsample(image: np.ndarray, factor: int) -> np.ndarray:
-    """Moving-average subsampling of ``(H, W, C)`` by ``factor`` to ``float32`` (edges that do
-    not fill a block are dropped)."""
-    if factor == 1:
-        return image.astype(np.float32, copy=False)
-    h, w = image.shape[0] // factor, image.shape[1] // factor
-    x = image[: h * factor, : w * factor].astype(np.float32)
-    x = x.reshape(h, factor, w * factor, -1).sum(axis=1)  # rows of each block
-    x = x.reshape(h, w, factor, -1).sum(axis=2)  # then columns
-    return x * np.float32(1.0 / (factor * factor))
-
-
-def _smooth(image: np.ndarray, sigma: float) -> np.ndarray:
-    if sigma <= 0:
-        return image
-    return gaussian_filter(image, sigma=(sigma, sigma, 0), mode="nearest", truncate=SMOOTH_REACH)
 
 
 def _gradients_at(
@@ -1082,19 +1061,3 @@ def _normal_equations(
         upper = np.triu_indices(m, 1)
         ata[upper[::-1]] = ata[upper]
     return ata, atb
-
-
-def _least_squares(ata: np.ndarray, atb: np.ndarray) -> np.ndarray:
-    """Solve the normal equations ``ata x = atb`` with column scaling and a whisper of
-    damping, so that unknowns the pixels say nothing about stay put."""
-    d = np.sqrt(np.diag(ata))
-    big = d.max() if d.size else 1.0
-    ok = d > 1e-9 * big
-    x = np.zeros(ata.shape[0])
-    if not ok.any():
-        return x
-    s = 1.0 / d[ok]
-    m = ata[np.ix_(ok, ok)] * s[:, None] * s[None, :]
-    m[np.diag_indices_from(m)] += 1e-9
-    x[ok] = s * np.linalg.solve(m, atb[ok] * s)
-    return x

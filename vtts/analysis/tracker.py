@@ -56,10 +56,9 @@ from vtts.analysis.estimator import (  # noqa: F401  (LIT_REFINE_STEPS: the trac
     LUMA,
     ROBUST_LIMIT,
     Estimator,
-    _least_squares,
-    _smooth,
 )
 from vtts.analysis.result import TRANSLATION, FrameEstimate
+from vtts.analysis.solve import least_squares, smooth
 from vtts.analysis.unknowns import EYELIDS
 from vtts.errors import VttsError
 from vtts.threads import one_blas_thread
@@ -220,13 +219,13 @@ class Tracker(Estimator):
             # from where the samples left the estimate; the frame's final rendering gives the
             # next frame's samples (:meth:`_final_rendering`)
             full = frame.astype(np.float32)
-            more, _ = self._descend({1: _smooth(full, self.sigma)}, self.pyramid[-1:])
+            more, _ = self._descend({1: smooth(full, self.sigma)}, self.pyramid[-1:])
             self.renderings += more + 1
             return self._final_estimate(full, index, time, solves + more, self._lit_frame())
         lit = samples.lit >= LIT_SHARE
         if lit and self._shift(samples) > self.polish:
             # a lit face: the accurate estimator's finest level, a rendering after every solve
-            pyramid = {1: _smooth(frame.astype(np.float32), self.sigma)}
+            pyramid = {1: smooth(frame.astype(np.float32), self.sigma)}
             more, _ = self._descend(pyramid, self.pyramid[-1:])
             solves += more
             self.renderings += more
@@ -359,7 +358,7 @@ class Tracker(Estimator):
         gradients (:func:`_with_gradients`), kept in ``images`` by sigma."""
         if stage.sigma not in images:
             window = frame[s.box].astype(np.float32)
-            images[stage.sigma] = _with_gradients(_smooth(window, stage.sigma))
+            images[stage.sigma] = _with_gradients(smooth(window, stage.sigma))
         return images[stage.sigma]
 
     def _iterate(self, s: _Samples, images: np.ndarray, stage: Stage) -> float:
@@ -391,7 +390,7 @@ class Tracker(Estimator):
             dv[:, held] = 0.0
         ata, atb = _system(du, dv, gx, gy, r, model.color if self.illumination else None,
                            weights)  # fmt: skip
-        delta = _least_squares(ata, atb)
+        delta = least_squares(ata, atb)
         k = s.du.shape[1]
         reach = model.speed * np.abs(delta[:k])
         delta[:k] *= np.minimum(1.0, stage.limit / np.maximum(reach, 1e-12))
@@ -452,8 +451,7 @@ class _Model:
     smoothed with ``sigma``."""
 
     def __init__(self, s: _Samples, sigma: float) -> None:
-        smooth = _smooth(s.raw, sigma)
-        grads = _with_gradients(smooth)
+        grads = _with_gradients(smooth(s.raw, sigma))
         at = grads[s.rows, s.cols]
         self.color, self.gx, self.gy = at[:, 0:3], at[:, 3:6], at[:, 6:9]
         #: the most (pixels) a unit of each unknown moves any sample ``(K,)``
