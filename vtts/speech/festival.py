@@ -44,7 +44,7 @@ import numpy as np
 
 from vtts.errors import SpeechError
 from vtts.speech.phonemes import Mark, Phone, viseme_tables
-from vtts.speech.tts import PITCH_RANGE, RATE_RANGE, Speech, Voice, Word, _check_int
+from vtts.speech.tts import Speech, Voice, Word, check_rate_pitch
 
 __all__ = ["DEFAULT_VOICE", "INSTALL_HINT", "PHONE_SET", "festival_viseme", "synthesize"]
 
@@ -119,8 +119,7 @@ def synthesize(
         raise SpeechError(
             f"invalid festival voice {voice!r}: write a voice name such as {DEFAULT_VOICE}"
         )
-    rate = _check_int("rate", rate, RATE_RANGE, "words per minute")
-    pitch = _check_int("pitch", pitch, PITCH_RANGE, "with 50 normal")
+    rate, pitch = check_rate_pitch(rate, pitch)
     positions = list(marks)
     if any(not 0 <= p <= len(text) for p in positions) or positions != sorted(positions):
         raise SpeechError(f"mark positions must increase within 0–{len(text)}, got {positions}")
