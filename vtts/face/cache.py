@@ -39,7 +39,7 @@ import typing
 import zipfile
 from functools import cache
 from pathlib import Path, PurePath
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -47,6 +47,11 @@ from vtts.limits import MAX_CACHE_ENTRY_BYTES
 from vtts.usercache import cache_dir
 from vtts.usercache import owned as _owned
 from vtts.usercache import safe_folder as _safe_folder
+
+if TYPE_CHECKING:
+    from vtts.face.adt import AnimationTables
+    from vtts.face.model import FaceModel
+    from vtts.vrml.scene import Scene
 
 #: Models whose files are smaller than this parse fast enough without a cache.
 MIN_BYTES = 1 << 20
@@ -82,8 +87,9 @@ def entry_path(files: list[Path]) -> Path | None:
     return root / "models" / f"{files[0].stem}-{h.hexdigest()}{SUFFIX}"
 
 
-def load(entry: Path):
-    """The model stored at ``entry``, or None (missing, unreadable, unsafe, from other code)."""
+def load(entry: Path) -> tuple[Scene, AnimationTables] | None:
+    """The model stored at ``entry`` as its scene and tables (:func:`vtts.face.load_model` makes
+    the model of them), or None (missing, unreadable, unsafe, from other code)."""
     if not _safe_folder(entry.parent):
         return None
     try:
@@ -108,7 +114,7 @@ def load(entry: Path):
         return None
 
 
-def store(entry: Path, model) -> None:
+def store(entry: Path, model: FaceModel) -> None:
     """Keep ``model`` at ``entry``, in place of older entries of a model of the same name (so the
     cache holds one entry per model name); failing to write (read-only home, full disk, a folder
     that is not the user's own) is not an error."""
@@ -177,7 +183,7 @@ def _classes() -> dict[str, type]:
     }  # fmt: skip
 
 
-def encode(model) -> bytes:
+def encode(model: FaceModel) -> bytes:
     """The entry for ``model``: ``.npz`` bytes. Raises TypeError or ValueError for a value the
     format cannot hold (the model is then not cached)."""
     enc = _Encoder()
@@ -196,10 +202,10 @@ def encode(model) -> bytes:
     return buffer.getvalue()
 
 
-def decode(data: bytes):
-    """The model in an entry's bytes. Raises (anything) for an entry that is not one."""
+def decode(data: bytes) -> tuple[Scene, AnimationTables]:
+    """The model's scene and tables in an entry's bytes. Raises (anything) for an entry that is
+    not one."""
     from vtts.face.adt import AnimationTables, check_tables
-    from vtts.face.model import FaceModel
     from vtts.vrml.scene import Scene
 
     with zipfile.ZipFile(io.BytesIO(data)) as z:  # no member may inflate beyond the entry
@@ -223,9 +229,7 @@ def decode(data: bytes):
     if not (isinstance(scene, Scene) and isinstance(tables, AnimationTables)):
         raise TypeError("not a model")
     check_tables(tables, scene)
-    model = FaceModel.__new__(FaceModel)  # the scene is stripped of its tables already
-    model.scene, model.tables, model.path = scene, tables, scene.path
-    return model
+    return scene, tables
 
 
 class _Encoder:
