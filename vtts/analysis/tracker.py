@@ -88,10 +88,9 @@ STAGES = (Stage(2.0, 5.0, 1, support=40), Stage(0.8, 2.0, 3))
 #: Samples that moved this far (pixels) since the rendering may show another surface: render.
 #: Within one frame's solves, the k-th rendering waits for k times this (the latency of a frame
 #: of fast motion; the rendering between frames catches up, :meth:`Tracker.between_frames`).
-#: At 3 pixels 12 % of Akiyo's frames and 29 % of Carphone's rendered within their solves (a
-#: rendering and its samples, 20–30 ms of latency each), at 4 pixels 3 % and 8 %, at 6 none
-#: and 1 %, with the same decoded PSNR within 0.1 dB (every frame, Akiyo / Carphone: 22.55 /
-#: 19.00 dB at 3, 22.56 / 19.17 at 4, 22.51 / 19.12 at 6).
+#: Chosen for the latency: a frame that renders within its solves pays for the rendering and
+#: its samples, and farther apart fewer frames do, at no cost in decoded PSNR (the figures:
+#: docs/analysis.md, "Tracking mode", step 3).
 RERENDER_PX = 6.0
 
 #: … on a lit face, whose frames end with the accurate estimator's finest level anyway (no
@@ -177,8 +176,9 @@ class Tracker(Estimator):
         self.polish = float(polish)
         # on an unlit face the eyelids (the FAPs the search on the rendered image refines) are
         # held in the solves on the samples and left to the search: a lid's edge a pixel or
-        # two tall is what linearized samples describe worst (solved there, Carphone's lids
-        # ran off and lost the track 8 times). A lit face's are solved, as its frames end with
+        # two tall is what linearized samples describe worst (solved there, the lids run off and
+        # lose the track: docs/analysis.md, "Tracking mode"). A lit face's are solved, as its
+        # frames end with
         # the accurate estimator's finest level
         self._refined_columns = np.array([u in self.refined for u in self.unknowns])
         self.sample_step = int(sample_step)
@@ -522,7 +522,7 @@ def _system(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The normal equations ``(AᵀWA, AᵀWb)`` (float64) of the per-sample, per-channel equations
     ``−(gx_c·du + gy_c·dv)·Δ + color_c·Δgain_c + Δoffset_c = r_c`` — the system of
-    :func:`vtts.analysis.estimator._normal_equations`, in single precision: a sample's three
+    :func:`vtts.analysis.solve.normal_equations`, in single precision: a sample's three
     channel rows reduce to the 2×2 matrix of its gradients summed over the channels, so the
     products are (N × K)ᵀ(N × K) ones. ``du``, ``dv`` ``(N, K)``; ``gx``, ``gy``, ``r``,
     ``color`` ``(N, 3)``; ``weights`` ``(N,)``."""
