@@ -221,8 +221,9 @@ def _cycles(edges: dict[str, dict[str, Import]]) -> list[list[str]]:
 
 
 def cycle_failures(imports, of=package_of, allowed=ALLOWED_CYCLE_IMPORTS) -> list[str]:
-    """One line per cycle between the units ``of`` gives (packages; ``str`` for modules), with
-    the imports that close it (the first of each pair of units)."""
+    """One message per cycle between the units ``of`` gives (packages; ``str`` for modules):
+    the units that import each other, and the imports of a shortest loop among them (the
+    first import of each pair of units)."""
     edges: dict[str, dict[str, Import]] = {}
     for i in imports:
         src, dst = of(i.module), of(i.target)
@@ -230,15 +231,30 @@ def cycle_failures(imports, of=package_of, allowed=ALLOWED_CYCLE_IMPORTS) -> lis
             edges.setdefault(src, {}).setdefault(dst, i)
     out = []
     for component in _cycles(edges):
-        members = set(component)
-        arrows = [
-            f"{i.file}:{i.line}: {i.module} imports {i.target}"
-            for src in component
-            for dst, i in sorted(edges.get(src, {}).items())
-            if dst in members
-        ]
-        out.append(f"cycle between {', '.join(component)}:\n    " + "\n    ".join(arrows))
+        loop = _shortest_loop(component[0], set(component), edges)
+        arrows = [edges[a][b] for a, b in zip(loop, loop[1:] + loop[:1], strict=True)]
+        out.append(
+            f"cycle between {', '.join(component)}:\n    "
+            + "\n    ".join(f"{i.file}:{i.line}: {i.module} imports {i.target}" for i in arrows)
+        )
     return out
+
+
+def _shortest_loop(start: str, members: set[str], edges: dict[str, dict[str, Import]]) -> list:
+    """The units of a shortest cycle through ``start`` within ``members``, ``start`` first."""
+    parent: dict[str, str] = {}
+    queue = [start]
+    for node in queue:
+        for child in sorted(edges.get(node, {})):
+            if child == start:
+                loop = [node]
+                while loop[-1] != start:
+                    loop.append(parent[loop[-1]])
+                return loop[::-1]
+            if child in members and child not in parent:
+                parent[child] = node
+                queue.append(child)
+    raise AssertionError(f"{start} is in no cycle")  # a component always has one
 
 
 def private_failures(imports, allowed=ALLOWED_PRIVATE) -> list[str]:
@@ -262,7 +278,8 @@ def private_failures(imports, allowed=ALLOWED_PRIVATE) -> list[str]:
 
 
 def _report(failures: list[str]) -> str:
-    return f"{len(failures)} import(s) break the layers (docs/design.md):\n" + "\n".join(failures)
+    head = f"{len(failures)} break(s) of the layers (docs/design.md, Layers):"
+    return "\n".join([head, *failures])
 
 
 def test_every_package_has_one_layer():
