@@ -1,14 +1,14 @@
 """A cache of parsed models: a large model loads in milliseconds from the second time on.
 
-Parsing a bundled head (a 0.6 MB scene and 4.5 MB of tables) takes a third of a second, a good part
-of the start-up of ``vtts say``. :func:`vtts.face.load_model` therefore keeps each model whose
-files total at least :data:`MIN_BYTES`, once loaded without error, as an entry named after the
-model and a hash of everything the result depends on: the model's path, the bytes of its ``.wrl``
-and ``.adt``, the source of the code that parses them (editing a parser or grammar never serves an
-old parse), and the Python and numpy versions. The cache is invisible otherwise: a missing, stale,
-corrupt or unwritable entry only means parsing again; errors are never cached, so a bad file fails
-every time with its message; lenient loads (which may warn) are not cached. Entries are written
-atomically, one per model name (a new one replaces the old).
+Parsing a bundled head (its scene and its much larger tables) is a good part of the start-up of
+``vtts say`` (docs/design.md, "Model cache"). :func:`vtts.face.load_model` therefore keeps each
+model whose files total at least :data:`MIN_BYTES`, once loaded without error, as an entry named
+after the model and a hash of everything the result depends on: the model's path, the bytes of
+its ``.wrl`` and ``.adt``, the source of the code that parses them (editing a parser or grammar
+never serves an old parse), and the Python and numpy versions. The cache is invisible otherwise:
+a missing, stale, corrupt or unwritable entry only means parsing again; errors are never cached,
+so a bad file fails every time with its message; lenient loads (which may warn) are not cached.
+Entries are written atomically, one per model name (a new one replaces the old).
 
 An entry is data that cannot run code, whoever wrote it: one uncompressed ``.npz`` (read with
 ``allow_pickle=False``) holding a JSON document of the object graph and, per dtype, one flat array

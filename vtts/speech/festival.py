@@ -199,8 +199,8 @@ def _scheme_string(s: str) -> str:
 def _chunks(text: str, size: int | None = None) -> list[str]:
     """``text`` cut into pieces of ``size`` (:data:`CHUNK_CHARS`) characters or more, at
     sentence ends (in a run-on of over four times ``size``, at a space), each spoken as an
-    utterance of its own: festival's time grows faster than the length of one utterance (85
-    words took 1.7 s, 1020 words 175 s; in utterances of 300 characters, 16 s)."""
+    utterance of its own: festival's time grows faster than the length of one utterance
+    (docs/speech.md, "festival")."""
     ends = [m.end() for m in re.finditer(r"""[.!?;:]["')\]]*\s+|\n\s*\n""", text)]
     spaces = [m.end() for m in re.finditer(r"\s+", text)]
     size = CHUNK_CHARS if size is None else size
