@@ -77,7 +77,7 @@ def _synthesis_rows() -> tuple[list[dict], np.ndarray, int]:
 def _reading_rows(speech: np.ndarray, rate: int) -> list[dict]:
     import soundfile as sf
 
-    from vtts.render.output import ffmpeg_exe
+    from vtts.media import ffmpeg_exe
     from vtts.speech.audio import read_audio
 
     n = MINUTES * 60 * rate

@@ -10,6 +10,7 @@ import vtts
 from vtts.analysis import TABLE1_FAPS, Estimator, analyze, face_psnr
 from vtts.analysis.estimator import PYRAMID
 from vtts.analysis.geometry import HeadGeometry
+from vtts.analysis.solve import gradients_at, normal_equations, smooth, subsample
 from vtts.analysis.synthetic import (
     TABLE1_EXTREMES,
     random_truth,
@@ -265,9 +266,7 @@ def test_a_solve_on_the_window_around_the_face_is_the_solve_on_the_whole_image(
             monkeypatch.setattr(estimator_module, "_bounds", lambda mask: None)
         est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, robust=robust)
         for lv in est.pyramid:
-            camera = estimator_module._smooth(
-                estimator_module._subsample(frame, lv.factor), est.sigma
-            )
+            camera = smooth(subsample(frame, lv.factor), est.sigma)
             image, faces, _ = est._render_window(lv.factor)
             moved = est._solve(camera, lv)
             steps[whole, lv.factor] = (moved, est.params.copy(), est.gain.copy(), faces.size)
@@ -295,7 +294,7 @@ def test_a_worse_step_after_one_that_gained_little_is_taken_back_and_ends_the_le
     delta[est.unknowns.index(48)] = 400.0  # far off: the match gets worse
     est._apply(delta)
     est._last_step = _Step(energy=0.0, delta=delta, halvings=0, reach=1.0, gain=gain)
-    moved = est._solve(estimator_module._smooth(frame, est.sigma), est.pyramid[-1])
+    moved = est._solve(smooth(frame, est.sigma), est.pyramid[-1])
     if gain < estimator_module.STALL_GAIN:
         assert est._stalled and moved == 0.0 and est._last_step is None
         assert np.allclose(est.params, before)
@@ -311,7 +310,7 @@ def test_a_level_whose_last_step_gained_little_ends_without_another(cybatt):
     import vtts.analysis.estimator as estimator_module
     from vtts.analysis.estimator import _Step
 
-    frame = estimator_module._smooth(_noisy(cybatt, _params({3: 150}), seed=4), 0.6)
+    frame = smooth(_noisy(cybatt, _params({3: 150}), seed=4), 0.6)
     est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, robust=True)
     est.params[:] = _params({3: 140})
     lv = est.pyramid[-1]
@@ -431,23 +430,21 @@ def test_refinement_windows_are_whole_blocks_inside_the_image():
 
 
 def test_gradients_at_pixels_are_numpys_gradient_of_the_mean():
-    from vtts.analysis.estimator import _gradients_at
 
     rng = np.random.default_rng(1)
     a, b = (rng.uniform(0, 255, (20, 30, 3)).astype(np.float32) for _ in range(2))
     gy, gx = np.gradient(0.5 * (a + b), axis=(0, 1))
     rows, cols = np.nonzero(np.ones((20, 30), bool))  # borders included
-    dy, dx = _gradients_at(a, b, rows, cols)
+    dy, dx = gradients_at(a, b, rows, cols)
     assert np.allclose(dy, gy[rows, cols], atol=1e-3) and np.allclose(dx, gx[rows, cols], atol=1e-3)
     gain = np.array([0.9, 1.1, 1.3], np.float32)
     gy, gx = np.gradient(0.5 * (a + (b * gain + 7)), axis=(0, 1))
-    dy, dx = _gradients_at(a, b, rows, cols, gain)
+    dy, dx = gradients_at(a, b, rows, cols, gain)
     assert np.allclose(dy, gy[rows, cols], atol=1e-3) and np.allclose(dx, gx[rows, cols], atol=1e-3)
 
 
 def test_normal_equations_are_those_of_the_per_channel_equations():
     """AᵀA and Aᵀb without forming A equal those of the 3N × (K + 6) matrix written out."""
-    from vtts.analysis.estimator import _normal_equations
 
     rng = np.random.default_rng(2)
     n, k = 50, 4
@@ -461,13 +458,13 @@ def test_normal_equations_are_those_of_the_per_channel_equations():
         a[:, c, k + c] = s[:, c]
         a[:, c, k + 3 + c] = 1.0
     a = a.reshape(3 * n, k + 6)
-    ata, atb = _normal_equations(du, dv, gx, gy, r, s)
+    ata, atb = normal_equations(du, dv, gx, gy, r, s)
     assert np.allclose(ata, a.T @ a, rtol=1e-9) and np.allclose(atb, a.T @ r.reshape(-1))
-    ata, atb = _normal_equations(du, dv, gx, gy, r, None)  # no light model: the K columns
+    ata, atb = normal_equations(du, dv, gx, gy, r, None)  # no light model: the K columns
     assert np.allclose(ata, (a.T @ a)[:k, :k]) and np.allclose(atb, (a.T @ r.reshape(-1))[:k])
     w = rng.uniform(0, 1, n)  # robust weights: each pixel's three rows weighed by w
     ww = np.repeat(w, 3)
-    ata, atb = _normal_equations(du, dv, gx, gy, r, s, w)
+    ata, atb = normal_equations(du, dv, gx, gy, r, s, w)
     assert np.allclose(ata, (a * ww[:, None]).T @ a, rtol=1e-9)
     assert np.allclose(atb, (a * ww[:, None]).T @ r.reshape(-1))
 

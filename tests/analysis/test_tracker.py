@@ -17,8 +17,8 @@ from scipy.ndimage import map_coordinates
 import vtts
 import vtts.analysis.tracker as tracker_module
 from vtts.analysis import DEFAULT_UNKNOWNS, PYRAMID, TABLE1_FAPS, Analysis, Estimator
-from vtts.analysis.estimator import _normal_equations
 from vtts.analysis.quality import sequence_psnr, stream_psnr
+from vtts.analysis.solve import normal_equations
 from vtts.analysis.synthetic import random_truth, render_sequence, table1_truth
 from vtts.analysis.track import FITTED_IGNORED, track
 from vtts.analysis.tracker import (
@@ -45,7 +45,7 @@ def test_system_is_the_accurate_estimators_normal_equations(light):
     gx, gy, r, color = (rng.normal(size=(n, 3)).astype(np.float32) for _ in range(4))
     w = rng.random(n).astype(np.float32)
     a1, b1 = _system(du, dv, gx, gy, r, color if light else None, w)
-    a2, b2 = _normal_equations(du, dv, gx, gy, r, color if light else None, w)
+    a2, b2 = normal_equations(du, dv, gx, gy, r, color if light else None, w)
     assert a1.shape == a2.shape == ((k + 6, k + 6) if light else (k, k))
     np.testing.assert_allclose(a1, a2, rtol=1e-5, atol=1e-4 * np.abs(a2).max())
     np.testing.assert_allclose(b1, b2, rtol=1e-5, atol=1e-4 * np.abs(b2).max())

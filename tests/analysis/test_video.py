@@ -12,7 +12,8 @@ from PIL import Image
 
 from vtts.analysis.video import DEFAULT_FOLDER_FPS, natural_key, read_video
 from vtts.errors import AnalysisError
-from vtts.render.output import VideoWriter, ffmpeg_exe
+from vtts.media import ffmpeg_exe
+from vtts.render.output import VideoWriter
 
 W, H = 64, 48
 

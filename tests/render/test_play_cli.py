@@ -146,7 +146,7 @@ def _tone(path: Path, rate: int, channels: int, seconds: float = 1.5) -> Path:
     """A 440 Hz tone (on the first channel) written by soundfile, or by ffmpeg for ``.mp3``."""
     import soundfile as sf
 
-    from vtts.render.output import ffmpeg_exe
+    from vtts.media import ffmpeg_exe
 
     t = np.arange(int(rate * seconds)) / rate
     x = np.zeros((t.size, channels), np.float32)

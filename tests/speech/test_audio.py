@@ -15,8 +15,8 @@ import soundfile as sf
 
 from vtts.errors import SpeechError
 from vtts.limits import MAX_AUDIO_RATE, LimitError
+from vtts.media import ffmpeg_exe
 from vtts.render import probe_media
-from vtts.render.output import ffmpeg_exe
 from vtts.speech.audio import read_audio, read_for_mp4, resample, to_int16
 
 HEAD = Path(__file__).parents[1] / "data" / "models" / "head.wrl"

@@ -44,17 +44,16 @@ SPEECH_DB = 30.0
 #: ... and this many dB above the quietest frames (the room's noise).
 ABOVE_NOISE_DB = 8.0
 #: A run of words whose warping cost is this many times a typical word's (the utterance's first
-#: quartile), and at least LOCAL_MIN, does not match the recording (measured: the words of a
-#: right transcript cost at most 1.5 times a typical one for espeak-ng's other voices and
-#: festival's; 3-5 words replaced cost 2-3.5 times for espeak-ng's voices, 1.1-1.4 times for
-#: festival's, which is not detected).
+#: quartile), and at least LOCAL_MIN, does not match the recording: between what the words of a
+#: right transcript cost and what replaced words cost (docs/speech.md, "Lip-sync for recorded
+#: speech").
 LOCAL_RATIO = 1.6
 LOCAL_MIN = 4.0
-#: A single word is reported only above this many times a typical word's cost (another accent
-#: says single words differently: en-gb's "are" and "go" cost up to 2.9 times).
+#: A single word is reported only above this many times a typical word's cost: another accent
+#: says single words differently (docs/speech.md).
 SINGLE_RATIO = 3.5
-#: Median word cost above which nothing matches (measured: right transcripts 1.6-5.8, wholly
-#: wrong ones 5.0-6.7, white noise 7.0, a tone 6.9).
+#: Median word cost above which nothing matches: above right transcripts, below noise and tones
+#: (docs/speech.md, "Lip-sync for recorded speech").
 GLOBAL_COST = 6.1
 
 
@@ -109,9 +108,9 @@ def speech_frames(db: np.ndarray) -> np.ndarray:
 HIGH_VOICE_HZ = 160.0
 HIGH_VARIANT = "f2"
 #: Median word warping cost above which the refinement runs: the recording's voice is far from
-#: espeak-ng's (measured: festival's HTS voice 5.4-5.9, where refining takes the 90th percentile
-#: from 55 to 40 ms; espeak-ng's other voices 1.6-4.5, whose warping is within a few ms already
-#: and which the refinement's 5 ms states and pooled models only blur: 11 → 17 ms for en-us+f3).
+#: espeak-ng's, whose warping the refinement improves; a voice near espeak-ng's is warped within
+#: a few ms already, and the refinement's 5 ms states and pooled models would only blur it
+#: (docs/speech.md, "Lip-sync for recorded speech").
 REFINE_ABOVE = 5.0
 #: Cost of matching a word boundary of the reference with silence of the recording.
 PAUSE_COST = 2.0
@@ -177,8 +176,7 @@ def align(
 
     f0 = median_f0(rec, fs, rec_speech, HOP)  # None: hardly voiced, perhaps not speech
     if "+" not in voice and not baseline and f0 is not None and f0 > HIGH_VOICE_HZ:
-        # a high voice is warped better against espeak-ng's female variant (measured: festival's
-        # HTS voice, 170 Hz, 90th percentile 50 → 45 ms)
+        # a high voice is warped better against espeak-ng's female variant (docs/speech.md)
         voice = f"{voice}+{HIGH_VARIANT}"
     ref = synthesize(ssml, voice=voice)
     if not any(p.phoneme not in PAUSES for p in ref.phonemes):
@@ -246,9 +244,8 @@ def align(
 def _masked(ref_db: np.ndarray, rec_db: np.ndarray) -> np.ndarray:
     """The reference's log-mel energies raised to the recording's noise floor, band by band (its
     10th percentile, relative to the loudest frame): espeak-ng's speech is clean, and where a
-    recording's noise hides the quiet parts, the reference must not show them either (measured:
-    festival's voice in white noise at 10 dB SNR, p90 80 → 70 ms, and no warning on the right
-    transcript where six of ten had one)."""
+    recording's noise hides the quiet parts, the reference must not show them either (measured
+    in docs/speech.md, "Lip-sync for recorded speech")."""
     floor = np.percentile(rec_db, 10, axis=0) - rec_db.max()
     return np.maximum(ref_db, ref_db.max() + floor).astype(np.float32)
 

@@ -32,10 +32,18 @@ from contextlib import contextmanager
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.ndimage import binary_erosion, gaussian_filter
+from scipy.ndimage import binary_erosion
 
 from vtts.analysis.geometry import HeadGeometry
 from vtts.analysis.result import TRANSLATION, Analysis, FrameEstimate
+from vtts.analysis.solve import (
+    SMOOTH_REACH,
+    gradients_at,
+    least_squares,
+    normal_equations,
+    smooth,
+    subsample,
+)
 from vtts.analysis.unknowns import (  # noqa: F401
     DEFAULT_UNKNOWNS,
     ESTIMABLE,
@@ -53,10 +61,6 @@ from vtts.threads import one_blas_thread
 
 #: Pixels next to the model's outline left out of the estimation.
 EDGE = 2
-
-#: The Gaussian filter's reach in standard deviations (its radius: ``int(SMOOTH_REACH · σ + 0.5)``
-#: pixels).
-SMOOTH_REACH = 2.0
 
 #: Residuals beyond this many gray levels count as this many in the match energy (robust).
 TRUNCATE = 10.0
@@ -329,7 +333,7 @@ class Estimator:
                     max(0, x0 + j0 - m), min(w, x0 + j1 + m))  # fmt: skip
         (y0, y1), (x0, x1) = box
         window = image[y0 * factor : y1 * factor, x0 * factor : x1 * factor]
-        return _subsample(window, factor), self._face_indices(numbers[y0:y1, x0:x1]), (y0, x0)
+        return subsample(window, factor), self._face_indices(numbers[y0:y1, x0:x1]), (y0, x0)
 
     def _at_level(self, full: np.ndarray, factor: int) -> np.ndarray:
         """A full-size per-pixel array ``(H, W)`` (triangle numbers or indices) at pyramid
@@ -394,7 +398,7 @@ class Estimator:
         pyramid: dict[int, np.ndarray] = {}
         for lv in self.pyramid:
             if lv.factor not in pyramid:
-                pyramid[lv.factor] = _smooth(_subsample(full, lv.factor), self.sigma)
+                pyramid[lv.factor] = smooth(subsample(full, lv.factor), self.sigma)
         solves, converged = self._descend(pyramid)
         if self.searched and self._history:
             # the second stage: the searched FAPs, with everything else held where the solves
@@ -587,7 +591,7 @@ class Estimator:
         image, ids, (top, left) = self._render_window(lv.factor)
         self._last_faces = ids
         camera_image = camera_image[top : top + ids.shape[0], left : left + ids.shape[1]]
-        raw = _smooth(image, self.sigma)
+        raw = smooth(image, self.sigma)
         gain, offset = self.gain.astype(np.float32), self.offset.astype(np.float32)
         # pixels within the model's outline: at the outline the synthetic background (which a
         # camera never shows) and antialiasing would read as motion
@@ -617,7 +621,7 @@ class Estimator:
                                       reach=last.reach / 2)  # fmt: skip
             return last.reach / 2
         # gradients of the camera frame and of gain · synthetic + offset
-        gy_p, gx_p = _gradients_at(camera_image, raw, rows, cols, gain)
+        gy_p, gx_p = gradients_at(camera_image, raw, rows, cols, gain)
         # Equation 17 on luminance: drop pixels whose displacement estimate exceeds G
         ry, gxy, gyy = r_p @ LUMA, gx_p @ LUMA, gy_p @ LUMA
         d = np.abs(ry) / np.sqrt(gxy * gxy + gyy * gyy + 1e-6)
@@ -641,10 +645,10 @@ class Estimator:
             # and not at all beyond ROBUST_LIMIT gray levels
             u = np.minimum(np.abs(ry[keep]) / ROBUST_LIMIT, 1.0)
             weights = (1.0 - u * u) ** 2
-        ata, atb = _normal_equations(
+        ata, atb = normal_equations(
             du, dv, gx_p, gy_p, r_p, s_p if self.illumination else None, weights
         )
-        delta = _least_squares(ata, atb)
+        delta = least_squares(ata, atb)
         # the linearization holds for small motion: no unknown may move any of its pixels
         # further than the level's step limit in one solve
         reach = speed.max(axis=0, initial=0.0) * np.abs(delta[:k])  # held columns: delta 0
@@ -984,117 +988,6 @@ def _bounds(mask: np.ndarray) -> tuple[tuple[int, int], tuple[int, int]] | None:
 
 def _window_margin(sigma: float) -> int:
     """Pixels (of a level) around the face that a solve's numbers depend on: the Gaussian
-    filter's radius (:func:`_smooth`, scipy's ``int(truncate · σ + 0.5)``), one more for the
-    central differences of the gradients, and one to spare."""
+    filter's radius (:func:`~vtts.analysis.solve.smooth`, scipy's ``int(truncate · σ + 0.5)``),
+    one more for the central differences of the gradients, and one to spare."""
     return int(SMOOTH_REACH * sigma + 0.5) + 2
-
-
-def _subsample(image: np.ndarray, factor: int) -> np.ndarray:
-    """Moving-average subsampling of ``(H, W, C)`` by ``factor`` to ``float32`` (edges that do
-    not fill a block are dropped)."""
-    if factor == 1:
-        return image.astype(np.float32, copy=False)
-    h, w = image.shape[0] // factor, image.shape[1] // factor
-    x = image[: h * factor, : w * factor].astype(np.float32)
-    x = x.reshape(h, factor, w * factor, -1).sum(axis=1)  # rows of each block
-    x = x.reshape(h, w, factor, -1).sum(axis=2)  # then columns
-    return x * np.float32(1.0 / (factor * factor))
-
-
-def _smooth(image: np.ndarray, sigma: float) -> np.ndarray:
-    if sigma <= 0:
-        return image
-    return gaussian_filter(image, sigma=(sigma, sigma, 0), mode="nearest", truncate=SMOOTH_REACH)
-
-
-def _gradients_at(
-    a: np.ndarray,
-    b: np.ndarray,
-    rows: np.ndarray,
-    cols: np.ndarray,
-    gain: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Central differences ``(d/dY, d/dX)``, each ``(n, C)``, of the mean of the ``(H, W, C)``
-    images ``a`` and ``gain · b`` (``gain`` ``(C,)``, default 1; an offset added to ``b`` would
-    not change them) at the pixels ``rows``, ``cols`` (one-sided at the border), as
-    ``np.gradient`` computes them over the whole image."""
-    h, w = a.shape[:2]
-    up, down = np.maximum(rows - 1, 0), np.minimum(rows + 1, h - 1)
-    left, right = np.maximum(cols - 1, 0), np.minimum(cols + 1, w - 1)
-    if gain is None:
-        dy = (a[down, cols] + b[down, cols]) - (a[up, cols] + b[up, cols])
-        dx = (a[rows, right] + b[rows, right]) - (a[rows, left] + b[rows, left])
-    else:
-        dy = (a[down, cols] - a[up, cols]) + (b[down, cols] - b[up, cols]) * gain
-        dx = (a[rows, right] - a[rows, left]) + (b[rows, right] - b[rows, left]) * gain
-    sy = (0.5 / (down - up)).astype(a.dtype)[:, None]
-    sx = (0.5 / (right - left)).astype(a.dtype)[:, None]
-    return dy * sy, dx * sx
-
-
-def _normal_equations(
-    du: np.ndarray,
-    dv: np.ndarray,
-    gx: np.ndarray,
-    gy: np.ndarray,
-    r: np.ndarray,
-    s: np.ndarray | None,
-    weights: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """The normal equations ``(AᵀA, Aᵀb)`` (float64) of the per-pixel, per-channel equations
-    ``−(gx_c·du + gy_c·dv)·Δ + s_c·Δgain_c + Δoffset_c = r_c`` (Equation 10 with the image
-    motion of Equations 14–16, and the light model when ``s`` is given).
-
-    ``du``, ``dv`` ``(N, K)``: image motion (pixels per unit) of each unknown at each pixel;
-    ``gx``, ``gy``, ``r``, ``s`` ``(N, 3)``: gradients, residual and synthetic color per
-    channel. Unknowns: the K, then the gains and offsets of the 3 channels. A is never formed:
-    its 3N rows reduce per pixel to the 2×2 matrix of the gradients summed over the channels,
-    so every product is an (N × K)ᵀ(N × K) one. ``weights`` ``(N,)``: each pixel's weight in
-    the least-squares sum (default 1)."""
-    du = du.astype(np.float64)
-    dv = dv.astype(np.float64)
-    gx = gx.astype(np.float64)
-    gy = gy.astype(np.float64)
-    r = r.astype(np.float64)
-    # a pixel's rows scaled by √w: the offsets' coefficient 1 becomes √w too
-    one = np.ones(len(r)) if weights is None else np.sqrt(weights.astype(np.float64))
-    if weights is not None:
-        gx, gy, r = gx * one[:, None], gy * one[:, None], r * one[:, None]
-    k = du.shape[1]
-    m = k + (6 if s is not None else 0)
-    ata = np.zeros((m, m))
-    atb = np.zeros(m)
-    gxx, gxy, gyy = (gx * gx).sum(1), (gx * gy).sum(1), (gy * gy).sum(1)
-    cross = (du * gxy[:, None]).T @ dv
-    ata[:k, :k] = (du * gxx[:, None]).T @ du + cross + cross.T + (dv * gyy[:, None]).T @ dv
-    atb[:k] = -(du.T @ (gx * r).sum(1) + dv.T @ (gy * r).sum(1))
-    if s is not None:
-        s = s.astype(np.float64) * one[:, None]
-        for c in range(3):
-            g, o = k + c, k + 3 + c  # the channel's gain and offset
-            ata[:k, g] = -(du.T @ (gx[:, c] * s[:, c]) + dv.T @ (gy[:, c] * s[:, c]))
-            ata[:k, o] = -(du.T @ (gx[:, c] * one) + dv.T @ (gy[:, c] * one))
-            ata[g, g] = s[:, c] @ s[:, c]
-            ata[g, o] = s[:, c] @ one
-            ata[o, o] = one @ one
-            atb[g] = s[:, c] @ r[:, c]
-            atb[o] = r[:, c] @ one
-        upper = np.triu_indices(m, 1)
-        ata[upper[::-1]] = ata[upper]
-    return ata, atb
-
-
-def _least_squares(ata: np.ndarray, atb: np.ndarray) -> np.ndarray:
-    """Solve the normal equations ``ata x = atb`` with column scaling and a whisper of
-    damping, so that unknowns the pixels say nothing about stay put."""
-    d = np.sqrt(np.diag(ata))
-    big = d.max() if d.size else 1.0
-    ok = d > 1e-9 * big
-    x = np.zeros(ata.shape[0])
-    if not ok.any():
-        return x
-    s = 1.0 / d[ok]
-    m = ata[np.ix_(ok, ok)] * s[:, None] * s[None, :]
-    m[np.diag_indices_from(m)] += 1e-9
-    x[ok] = s * np.linalg.solve(m, atb[ok] * s)
-    return x

@@ -27,8 +27,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from vtts.analysis.estimator import LUMA, PYRAMID, Estimator, _smooth
+from vtts.analysis.estimator import LUMA, PYRAMID, Estimator
 from vtts.analysis.result import TRANSLATION, Analysis
+from vtts.analysis.solve import smooth
 from vtts.errors import AnalysisError
 from vtts.face import N_PARAMS, FaceModel
 from vtts.fap.coding import MAX_BASE_STEP, TRANSLATION_BASE_STEP
@@ -76,7 +77,7 @@ def coding_steps(
         raise AnalysisError("the model covers no pixel through this camera: no steps to measure")
     pix = np.stack([cols + (left + 0.5), rows + (top + 0.5)], axis=1)
     _, _, du, dv = est._image_motion(pix, ids[rows, cols], est._levels[1][0])
-    luma = _smooth(image, est.sigma) @ LUMA
+    luma = smooth(image, est.sigma) @ LUMA
     gy, gx = np.gradient(luma)
     change = gx[rows, cols, None] * du + gy[rows, cols, None] * dv  # (N, K) per unit
     weight = (change.astype(np.float64) ** 2).sum(axis=0)  # (K,)

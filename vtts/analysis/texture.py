@@ -18,8 +18,8 @@ only needs the whole video first, so ``vtts analyze`` makes it for a video file,
 on a pipe.
 
 Measured with ``bench/bench_real_video.py`` (every second frame, the decoded stream's face
-PSNR): see ``docs/analysis.md``. Tracking again with the mean texture gained nothing (Carphone
-24.96 → 24.93 dB tracking mode), so the track is made once.
+PSNR): see ``docs/analysis.md``. Tracking again with the mean texture gained nothing there, so
+the track is made once.
 """
 
 from __future__ import annotations

@@ -58,9 +58,8 @@ from vtts.threads import one_blas_thread
 #: follows the head's rotation near the skull only (:mod:`vtts.fit.neck`) but the head's
 #: translation wholly, and whose outline is the generic cylinder's, and the hair cap and ears,
 #: whose outline is the generic skull's, not the person's (at the outline they cover the
-#: background). Matching the hair and ears as well was tried: +0.2 dB on Akiyo, and on Carphone
-#: a better median but a worse mean (more frames lost). Matching the weighed-down neck was tried
-#: on Akiyo's first 60 frames: the median frame gained 0.5 dB, the mean lost 0.3 dB.
+#: background). Matching them as well was tried and not kept (docs/analysis.md, "Camera video",
+#: robust matching).
 FITTED_IGNORED = ("HAIR", "NECK", "L_EAR", "R_EAR")
 
 #: A frame is lost when its face PSNR falls this far (dB) below the median of the recent frames…
@@ -68,10 +67,10 @@ LOST_DB = 6.0
 #: … or below this (dB) at all.
 LOST_FLOOR_DB = 12.0
 #: In the tracking mode the reference for :data:`LOST_DB` is at most this (dB): near the frame
-#: a head was fitted to, the PSNR falls from 45 dB to 30 within a few frames as the person
-#: moves, and a re-initialization (an accurate estimate, 1–2 s) would stall a live stream for
-#: a frame that is not lost. The accurate mode keeps the plain median: on Akiyo (every second
-#: frame) its early re-initialization is worth 0.6 dB over the sequence (22.0 against 21.4).
+#: a head was fitted to, the PSNR falls fast as the person moves, and a re-initialization (an
+#: accurate estimate) would stall a live stream for a frame that is not lost. The accurate mode
+#: keeps the plain median, whose early re-initialization pays there (docs/analysis.md,
+#: "Tracking mode", step 5).
 LOST_REFERENCE_CAP_DB = 30.0
 #: A frame is lost, too, when the head has **run away**: its estimated rotation (FAPs 48–50:
 #: pitch, yaw, roll) further than this (angle units, 1e-5 rad: 1.2 rad, 69°) from where the
@@ -79,11 +78,10 @@ LOST_REFERENCE_CAP_DB = 30.0
 MAX_TURN_AU = 120_000.0
 #: … or its translation further than this share of the camera's distance from the head (its
 #: image half or twice the size it started at). A track that drifted off the face can run away
-#: with the motion carried on from frame to frame (Akiyo analyzed at a third of its frame
-#: rate: pitched past 5 rad, or moved 1.3–3.6 times the distance); it is re-initialized from
-#: the landmarks with the head placed from the neutral face and pose. The real sequences
-#: tracked stay within 0.25 rad and 3 % of the distance (Akiyo), 0.6 rad and 21 % (Carphone,
-#: who leans in).
+#: with the motion carried on from frame to frame, under the PSNR rule; it is re-initialized
+#: from the landmarks with the head placed from the neutral face and pose. Both limits lie well
+#: beyond what the real sequences tracked reach (docs/analysis.md, "Camera video", losing and
+#: finding the track).
 MAX_SHIFT = 0.5
 #: Recent frames whose median PSNR is the reference for :data:`LOST_DB`.
 RECENT = 10

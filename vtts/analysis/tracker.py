@@ -56,10 +56,9 @@ from vtts.analysis.estimator import (  # noqa: F401  (LIT_REFINE_STEPS: the trac
     LUMA,
     ROBUST_LIMIT,
     Estimator,
-    _least_squares,
-    _smooth,
 )
 from vtts.analysis.result import TRANSLATION, FrameEstimate
+from vtts.analysis.solve import least_squares, smooth
 from vtts.analysis.unknowns import EYELIDS
 from vtts.errors import VttsError
 from vtts.threads import one_blas_thread
@@ -89,10 +88,9 @@ STAGES = (Stage(2.0, 5.0, 1, support=40), Stage(0.8, 2.0, 3))
 #: Samples that moved this far (pixels) since the rendering may show another surface: render.
 #: Within one frame's solves, the k-th rendering waits for k times this (the latency of a frame
 #: of fast motion; the rendering between frames catches up, :meth:`Tracker.between_frames`).
-#: At 3 pixels 12 % of Akiyo's frames and 29 % of Carphone's rendered within their solves (a
-#: rendering and its samples, 20–30 ms of latency each), at 4 pixels 3 % and 8 %, at 6 none
-#: and 1 %, with the same decoded PSNR within 0.1 dB (every frame, Akiyo / Carphone: 22.55 /
-#: 19.00 dB at 3, 22.56 / 19.17 at 4, 22.51 / 19.12 at 6).
+#: Chosen for the latency: a frame that renders within its solves pays for the rendering and
+#: its samples, and farther apart fewer frames do, at no cost in decoded PSNR (the figures:
+#: docs/analysis.md, "Tracking mode", step 3).
 RERENDER_PX = 6.0
 
 #: … on a lit face, whose frames end with the accurate estimator's finest level anyway (no
@@ -178,8 +176,9 @@ class Tracker(Estimator):
         self.polish = float(polish)
         # on an unlit face the eyelids (the FAPs the search on the rendered image refines) are
         # held in the solves on the samples and left to the search: a lid's edge a pixel or
-        # two tall is what linearized samples describe worst (solved there, Carphone's lids
-        # ran off and lost the track 8 times). A lit face's are solved, as its frames end with
+        # two tall is what linearized samples describe worst (solved there, the lids run off and
+        # lose the track: docs/analysis.md, "Tracking mode"). A lit face's are solved, as its
+        # frames end with
         # the accurate estimator's finest level
         self._refined_columns = np.array([u in self.refined for u in self.unknowns])
         self.sample_step = int(sample_step)
@@ -220,13 +219,13 @@ class Tracker(Estimator):
             # from where the samples left the estimate; the frame's final rendering gives the
             # next frame's samples (:meth:`_final_rendering`)
             full = frame.astype(np.float32)
-            more, _ = self._descend({1: _smooth(full, self.sigma)}, self.pyramid[-1:])
+            more, _ = self._descend({1: smooth(full, self.sigma)}, self.pyramid[-1:])
             self.renderings += more + 1
             return self._final_estimate(full, index, time, solves + more, self._lit_frame())
         lit = samples.lit >= LIT_SHARE
         if lit and self._shift(samples) > self.polish:
             # a lit face: the accurate estimator's finest level, a rendering after every solve
-            pyramid = {1: _smooth(frame.astype(np.float32), self.sigma)}
+            pyramid = {1: smooth(frame.astype(np.float32), self.sigma)}
             more, _ = self._descend(pyramid, self.pyramid[-1:])
             solves += more
             self.renderings += more
@@ -359,7 +358,7 @@ class Tracker(Estimator):
         gradients (:func:`_with_gradients`), kept in ``images`` by sigma."""
         if stage.sigma not in images:
             window = frame[s.box].astype(np.float32)
-            images[stage.sigma] = _with_gradients(_smooth(window, stage.sigma))
+            images[stage.sigma] = _with_gradients(smooth(window, stage.sigma))
         return images[stage.sigma]
 
     def _iterate(self, s: _Samples, images: np.ndarray, stage: Stage) -> float:
@@ -391,7 +390,7 @@ class Tracker(Estimator):
             dv[:, held] = 0.0
         ata, atb = _system(du, dv, gx, gy, r, model.color if self.illumination else None,
                            weights)  # fmt: skip
-        delta = _least_squares(ata, atb)
+        delta = least_squares(ata, atb)
         k = s.du.shape[1]
         reach = model.speed * np.abs(delta[:k])
         delta[:k] *= np.minimum(1.0, stage.limit / np.maximum(reach, 1e-12))
@@ -452,8 +451,7 @@ class _Model:
     smoothed with ``sigma``."""
 
     def __init__(self, s: _Samples, sigma: float) -> None:
-        smooth = _smooth(s.raw, sigma)
-        grads = _with_gradients(smooth)
+        grads = _with_gradients(smooth(s.raw, sigma))
         at = grads[s.rows, s.cols]
         self.color, self.gx, self.gy = at[:, 0:3], at[:, 3:6], at[:, 6:9]
         #: the most (pixels) a unit of each unknown moves any sample ``(K,)``
@@ -524,7 +522,7 @@ def _system(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The normal equations ``(AᵀWA, AᵀWb)`` (float64) of the per-sample, per-channel equations
     ``−(gx_c·du + gy_c·dv)·Δ + color_c·Δgain_c + Δoffset_c = r_c`` — the system of
-    :func:`vtts.analysis.estimator._normal_equations`, in single precision: a sample's three
+    :func:`vtts.analysis.solve.normal_equations`, in single precision: a sample's three
     channel rows reduce to the 2×2 matrix of its gradients summed over the channels, so the
     products are (N × K)ᵀ(N × K) ones. ``du``, ``dv`` ``(N, K)``; ``gx``, ``gy``, ``r``,
     ``color`` ``(N, 3)``; ``weights`` ``(N,)``."""

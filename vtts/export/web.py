@@ -213,7 +213,7 @@ def encode_aac(audio: str | os.PathLike[str], out: str | os.PathLike[str]) -> Pa
     (Chromium decodes a click at 1.000 s of the WAV at 1.000 s of the ``.m4a``), so the audio's
     clock is the WAV's. ``+faststart`` puts the index first: playback starts before the whole
     file has arrived."""
-    from vtts.render.output import ffmpeg_exe
+    from vtts.media import ffmpeg_exe
 
     out = Path(out)
     result = subprocess.run(

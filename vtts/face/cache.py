@@ -1,14 +1,14 @@
 """A cache of parsed models: a large model loads in milliseconds from the second time on.
 
-Parsing a bundled head (a 0.6 MB scene and 4.5 MB of tables) takes a third of a second, a good part
-of the start-up of ``vtts say``. :func:`vtts.face.load_model` therefore keeps each model whose
-files total at least :data:`MIN_BYTES`, once loaded without error, as an entry named after the
-model and a hash of everything the result depends on: the model's path, the bytes of its ``.wrl``
-and ``.adt``, the source of the code that parses them (editing a parser or grammar never serves an
-old parse), and the Python and numpy versions. The cache is invisible otherwise: a missing, stale,
-corrupt or unwritable entry only means parsing again; errors are never cached, so a bad file fails
-every time with its message; lenient loads (which may warn) are not cached. Entries are written
-atomically, one per model name (a new one replaces the old).
+Parsing a bundled head (its scene and its much larger tables) is a good part of the start-up of
+``vtts say`` (docs/design.md, "Model cache"). :func:`vtts.face.load_model` therefore keeps each
+model whose files total at least :data:`MIN_BYTES`, once loaded without error, as an entry named
+after the model and a hash of everything the result depends on: the model's path, the bytes of
+its ``.wrl`` and ``.adt``, the source of the code that parses them (editing a parser or grammar
+never serves an old parse), and the Python and numpy versions. The cache is invisible otherwise:
+a missing, stale, corrupt or unwritable entry only means parsing again; errors are never cached,
+so a bad file fails every time with its message; lenient loads (which may warn) are not cached.
+Entries are written atomically, one per model name (a new one replaces the old).
 
 An entry is data that cannot run code, whoever wrote it: one uncompressed ``.npz`` (read with
 ``allow_pickle=False``) holding a JSON document of the object graph and, per dtype, one flat array
@@ -39,7 +39,7 @@ import typing
 import zipfile
 from functools import cache
 from pathlib import Path, PurePath
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -47,6 +47,11 @@ from vtts.limits import MAX_CACHE_ENTRY_BYTES
 from vtts.usercache import cache_dir
 from vtts.usercache import owned as _owned
 from vtts.usercache import safe_folder as _safe_folder
+
+if TYPE_CHECKING:
+    from vtts.face.adt import AnimationTables
+    from vtts.face.model import FaceModel
+    from vtts.vrml.scene import Scene
 
 #: Models whose files are smaller than this parse fast enough without a cache.
 MIN_BYTES = 1 << 20
@@ -82,8 +87,9 @@ def entry_path(files: list[Path]) -> Path | None:
     return root / "models" / f"{files[0].stem}-{h.hexdigest()}{SUFFIX}"
 
 
-def load(entry: Path):
-    """The model stored at ``entry``, or None (missing, unreadable, unsafe, from other code)."""
+def load(entry: Path) -> tuple[Scene, AnimationTables] | None:
+    """The model stored at ``entry`` as its scene and tables (:func:`vtts.face.load_model` makes
+    the model of them), or None (missing, unreadable, unsafe, from other code)."""
     if not _safe_folder(entry.parent):
         return None
     try:
@@ -108,7 +114,7 @@ def load(entry: Path):
         return None
 
 
-def store(entry: Path, model) -> None:
+def store(entry: Path, model: FaceModel) -> None:
     """Keep ``model`` at ``entry``, in place of older entries of a model of the same name (so the
     cache holds one entry per model name); failing to write (read-only home, full disk, a folder
     that is not the user's own) is not an error."""
@@ -177,7 +183,7 @@ def _classes() -> dict[str, type]:
     }  # fmt: skip
 
 
-def encode(model) -> bytes:
+def encode(model: FaceModel) -> bytes:
     """The entry for ``model``: ``.npz`` bytes. Raises TypeError or ValueError for a value the
     format cannot hold (the model is then not cached)."""
     enc = _Encoder()
@@ -196,10 +202,10 @@ def encode(model) -> bytes:
     return buffer.getvalue()
 
 
-def decode(data: bytes):
-    """The model in an entry's bytes. Raises (anything) for an entry that is not one."""
+def decode(data: bytes) -> tuple[Scene, AnimationTables]:
+    """The model's scene and tables in an entry's bytes. Raises (anything) for an entry that is
+    not one."""
     from vtts.face.adt import AnimationTables, check_tables
-    from vtts.face.model import FaceModel
     from vtts.vrml.scene import Scene
 
     with zipfile.ZipFile(io.BytesIO(data)) as z:  # no member may inflate beyond the entry
@@ -223,9 +229,7 @@ def decode(data: bytes):
     if not (isinstance(scene, Scene) and isinstance(tables, AnimationTables)):
         raise TypeError("not a model")
     check_tables(tables, scene)
-    model = FaceModel.__new__(FaceModel)  # the scene is stripped of its tables already
-    model.scene, model.tables, model.path = scene, tables, scene.path
-    return model
+    return scene, tables
 
 
 class _Encoder:

@@ -78,8 +78,10 @@ def load_model(
     entry = None
     if not lenient:
         entry = cache.entry_path([path, sidecar] if sidecar.is_file() else [path])
-        model = cache.load(entry) if entry is not None else None
-        if model is not None:
+        parts = cache.load(entry) if entry is not None else None
+        if parts is not None:
+            model = FaceModel.__new__(FaceModel)  # the scene is stripped of its tables already
+            model.scene, model.tables = parts
             model.path = model.scene.path = path  # spelled as this call spells it
             # an entry was parsed without url roots: with them it parses the same
             model.scene.url_roots = roots

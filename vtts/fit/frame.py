@@ -3,9 +3,9 @@
 ``adi fit`` paints a texture atlas that serves every view of the head: the photo is unlit
 (divided by the renderer's shading), resampled into the atlas and resampled again by the
 renderer, and it is lit again when drawn. Rendered back at the photo's own view, the head gives
-the photo at about 28 dB over everything it covers (Akiyo's first frame): the two resamplings
-soften every edge, the ears are generic, and no texture can make the lit hair as dark as real
-dark hair (the renderer's specular light alone is brighter).
+the photo back only roughly (docs/analysis.md, "Camera video"): the two resamplings soften
+every edge, the ears are generic, and no texture can make the lit hair as dark as real dark
+hair (the renderer's specular light alone is brighter).
 
 A video coder wants the first frame back as exactly as possible, since the next frames show the
 same head from nearly the same view (Eisert & Girod's model is textured the same way, from the
@@ -35,8 +35,8 @@ FRAME_PARTS = ("FACE", "HAIR", "NECK", "L_EAR", "R_EAR", "L_EYEBALL", "R_EYEBALL
 FRAME_APPEARANCES = ("SKIN", "EYE")
 #: The teeth's Appearance, and the fraction of their colour they keep: inside the mouth they are
 #: in the lips' shadow, lit by little more than the ambient light, while the renderer lights
-#: them as fully as the face (white teeth in a mouth that the video shows dark). Chosen on
-#: Akiyo's first 100 frames (0.45: +0.5 dB over 1); Carphone was not looked at.
+#: them as fully as the face (white teeth in a mouth that the video shows dark). Chosen on one
+#: real sequence (docs/analysis.md, "Camera video").
 TEETH_APPEARANCE = "TEETH"
 MOUTH_SHADE = 0.45
 

@@ -90,11 +90,10 @@ EARS = ("L_EAR", "R_EAR")
 #: and the ears.
 VIDEO_PARTS = (*PHOTO_PARTS, "NECK", *EARS)
 #: Whether a head made for a video (:func:`with_frame`) gets a neck that follows the head's
-#: rotation only near the skull (:mod:`vtts.fit.neck`), as the person's does. Off: measured on
-#: Akiyo's 300 frames it changed the decoded face PSNR by +0.29 dB in one pair of runs and
-#: −0.03 dB in another (the tracking differs by as much between runs), and Carphone's figures
-#: moved with its lost tracks both ways: the head translation, which the estimator trades
-#: against the pitch, still moves the whole neck (docs/analysis.md).
+#: rotation only near the skull (:mod:`vtts.fit.neck`), as the person's does. Off: its gain on
+#: the real sequences is no larger than the difference between two runs, since the head
+#: translation, which the estimator trades against the pitch, still moves the whole neck
+#: (docs/analysis.md, "Camera video"; docs/fitting.md).
 FREE_NECK = False
 #: Whether a head made for a video ends its neck where the frame stops showing skin below the
 #: chin (a collar, a bow tie: :func:`vtts.fit.neck.collar_row`), so that the clothing is not

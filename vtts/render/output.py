@@ -40,6 +40,7 @@ except ImportError:  # pragma: no cover - Windows
 
 from vtts.atomic import atomic_path, current_umask, replace_folder
 from vtts.errors import RenderError
+from vtts.media import ffmpeg_exe
 
 __all__ = [
     "AAC_ARGS",
@@ -64,20 +65,6 @@ AAC_ARGS = ("-c:a", "aac", "-b:a", "128k")
 
 #: How many lines of ffmpeg's stderr a :class:`RenderError` quotes.
 _STDERR_TAIL_LINES = 12
-
-
-def ffmpeg_exe() -> str:
-    """Path of the ffmpeg binary shipped in the ``imageio-ffmpeg`` wheel.
-
-    ``imageio_ffmpeg`` honours the ``IMAGEIO_FFMPEG_EXE`` environment variable, so a system
-    ffmpeg can be substituted without code changes.
-    """
-    import imageio_ffmpeg
-
-    try:
-        return imageio_ffmpeg.get_ffmpeg_exe()
-    except RuntimeError as exc:  # no binary for this platform and none on PATH
-        raise RenderError(f"no ffmpeg binary found: {exc}") from exc
 
 
 def _check_frame(frame: Any, shape: tuple[int, int, int] | None, rgba: bool = False) -> np.ndarray:

@@ -25,6 +25,7 @@ import numpy as np
 
 from vtts.errors import SpeechError
 from vtts.limits import MAX_AUDIO_RATE, MAX_AUDIO_S, LimitError
+from vtts.media import ffmpeg_exe
 
 __all__ = ["AAC_RATES", "read_audio", "read_for_mp4", "resample", "to_int16"]
 
@@ -167,8 +168,6 @@ def _mono(block: np.ndarray) -> np.ndarray:
 
 def _read_ffmpeg(p: Path) -> tuple[np.ndarray, int]:
     """Decode with the bundled ffmpeg (MP3, M4A, …) into a temporary float WAV, then read that."""
-    from vtts.render.output import ffmpeg_exe
-
     with tempfile.TemporaryDirectory(prefix="vtts-audio-") as tmp:
         wav = Path(tmp) / "decoded.wav"
         cmd = [

@@ -111,7 +111,8 @@ class BookmarkedText:
 
 @cache
 def _lark() -> Lark:
-    # the tables kept between processes (40 ms of every vtts say to build)
+    # the tables kept between processes: building them again would slow every vtts say's
+    # start (docs/speech.md, "Speed")
     return lark_parser("bookmarks", parser="lalr", lexer="contextual", maybe_placeholders=False)
 
 

@@ -44,7 +44,7 @@ import numpy as np
 
 from vtts.errors import SpeechError
 from vtts.speech.phonemes import Mark, Phone, viseme_tables
-from vtts.speech.tts import PITCH_RANGE, RATE_RANGE, Speech, Voice, Word, _check_int
+from vtts.speech.tts import Speech, Voice, Word, check_rate_pitch
 
 __all__ = ["DEFAULT_VOICE", "INSTALL_HINT", "PHONE_SET", "festival_viseme", "synthesize"]
 
@@ -119,8 +119,7 @@ def synthesize(
         raise SpeechError(
             f"invalid festival voice {voice!r}: write a voice name such as {DEFAULT_VOICE}"
         )
-    rate = _check_int("rate", rate, RATE_RANGE, "words per minute")
-    pitch = _check_int("pitch", pitch, PITCH_RANGE, "with 50 normal")
+    rate, pitch = check_rate_pitch(rate, pitch)
     positions = list(marks)
     if any(not 0 <= p <= len(text) for p in positions) or positions != sorted(positions):
         raise SpeechError(f"mark positions must increase within 0–{len(text)}, got {positions}")
@@ -200,8 +199,8 @@ def _scheme_string(s: str) -> str:
 def _chunks(text: str, size: int | None = None) -> list[str]:
     """``text`` cut into pieces of ``size`` (:data:`CHUNK_CHARS`) characters or more, at
     sentence ends (in a run-on of over four times ``size``, at a space), each spoken as an
-    utterance of its own: festival's time grows faster than the length of one utterance (85
-    words took 1.7 s, 1020 words 175 s; in utterances of 300 characters, 16 s)."""
+    utterance of its own: festival's time grows faster than the length of one utterance
+    (docs/speech.md, "festival")."""
     ends = [m.end() for m in re.finditer(r"""[.!?;:]["')\]]*\s+|\n\s*\n""", text)]
     spaces = [m.end() for m in re.finditer(r"\s+", text)]
     size = CHUNK_CHARS if size is None else size

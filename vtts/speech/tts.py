@@ -361,8 +361,7 @@ def synthesize(
         raise SpeechError(
             f"invalid voice {voice!r}: write a language code such as en-us, fr or en-gb+f3"
         )
-    rate = _check_int("rate", rate, RATE_RANGE, "words per minute")
-    pitch = _check_int("pitch", pitch, PITCH_RANGE, "with 50 normal")
+    rate, pitch = check_rate_pitch(rate, pitch)
     if ssml:
         doc = _ssml_document(ssml_or_text)
         flags = CHARS_UTF8 | SSML | ENDPAUSE
@@ -380,6 +379,17 @@ def synthesize(
     }
     header, payload = _run_worker(request, timeout=60 + len(doc.text) / 50)
     return _speech(header, payload, doc)
+
+
+def check_rate_pitch(rate, pitch) -> tuple[int | None, int | None]:
+    """``(rate, pitch)`` as ints after checking them as every engine takes them: ``rate`` in
+    words per minute within :data:`RATE_RANGE`, ``pitch`` within :data:`PITCH_RANGE` (50
+    normal); ``None`` (the voice's own) stays ``None``. Raises :class:`SpeechError` naming the
+    value and the range."""
+    return (
+        _check_int("rate", rate, RATE_RANGE, "words per minute"),
+        _check_int("pitch", pitch, PITCH_RANGE, "with 50 normal"),
+    )
 
 
 def _check_int(what: str, value, limits: tuple[int, int], unit: str) -> int | None:
