@@ -12,12 +12,12 @@ import soundfile
 from PIL import Image
 
 from vtts.errors import RenderError, VttsError
+from vtts.media import ffmpeg_exe
 from vtts.render.output import (
     FRAME_NAME,
     AacTrack,
     PngSequenceWriter,
     VideoWriter,
-    ffmpeg_exe,
     probe_media,
     progress,
     write_png,

@@ -50,7 +50,6 @@ __all__ = [
     "PngSequenceWriter",
     "ProgressBar",
     "VideoWriter",
-    "ffmpeg_exe",
     "probe_media",
     "progress",
     "write_png",
