@@ -65,11 +65,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
 )
 
 #: Module imports that close a cycle and stay, each with the reason. Keep it short.
-ALLOWED_CYCLE_IMPORTS: dict[tuple[str, str], str] = {
-    # Scene.triangle_count counts with geometry's polygon rule, imported when called; geometry
-    # imports Node from scene only for its annotations (a TYPE_CHECKING import would end it)
-    ("vtts.vrml.scene", "vtts.vrml.geometry"): "vrml's own; see docs/design.md, Layers",
-}
+ALLOWED_CYCLE_IMPORTS: dict[tuple[str, str], str] = {}
 
 #: ``(importing module, private name)`` pairs allowed to cross modules. Keep it empty.
 ALLOWED_PRIVATE: frozenset[tuple[str, str]] = frozenset()

@@ -11,11 +11,14 @@ gives the triangles of the primitives (Box, Sphere, Cylinder, Cone).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from vtts.errors import VrmlSemanticError
-from vtts.vrml.scene import Node
+
+if TYPE_CHECKING:
+    from vtts.vrml.scene import Node
 
 
 @dataclass(eq=False)
