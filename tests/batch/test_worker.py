@@ -7,7 +7,7 @@ import os
 
 import pytest
 
-from vtts import cli
+from vtts.cli import main
 from vtts.batch.jobs import parse_job
 from vtts.batch.worker import JobRunner
 
@@ -44,7 +44,7 @@ def test_jobs_match_the_single_command_and_keep_the_renderer(tmp_path, runner):
         ref = tmp_path / f"ref-{name}"
         text = job.spec["say"]
         assert (
-            cli.main(["say", text, "--model", "cybatt", "--size", "160x120", "-o", str(ref)]) == 0
+            main(["say", text, "--model", "cybatt", "--size", "160x120", "-o", str(ref)]) == 0
         )
         assert (out / name).read_bytes() == ref.read_bytes()
 
@@ -55,7 +55,7 @@ def test_a_bad_job_fails_with_the_commands_message(tmp_path, runner, capsys):
     assert not result.ok and not result.internal and not result.outputs
     capsys.readouterr()
     assert (
-        cli.main(["say", "Hello <frown> you.", "--model", "cybatt", "-o", str(tmp_path / "y.mp4")])
+        main(["say", "Hello <frown> you.", "--model", "cybatt", "-o", str(tmp_path / "y.mp4")])
         == 1
     )
     assert result.message == capsys.readouterr().err

@@ -13,7 +13,7 @@ import pytest
 
 from vtts.errors import CodingError, FapError
 from vtts.fap import FapStream, read_fap
-from vtts.fap.cli_coding import check_fbs, read_stream
+from vtts.api.coding import check_fbs, read_stream
 from vtts.fap.coding import (
     PAPER_17,
     StreamDecoder,
