@@ -221,8 +221,8 @@ def five_frames(tmp_path) -> Path:
 
 
 def test_outputs_of_a_run(tmp_path, five_frames, fake_estimator, capsys):
-    from vtts.cli import main
     from vtts.api.coding import read_stream
+    from vtts.cli import main
 
     out = tmp_path / "out" / "est.fap"
     report = tmp_path / "report"
@@ -253,8 +253,8 @@ def test_outputs_of_a_run(tmp_path, five_frames, fake_estimator, capsys):
 
 
 def test_fbs_output_and_camera(tmp_path, five_frames, fake_estimator, capsys):
-    from vtts.cli import main
     from vtts.api.coding import read_stream
+    from vtts.cli import main
 
     out = tmp_path / "est.fbs"
     argv = ["analyze", str(five_frames), "--model", HEAD, "-o", str(out), "--camera", "90,80,32,24"]

@@ -12,7 +12,6 @@ import pytest
 from vtts import PlayOptions, RenderOptions, SayOptions
 from vtts.api.options import OUTPUT_OPTIONS
 from vtts.batch.jobs import JobError, as_jobs, parse_job, read_jobs
-from vtts.cli import main
 from vtts.batch.manifest import (
     Manifest,
     OutputFile,
@@ -20,6 +19,7 @@ from vtts.batch.manifest import (
     read_failures,
     write_failures,
 )
+from vtts.cli import main
 
 
 def test_a_job_is_the_command_line_with_its_outputs_under_the_folder(tmp_path):

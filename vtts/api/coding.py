@@ -159,8 +159,10 @@ class Encoded:
 def encode(options: EncodeOptions) -> Encoded:
     """Code the FAP stream of ``options.input`` as a ``.fbs`` bitstream at
     ``options.output``; warns about FAPs of ``faps`` the stream does not set."""
+    from vtts.api.options import check_io
     from vtts.atomic import write_bytes
 
+    check_io(options)
     stream = read_stream(options.input)
     faps = coding.fap_set(options.faps) if options.faps else None
     words = set((options.faps or "").lower().replace(",", " ").split())
@@ -200,6 +202,9 @@ class DecodeOptions:
 
 def decode(options: DecodeOptions) -> FapStream:
     """Decode ``options.input`` into ``options.output``; the decoded stream."""
+    from vtts.api.options import check_io
+
+    check_io(options)
     stream = coding.decode(read_fbs_bytes(options.input), file=options.input)
     write_fap(stream, options.output)
     return stream

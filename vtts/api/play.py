@@ -123,8 +123,9 @@ def play(
     each model by that many of its own ES units. ``stdin`` and ``stdout``: where a stream from
     stdin and raw frames go (None: the process's); ``on_first_frame``: called once the first
     frame is rendered."""
-    from vtts.api.options import url_roots_set
+    from vtts.api.options import check_io, url_roots_set
 
+    check_io(options)
     with url_roots_set(options.url_root):
         if options.stream == "-":
             stdin = sys.stdin.buffer if stdin is None else stdin

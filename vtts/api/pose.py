@@ -57,10 +57,11 @@ class PoseOptions(PoseRequest):
 
 def pose(options: PoseOptions) -> Path:
     """Write the posed model (see :class:`PoseOptions`); the path written."""
-    from vtts.api.options import url_roots_set
+    from vtts.api.options import check_io, url_roots_set
     from vtts.face import load_model
     from vtts.vrml import write
 
+    check_io(options)
     request = options.pose_values()
     with url_roots_set(options.url_root):
         model = load_model(options.model)

@@ -43,11 +43,12 @@ class Still:
 
 def render(options: RenderOptions) -> Still:
     """Render the pose (antialiased: drawn at twice the size and filtered down)."""
-    from vtts.api.options import url_roots_set
+    from vtts.api.options import check_io, url_roots_set
     from vtts.api.pose import posed_params
     from vtts.render import write_png
     from vtts.warm import load_model  # kept between the jobs of vtts batch
 
+    check_io(options)
     request = options.pose_values()
     with url_roots_set(options.url_root):
         models = [load_model(m) for m in options.model]

@@ -118,12 +118,13 @@ def say(options: SayOptions, *, on_first_frame: Callable[[], None] | None = None
     """Speak ``options.text`` (see :class:`SayOptions`). ``on_first_frame``: called once the
     first frame is rendered. Raises a :class:`~vtts.errors.BookmarkError` locating a bad
     bookmark in the text (in ``file`` when the text came from it)."""
-    from vtts.api.options import url_roots_set
+    from vtts.api.options import check_io, url_roots_set
     from vtts.errors import BookmarkError
     from vtts.limits import MAX_TEXT_BYTES, read_bytes_capped
     from vtts.warm import load_model  # kept between the jobs of vtts batch
 
     o = options
+    check_io(o)
     text = o.text
     if o.file:
         try:

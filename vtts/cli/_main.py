@@ -19,7 +19,19 @@ from vtts.api.options import check_io
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from vtts.cli import analyze, batch, check, coding, info, models, play, pose, say
+    from vtts.cli import (
+        analyze,
+        batch,
+        check,
+        coding,
+        info,
+        models,
+        play,
+        pose,
+        render,
+        say,
+        voices,
+    )
 
     p = argparse.ArgumentParser(
         prog="vtts",
@@ -33,13 +45,13 @@ def build_parser() -> argparse.ArgumentParser:
         check.add_parser,
         info.add_parser,
         pose.add_parser,
-        pose.add_render_parser,
+        render.add_parser,
         play.add_parser,
         models.add_parser,
         say.add_parser,
         analyze.add_parser,
         batch.add_parser,
-        say.add_voices_parser,
+        voices.add_parser,
         coding.add_parser,
     ):
         add(sub)

@@ -162,6 +162,11 @@ def view_options(args: argparse.Namespace) -> dict:
     }
 
 
+def pose_options(args: argparse.Namespace) -> dict:
+    """The :class:`vtts.api.options.PoseRequest` fields of a command's arguments."""
+    return {"fap": args.fap, "viseme": args.viseme, "expression": args.expression}
+
+
 def curves_options(args: argparse.Namespace) -> dict:
     """The :class:`vtts.api.options.Curves` fields of a command's arguments."""
     return {"curves_out": args.curves_out, "curves": args.curves}

@@ -1,9 +1,8 @@
-"""``vtts say TEXT``: a talking head speaking bookmarked text, and ``vtts voices``."""
+"""``vtts say TEXT``: a talking head speaking bookmarked text."""
 
 from __future__ import annotations
 
 import argparse
-import sys
 
 from vtts.cli.options import add_curves, add_detail, add_models, add_view, add_web, seed_type
 
@@ -71,12 +70,6 @@ def add_parser(sub) -> None:
     sy.set_defaults(func=cmd_say)
 
 
-def add_voices_parser(sub) -> None:
-    vo = sub.add_parser("voices", help="list espeak-ng voices")
-    vo.add_argument("language", nargs="?", help="only voices of this language (e.g. en)")
-    vo.set_defaults(func=cmd_voices)
-
-
 def cmd_say(args: argparse.Namespace) -> int:
     """Speak (:func:`vtts.api.say.say`) and say what was written."""
     from vtts.api.say import SayOptions, merged_text, say
@@ -112,21 +105,4 @@ def cmd_say(args: argparse.Namespace) -> int:
             f"wrote {', '.join(said.written)}: {said.duration:.2f} s, {said.n_frames} frames "
             f"at {said.fps:g} fps"
         )
-    return 0
-
-
-def cmd_voices(args: argparse.Namespace) -> int:
-    """List espeak-ng's voices."""
-    from vtts.speech.tts import voices
-
-    found = voices(args.language)
-    if not found:
-        print(
-            f"error: espeak-ng has no voice for language '{args.language}' "
-            "(vtts voices lists them all)",
-            file=sys.stderr,
-        )
-        return 1
-    for v in found:
-        print(f"{v.name:24s} {v.language:8s} {v.identifier}")
     return 0
