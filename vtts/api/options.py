@@ -82,8 +82,11 @@ def check_seed(seed: int) -> int:
     return seed
 
 
-def check_number(value: float | None, name: str, lo: float, hi: float, error=RenderError) -> None:
-    """``value`` (None: not given) is a number within ``lo`` < value ≤ ``hi``."""
+def check_number(
+    value: float | None, name: str, lo: float, hi: float, error: type[VttsError] = RenderError
+) -> None:
+    """``value`` (None: not given) is a number within ``lo`` < value ≤ ``hi``; else ``error``
+    naming the option ``name``."""
     if value is None:
         return
     if isinstance(value, bool) or not isinstance(value, int | float):
@@ -92,8 +95,10 @@ def check_number(value: float | None, name: str, lo: float, hi: float, error=Ren
         raise error(f"{name} must be within {lo:g}–{hi:g}, got {value:g}")
 
 
-def check_choice(value: str, name: str, choices: Sequence[str], error=RenderError) -> None:
-    """``value`` is one of ``choices``."""
+def check_choice(
+    value: str, name: str, choices: Sequence[str], error: type[VttsError] = RenderError
+) -> None:
+    """``value`` is one of ``choices``; else ``error`` naming the option ``name``."""
     if value not in choices:
         raise error(f"{name} must be one of {', '.join(choices)}, got {value!r}")
 
