@@ -54,7 +54,7 @@ TEXT_5S = (
 #: The steps of the breakdown, in order: (key, what it covers).
 STEPS = (
     ("interpreter", "Python start until the first vtts import"),
-    ("import", "imports on the vtts say path (vtts.cli and what cmd_say imports)"),
+    ("import", "imports on the vtts say path (vtts.cli, vtts.api.say and what say imports)"),
     ("model", "model load"),
     ("tts", "synthesis (espeak-ng worker process)"),
     ("pyrender", "pyrender and PyOpenGL import"),
@@ -296,7 +296,7 @@ def breakdown(text: str, model_name: str) -> dict:
 
 
 def _say_steps(text: str, model_name: str, output: str, started: float) -> dict:
-    """The steps of ``vtts.cli.cmd_say`` for one model and an MP4, one after the other."""
+    """The steps of ``vtts.say`` for one model and an MP4, one after the other."""
     t = {"interpreter": time.time() - started}
     mark = time.perf_counter()
 
@@ -306,6 +306,7 @@ def _say_steps(text: str, model_name: str, output: str, started: float) -> dict:
         t[key] = now - mark
         mark = now
 
+    import vtts.api.say  # noqa: F401
     import vtts.cli  # noqa: F401
     from vtts.animate.timeline import build_timeline
     from vtts.face import load_model

@@ -37,7 +37,7 @@ from collections import defaultdict
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from vtts.cli import CHECKERS
+from vtts.api.check import CHECKERS
 from vtts.errors import VttsError
 
 #: What the peer's subprocess runs: one file, exit 0 when PyVRML97 reads all of it.
@@ -92,7 +92,7 @@ def load(path: Path, lenient: bool, timeout: float) -> tuple[str | None, str | N
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            CHECKERS[".wrl"](path, argparse.Namespace(lenient=lenient))
+            CHECKERS[".wrl"](path, lenient)
         return None, None, len(caught)
     except _Timeout:
         return f"took more than {timeout:g} s", "timeout", 0

@@ -15,7 +15,9 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from vtts.analysis.unknowns import parse_unknowns
-from vtts.cli import _seed, _size, parse_assignments
+from vtts.api.options import parse_assignments
+from vtts.api.options import parse_size as _size
+from vtts.cli.options import seed_type as _seed
 from vtts.errors import AnalysisError, FapError, RenderError
 from vtts.face.miap import Miap, face_params
 from vtts.fap.coding import fap_set

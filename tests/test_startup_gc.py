@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from vtts import cli
+from vtts.cli import _main as cli
 
 VRML = Path(__file__).resolve().parent / "data" / "models" / "head.wrl"
 

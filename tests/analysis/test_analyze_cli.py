@@ -129,7 +129,7 @@ def test_the_bitstream_carries_the_steps_measured_on_the_head(tmp_path, rendered
 
 
 def test_a_run_writes_the_fap_file_the_bitstream_and_the_report(tmp_path, rendered_frames):
-    from vtts.fap.cli_coding import read_stream
+    from vtts.api.coding import read_stream
 
     out = tmp_path / "out" / "talk.fap"
     r = vtts(
@@ -221,8 +221,8 @@ def five_frames(tmp_path) -> Path:
 
 
 def test_outputs_of_a_run(tmp_path, five_frames, fake_estimator, capsys):
+    from vtts.api.coding import read_stream
     from vtts.cli import main
-    from vtts.fap.cli_coding import read_stream
 
     out = tmp_path / "out" / "est.fap"
     report = tmp_path / "report"
@@ -253,8 +253,8 @@ def test_outputs_of_a_run(tmp_path, five_frames, fake_estimator, capsys):
 
 
 def test_fbs_output_and_camera(tmp_path, five_frames, fake_estimator, capsys):
+    from vtts.api.coding import read_stream
     from vtts.cli import main
-    from vtts.fap.cli_coding import read_stream
 
     out = tmp_path / "est.fbs"
     argv = ["analyze", str(five_frames), "--model", HEAD, "-o", str(out), "--camera", "90,80,32,24"]
@@ -294,6 +294,6 @@ def test_a_failing_estimation_leaves_no_output(tmp_path, five_frames, monkeypatc
     [("talk.mp4", "talk"), ("my talk.mp4", "my_talk"), ("#1.mp4", "1"), ("frames/", "frames")],
 )
 def test_stream_name(video, name):
-    from vtts.cli import _stream_name
+    from vtts.api.analyze import stream_name as _stream_name
 
     assert _stream_name(video) == name

@@ -1,6 +1,6 @@
-"""vtts batch's jobs and manifest, without Ray: a job line is the command's options, checked by
-the command's own parser; bad lines are reported with their line numbers; the manifest says which
-jobs are finished."""
+"""vtts batch's jobs and manifest, without Ray: a job line is the command's options dataclass,
+checked as the command checks it; bad lines are reported with their line numbers; the manifest
+says which jobs are finished."""
 
 from __future__ import annotations
 
@@ -9,8 +9,9 @@ import time
 
 import pytest
 
-from vtts import cli
-from vtts.batch.jobs import JobError, as_jobs, parse_argv, parse_job, read_jobs
+from vtts import PlayOptions, RenderOptions, SayOptions
+from vtts.api.options import OUTPUT_OPTIONS
+from vtts.batch.jobs import JobError, as_jobs, parse_job, read_jobs
 from vtts.batch.manifest import (
     Manifest,
     OutputFile,
@@ -18,6 +19,7 @@ from vtts.batch.manifest import (
     read_failures,
     write_failures,
 )
+from vtts.cli import main
 
 
 def test_a_job_is_the_command_line_with_its_outputs_under_the_folder(tmp_path):
@@ -33,13 +35,13 @@ def test_a_job_is_the_command_line_with_its_outputs_under_the_folder(tmp_path):
     job = parse_job(spec, tmp_path)
     assert job.id == "q17" and job.command == "say"
     assert job.outputs == ("fap/q17.fap", "q17.mp4")
-    args = parse_argv(job.argv)
-    assert args.text == "-Hello <smile>"
-    assert args.model == ["cybatt", "lotta"]
-    assert args.size == "160x120" and args.no_autonomous and args.quiet
-    assert args.output == str(tmp_path / "q17.mp4")
-    assert args.fap_out == str(tmp_path / "fap" / "q17.fap")
-    assert args.func is cli.cmd_say
+    options = job.options
+    assert isinstance(options, SayOptions)
+    assert options.text == "-Hello <smile>"
+    assert options.model == ["cybatt", "lotta"]
+    assert options.size == "160x120" and options.no_autonomous and not options.progress
+    assert options.output == str(tmp_path / "q17.mp4")
+    assert options.fap_out == str(tmp_path / "fap" / "q17.fap")
 
 
 def test_every_out_option_is_an_output_under_the_folder(tmp_path):
@@ -48,18 +50,18 @@ def test_every_out_option_is_an_output_under_the_folder(tmp_path):
         tmp_path,
     )
     assert job.outputs == ("t/a.tsv", "a.json")
-    args = parse_argv(job.argv)
-    assert args.timings_out == str(tmp_path / "t/a.tsv")
-    assert args.curves_out == str(tmp_path / "a.json")
+    assert job.options.timings_out == str(tmp_path / "t/a.tsv")
+    assert job.options.curves_out == str(tmp_path / "a.json")
 
 
-@pytest.mark.parametrize("dest", cli.OUTPUT_OPTIONS)
+@pytest.mark.parametrize("dest", OUTPUT_OPTIONS)
 def test_the_commands_outputs_are_a_jobs_outputs(tmp_path, dest):
-    """Every option the commands check as an output (``vtts.cli.OUTPUT_OPTIONS``) is kept in
-    the batch's folder."""
-    job = parse_job({"say": "Hi.", "model": "cybatt", dest: f"o/{dest}"}, tmp_path)
-    assert job.outputs == (f"o/{dest}",)
-    assert getattr(parse_argv(job.argv), dest) == str(tmp_path / "o" / dest)
+    """Every option the commands check as an output (``vtts.api.options.OUTPUT_OPTIONS``) is
+    kept in the batch's folder."""
+    name = f"o/{dest}.mp4" if dest == "output" else f"o/{dest}"
+    job = parse_job({"say": "Hi.", "model": "cybatt", dest: name}, tmp_path)
+    assert job.outputs == (name,)
+    assert getattr(job.options, dest) == str(tmp_path / name)
 
 
 def test_render_and_play_jobs(tmp_path):
@@ -67,9 +69,10 @@ def test_render_and_play_jobs(tmp_path):
         {"render": True, "model": "lotta", "expression": "joy", "output": "a.png"}, tmp_path
     )
     assert render.id == "a.png"  # no id: the first output names the job
-    assert parse_argv(render.argv).expression == ["joy"]
+    assert isinstance(render.options, RenderOptions) and render.options.expression == ["joy"]
     play = parse_job({"id": "p", "play": "x.fap", "model": "cybatt", "png_dir": "frames"}, tmp_path)
-    assert parse_argv(play.argv).stream == "x.fap" and play.outputs == ("frames/",)
+    assert isinstance(play.options, PlayOptions)
+    assert play.options.stream == "x.fap" and play.outputs == ("frames/",)
 
 
 @pytest.mark.parametrize(
@@ -84,12 +87,15 @@ def test_render_and_play_jobs(tmp_path):
         ({"say": "x", "output": "a.mp4", "sise": "1x1"}, "vtts say has no option 'sise'"),
         ({"say": "x", "output": "./manifest.jsonl"}, "manifest.jsonl is the batch's own"),
         ({"say": "x", "output": "a.mp4", "help": True}, "has no option 'help'"),
-        ({"say": "x", "output": "a.mp4", "seed": -1}, "argument --seed: -1 must be within"),
-        ({"say": "x", "output": "a.mp4", "layout": "ring"}, "invalid choice: 'ring'"),
+        ({"say": "x", "output": "a.mp4", "seed": -1}, "vtts say: --seed -1 must be within"),
+        ({"say": "x", "output": "a.mp4", "seed": "one"}, "'seed' takes a whole number"),
+        ({"say": "x", "output": "a.mp4", "layout": "ring"}, "--layout must be one of row, room"),
+        ({"say": "x", "output": "a.png"}, "a.png: -o writes a video"),
+        ({"say": "x", "text": "y", "model": "cybatt", "output": "a.mp4"}, "give the text once"),
         ({"say": "x", "output": "a.mp4", "voice": ["a", "b"]}, "'voice' takes one value"),
         ({"say": "x", "output": "a.mp4", "no_autonomous": "yes"}, "is a flag: give true"),
         ({"say": "x", "output": "a.mp4", "model": {"a": 1}}, "takes a string or a number"),
-        ({"render": True, "output": "a.png"}, "vtts render: the following arguments are"),
+        ({"render": True, "output": "a.png"}, "vtts render: no model"),
         ({"render": "yes", "model": "cybatt", "output": "a.png"}, "'render' takes true"),
         ({"play": 3, "model": "cybatt", "output": "a.mp4"}, "'play' takes the .fap"),
         ({"id": "", "say": "x", "output": "a.mp4"}, "'id' is a string of 1 to"),
@@ -134,7 +140,7 @@ def test_a_jobs_file_reports_each_bad_line_and_keeps_the_good_ones(tmp_path):
     assert checked.errors[0].column is not None
     assert found[1][1] == "id 'a' is also the id on line 1"
     assert found[2][1] == "'a.mp4' is also written by line 1"
-    assert "argument --fps: invalid float value: 'fast'" in found[3][1]
+    assert found[3][1] == "'fps' takes a number, got \"fast\""
     assert checked.errors[0].location().startswith(f"{path}:3:")
 
 
@@ -158,13 +164,13 @@ def test_library_jobs_are_checked_as_lines_are(tmp_path):
 def test_dry_run_reports_bad_lines_with_their_numbers(tmp_path, capsys):
     ok = {"id": "a", "say": "Hi.", "model": "cybatt", "output": "a.mp4"}
     path = _jobs_file(tmp_path, [json.dumps(ok), "{oops"])
-    assert cli.main(["batch", str(path), "--out", str(tmp_path / "out"), "--dry-run"]) == 1
+    assert main(["batch", str(path), "--out", str(tmp_path / "out"), "--dry-run"]) == 1
     out, err = capsys.readouterr()
     assert f"{path}:2:2: error: not JSON" in err
     assert "1 valid job, 1 bad" in out
     assert not (tmp_path / "out").exists()  # a dry run writes nothing
     path.write_text(json.dumps(ok) + "\n")
-    assert cli.main(["batch", str(path), "--out", str(tmp_path / "out"), "--dry-run"]) == 0
+    assert main(["batch", str(path), "--out", str(tmp_path / "out"), "--dry-run"]) == 0
 
 
 def test_dry_run_checks_heads_inputs_and_bookmarks_without_rendering(tmp_path, capsys):
@@ -176,7 +182,7 @@ def test_dry_run_checks_heads_inputs_and_bookmarks_without_rendering(tmp_path, c
         {"id": "d", "play": str(tmp_path / "none.fap"), "model": "cybatt", "output": "d.mp4"},
     ]
     path = _jobs_file(tmp_path, [json.dumps(x) for x in lines])
-    assert cli.main(["batch", str(path), "--out", str(tmp_path / "out"), "--dry-run"]) == 1
+    assert main(["batch", str(path), "--out", str(tmp_path / "out"), "--dry-run"]) == 1
     out, err = capsys.readouterr()
     assert "1 valid job, 3 bad" in out
     errors = err.splitlines()

@@ -7,9 +7,9 @@ import os
 
 import pytest
 
-from vtts import cli
 from vtts.batch.jobs import parse_job
 from vtts.batch.worker import JobRunner
+from vtts.cli import main
 
 os.environ.setdefault("LP_NUM_THREADS", "1")
 
@@ -43,9 +43,7 @@ def test_jobs_match_the_single_command_and_keep_the_renderer(tmp_path, runner):
     for job, name in ((jobs[0], "a.mp4"), (jobs[1], "b.mp4")):
         ref = tmp_path / f"ref-{name}"
         text = job.spec["say"]
-        assert (
-            cli.main(["say", text, "--model", "cybatt", "--size", "160x120", "-o", str(ref)]) == 0
-        )
+        assert main(["say", text, "--model", "cybatt", "--size", "160x120", "-o", str(ref)]) == 0
         assert (out / name).read_bytes() == ref.read_bytes()
 
 
@@ -55,8 +53,7 @@ def test_a_bad_job_fails_with_the_commands_message(tmp_path, runner, capsys):
     assert not result.ok and not result.internal and not result.outputs
     capsys.readouterr()
     assert (
-        cli.main(["say", "Hello <frown> you.", "--model", "cybatt", "-o", str(tmp_path / "y.mp4")])
-        == 1
+        main(["say", "Hello <frown> you.", "--model", "cybatt", "-o", str(tmp_path / "y.mp4")]) == 1
     )
     assert result.message == capsys.readouterr().err
     assert "unknown bookmark <frown>" in result.message

@@ -135,7 +135,7 @@ def test_a_glb_may_not_replace_an_input(tmp_path):
 
 
 def test_the_cli_knows_the_exports_suffixes():
-    from vtts.cli import GLTF_SUFFIXES
+    from vtts.api.options import GLTF_SUFFIXES
     from vtts.export import GLTF_SUFFIXES as EXPORTED
 
     assert GLTF_SUFFIXES == EXPORTED

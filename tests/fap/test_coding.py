@@ -15,9 +15,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from vtts.api.coding import check_fbs, read_stream
+from vtts.cli.coding import add_parser as register
 from vtts.errors import CodingError, FapError, VttsError
 from vtts.fap import FAPS, FapStream, FapWarning, read_fap, write_fap
-from vtts.fap.cli_coding import check_fbs, read_stream, register
 from vtts.fap.coding import (
     ESCAPE,
     MAGIC,

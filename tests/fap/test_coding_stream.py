@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from vtts.api.coding import check_fbs, read_stream
 from vtts.errors import CodingError, FapError
 from vtts.fap import FapStream, read_fap
-from vtts.fap.cli_coding import check_fbs, read_stream
 from vtts.fap.coding import (
     PAPER_17,
     StreamDecoder,

@@ -13,9 +13,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from vtts.api.coding import check_fbs, read_stream
+from vtts.cli.coding import add_parser as register
 from vtts.errors import CodingError, FapError
 from vtts.fap import FapStream, FapWarning, read_fap, write_fap
-from vtts.fap.cli_coding import check_fbs, read_stream, register
 from vtts.fap.coding import (
     PAPER_17,
     TRANSLATION_BASE_STEP,
@@ -334,7 +335,7 @@ def test_check_says_it_carries_the_translation(tmp_path: Path) -> None:
 def test_info_names_the_base_steps_of_its_own(tmp_path: Path) -> None:
     """``vtts info`` of a .fbs lists the base steps that are not MPEG-4's (vtts analyze's steps
     measured on the face), and nothing of the kind for the standard's."""
-    from vtts.fap.cli_coding import describe_fbs
+    from vtts.api.coding import describe_fbs
 
     a, b = tmp_path / "a.fbs", tmp_path / "b.fbs"
     a.write_bytes(encode(paper17(25), steps={12: 40, 3: 4, "tz": 9}))

@@ -1,18 +1,19 @@
 """Many clips at once: ``vtts batch JOBS.jsonl --out DIR`` on Ray.
 
 - :mod:`~vtts.batch.jobs` — a job line (a ``say``, ``play`` or ``render`` command with the
-  command's options) checked by the command's own parser: :func:`read_jobs`, :func:`parse_job`;
+  command's options) made into the command's options dataclass, checked as the command checks
+  it: :func:`read_jobs`, :func:`parse_job`, :func:`dry_run`;
 - :mod:`~vtts.batch.manifest` — ``DIR/manifest.jsonl`` (finished jobs: each output's size and
   SHA-256; a re-run skips them) and ``DIR/failures.jsonl``;
-- :mod:`~vtts.batch.worker` — :class:`JobRunner`: a worker running jobs one after the other as
-  the command would, its heads and renderers kept warm (:class:`vtts.warm.Warm`);
+- :mod:`~vtts.batch.worker` — :class:`JobRunner`: a worker running jobs one after the other by
+  the command's library function, its heads and renderers kept warm (:class:`vtts.warm.Warm`);
 - :mod:`~vtts.batch.runner` — :func:`run`: the workers as Ray actors on a local Ray instance or
   a cluster, failures isolated, dead workers replaced, a progress bar; :class:`BatchReport`.
 
 Ray is imported only when a batch runs (the ``batch`` extra installs it).
 """
 
-from vtts.batch.jobs import Job, JobError, parse_job, read_jobs
+from vtts.batch.jobs import Job, JobError, dry_run, parse_job, read_jobs
 from vtts.batch.manifest import Manifest
 from vtts.batch.runner import BatchError, BatchReport, run
 from vtts.batch.worker import JobResult, JobRunner
@@ -25,6 +26,7 @@ __all__ = [
     "JobResult",
     "JobRunner",
     "Manifest",
+    "dry_run",
     "parse_job",
     "read_jobs",
     "run",

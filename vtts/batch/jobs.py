@@ -6,46 +6,53 @@
 DIR/q17.mp4``: the command's key carries its positional argument (the text of ``say``, the
 stream of ``play``; ``"render": true``), every other key is one of the command's options by its
 long name (``png_dir`` or ``png-dir``), a list repeats it, ``true``/``false`` set or leave out a
-flag. A job is checked by the command's own argument parser, so it takes exactly what the
-command line takes. Outputs (``output``, ``png_dir``, ``fap_out``, ``wav_out``, ``web``) are
-relative paths under the batch's output folder; input paths mean what they mean on the command
-line (relative to the working folder ``vtts batch`` runs in).
+flag. A job becomes the command's options dataclass (:data:`COMMANDS`: ``vtts.SayOptions``,
+``PlayOptions``, ``RenderOptions``), checked as the command checks it, and runs the library
+function the command runs. Outputs (``output``, ``png_dir``, ``fap_out``, ``wav_out``, ``web``,
+every ``*_out``) are relative paths under the batch's output folder; input paths mean what they
+mean on the command line (relative to the working folder ``vtts batch`` runs in).
 """
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 import json
 import os
+import types
+import typing
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from functools import cache
 from pathlib import Path, PurePosixPath
 
 from vtts.errors import VttsError
 
-#: The commands a job may run.
-COMMANDS = ("say", "play", "render")
+#: The commands a job may run: the module of each, with its options class and its function.
+COMMANDS = {
+    "say": ("vtts.api.say", "SayOptions", "say"),
+    "play": ("vtts.api.play", "PlayOptions", "play"),
+    "render": ("vtts.api.render", "RenderOptions", "render"),
+}
+#: The field each command's key fills (``render`` has none).
+POSITIONAL = {"say": "text", "play": "stream", "render": None}
 #: Options that name what a job writes: files (these, the commands' own list of outputs, and
-#: every ``--*-out`` option), and folders (every file in them).
+#: every ``*_out`` option), and folders (every file in them).
 OUTPUT_FILES = ("output", "fap_out", "wav_out")
 OUTPUT_FOLDERS = ("png_dir", "web")
-
-
-def _is_output_file(dest: str) -> bool:
-    from vtts import cli
-
-    return dest in OUTPUT_FILES or dest.endswith("_out") or dest in cli.OUTPUT_OPTIONS
-
-
 #: The batch's own files in its folder (:mod:`vtts.batch.manifest`), which no job may write.
 RESERVED = ("manifest.jsonl", "failures.jsonl")
-#: Options a job may not give: the batch runs its jobs quietly.
-_NOT_OPTIONS = ("help", "quiet", "command", "func", "gltf")
+#: Fields a job may not give: the batch runs its jobs quietly.
+NOT_OPTIONS = ("progress",)
 #: The most characters of a job id, and of a job line.
 MAX_ID = 200
 MAX_LINE = 1 << 20
+
+
+def is_output_file(name: str) -> bool:
+    """Whether option ``name`` names a file a command writes."""
+    from vtts.api.options import OUTPUT_OPTIONS
+
+    return name in OUTPUT_FILES or name.endswith("_out") or name in OUTPUT_OPTIONS
 
 
 class JobError(VttsError):
@@ -57,7 +64,7 @@ class Job:
     """One checked job.
 
     ``id``: the job's name (its ``"id"``, else its first output); ``command``: ``say``,
-    ``play`` or ``render``; ``argv``: the command line it runs (``vtts`` not included), its
+    ``play`` or ``render``; ``options``: the command's options (``vtts.SayOptions``, …), its
     outputs under the batch's folder; ``outputs``: those outputs relative to that folder
     (POSIX paths; folders end in ``/``); ``digest``: the SHA-256 of the job as written (the
     manifest redoes a job whose line changed); ``line``: its line number in the jobs file.
@@ -65,50 +72,67 @@ class Job:
 
     id: str
     command: str
-    argv: tuple[str, ...]
-    outputs: tuple[str, ...]
-    digest: str
+    options: object = field(compare=False, repr=False)
+    outputs: tuple[str, ...] = ()
+    digest: str = ""
     line: int | None = None
     spec: dict = field(default_factory=dict, compare=False, repr=False)
 
 
+def command_function(command: str):
+    """The library function a ``command`` job runs (``vtts.say``, ``vtts.play``,
+    ``vtts.render_still``)."""
+    import importlib
+
+    module, _, function = COMMANDS[command]
+    return getattr(importlib.import_module(module), function)
+
+
+def options_class(command: str) -> type:
+    """The options dataclass of a ``command`` job."""
+    import importlib
+
+    module, cls, _ = COMMANDS[command]
+    return getattr(importlib.import_module(module), cls)
+
+
+@dataclass(frozen=True)
+class OptionSpec:
+    """One option a job may give: the options field it fills and what it takes (``flag``: true
+    or false; ``list``: one value or a list; ``int``, ``float``, ``str``: one value)."""
+
+    name: str
+    kind: str
+
+
+def option_kind(hint) -> str:
+    """What a field annotated ``hint`` takes from a job (see :class:`OptionSpec`)."""
+    args = [a for a in typing.get_args(hint) if a is not type(None)]
+    if typing.get_origin(hint) in (typing.Union, types.UnionType) and len(args) == 1:
+        hint = args[0]
+    if hint is bool:
+        return "flag"
+    if typing.get_origin(hint) is list:
+        return "list"
+    if hint in (int, float):
+        return hint.__name__
+    return "str"
+
+
 @cache
-def _parsers() -> dict[str, argparse.ArgumentParser]:
-    """The ``vtts`` sub-command parsers of :data:`COMMANDS`, raising :class:`JobError` instead
-    of printing usage and exiting."""
-    from vtts.cli import build_parser
-
-    top = build_parser()
-
-    def fail(message: str):
-        raise JobError(message)
-
-    top.error = fail  # type: ignore[method-assign]
-    out = {}
-    for action in top._subparsers._group_actions:  # the sub-commands (argparse has no API)
-        for name, parser in action.choices.items():
-            if name in COMMANDS:
-                parser.error = fail  # type: ignore[method-assign]
-                out[name] = parser
-    out["_top"] = top
-    return out
-
-
-def _options(command: str) -> dict[str, argparse.Action]:
-    """The options a ``command`` job may give, by their long names with ``_`` and with ``-``."""
-    names: dict[str, argparse.Action] = {}
-    for action in _parsers()[command]._actions:
-        if not action.option_strings or action.dest in _NOT_OPTIONS:
+def job_options(command: str) -> dict[str, OptionSpec]:
+    """The options a ``command`` job may give, by their long names with ``_`` and with ``-``:
+    the fields of the command's options dataclass, but for its positional one (the command's
+    key holds that; ``say``'s ``text`` is ``--text``) and :data:`NOT_OPTIONS`."""
+    cls = options_class(command)
+    hints = typing.get_type_hints(cls)
+    names: dict[str, OptionSpec] = {}
+    for f in fields(cls):
+        if not f.init or f.name in NOT_OPTIONS:
             continue
-        for opt in action.option_strings:
-            if opt.startswith("--"):
-                names[opt[2:]] = action
-                names[opt[2:].replace("-", "_")] = action
+        spec = OptionSpec(f.name, option_kind(hints[f.name]))
+        names[f.name] = names[f.name.replace("_", "-")] = spec
     return names
-
-
-def _flag(action: argparse.Action) -> str:
-    return next(o for o in action.option_strings if o.startswith("--"))
 
 
 def _inside(path: str, key: str) -> str:
@@ -130,22 +154,29 @@ def _inside(path: str, key: str) -> str:
     return "/".join(parts)
 
 
-def _values(key: str, value, action: argparse.Action) -> list[str]:
-    """A job's value for option ``key`` as the command-line words ``--KEY=VALUE``."""
-    flag = _flag(action)
-    if action.nargs == 0:  # store_true
+def _value(key: str, value, option: OptionSpec):
+    """A job's value for option ``key`` as the options field takes it."""
+    if option.kind == "flag":
         if not isinstance(value, bool):
             raise JobError(f"'{key}' is a flag: give true or false, got {json.dumps(value)}")
-        return [flag] if value else []
+        return value
     items = value if isinstance(value, list) else [value]
-    if len(items) > 1 and not isinstance(action, argparse._AppendAction):
+    if len(items) > 1 and option.kind != "list":
         raise JobError(f"'{key}' takes one value, got {len(items)}")
-    words = []
+    out = []
     for item in items:
         if isinstance(item, bool) or not isinstance(item, str | int | float):
             raise JobError(f"'{key}' takes a string or a number, got {json.dumps(item)}")
-        words.append(f"{flag}={item}")
-    return words
+        text = str(item)
+        try:
+            out.append(int(text) if option.kind == "int" else
+                       float(text) if option.kind == "float" else text)  # fmt: skip
+        except ValueError:
+            whole = "a whole number" if option.kind == "int" else "a number"
+            raise JobError(f"'{key}' takes {whole}, got {json.dumps(item)}") from None
+    if option.kind == "list":
+        return out
+    return out[0] if out else None
 
 
 def _has_nul(value) -> bool:
@@ -165,8 +196,8 @@ def job_digest(spec: dict) -> str:
 
 
 def parse_job(spec, out_dir: str | os.PathLike[str], line: int | None = None) -> Job:
-    """Check one job (a dict as JSON gives it) and make its command line, its outputs under
-    ``out_dir``. Raises :class:`JobError` naming the rule broken."""
+    """Check one job (a dict as JSON gives it) and make its command's options, its outputs
+    under ``out_dir``. Raises :class:`JobError` naming the key and the rule broken."""
     if not isinstance(spec, dict):
         raise JobError(f"a job is a JSON object, got {type(spec).__name__}")
     commands = [c for c in COMMANDS if c in spec]
@@ -174,33 +205,36 @@ def parse_job(spec, out_dir: str | os.PathLike[str], line: int | None = None) ->
         given = " and ".join(f"'{c}'" for c in commands) or "none of them"
         raise JobError(f"a job runs one of 'say', 'play' or 'render'; this one gives {given}")
     (command,) = commands
-    options = _options(command)
-    argv: list[str] = [command]
+    options = job_options(command)
+    values: dict = {}
     outputs: list[str] = []
+    text_option = None
     for key, value in spec.items():
         if _has_nul(value):
             raise JobError(f"'{key}' holds a NUL character, which no command line can")
         if key in ("id", command) or value is None:
             continue
-        action = options.get(key)
-        if action is None:
-            known = ", ".join(sorted({a.dest for a in options.values()}))
-            raise JobError(f"vtts {command} has no option '{key}' (it has: id, {known})")
-        if action.dest in OUTPUT_FOLDERS or _is_output_file(action.dest):
+        if command == "say" and key == "text":  # --text: the text as an option
+            text_option = _value(key, value, OptionSpec("text", "str"))
+            continue
+        option = options.get(key)
+        if option is None or option.name == POSITIONAL[command]:
+            known = sorted({o.name for o in options.values()} - {POSITIONAL[command]})
+            if command == "say":
+                known = sorted([*known, "text"])
+            raise JobError(f"vtts {command} has no option '{key}' (it has: id, {', '.join(known)})")
+        if option.name in OUTPUT_FOLDERS or is_output_file(option.name):
             if not isinstance(value, str):
                 raise JobError(f"'{key}' takes a path, got {json.dumps(value)}")
             rel = _inside(value, key)
-            outputs.append(rel + ("/" if action.dest in OUTPUT_FOLDERS else ""))
+            outputs.append(rel + ("/" if option.name in OUTPUT_FOLDERS else ""))
             value = os.path.join(os.fspath(out_dir), *rel.split("/"))
-        argv += _values(key, value, action)
-    if command in ("say", "play"):
-        argv.append("--quiet")
+        values[option.name] = _value(key, value, option)
     positional = spec[command]
     if command == "say":
         if positional is not None and not isinstance(positional, str):
             raise JobError(f"'say' takes the text, got {json.dumps(positional)}")
-        if positional:
-            argv += ["--", positional]
+        values["text"] = positional or ""
     elif command == "play":
         if not isinstance(positional, str) or not positional:
             raise JobError(
@@ -208,7 +242,7 @@ def parse_job(spec, out_dir: str | os.PathLike[str], line: int | None = None) ->
             )
         if positional == "-":
             raise JobError("'play' in a batch plays a file: '-' (stdin) is for vtts play -")
-        argv += ["--", positional]
+        values["stream"] = positional
     elif positional not in (True, None, {}):
         raise JobError(
             "'render' takes true (its options are the job's other keys), got "
@@ -223,18 +257,23 @@ def parse_job(spec, out_dir: str | os.PathLike[str], line: int | None = None) ->
         raise JobError(f"'id' is a string of 1 to {MAX_ID} characters, got {json.dumps(job_id)}")
     if not job_id.isprintable():
         raise JobError(f"'id' must be printable, got {json.dumps(job_id)}")
-    parse_argv(argv)  # what the command line would refuse, the job refuses
-    return Job(job_id, command, tuple(argv), tuple(outputs), job_digest(spec), line, spec)
+    made = job_command_options(command, values, text_option)
+    return Job(job_id, command, made, tuple(outputs), job_digest(spec), line, spec)
 
 
-def parse_argv(argv: Iterable[str]) -> argparse.Namespace:
-    """A job's command line parsed by ``vtts``'s own parser (:class:`JobError` for what it
-    refuses)."""
-    argv = list(argv)
+def job_command_options(command: str, values: dict, text_option: str | None = None):
+    """The options dataclass of a ``command`` job from its ``values`` by field (what the
+    command would refuse, the job refuses: a :class:`JobError` naming the command)."""
     try:
-        return _parsers()["_top"].parse_args(argv)
-    except JobError as e:
-        raise JobError(f"vtts {argv[0]}: {e.message}") from None
+        options = options_class(command)(**values)
+        if command == "say":
+            from vtts.api.say import merged_text
+
+            options.text = merged_text(options.text, text_option, options.file)
+    except VttsError as e:
+        where = e.location()
+        raise JobError(f"vtts {command}: {where + ': ' if where else ''}{e.message}") from None
+    return options
 
 
 @dataclass
@@ -357,25 +396,42 @@ def preflight(job: Job, models: dict | None = None) -> None:
     from vtts.speech.bookmarks import parse_bookmarks
 
     models = {} if models is None else models
-    args = parse_argv(job.argv)
+    options = job.options
     try:
         for key in INPUT_FILES:
-            name = getattr(args, key, None)
+            name = getattr(options, key, None)
             if name and not Path(name).is_file():
                 raise VttsError("no such file", file=name)
         heads = []
-        for m in args.model:
-            key = (m, tuple(args.url_root or ()))
+        for m in options.model:
+            key = (m, tuple(options.url_root or ()))
             if key not in models:
-                models[key] = load_model(m, url_root=args.url_root)
+                models[key] = load_model(m, url_root=options.url_root)
             heads.append(models[key])
         if job.command == "say":
-            text = args.text or args.text_option
-            if args.file:
-                raw = read_bytes_capped(args.file, MAX_TEXT_BYTES, what="text")
+            text = options.text
+            if options.file:
+                raw = read_bytes_capped(options.file, MAX_TEXT_BYTES, what="text")
                 text = raw.decode("utf-8", errors="replace")
             known = {x.name for h in heads for x in h.tables.adts if x.kind == "expression"}
             parse_bookmarks(text or "", known)
     except VttsError as e:
         where = e.location()
         raise JobError(f"vtts {job.command}: {where + ': ' if where else ''}{e.message}") from None
+
+
+def dry_run(path: str | os.PathLike[str], out_dir: str | os.PathLike[str]) -> JobsFile:
+    """The jobs of a ``.jsonl`` file checked as far as they can be without running them
+    (:func:`read_jobs`, then :func:`preflight` each): the valid ones, and every error sorted by
+    line."""
+    checked = read_jobs(path, out_dir)
+    models: dict = {}
+    for job in list(checked.jobs):
+        try:
+            preflight(job, models)
+        except JobError as e:
+            e.file, e.line = os.fspath(path), job.line
+            checked.errors.append(e)
+            checked.jobs.remove(job)
+    checked.errors.sort(key=lambda e: e.line or 0)
+    return checked

@@ -1,5 +1,6 @@
-"""What runs the jobs: :class:`JobRunner`, one per worker process, running one job at a time as
-the ``vtts`` command would and keeping its heads, EGL context and renderers warm
+"""What runs the jobs: :class:`JobRunner`, one per worker process, running one job at a time by
+the command's library function (as the ``vtts`` command would, its messages word for word) and
+keeping its heads, EGL context and renderers warm
 (:class:`vtts.warm.Warm`) from one job to the next. :mod:`vtts.batch.runner` makes each a Ray
 actor; it works as well on its own (the tests run it so).
 """
@@ -15,7 +16,7 @@ import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from vtts.batch.jobs import Job, JobError, parse_argv
+from vtts.batch.jobs import Job, command_function
 from vtts.batch.manifest import OutputFile, output_files
 
 
@@ -88,8 +89,11 @@ class JobRunner:
         """Load what every job needs (the commands, pyrender, the EGL context) now rather than
         in the first job; returns the seconds it took."""
         t0 = time.perf_counter()
-        import vtts.cli  # noqa: F401
+        from vtts.batch.jobs import COMMANDS
         from vtts.render import warm_up
+
+        for command in COMMANDS:
+            command_function(command)
 
         warm_up()
         return time.perf_counter() - t0
@@ -97,22 +101,24 @@ class JobRunner:
     def run(self, job: Job, out_dir: str) -> JobResult:
         """Run ``job`` (its outputs under ``out_dir``): a :class:`JobResult`, never an
         exception."""
-        from vtts.cli import execute
+        from vtts.api.reporting import run_reported
 
         self.jobs += 1
         t0, c0 = time.perf_counter(), _cpu_seconds()
         err, out = io.StringIO(), io.StringIO()
         internal = False
         outputs: list[OutputFile] = []
+        function = command_function(job.command)
+
+        def command() -> int:
+            function(job.options)  # which refuses outputs that would replace an input
+            return 0
+
         try:
             _remove_stale_parts(Path(out_dir), job)
-            args = parse_argv(job.argv)
             with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out), self.warm:
-                code = execute(args)
+                code = run_reported(command)
             outputs = output_files(out_dir, job) if code == 0 else []
-        except JobError as e:
-            code = 1
-            err.write(f"error: {e.message}\n")
         except FileNotFoundError as e:
             code = 1
             err.write(f"error: the command succeeded but wrote no {e.filename or e}\n")
