@@ -58,7 +58,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("vtts.avatar",),
     ("vtts.export",),
     ("vtts.warm",),
-    ("vtts.api", "vtts.commands"),
+    ("vtts.api",),
     ("vtts.batch",),
     ("vtts",),  # the package's front door: __version__, load_model
     ("vtts.cli", "adt_tools"),
