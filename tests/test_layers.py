@@ -27,8 +27,7 @@ import pytest
 ROOT = Path(__file__).parents[1]
 
 #: The packages, lowest layer first. A package may import the packages of the layers below its
-#: own, and no other. ``vtts.gltf`` and the library API's package (``vtts.api`` or
-#: ``vtts.commands``, whichever name it takes) are declared before they exist.
+#: own, and no other (docs/design.md, Layers, draws the same).
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("vtts.errors",),
     # what every layer may need: files written atomically, limits on input, warnings, the user's
