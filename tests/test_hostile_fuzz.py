@@ -24,7 +24,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hostile import DATA, INTERESTING, OPS, mutate, mutate_bytes, run_cli, wav
+
+from .hostile import DATA, INTERESTING, OPS, mutate, mutate_bytes, run_cli, wav
 
 ROOT = DATA.parent.parent
 HEAD = DATA / "models" / "head.wrl"

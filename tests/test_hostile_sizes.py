@@ -9,9 +9,10 @@ import struct
 from pathlib import Path
 
 import pytest
-from hostile import DATA, vtts, wav
 
 from vtts import limits
+
+from .hostile import DATA, vtts, wav
 
 HEAD = str(DATA / "models" / "head.wrl")
 JOY = str(DATA / "fap" / "xface-joy.fap")

@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import math
 
-from hostile import INTERESTING, mutate, mutations
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
@@ -23,6 +22,8 @@ from vtts.face.miap import Miap, face_params
 from vtts.fap.coding import fap_set
 from vtts.render import Camera
 from vtts.render.color import TRANSPARENT, parse_background
+
+from .hostile import INTERESTING, mutate, mutations
 
 FUZZ = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 

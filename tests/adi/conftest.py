@@ -6,9 +6,10 @@ import shutil
 from pathlib import Path
 
 import pytest
-from adi_helpers import PHASES, SAMPLE, TABLES, export_pose, params_for, with_worldinfo
 
 from vtts.face import FaceModel, load_model
+
+from .adi_helpers import PHASES, SAMPLE, TABLES, export_pose, params_for, with_worldinfo
 
 
 @pytest.fixture(scope="session")

@@ -7,9 +7,10 @@ import sys
 from pathlib import Path
 
 import pytest
-from adi_helpers import TABLES, export_pose
 
 from adt_tools.cli import main
+
+from .adi_helpers import TABLES, export_pose
 
 
 def adi(*args: str) -> subprocess.CompletedProcess:

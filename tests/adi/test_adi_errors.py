@@ -8,7 +8,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from adi_helpers import (
+
+from adt_tools.build import build_tables, load_pose, load_poses
+from adt_tools.cli import main
+from vtts.errors import AdtError
+from vtts.face import FaceModel
+from vtts.vrml import read, standard_node_types, write
+
+from .adi_helpers import (
     SAMPLE,
     export_pose,
     face_points,
@@ -18,19 +25,13 @@ from adi_helpers import (
     write_obj,
 )
 
-from adt_tools.build import build_tables, load_pose, load_poses
-from adt_tools.cli import main
-from vtts.errors import AdtError
-from vtts.face import FaceModel
-from vtts.vrml import read, standard_node_types, write
-
 
 def posed_scene(model: FaceModel, key: str | None = None, amplitude: float = 0.0):
     """A deep copy of the model's scene posed with one MIAP (neutral by default)."""
     if key is None:
         memo = {id(t): t for t in standard_node_types().values()}
         return copy.deepcopy(model.scene, memo)
-    from adi_helpers import params_for
+    from .adi_helpers import params_for
 
     return model.posed_scene(model.deform(params_for(model, key, amplitude)))
 

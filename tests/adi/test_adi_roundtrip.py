@@ -9,7 +9,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from adi_helpers import (
+
+from adt_tools.build import build_tables, load_poses
+from adt_tools.cli import main
+from vtts.face import AnimationTables, FaceModel, Miap, load_model, read_adt
+from vtts.vrml import read
+
+from .adi_helpers import (
     SAMPLE,
     face_points,
     face_triangles,
@@ -18,11 +24,6 @@ from adi_helpers import (
     write_obj,
     write_ply,
 )
-
-from adt_tools.build import build_tables, load_poses
-from adt_tools.cli import main
-from vtts.face import AnimationTables, FaceModel, Miap, load_model, read_adt
-from vtts.vrml import read
 
 #: MIAP → values to compare the original and rebuilt models at: inside the intervals, at the
 #: borders, beyond them, and negative.

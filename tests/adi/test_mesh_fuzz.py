@@ -14,8 +14,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from adi_helpers import SAMPLE, face_points, face_triangles, write_gltf, write_obj, write_ply
-from hostile import byte_mutations, mutate, mutate_bytes, mutations
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
@@ -24,6 +22,9 @@ from vtts.errors import AdtError, VttsError
 from vtts.face import load_model
 from vtts.face.adt import format_adt, parse_adt
 from vtts.vrml import read
+
+from ..hostile import byte_mutations, mutate, mutate_bytes, mutations
+from .adi_helpers import SAMPLE, face_points, face_triangles, write_gltf, write_obj, write_ply
 
 NEUTRAL = read(SAMPLE)
 

@@ -19,7 +19,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hostile import byte_mutations, mutate_bytes
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from PIL import Image
@@ -28,6 +27,8 @@ from vtts.analysis.video import load_png, read_video
 from vtts.errors import AnalysisError
 from vtts.limits import LimitError
 from vtts.render import VideoWriter, write_png
+
+from ..hostile import byte_mutations, mutate_bytes
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 _FRAME = np.asarray(

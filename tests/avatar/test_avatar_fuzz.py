@@ -11,10 +11,11 @@ import struct
 import warnings
 
 import pytest
-from avatar_helpers import simple_avatar
 
 from vtts.avatar.importer import import_avatar
 from vtts.errors import VttsError
+
+from .avatar_helpers import simple_avatar
 
 JUNK = [None, -1, -(2**31), 2**40, 10**12, 0.5, float("nan"), "x", "", [], [1, 2], {}, {"a": 1},
         True, [None] * 3, -12, 7]  # fmt: skip

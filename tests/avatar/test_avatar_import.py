@@ -5,7 +5,6 @@ on the import within a PSNR bound of ``vtts say`` on cybatt itself."""
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -13,15 +12,14 @@ import pygltflib
 import pytest
 from PIL import Image
 
-sys.path.insert(0, str(Path(__file__).parents[1] / "export"))
-from gltf_helpers import problems, validate  # noqa: E402
+from adt_tools.cli import main as adi
+from vtts.avatar.arkit import ARKIT_NAMES, OCULUS_VISEMES
+from vtts.cli import main as vtts
+from vtts.export.avatar import write_arkit_avatar
+from vtts.face import Miap, load_model
+from vtts.vrml import rotation_matrix
 
-from adt_tools.cli import main as adi  # noqa: E402
-from vtts.avatar.arkit import ARKIT_NAMES, OCULUS_VISEMES  # noqa: E402
-from vtts.cli import main as vtts  # noqa: E402
-from vtts.export.avatar import write_arkit_avatar  # noqa: E402
-from vtts.face import Miap, load_model  # noqa: E402
-from vtts.vrml import rotation_matrix  # noqa: E402
+from ..export.gltf_helpers import problems, validate
 
 #: The least PSNR of any frame of `vtts say` on the import against cybatt (measured: 45.1 dB at
 #: 160x120; identical frames where the face is at rest).

@@ -6,13 +6,14 @@ from __future__ import annotations
 import warnings
 
 import pytest
-from avatar_helpers import simple_avatar
 
 from vtts.avatar.arkit import ARKIT_NAMES, OCULUS_VISEMES
 from vtts.avatar.importer import import_avatar
 from vtts.avatar.names import canonical_name, eye_side, match_names, name_key
 from vtts.errors import VttsWarning
 from vtts.face import Miap
+
+from .avatar_helpers import simple_avatar
 
 
 @pytest.mark.parametrize(

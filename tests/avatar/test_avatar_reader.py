@@ -9,7 +9,14 @@ import warnings
 import numpy as np
 import pygltflib as gl
 import pytest
-from avatar_helpers import (
+
+from vtts.avatar.importer import import_avatar
+from vtts.errors import AvatarError, VttsWarning
+from vtts.face import Miap
+from vtts.gltf import GltfReader
+from vtts.limits import MAX_ACCESSOR_COUNT, MAX_MORPH_TARGETS
+
+from .avatar_helpers import (
     BYTE,
     FLOAT,
     SHORT,
@@ -20,12 +27,6 @@ from avatar_helpers import (
     moves,
     simple_avatar,
 )
-
-from vtts.avatar.importer import import_avatar
-from vtts.errors import AvatarError, VttsWarning
-from vtts.face import Miap
-from vtts.gltf import GltfReader
-from vtts.limits import MAX_ACCESSOR_COUNT, MAX_MORPH_TARGETS
 
 
 def rotated(faces: np.ndarray) -> np.ndarray:

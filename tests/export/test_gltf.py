@@ -10,7 +10,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from gltf_helpers import HEAD, Decoded, sweep, write_rig
 from PIL import Image
 
 import vtts
@@ -18,6 +17,8 @@ from vtts.errors import ExportError, RenderError
 from vtts.export import CAMERA_NODE, animation_gltf, placement, write_gltf
 from vtts.face import N_PARAMS, load_model
 from vtts.render import Camera, FaceRenderer
+
+from .gltf_helpers import HEAD, Decoded, sweep, write_rig
 
 FPS = 25.0
 

@@ -10,10 +10,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from gltf_helpers import HEAD, Decoded, problems, validate
 
 from vtts.fap import FapStream
 from vtts.fap.coding import encode
+
+from .gltf_helpers import HEAD, Decoded, problems, validate
 
 ROOT = Path(__file__).parents[2]
 JOY = ROOT / "tests" / "data" / "fap" / "xface-joy.fap"

@@ -6,13 +6,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from gltf_helpers import HEAD, sweep, write_rig
 
 from adt_tools.build import build_tables, load_poses, read_gltf_meshes
 from vtts.errors import AdtError
 from vtts.export import write_gltf
 from vtts.face import N_PARAMS, FaceModel, load_model
 from vtts.vrml import read
+
+from .gltf_helpers import HEAD, sweep, write_rig
 
 
 @pytest.fixture(scope="module")

@@ -7,10 +7,11 @@ from __future__ import annotations
 import numpy as np
 import pygltflib
 import pytest
-from gltf_helpers import HEAD, problems, sweep, validate, write_rig
 
 from vtts.export import write_gltf
 from vtts.face import N_PARAMS, load_model
+
+from .gltf_helpers import HEAD, problems, sweep, validate, write_rig
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,6 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-from hostile import mutate, mutations
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
@@ -20,6 +19,8 @@ from vtts.errors import AdtError
 from vtts.face import FaceModel
 from vtts.face.adt import AnimationTables, check_tables, format_adt, parse_adt
 from vtts.vrml import read
+
+from ..hostile import mutate, mutations
 
 ROOT = Path(__file__).resolve().parents[2]
 HEAD = ROOT / "tests" / "data" / "models"

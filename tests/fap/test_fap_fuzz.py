@@ -6,13 +6,14 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-from hostile import mutate, mutations
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from vtts.errors import FapError
 from vtts.fap import FapStream, format_fap, parse_fap
 from vtts.fap.stream import WRITE_VERSION
+
+from ..hostile import mutate, mutations
 
 DATA = Path(__file__).resolve().parent.parent / "data" / "fap"
 # A short real file keeps each example fast: the header and the first 6 frames of xface-hate.

@@ -14,13 +14,14 @@ import warnings
 import zlib
 from pathlib import Path
 
-from hostile import byte_mutations, mutate_bytes
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from vtts.errors import CodingError, FapError
 from vtts.fap import FapStream, format_fap, parse_fap
 from vtts.fap.coding import decode, encode, read_header
+
+from ..hostile import byte_mutations, mutate_bytes
 
 DATA = Path(__file__).resolve().parent.parent / "data" / "fap"
 

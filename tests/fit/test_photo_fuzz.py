@@ -14,7 +14,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hostile import byte_mutations, mutate_bytes
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from PIL import Image
@@ -22,6 +21,8 @@ from PIL import Image
 from vtts.errors import FitError
 from vtts.fit import load_photo
 from vtts.limits import LimitError
+
+from ..hostile import byte_mutations, mutate_bytes
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "photos"
 _IMAGE = Image.open(DATA / "akiyo_frame0.png").convert("RGB").resize((48, 40))

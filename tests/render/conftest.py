@@ -22,8 +22,7 @@ def psnr(a: np.ndarray, b: np.ndarray) -> float:
 
 @pytest.fixture
 def image_psnr():
-    """:func:`psnr` for tests (``from conftest import psnr`` finds whichever conftest module was
-    imported first when several test folders run together)."""
+    """:func:`psnr` for tests in any folder below this one, as a fixture."""
     return psnr
 
 

@@ -11,13 +11,14 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
-from hostile import mutate, mutations
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from vtts.errors import BookmarkError
 from vtts.limits import MAX_DURATION_S, MAX_FAP_VALUE
 from vtts.speech.bookmarks import Bookmark, BookmarkedText, parse_bookmarks
+
+from ..hostile import mutate, mutations
 
 ROOT = Path(__file__).resolve().parents[2]
 TEXTS = [p.read_text(encoding="utf-8") for p in sorted((ROOT / "samples" / "texts").glob("*.txt"))]

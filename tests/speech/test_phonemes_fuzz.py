@@ -14,7 +14,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hostile import byte_mutations, mutate, mutate_bytes, mutations
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -22,6 +21,8 @@ from vtts.errors import SpeechError
 from vtts.limits import MAX_AUDIO_S, MAX_DURATION_S, LimitError
 from vtts.speech.audio import read_for_mp4
 from vtts.speech.phonemes import PhonemeFile, read_phoneme_file
+
+from ..hostile import byte_mutations, mutate, mutate_bytes, mutations
 
 POLLY = "\n".join(
     json.dumps(e)
