@@ -3,12 +3,10 @@
 from __future__ import annotations
 
 import base64
-import re
 from pathlib import Path
 from urllib.parse import unquote
 
-#: A uri scheme (``data:``, ``http:``, ``file:``; one letter is a Windows drive).
-_SCHEME = re.compile(r"^([A-Za-z][A-Za-z0-9+.\-]*):")
+from vtts.vrml.parser import local_path
 
 
 def data_uri(data: bytes, mime: str) -> str:
@@ -39,20 +37,11 @@ def local_file(uri: str, folder: Path) -> Path | None:
     """The existing file a relative (percent-encoded) ``uri`` names inside ``folder``, or None:
     network uris are never fetched, and a path that leads out of ``folder`` (``..``, an absolute
     path, a symbolic link) is not followed."""
-    path = unquote(uri).split("#", 1)[0]
-    m = _SCHEME.match(path)
-    if m:
-        if len(m.group(1)) == 1 or m.group(1).lower() != "file":
-            return None
-        path = path[len("file:") :]
-        if path.startswith("//"):
-            path = path[2:]
-            if path.lower().startswith("localhost/"):
-                path = path[len("localhost") :]
-            elif not path.startswith("/"):
-                return None
+    path = local_path(unquote(uri))
+    if path is None:
+        return None
     base = folder.resolve()
-    found = (base / path.replace("\\", "/")).resolve()
+    found = (base / path).resolve()
     if found.is_file() and base in found.parents:
         return found
     return None

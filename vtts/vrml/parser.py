@@ -1090,7 +1090,7 @@ def url_problem(url: str, base_dir: Path | None = None, roots: Iterable[Path] = 
     ``base_dir`` it must be relative and not climb out with ``..``. The check is on the text;
     :func:`resolve_url` checks again after following symbolic links.
     """
-    path = _local_path(url)
+    path = local_path(url)
     if path is None:
         m = _SCHEME.match(url)
         if m and len(m.group(1)) == 1:
@@ -1111,7 +1111,7 @@ def url_problem(url: str, base_dir: Path | None = None, roots: Iterable[Path] = 
     return None
 
 
-def _local_path(url: str) -> str | None:
+def local_path(url: str) -> str | None:
     """The file path a url names (``file:`` removed, ``/`` separators, fragment dropped), or
     None for a network or script url, a drive letter or a ``file:`` url of another host."""
     path = url.split("#", 1)[0]
@@ -1147,7 +1147,7 @@ def resolve_url(urls: list[str], base_dir: Path | None, roots: Iterable[Path] = 
     base = base_dir.resolve()
     allowed = [base, *(Path(r).resolve() for r in roots)]
     for url in urls:
-        path = _local_path(url)
+        path = local_path(url)
         if path is None or url_problem(url, base, allowed[1:]) is not None:
             continue
         p = (base / path).resolve()
