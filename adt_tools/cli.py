@@ -19,7 +19,7 @@ import numpy as np
 
 from vtts import __version__
 from vtts.errors import VttsError
-from vtts.messages import print_error, reported_warnings
+from vtts.messages import ArgumentParser, echo, print_error, reported_warnings
 
 
 def cmd_build(args: argparse.Namespace) -> int:
@@ -31,7 +31,7 @@ def cmd_build(args: argparse.Namespace) -> int:
     out = Path(args.output)
     suffix = out.suffix.lower()
     if args.embed and suffix != ".wrl":
-        print(
+        echo(
             f"{out}: error: --embed writes a .wrl (the neutral scene with FaceDefTables), "
             f"not a '{out.suffix}'",
             file=sys.stderr,
@@ -39,10 +39,10 @@ def cmd_build(args: argparse.Namespace) -> int:
         return 1
     if not args.embed and suffix != ".adt":
         hint = "; pass --embed to write the tables into a .wrl" if suffix == ".wrl" else ""
-        print(f"{out}: error: the output is a .adt file{hint}", file=sys.stderr)
+        echo(f"{out}: error: the output is a .adt file{hint}", file=sys.stderr)
         return 1
     if args.tolerance < 0:
-        print(f"error: --tolerance must not be negative, got {args.tolerance:g}", file=sys.stderr)
+        echo(f"error: --tolerance must not be negative, got {args.tolerance:g}", file=sys.stderr)
         return 1
     from vtts.atomic import check_outputs
 
@@ -58,7 +58,7 @@ def cmd_build(args: argparse.Namespace) -> int:
                 comment=f"animation tables built by adi {__version__}",
             )
             if out.with_suffix(".adt").is_file():
-                print(
+                echo(
                     f"{out}: warning: {out.with_suffix('.adt').name} lies beside it; a model's "
                     "tables must come from one place, so loading it will fail until one is "
                     "removed",
@@ -66,7 +66,7 @@ def cmd_build(args: argparse.Namespace) -> int:
                 )
         else:
             write_adt(tables, out)
-    print(f"wrote {out}: {summary(tables)}")
+    echo(f"wrote {out}: {summary(tables)}")
     return 0
 
 
@@ -76,7 +76,7 @@ def cmd_show(args: argparse.Namespace) -> int:
 
     with reported_warnings():
         lines = show(args.file)
-    print("\n".join(lines))
+    echo("\n".join(lines))
     return 0
 
 
@@ -85,14 +85,14 @@ def _wrl_output(output: str, beside: str) -> Path | None:
     and ``beside`` go next to it), or None after printing why not."""
     out = Path(output)
     if out.suffix.lower() != ".wrl":
-        print(f"{out}: error: the output is a .wrl file (its .adt and {beside} go beside it)",
+        echo(f"{out}: error: the output is a .wrl file (its .adt and {beside} go beside it)",
               file=sys.stderr)  # fmt: skip
         return None
     if out.is_dir():
-        print(f"{out}: error: is a folder; name the .wrl to write", file=sys.stderr)
+        echo(f"{out}: error: is a folder; name the .wrl to write", file=sys.stderr)
         return None
     if not out.parent.is_dir():
-        print(f"{out.parent}: error: no such folder for the output", file=sys.stderr)
+        echo(f"{out.parent}: error: no such folder for the output", file=sys.stderr)
         return None
     return out
 
@@ -120,7 +120,7 @@ def cmd_import(args: argparse.Namespace) -> int:
     for m in model.miaps:
         kinds[m.kind] += 1
     fapu = "FAPUs measured" if model.fapu is not None else "no FAPUs (feature points not found)"
-    print(f"wrote {', '.join(str(p) for p in files)}: {len(avatar.found)} ARKit/Oculus targets "
+    echo(f"wrote {', '.join(str(p) for p in files)}: {len(avatar.found)} ARKit/Oculus targets "
           f"-> {kinds['fap']} FAPs, {kinds['viseme']} visemes, {kinds['expression']} "
           f"expressions; eyes: {', '.join(avatar.eyes) or 'none'}; {fapu}; "
           f"in {time.perf_counter() - t0:.1f} s")  # fmt: skip
@@ -141,11 +141,11 @@ def cmd_fit(args: argparse.Namespace) -> int:
     if out is None:
         return 1
     if args.report and Path(args.report).exists() and not Path(args.report).is_dir():
-        print(f"{args.report}: error: --report names a folder, and this is a file",
+        echo(f"{args.report}: error: --report names a folder, and this is a file",
               file=sys.stderr)  # fmt: skip
         return 1
     if args.focal is not None and not 0 < args.focal < 10000:
-        print(f"error: --focal is a 35 mm-equivalent focal length in mm, got {args.focal:g}",
+        echo(f"error: --focal is a 35 mm-equivalent focal length in mm, got {args.focal:g}",
               file=sys.stderr)  # fmt: skip
         return 1
     # the three outputs must not replace the photo (me-face.png -o me.wrl would), nor be links
@@ -156,7 +156,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
     outputs = [out, out.with_suffix(".adt"), out.with_name(f"{out.stem}-face.png")]
     for target in outputs:
         if target.exists() and photo.exists() and os.path.samefile(target, photo):
-            print(f"{target}: error: adi fit would write this over its photo; choose another "
+            echo(f"{target}: error: adi fit would write this over its photo; choose another "
                   "-o", file=sys.stderr)  # fmt: skip
             return 1
     check_outputs(outputs, [])
@@ -173,14 +173,14 @@ def cmd_fit(args: argparse.Namespace) -> int:
         files = head.write(out)
     total = time.perf_counter() - t0
     shape = head.shape
-    print(f"wrote {', '.join(str(p) for p in files)}: {name} fitted to {len(shape.used)} "
+    echo(f"wrote {', '.join(str(p) for p in files)}: {name} fitted to {len(shape.used)} "
           f"landmarks (median error {np.median(shape.residual):.2f} px), personality "
           f"{args.personality}, in {total:.1f} s")  # fmt: skip
     if args.report:
         model = load_model(out)
         figs = write_report(args.report, model, head, head.photo, files)
         psnr = figs["psnr_db"]
-        print(f"report in {args.report}: face PSNR {psnr['face']:.1f} dB (skin "
+        echo(f"report in {args.report}: face PSNR {psnr['face']:.1f} dB (skin "
               f"{psnr['skin']:.1f} dB), landmark error "
               f"{figs['reprojection_percent_of_eye_distance']['median']:.1f} % of the eye "
               "distance (median)")  # fmt: skip
@@ -188,7 +188,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = ArgumentParser(
         prog="adi",
         description="Animation Definition Interface: build and inspect Animation Definition "
         "Tables (ADTs) of personalized face models.",
@@ -301,10 +301,10 @@ def main(argv: list[str] | None = None) -> int:
         return 141
     except OSError as e:
         where = f"{e.filename}: " if e.filename else ""
-        print(f"{where}error: {e.strerror or e}", file=sys.stderr)
+        echo(f"{where}error: {e.strerror or e}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
+        echo("interrupted", file=sys.stderr)
         return 130
 
 

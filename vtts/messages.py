@@ -3,10 +3,12 @@ line each, ``FILE:LINE:COL: error: MESSAGE`` or ``… warning: …``, never a tr
 
 from __future__ import annotations
 
+import argparse
 import sys
 import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
+from typing import TextIO
 
 from vtts.errors import VttsError, VttsWarning
 
@@ -21,6 +23,22 @@ def print_error(e: VttsError, default_file: str | None = None) -> None:
     print(printable(head), file=sys.stderr)
     if e.context:
         print("\n".join(printable(line) for line in e.context.split("\n")), file=sys.stderr)
+
+
+def echo(*values: object, sep: str = " ", file: TextIO | None = None) -> None:
+    """``print`` for the command line's messages: what they quote of the user's input (file
+    names, option values, a file's own text) has its control characters escaped line by line
+    (:func:`printable`), so that no message can drive the terminal."""
+    text = sep.join(str(v) for v in values)
+    print("\n".join(printable(line) for line in text.split("\n")), file=file or sys.stdout)
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """The command line's parser: its errors quote the arguments (``unrecognized arguments:
+    …``) with their control characters escaped, as every other message does."""
+
+    def error(self, message: str):  # type: ignore[override]
+        super().error(printable(message))
 
 
 def printable(text: str) -> str:

@@ -11,6 +11,7 @@ import numpy as np
 
 from vtts.api.options import PoseRequest, as_list
 from vtts.errors import VttsError
+from vtts.messages import echo
 
 
 def posed_params(model, request: tuple[dict, dict, dict]) -> np.ndarray:
@@ -31,7 +32,7 @@ def posed_params(model, request: tuple[dict, dict, dict]) -> np.ndarray:
         if Miap.parse(k) not in model.tables.adts
     ]
     if unused:
-        print(
+        echo(
             f"warning: {model.name} has no table for {', '.join(unused)}; ignored",
             file=sys.stderr,
         )

@@ -9,7 +9,7 @@ import sys
 from collections.abc import Callable
 
 from vtts.errors import VttsError
-from vtts.messages import print_error, reported_warnings
+from vtts.messages import echo, print_error, reported_warnings
 
 #: Exit statuses: bad input (or an output that cannot be written), Ctrl-C (128 + SIGINT), and
 #: a reader that went away (128 + SIGPIPE).
@@ -29,7 +29,7 @@ def run_reported(call: Callable[[], int]) -> int:
         print_error(e)
         return EXIT_ERROR
     except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
+        echo("interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     except BrokenPipeError:
         # the reader went away (``vtts check … | head``): not an error worth a traceback
@@ -38,5 +38,5 @@ def run_reported(call: Callable[[], int]) -> int:
     except OSError as e:
         # an output that cannot be written (permissions, a full disk, a missing folder)
         where = f"{e.filename}: " if getattr(e, "filename", None) else ""
-        print(f"{where}error: {e.strerror or e}", file=sys.stderr)
+        echo(f"{where}error: {e.strerror or e}", file=sys.stderr)
         return EXIT_ERROR

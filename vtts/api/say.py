@@ -21,6 +21,7 @@ from vtts.api.options import (
     video_or_gltf,
 )
 from vtts.errors import RenderError, VttsError
+from vtts.messages import echo
 
 #: The speech synthesizers: espeak-ng, or festival's HTS voice.
 ENGINES = ("espeak", "festival")
@@ -230,7 +231,7 @@ def write_said(o: SayOptions, models, utt, timelines, renderer, track, on_first_
         shown = {x.name for x in m.tables.adts if x.kind == "expression"}
         lacking = sorted({b.written for b in utt.text.check_names(shown)})
         if lacking:
-            print(
+            echo(
                 f"warning: {m.name} has no table for <{'>, <'.join(lacking)}>; not shown",
                 file=sys.stderr,
             )

@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from vtts.cli.options import add_url_root
+from vtts.messages import echo
 
 
 def add_parser(sub) -> None:
@@ -172,7 +173,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     restarts = len(tracked.restarts)
     held = f", {len(tracked.held)} held (no estimate)" if tracked.held else ""
     # with --stream, stdout is the bitstream's
-    print(
+    echo(
         f"wrote {', '.join(written)}: {n} frame{'s' if n != 1 else ''} at "
         f"{analysis.fps:g} fps, {len(analysis.unknowns)} unknowns, "
         f"{'tracking' if options.tracking else 'accurate'} mode, "
@@ -182,5 +183,5 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     )
     translation = any(isinstance(u, str) for u in analysis.unknowns)
     if not args.stream_out and not options.coded and not found.extra_fbs and translation:
-        print("note: a .fap file cannot carry the head translation; -o OUT.fbs or --fbs does")
+        echo("note: a .fap file cannot carry the head translation; -o OUT.fbs or --fbs does")
     return 0

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from vtts.messages import print_error
+from vtts.messages import echo, print_error
 
 
 def add_parser(sub) -> None:
@@ -27,8 +27,8 @@ def cmd_batch(args: argparse.Namespace) -> int:
         for e in checked.errors:
             print_error(e)
         n = len(checked.jobs)
-        print(f"{args.jobs}: {n} valid job{'s' if n != 1 else ''}, {len(checked.errors)} bad")
+        echo(f"{args.jobs}: {n} valid job{'s' if n != 1 else ''}, {len(checked.errors)} bad")
         return 1 if checked.errors else 0
     report = run(args.jobs, args.out, args.workers, args.address, show_progress=True)
-    print(f"batch: {report.summary()}")
+    echo(f"batch: {report.summary()}")
     return 0 if report.ok else 1

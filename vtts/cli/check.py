@@ -7,7 +7,7 @@ import sys
 
 from vtts.cli.options import add_lenient, add_url_root
 from vtts.errors import VttsError
-from vtts.messages import print_error, reported_warnings
+from vtts.messages import echo, print_error, reported_warnings
 
 
 def add_parser(sub) -> None:
@@ -28,12 +28,12 @@ def cmd_check(args: argparse.Namespace) -> int:
             with reported_warnings():
                 summary = check_file(name, lenient=args.lenient)
         except CheckError as e:
-            print(f"{name}: error: {e.message}", file=sys.stderr)
+            echo(f"{name}: error: {e.message}", file=sys.stderr)
             failed += 1
             continue
         except VttsError as e:
             print_error(e, name)
             failed += 1
             continue
-        print(f"OK {name} ({summary})")
+        echo(f"OK {name} ({summary})")
     return 1 if failed else 0

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from vtts.cli.options import positive_type
+from vtts.messages import echo
 
 
 def add_parser(sub) -> None:
@@ -95,7 +96,7 @@ def cmd_encode(args: argparse.Namespace) -> int:
         if isinstance(key, int):
             where = f"FAP units on FAP {key}"
         err = f"; max error {error / step:.2f} step ({error:.4g} {where}, step {step:g})"
-    print(
+    echo(
         f"wrote {args.output}: {h.n_frames} frames at {h.fps:g} Hz, {contents(h)}, "
         f"{h.coder}, {h.size} bytes = {h.bits_per_frame:.1f} bits/frame, "
         f"{h.kbit_per_s:.3f} kbit/s{err}"
@@ -110,5 +111,5 @@ def cmd_decode(args: argparse.Namespace) -> int:
 
     stream = decode(DecodeOptions(input=args.input, output=args.output))
     if not args.quiet:
-        print(f"wrote {args.output}: {stream.n_frames} frames at {stream.fps:g} fps")
+        echo(f"wrote {args.output}: {stream.n_frames} frames at {stream.fps:g} fps")
     return 0

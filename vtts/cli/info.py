@@ -6,7 +6,7 @@ import argparse
 
 from vtts.cli.options import add_lenient, add_url_root
 from vtts.errors import VttsError
-from vtts.messages import print_error, reported_warnings
+from vtts.messages import echo, print_error, reported_warnings
 
 
 def add_parser(sub) -> None:
@@ -29,11 +29,11 @@ def cmd_info(args: argparse.Namespace) -> int:
     except VttsError as e:
         print_error(e, args.file)
         return 1
-    print(f"{args.file}:" if found.title is None else f"{found.path}: {found.title}")
+    echo(f"{args.file}:" if found.title is None else f"{found.path}: {found.title}")
     for line in found.lines:
-        print("  " + line)
+        echo("  " + line)
     if found.model_name is not None:
-        print(f"model {found.model_name}:")
+        echo(f"model {found.model_name}:")
         for line in found.model_lines:
-            print("  " + line)
+            echo("  " + line)
     return 0

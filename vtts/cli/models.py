@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from vtts.messages import echo
+
 
 def add_parser(sub) -> None:
     ms = sub.add_parser("models", help="list the bundled models")
@@ -16,14 +18,14 @@ def cmd_models(args: argparse.Namespace) -> int:
 
     found = models()
     if not found:
-        print("no bundled models")
+        echo("no bundled models")
         return 0
     for b in found:
         if b.error is not None:
-            print(f"{b.name:12s} broken: {b.error.message}")
+            echo(f"{b.name:12s} broken: {b.error.message}")
             continue
         m = b.model
-        print(
+        echo(
             f"{b.name:12s} {len(m.tables.adts):3d} MIAPs {m.scene.triangle_count():7d} triangles  "
             f"{m.path}"
         )

@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from vtts.cli.options import add_curves, add_detail, add_models, add_view, add_web
+from vtts.messages import echo
 
 
 def add_parser(sub) -> None:
@@ -59,7 +60,7 @@ def cmd_play(args: argparse.Namespace) -> int:
     played = play(options, on_first_frame=args.first_frame)
     if not args.quiet:
         live = args.stream == "-"
-        print(
+        echo(
             f"wrote {' and '.join(played.written)}: {played.n_frames} frames at "
             f"{played.fps:g} fps ({played.seconds:.2f} s)",
             file=sys.stderr if live else sys.stdout,

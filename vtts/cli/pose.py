@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from vtts.cli.options import add_pose, add_url_root, pose_options
+from vtts.messages import echo
 
 
 def add_parser(sub) -> None:
@@ -20,5 +21,5 @@ def cmd_pose(args: argparse.Namespace) -> int:
     from vtts.api.pose import PoseOptions, pose
 
     pose(PoseOptions(model=args.model, output=args.output, **pose_options(args)))
-    print(f"wrote {args.output}")
+    echo(f"wrote {args.output}")
     return 0

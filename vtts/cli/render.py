@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from vtts.cli.options import add_models, add_pose, add_view, pose_options, view_options
+from vtts.messages import echo
 
 
 def add_parser(sub) -> None:
@@ -23,5 +24,5 @@ def cmd_render(args: argparse.Namespace) -> int:
         model=args.model, output=args.output, **pose_options(args), **view_options(args)
     )
     still = render(options)
-    print(f"wrote {args.output} ({still.frame.shape[1]}x{still.frame.shape[0]})")
+    echo(f"wrote {args.output} ({still.frame.shape[1]}x{still.frame.shape[0]})")
     return 0

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from vtts.cli.options import add_curves, add_detail, add_models, add_view, add_web, seed_type
+from vtts.messages import echo
 
 
 def add_parser(sub) -> None:
@@ -101,7 +102,7 @@ def cmd_say(args: argparse.Namespace) -> int:
     options.text = merged_text(args.text, args.text_option, args.file)
     said = say(options, on_first_frame=args.first_frame)
     if not args.quiet:
-        print(
+        echo(
             f"wrote {', '.join(said.written)}: {said.duration:.2f} s, {said.n_frames} frames "
             f"at {said.fps:g} fps"
         )

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from vtts.messages import echo
+
 
 def add_parser(sub) -> None:
     vo = sub.add_parser("voices", help="list espeak-ng voices")
@@ -18,12 +20,12 @@ def cmd_voices(args: argparse.Namespace) -> int:
 
     found = voices(args.language)
     if not found:
-        print(
+        echo(
             f"error: espeak-ng has no voice for language '{args.language}' "
             "(vtts voices lists them all)",
             file=sys.stderr,
         )
         return 1
     for v in found:
-        print(f"{v.name:24s} {v.language:8s} {v.identifier}")
+        echo(f"{v.name:24s} {v.language:8s} {v.identifier}")
     return 0

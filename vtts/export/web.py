@@ -157,8 +157,7 @@ def write_web(
         page = Template((PLAYER_DIR / "index.html").read_text(encoding="utf-8")).substitute(
             title=html.escape(title or " and ".join(names) + " — vtts"),
             background=css_color(background),
-            # inside <script>, "</" could close the element: JSON may escape the slash
-            config=json.dumps(config, ensure_ascii=True).replace("</", "<\\/"),
+            config=script_json(config),
         )
         (tmp / "index.html").write_text(page, encoding="utf-8")
         # mkdtemp makes the folder private; a finished folder gets the usual permissions
@@ -168,6 +167,15 @@ def write_web(
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return dest
+
+
+def script_json(value) -> str:
+    """``value`` as JSON to put inside a ``<script>`` element: ``<``, ``>`` and ``&`` written as
+    ``\\u003c`` … so that no text in it (a model named ``</script>`` or ``<!--<script>``, which
+    puts the HTML parser in a state where ``</script>`` no longer ends the element) is read as
+    markup; JSON reads the escapes back as the same characters."""
+    text = json.dumps(value, ensure_ascii=True)
+    return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
 
 
 def _frame_count(params) -> int:
