@@ -131,6 +131,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
     """Fit a personalized head to a photograph and write it (with a report on request)."""
     import time
 
+    from vtts.api.options import check_not_stdout
     from vtts.errors import FitError
     from vtts.face import load_model
     from vtts.fit import fit_photo, load_photo
@@ -140,6 +141,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
     out = _wrl_output(args.output, "texture")
     if out is None:
         return 1
+    check_not_stdout(args)
     if args.report and Path(args.report).exists() and not Path(args.report).is_dir():
         echo(f"{args.report}: error: --report names a folder, and this is a file",
               file=sys.stderr)  # fmt: skip
@@ -148,18 +150,22 @@ def cmd_fit(args: argparse.Namespace) -> int:
         echo(f"error: --focal is a 35 mm-equivalent focal length in mm, got {args.focal:g}",
               file=sys.stderr)  # fmt: skip
         return 1
-    # the three outputs must not replace the photo (me-face.png -o me.wrl would), nor be links
-    # or anything but plain files
+    # the three outputs and the report's files must not replace the photo (me-face.png -o
+    # me.wrl would, --report shots on shots/landmarks.png too), each other, links or anything
+    # but plain files
     from vtts.atomic import check_outputs
+    from vtts.fit.report import REPORT_FILES
 
     photo = Path(args.photo)
     outputs = [out, out.with_suffix(".adt"), out.with_name(f"{out.stem}-face.png")]
-    for target in outputs:
+    report = [Path(args.report) / name for name in REPORT_FILES] if args.report else []
+    for target in (*outputs, *report):
         if target.exists() and photo.exists() and os.path.samefile(target, photo):
+            option = "-o" if target in outputs else "--report"
             echo(f"{target}: error: adi fit would write this over its photo; choose another "
-                  "-o", file=sys.stderr)  # fmt: skip
+                 f"{option}", file=sys.stderr)  # fmt: skip
             return 1
-    check_outputs(outputs, [])
+    check_outputs([*outputs, *report], [photo])
     name = args.name or out.stem
     with reported_warnings():
         try:

@@ -21,6 +21,11 @@ def vtts_cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess
     return subprocess.run([str(VTTS), *args], capture_output=True, text=True, timeout=120, cwd=cwd)
 
 
+def adi_cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    adi = Path(sys.executable).with_name("adi")
+    return subprocess.run([str(adi), *args], capture_output=True, text=True, timeout=120, cwd=cwd)
+
+
 @pytest.fixture
 def model(tmp_path) -> Path:
     """A copy of cybatt (scene, tables, texture) in tmp_path."""
@@ -125,8 +130,157 @@ def test_adi_build_never_rewrites_its_neutral_model(tmp_path):
     neutral = tmp_path / "n.wrl"
     shutil.copy(DATA / "models" / "head.wrl", neutral)
     before = neutral.read_bytes()
-    adi = Path(sys.executable).with_name("adi")
-    r = subprocess.run([str(adi), "build", str(neutral), str(neutral), "-o", str(neutral),
-                        "--embed"], capture_output=True, text=True, timeout=120)  # fmt: skip
+    r = adi_cli("build", str(neutral), str(neutral), "-o", str(neutral), "--embed")
     assert r.returncode == 1 and "also an input" in r.stderr
     assert neutral.read_bytes() == before
+
+
+# ---- issue 45: every file a command writes, reports and "-" included -----------------------
+
+
+@pytest.mark.parametrize("name", ["frames.csv", "psnr.png", "faps.png", "side-by-side.mp4"])
+def test_analyze_report_never_replaces_its_video(tmp_path, name):
+    report = tmp_path / "rep"
+    report.mkdir()
+    video = report / name
+    video.write_bytes(b"the user's video")
+    r = vtts_cli("analyze", str(video), "-o", str(tmp_path / "x.fap"), "--report", str(report))
+    assert r.returncode == 1 and "also an input" in r.stderr and str(video) in r.stderr
+    assert "Traceback" not in r.stderr
+    assert video.read_bytes() == b"the user's video"
+    assert {p.name for p in tmp_path.rglob("*")} == {name, "rep"}
+
+
+def test_analyze_report_files_are_checked_with_the_outputs(tmp_path):
+    video = tmp_path / "v.mp4"
+    video.write_bytes(b"not really a video")
+    report = tmp_path / "rep"
+    report.mkdir()
+    (report / "psnr.png").symlink_to(video)
+    r = vtts_cli("analyze", str(video), "-o", str(tmp_path / "x.fap"), "--report", str(report))
+    assert r.returncode == 1 and "is a link" in r.stderr
+    r = vtts_cli("analyze", str(video), "-o", str(report / "frames.csv"), "--report", str(report))
+    assert r.returncode == 1 and "two outputs name the same file" in r.stderr
+    assert video.read_bytes() == b"not really a video" and not (report / "frames.csv").exists()
+
+
+def test_analyze_with_a_model_never_replaces_the_models_files(model):
+    from vtts.api.analyze import AnalyzeOptions, analyze
+    from vtts.errors import VttsError
+
+    video = model.with_name("v.mp4")
+    video.write_bytes(b"not really a video")
+    adt = model.with_suffix(".adt")
+    before = adt.read_bytes()
+    options = AnalyzeOptions(video=str(video), model=[str(model)], output=str(adt))
+    with pytest.raises(VttsError, match="also an input"):
+        analyze(options)
+    assert adt.read_bytes() == before
+
+
+@pytest.mark.parametrize(
+    "args, bad",
+    [
+        (["-o", "pf/x.fap"], "pf/x-model-face.png"),  # the fitted head's texture
+        (["-o", "x.fap", "--model-out", "pf/head.wrl"], "pf/head-face.png"),
+        (["-o", "x.fap", "--report", "pf"], "pf/psnr.png"),
+        (["-o", "pf/x.fap", "--model", "cybatt", "--report", "pf/.."], None),  # beside: fine
+    ],
+)
+def test_analyze_writes_no_png_among_its_frames(tmp_path, args, bad):
+    from PIL import Image
+
+    frames = tmp_path / "pf"
+    frames.mkdir()
+    for i in range(2):
+        Image.new("RGB", (32, 24)).save(frames / f"f{i}.png")
+    before = sorted(p.name for p in frames.iterdir())
+    r = vtts_cli("analyze", "pf", *args, cwd=tmp_path)
+    assert "Traceback" not in r.stderr
+    if bad is None:  # not refused for where it writes: it goes on to look for a face
+        assert "among the frames" not in r.stderr
+        return
+    assert r.returncode == 1 and "among the frames of pf" in r.stderr and bad in r.stderr
+    assert sorted(p.name for p in frames.iterdir()) == before
+
+
+@pytest.mark.parametrize("name", ["landmarks.png", "overlay.png", "turned.png", "figures.json"])
+def test_adi_fit_report_never_replaces_its_photo(tmp_path, name):
+    shots = tmp_path / "shots"
+    shots.mkdir()
+    photo = shots / name
+    photo.write_bytes(b"the user's photo")
+    r = adi_cli("fit", str(photo), "-o", str(tmp_path / "me.wrl"), "--report", str(shots))
+    assert r.returncode == 1 and "over its photo; choose another --report" in r.stderr
+    assert photo.read_bytes() == b"the user's photo"
+    assert {p.name for p in tmp_path.rglob("*")} == {name, "shots"}
+
+
+def test_adi_fit_report_files_are_plain_files(tmp_path):
+    photo = tmp_path / "me.png"
+    photo.write_bytes(b"the user's photo")
+    (tmp_path / "rep").mkdir()
+    (tmp_path / "rep" / "overlay.png").symlink_to(photo)
+    r = adi_cli(
+        "fit", str(photo), "-o", str(tmp_path / "me.wrl"), "--report", str(tmp_path / "rep")
+    )
+    assert r.returncode == 1 and "over its photo" in r.stderr  # the link leads to the photo
+    (tmp_path / "rep" / "overlay.png").unlink()
+    (tmp_path / "rep" / "overlay.png").symlink_to(tmp_path / "elsewhere.png")
+    r = adi_cli(
+        "fit", str(photo), "-o", str(tmp_path / "me.wrl"), "--report", str(tmp_path / "rep")
+    )
+    assert r.returncode == 1 and "is a link" in r.stderr
+    assert not (tmp_path / "elsewhere.png").exists() and not (tmp_path / "me.wrl").exists()
+
+
+JOY = DATA / "fap" / "xface-joy.fap"
+DASH = [
+    ["analyze", "v.mp4", "-o", "-"],
+    ["analyze", "v.mp4", "-o", "x.fap", "--report", "-"],
+    ["analyze", "v.mp4", "-o", "x.fap", "--model-out", "-"],
+    ["say", "hi", "--model", "cybatt", "-o", "-"],
+    ["say", "hi", "--model", "cybatt", "--fap-out", "-"],
+    ["say", "hi", "--model", "cybatt", "--wav-out", "-"],
+    ["say", "hi", "--model", "cybatt", "--timings-out", "-"],
+    ["say", "hi", "--model", "cybatt", "--curves-out", "-"],
+    ["say", "hi", "--model", "cybatt", "--png-dir", "-"],
+    ["say", "hi", "--model", "cybatt", "--web", "-"],
+    ["play", str(JOY), "--model", "cybatt", "-o", "-"],
+    ["play", str(JOY), "--model", "cybatt", "--curves-out", "-"],
+    ["play", str(JOY), "--model", "cybatt", "--png-dir", "-"],
+    ["render", "--model", "cybatt", "-o", "-"],
+    ["pose", "--model", "cybatt", "-o", "-"],
+    ["encode", str(JOY), "-o", "-"],
+    ["decode", "x.fbs", "-o", "-"],
+    ["batch", "jobs.jsonl", "--out", "-"],
+]
+
+
+@pytest.mark.parametrize("args", DASH, ids=[" ".join(a[:1] + a[-2:]) for a in DASH])
+def test_dash_where_no_stdout_is_written_is_refused(tmp_path, args):
+    (tmp_path / "v.mp4").write_bytes(b"not really a video")
+    (tmp_path / "x.fbs").write_bytes(b"not really a stream")
+    (tmp_path / "jobs.jsonl").write_text('{"render": true, "model": "cybatt", "output": "a.png"}\n')
+    r = vtts_cli(*args, cwd=tmp_path)
+    assert r.returncode == 1, r.stderr
+    assert "'-' would be one named '-'" in r.stderr and "Traceback" not in r.stderr
+    assert not (tmp_path / "-").exists()
+
+
+def test_adi_fit_report_dash_is_refused(tmp_path):
+    r = adi_cli("fit", "p.png", "-o", "me.wrl", "--report", "-", cwd=tmp_path)
+    assert r.returncode == 1 and "'-' would be one named '-'" in r.stderr
+    assert not (tmp_path / "-").exists()
+
+
+def test_the_library_refuses_dash_too(tmp_path):
+    from vtts.api.analyze import AnalyzeOptions
+    from vtts.api.say import SayOptions, say
+    from vtts.errors import VttsError
+
+    with pytest.raises(VttsError, match="would be one named"):
+        AnalyzeOptions(video=str(tmp_path / "v.mp4"), output="-")
+    with pytest.raises(VttsError, match="--timings-out -"):
+        say(SayOptions(text="hi", model=["cybatt"], timings_out="-", wav_out=str(tmp_path / "a")))
+    assert list(tmp_path.iterdir()) == []

@@ -44,6 +44,8 @@ CSV_NAME = "frames.csv"
 PSNR_PLOT = "psnr.png"
 FAPS_PLOT = "faps.png"
 SIDE_BY_SIDE = "side-by-side.mp4"
+#: Every file ``vtts analyze --report`` writes (checked against its inputs before any work).
+REPORT_FILES = (CSV_NAME, PSNR_PLOT, FAPS_PLOT, SIDE_BY_SIDE)
 
 #: How far above the best finite PSNR infinite values are drawn (dB), and where when no value
 #: is finite.

@@ -60,6 +60,26 @@ def check_writable(path: Path) -> None:
         raise AnalysisError("cannot write here: it is a folder", file=str(path))
 
 
+def check_frames_folder(video: Path, outputs: list[Path]) -> None:
+    """Refuse a PNG output written straight into ``video`` when it is a folder of frames: every
+    PNG there is read as a frame, so the next analysis of the folder would meet a texture or a
+    plot of another size among its frames. Other outputs (the ``.fap``, the head's ``.wrl``, a
+    report in a subfolder) leave the frames as they are and may go there."""
+    if not video.is_dir():
+        return
+    from vtts.analysis.video import PNG_SUFFIX
+
+    folder = video.resolve()
+    for out in outputs:
+        if out.suffix.lower() == PNG_SUFFIX and out.parent.resolve() == folder:
+            raise AnalysisError(
+                f"this PNG would be written among the frames of {video}, where every PNG is "
+                "read as a frame: the next analysis of the folder would fail on it; write the "
+                "outputs outside it (-o, --model-out, --report)",
+                file=str(out),
+            )
+
+
 def stream_name(video: str) -> str:
     """The name in the header of the estimated stream: the video's name as one word."""
     if video == "-":
@@ -169,6 +189,9 @@ class AnalyzeOptions:
     def check_stream(self) -> None:
         """The rules of ``video="-"`` (raw frames on stdin) and ``stream_out`` (a streamed
         .fbs on stdout)."""
+        from vtts.api.options import check_not_stdout
+
+        check_not_stdout(self)
         pipe, auto = self.pipe, self.auto
         if pipe and self.size is None:
             raise AnalysisError(
@@ -271,15 +294,23 @@ def analyze(
     """Estimate FAPs from ``options.video`` (see :class:`AnalyzeOptions`). ``stdin`` and
     ``stdout``: where raw frames come from and a streamed ``.fbs`` goes (None: the
     process's)."""
-    from vtts.api.options import url_roots_set
+    from vtts.analysis.report import REPORT_FILES
+    from vtts.api.options import model_files, url_roots_set
     from vtts.atomic import check_outputs
 
     o = options
     outputs = [p for p in (None if o.stream_out else o.out, o.extra_fbs, *o.fitted) if p]
-    for path in (*outputs, o.report and Path(o.report) / "frames.csv"):
-        if path:
-            check_writable(path)
-    check_outputs(outputs, [] if o.pipe else [Path(o.video)])
+    report = [Path(o.report) / name for name in REPORT_FILES] if o.report else []
+    for path in (*outputs, *report[:1]):
+        check_writable(path)
+    inputs = [] if o.pipe else [Path(o.video)]
+    if not o.auto:
+        inputs += model_files(o.model[0])
+    # every file the report folder would receive too: --report rep on rep/side-by-side.mp4
+    # must not replace its video
+    check_outputs([*outputs, *report], inputs)
+    if not o.pipe:
+        check_frames_folder(Path(o.video), [*outputs, *report])
     with url_roots_set(o.url_root):
         stdin = sys.stdin.buffer if stdin is None else stdin
         stdout = sys.stdout.buffer if stdout is None else stdout

@@ -28,6 +28,10 @@ GLTF_SUFFIXES = (".glb", ".gltf")
 #: Options that name files a command writes, which may replace no input nor each other
 #: (:func:`check_io`; ``vtts batch`` keeps them inside its folder).
 OUTPUT_OPTIONS = ("output", "fap_out", "wav_out", "timings_out", "curves_out")
+#: Options that name folders a command writes (``out``: ``vtts batch``'s), and another file
+#: (``analyze``'s fitted head).
+OUTPUT_FOLDERS = ("png_dir", "web", "report", "out")
+MORE_OUTPUTS = ("model_out",)
 #: Options that name files or folders a command reads.
 INPUT_OPTIONS = ("stream", "video", "audio", "file", "phonemes", "input")
 #: The layouts of several heads: side by side, or side by side in a simple room.
@@ -333,12 +337,32 @@ def model_files(name: str) -> list[Path]:
     return files
 
 
+def check_not_stdout(options) -> None:
+    """``-`` given to an option that writes a file or a folder is refused: it would make one
+    named ``-`` where the user meant stdout. stdout is written by ``vtts play - -o -`` (raw
+    frames of a stream from stdin; :class:`~vtts.api.play.PlayOptions` checks the rest) and
+    ``vtts analyze --stream``, nowhere else."""
+    for key in (*OUTPUT_OPTIONS, *MORE_OUTPUTS, *OUTPUT_FOLDERS):
+        if getattr(options, key, None) != "-":
+            continue
+        if key == "output" and getattr(options, "stream", None) == "-":
+            continue
+        flag = "-o" if key == "output" else "--" + key.replace("_", "-")
+        what = "a folder" if key in OUTPUT_FOLDERS else "a file"
+        raise VttsError(
+            f"{flag} -: this option writes {what}, and '-' would be one named '-' (stdout is "
+            "for vtts play - -o - and vtts analyze --stream): give a name, ./- for one named '-'"
+        )
+
+
 def check_io(options) -> None:
     """Outputs of ``options`` (an options object or the command line's namespace: the
     attributes of :data:`OUTPUT_OPTIONS`) that would replace an input, each other, a link or a
-    device are refused before the command starts (:func:`vtts.atomic.check_outputs`)."""
+    device are refused before the command starts (:func:`vtts.atomic.check_outputs`), and so
+    is ``-`` where it cannot mean stdout (:func:`check_not_stdout`)."""
     from vtts.atomic import check_outputs
 
+    check_not_stdout(options)
     # "-" is stdin or stdout, not a file
     outputs = [v for k in OUTPUT_OPTIONS if (v := getattr(options, k, None)) and v != "-"]
     if not outputs:

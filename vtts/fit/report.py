@@ -23,6 +23,10 @@ from vtts.fit.generic import landmark_map
 
 #: The parts whose pixels make "the face" for the PSNR: skin, eyes and mouth.
 FACE_PARTS = ("FACE", "L_EYEBALL", "R_EYEBALL", "MOUTH", "UPPER_TEETH", "LOWER_TEETH", "TONGUE")
+#: The report's files, in the order they are written (checked against the photo and the model's
+#: files before the fit starts).
+LANDMARKS, OVERLAY, TURNED, FIGURES = "landmarks.png", "overlay.png", "turned.png", "figures.json"
+REPORT_FILES = (LANDMARKS, OVERLAY, TURNED, FIGURES)
 #: The head's turn in ``turned.png`` (degrees), as FAP 49 (head yaw).
 TURN_DEGREES = 30.0
 
@@ -113,19 +117,19 @@ def write_report(folder: str | Path, model: FaceModel, head, photo: np.ndarray,
         draw.ellipse([x - r, y - r, x + r, y + r], fill=(40, 220, 60))
     for x, y in projected * scale:
         draw.ellipse([x - r, y - r, x + r, y + r], fill=(230, 40, 40))
-    _save(im, folder / "landmarks.png")
+    _save(im, folder / LANDMARKS)
     image, _ = photo_view(model, photo)
     both = Image.new("RGB", (photo.shape[1] * 2, photo.shape[0]))
     both.paste(Image.fromarray(photo), (0, 0))
     both.paste(Image.fromarray(image), (photo.shape[1], 0))
-    _save(both, folder / "overlay.png")
+    _save(both, folder / OVERLAY)
     au = math.radians(TURN_DEGREES) / 1e-5
     frames = []
     with FaceRenderer(model, size=(320, 320), supersample=2) as rr:
         for yaw in (-au, 0.0, au):
             frames.append(rr.render(model.params({49: yaw}))[..., :3])
-    _save(Image.fromarray(np.concatenate(frames, axis=1)), folder / "turned.png")
-    with atomic_path(folder / "figures.json") as tmp:
+    _save(Image.fromarray(np.concatenate(frames, axis=1)), folder / TURNED)
+    with atomic_path(folder / FIGURES) as tmp:
         tmp.write_text(json.dumps(figs, indent=2) + "\n", encoding="utf-8")
     return figs
 
