@@ -284,3 +284,80 @@ def test_the_library_refuses_dash_too(tmp_path):
     with pytest.raises(VttsError, match="--timings-out -"):
         say(SayOptions(text="hi", model=["cybatt"], timings_out="-", wav_out=str(tmp_path / "a")))
     assert list(tmp_path.iterdir()) == []
+
+
+# ---- vtts batch: outputs stay in --out, and no two jobs write one file ------------------------
+
+
+def test_a_batch_output_through_a_link_out_of_the_folder_is_refused(tmp_path):
+    from vtts.batch.jobs import JobError, parse_job
+
+    out, elsewhere = tmp_path / "clips", tmp_path / "elsewhere"
+    out.mkdir()
+    elsewhere.mkdir()
+    (out / "link").symlink_to(elsewhere)
+    (out / "loop").symlink_to(out / "loop")
+    job = {"render": True, "model": "cybatt", "output": "link/x.png"}
+    with pytest.raises(JobError, match="'output': 'link/x.png' leads out of the batch's folder"):
+        parse_job(job, out)
+    with pytest.raises(JobError, match="'web': 'link' leads out"):
+        parse_job({"say": "hi", "model": "cybatt", "web": "link"}, out)
+    with pytest.raises(JobError, match="'png_dir': 'loop/f'"):
+        parse_job({"say": "hi", "model": "cybatt", "png_dir": "loop/f"}, out)
+    # a link inside the folder to a place inside it is the folder still, and so is --out a link
+    (out / "sub").mkdir()
+    (out / "inner").symlink_to(out / "sub")
+    assert parse_job({**job, "output": "inner/x.png"}, out).outputs == ("inner/x.png",)
+    (tmp_path / "out-link").symlink_to(out)
+    assert parse_job({**job, "output": "sub/x.png"}, tmp_path / "out-link").outputs
+
+
+def test_a_batch_refuses_a_link_made_after_the_jobs_were_read(tmp_path):
+    from vtts.batch.jobs import parse_job
+    from vtts.batch.worker import JobRunner
+
+    out, elsewhere = tmp_path / "clips", tmp_path / "elsewhere"
+    (out / "sub").mkdir(parents=True)
+    elsewhere.mkdir()
+    job = parse_job({"render": True, "model": "cybatt", "output": "sub/x.png"}, out)
+    (out / "sub").rmdir()
+    (out / "sub").symlink_to(elsewhere)
+    result = JobRunner().run(job, str(out))
+    assert not result.ok and not result.internal and "leads out of" in result.message
+    assert list(elsewhere.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    "first, second, shared",
+    [
+        ({"web": "w"}, {"output": "w/talk.glb"}, "w/talk.glb"),  # the issue's
+        ({"fap_out": "w/index.html"}, {"web": "w"}, "w"),
+        ({"png_dir": "f"}, {"wav_out": "f/0001.png"}, "f/0001.png"),
+        ({"web": "w"}, {"png_dir": "w/vendor"}, "w/vendor"),
+        ({"output": "a.mp4"}, {"fap_out": "a.mp4/x.fap"}, "a.mp4/x.fap"),
+        ({"web": "w"}, {"web": "./w/"}, "w"),
+    ],
+)
+def test_batch_jobs_whose_outputs_overlap_clash(tmp_path, first, second, shared):
+    from vtts.batch.jobs import as_jobs
+
+    base = {"say": "hi", "model": "cybatt"}
+    checked = as_jobs([{**base, "id": "a", **first}, {**base, "id": "b", **second}], tmp_path)
+    assert [j.id for j in checked.jobs] == ["a"]
+    assert [e.message for e in checked.errors] == [f"'{shared}' is also written by line 1"]
+    if first.keys() & second.keys():
+        return  # one job cannot give an option twice
+    # and within one job
+    checked = as_jobs([{**base, **first, **second}], tmp_path)
+    assert not checked.jobs
+    assert checked.errors[0].message == f"'{shared}' is also written by this job's other output"
+
+
+def test_batch_outputs_side_by_side_do_not_clash(tmp_path):
+    from vtts.batch.jobs import as_jobs
+
+    base = {"say": "hi", "model": "cybatt"}
+    jobs = [{**base, "web": "w"}, {**base, "web": "w2"}, {**base, "output": "w.mp4"},
+            {**base, "png_dir": "f/a"}, {**base, "png_dir": "f/b"}]  # fmt: skip
+    checked = as_jobs(jobs, tmp_path)
+    assert not checked.errors and len(checked.jobs) == 5

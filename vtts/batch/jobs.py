@@ -18,6 +18,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import stat
 import types
 import typing
 from collections.abc import Iterable
@@ -154,6 +155,34 @@ def _inside(path: str, key: str) -> str:
     return "/".join(parts)
 
 
+def check_confined(out_dir: str | os.PathLike[str], rel: str, key: str) -> None:
+    """``rel`` (an output of option ``key``, from :func:`_inside`) stays under ``out_dir`` once
+    links are followed: ``clips/link -> /elsewhere`` inside the folder must not carry a job's
+    output out of it. Raises :class:`JobError`."""
+    # the parts that exist are looked at one by one (a batch of many lines pays one lstat for
+    # an output at the top of its folder); only a link among them needs the whole path resolved
+    path = Path(out_dir)
+    for part in rel.split("/"):
+        path = path / part
+        try:
+            mode = os.lstat(path).st_mode
+        except OSError:
+            return  # nothing below a missing part exists, so no link either
+        if stat.S_ISLNK(mode):
+            break
+    else:
+        return
+    try:
+        root = Path(out_dir).resolve()
+        path = root.joinpath(*rel.split("/")).resolve()
+    except (OSError, RuntimeError) as e:  # a loop of links: RuntimeError before Python 3.13
+        raise JobError(f"'{key}': {rel!r} cannot be followed to a place: {e}") from None
+    if path != root and root not in path.parents:
+        raise JobError(
+            f"'{key}': {rel!r} leads out of the batch's folder (--out) through a link, to {path}"
+        )
+
+
 def _value(key: str, value, option: OptionSpec):
     """A job's value for option ``key`` as the options field takes it."""
     if option.kind == "flag":
@@ -227,6 +256,7 @@ def parse_job(spec, out_dir: str | os.PathLike[str], line: int | None = None) ->
             if not isinstance(value, str):
                 raise JobError(f"'{key}' takes a path, got {json.dumps(value)}")
             rel = _inside(value, key)
+            check_confined(out_dir, rel, key)
             outputs.append(rel + ("/" if option.name in OUTPUT_FOLDERS else ""))
             value = os.path.join(os.fspath(out_dir), *rel.split("/"))
         values[option.name] = _value(key, value, option)
@@ -288,7 +318,7 @@ def check_unique(jobs: list[Job], errors: list[JobError], file: str | None = Non
     """The jobs without those whose id or an output an earlier job already has (an error each
     in ``errors``)."""
     ids: dict[str, Job] = {}
-    written: dict[str, Job] = {}
+    written = Written()
     kept = []
     for job in jobs:
         if job.id in ids:
@@ -298,25 +328,61 @@ def check_unique(jobs: list[Job], errors: list[JobError], file: str | None = Non
                 JobError(f"id '{job.id}' is also the id on {where}", file=file, line=job.line)
             )
             continue
-        clash = next((o for o in job.outputs if _key(o) in written), None)
-        if clash is not None:
-            first = written[_key(clash)]
-            where = f"line {first.line}" if first.line is not None else f"job '{first.id}'"
-            errors.append(
-                JobError(
-                    f"'{clash.rstrip('/')}' is also written by {where}", file=file, line=job.line
-                )
-            )
+        own = Written()
+        try:
+            for o in job.outputs:
+                for earlier in (written, own):
+                    clash = earlier.clash(o)
+                    if clash is not None:
+                        path, first = clash
+                        where = (
+                            "this job's other output" if first is None
+                            else f"line {first.line}" if first.line is not None
+                            else f"job '{first.id}'"
+                        )  # fmt: skip
+                        raise JobError(f"'{path}' is also written by {where}")
+                own.add(o, None)
+        except JobError as e:
+            e.file, e.line = file, job.line
+            errors.append(e)
             continue
         ids[job.id] = job
         for o in job.outputs:
-            written[_key(o)] = job
+            written.add(o, job)
         kept.append(job)
     return kept
 
 
-def _key(output: str) -> str:
-    return output.rstrip("/")
+class Written:
+    """The outputs of the jobs so far (relative POSIX paths, folders ending in ``/``), to find
+    a clash: the same path, or a path inside a folder output (a ``web`` folder's ``index.html``
+    is written by the job that writes the folder) or inside another output however given."""
+
+    def __init__(self) -> None:
+        self.paths: dict[str, Job | None] = {}
+        # every folder above an output, with the job of one output under it
+        self.above: dict[str, Job | None] = {}
+
+    def add(self, output: str, job: Job | None) -> None:
+        key = output.rstrip("/")
+        self.paths[key] = job
+        parts = key.split("/")
+        for n in range(1, len(parts)):
+            self.above.setdefault("/".join(parts[:n]), job)
+
+    def clash(self, output: str) -> tuple[str, Job | None] | None:
+        """(the path two outputs share, the earlier job) when ``output`` clashes, else None."""
+        key = output.rstrip("/")
+        if key in self.paths:
+            return key, self.paths[key]
+        if key in self.above:  # an earlier output lies inside this one
+            return key, self.above[key]
+        parts = key.split("/")
+        for n in range(1, len(parts)):
+            folder = "/".join(parts[:n])
+            if folder in self.paths:  # this one lies inside an earlier output
+                return key, self.paths[folder]
+        return None
 
 
 def read_jobs(path: str | os.PathLike[str], out_dir: str | os.PathLike[str]) -> JobsFile:

@@ -16,7 +16,7 @@ import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from vtts.batch.jobs import Job, command_function
+from vtts.batch.jobs import Job, check_confined, command_function
 from vtts.batch.manifest import OutputFile, output_files
 
 
@@ -111,6 +111,10 @@ class JobRunner:
         function = command_function(job.command)
 
         def command() -> int:
+            # again now: a link made in the folder since the jobs were read must not carry an
+            # output out of it either
+            for rel in job.outputs:
+                check_confined(out_dir, rel.rstrip("/"), "output")
             function(job.options)  # which refuses outputs that would replace an input
             return 0
 
