@@ -10,7 +10,10 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
+
+from .hostile import wav as hostile_wav
 
 DATA = Path(__file__).parent / "data"
 VTTS = Path(sys.executable).with_name("vtts")
@@ -361,3 +364,96 @@ def test_batch_outputs_side_by_side_do_not_clash(tmp_path):
             {**base, "png_dir": "f/a"}, {**base, "png_dir": "f/b"}]  # fmt: skip
     checked = as_jobs(jobs, tmp_path)
     assert not checked.errors and len(checked.jobs) == 5
+
+
+# ---- the web folder: written into ".", and only ever replacing what vtts wrote ----------------
+
+
+def tree(folder: Path) -> dict[str, bytes]:
+    return {
+        p.relative_to(folder).as_posix(): p.read_bytes() for p in folder.rglob("*") if p.is_file()
+    }
+
+
+def test_web_into_the_current_folder(tmp_path):
+    here = tmp_path / "here"
+    here.mkdir()
+    inode = here.stat().st_ino
+    for _ in range(2):  # new, then rewritten
+        r = vtts_cli("play", str(JOY), "--model", "cybatt", "--web", ".", "--quiet", cwd=here)
+        assert r.returncode == 0, r.stderr
+        assert (here / "index.html").is_file() and (here / "vendor").is_dir()
+        assert not [p for p in here.iterdir() if p.name.startswith(".vtts-web")]
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["here"]  # no ..XXXX.old beside
+    assert here.stat().st_ino == inode  # the shell's folder is the same folder
+
+
+@pytest.mark.parametrize(
+    "add",
+    [
+        lambda w: (w / "vendor" / "mine.js").write_text("mine"),
+        lambda w: (w / "vendor" / "addons" / "loaders" / "mine.js").write_text("mine"),
+        lambda w: (w / ".htaccess").write_text("mine"),
+        lambda w: (w / "vendor" / "extra").mkdir(),
+        lambda w: (w / "vendor" / "link").symlink_to(w.parent),
+        lambda w: (w / "vendor" / "VERSION").unlink() or (w / "vendor" / "VERSION").mkdir(),
+    ],
+    ids=["vendor file", "deep file", "hidden file", "empty folder", "link", "folder for a file"],
+)
+def test_web_rewrite_never_deletes_what_the_user_added(tmp_path, add):
+    from vtts.export.web import WebError, write_web
+    from vtts.face import load_model
+    from vtts.face.miap import N_PARAMS
+
+    head = load_model(DATA / "models" / "head.wrl")
+    w = write_web(tmp_path / "w", [head], [np.zeros((3, N_PARAMS))], 30.0)
+    add(w)
+    before = tree(w), sorted(p.relative_to(w).as_posix() for p in w.rglob("*"))
+    with pytest.raises(WebError, match="also holds files vtts did not write"):
+        write_web(w, [head], [np.zeros((5, N_PARAMS))], 30.0)
+    assert (tree(w), sorted(p.relative_to(w).as_posix() for p in w.rglob("*"))) == before
+    r = vtts_cli("play", str(JOY), "--model", "cybatt", "--web", str(w))
+    assert r.returncode == 1 and "did not write" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_web_rewrite_replaces_its_own_files_and_recovers_from_a_killed_write(tmp_path):
+    from vtts.export.web import FILES_NAME, write_web
+    from vtts.face import load_model
+    from vtts.face.miap import N_PARAMS
+
+    head = load_model(DATA / "models" / "head.wrl")
+    w = write_web(tmp_path / "w", [head], [np.zeros((3, N_PARAMS))], 30.0)
+    listed = set((w / FILES_NAME).read_text().split())
+    assert listed == set(tree(w)) and "vendor/three.module.min.js" in listed
+    (w / ".vtts-web.abc.part" / "vendor").mkdir(parents=True)  # a write killed midway
+    (w / FILES_NAME).unlink()  # as vtts wrote it before it kept the list
+    write_web(w, [head], [np.zeros((7, N_PARAMS))], 30.0)
+    assert set(tree(w)) == listed and not list(w.glob(".vtts-web.*"))
+
+
+def test_a_failed_web_rewrite_leaves_the_previous_folder(tmp_path, monkeypatch):
+    from vtts.export import web
+    from vtts.face import load_model
+    from vtts.face.miap import N_PARAMS
+
+    head = load_model(DATA / "models" / "head.wrl")
+    w = web.write_web(tmp_path / "w", [head], [np.zeros((3, N_PARAMS))], 30.0)
+    before = tree(w)
+    moves = []
+
+    def fail_on_the_third(src, dst):  # the index and an entry moved aside, then a failure
+        moves.append(src)
+        if len(moves) == 3:
+            raise OSError(28, "No space left on device", str(dst))
+        os.replace(src, dst)
+
+    monkeypatch.setattr(web.os, "replace", fail_on_the_third)
+    with pytest.raises(OSError):
+        web.write_web(w, [head], [np.zeros((9, N_PARAMS))], 30.0)
+    monkeypatch.undo()
+    assert tree(w) == before and not list(w.glob(".vtts-web.*"))
+    with pytest.raises(OSError):  # and a new folder that fails is not left behind
+        monkeypatch.setattr(web, "encode_aac", lambda *a: (_ for _ in ()).throw(OSError("no")))
+        web.write_web(tmp_path / "new", [head], [np.zeros((3, N_PARAMS))], 30.0,
+                      audio=hostile_wav(tmp_path / "a.wav"))  # fmt: skip
+    assert not (tmp_path / "new").exists()

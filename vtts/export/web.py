@@ -13,11 +13,13 @@ re-vendors three.js at its pinned version): nothing is fetched from the network,
 ES modules are not loaded from ``file://`` URLs, so the folder is served, by any static server:
 ``python -m http.server -d DIR``.
 
-The folder is written under a temporary name beside ``DIR`` and renamed to ``DIR`` when complete,
-so it is never seen half-written. An existing ``DIR`` must be empty or a folder this function
-wrote before (its ``index.html`` carries the player's mark and it holds nothing else than what
-the player writes): that one is replaced whole. Anything else is refused, so that no file of the
-user's is ever deleted.
+The files are written into a hidden folder inside ``DIR`` and moved into place when all are
+complete, ``index.html`` last, so no file is ever seen half-written; ``DIR`` itself is kept (it
+may be ``.``, the folder a shell is in). ``DIR/.vtts-files`` lists what was written. An existing
+``DIR`` must be empty or a folder this function wrote before (its ``index.html`` carries the
+player's mark, and every file in it, ``vendor/`` included, is one the player wrote): its files
+are replaced. Anything else is refused before any work, so that no file of the user's is ever
+deleted.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ import os
 import shutil
 import subprocess
 import tempfile
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from string import Template
 
 import numpy as np
@@ -45,8 +47,13 @@ GLB_NAME = "talk.glb"
 AUDIO_NAME = "speech.m4a"
 #: The mark of a folder written by :func:`write_web` (a line of its ``index.html``).
 MARK = '<meta name="generator" content="vtts web player">'
-#: What a web folder holds: a folder holding anything else is not replaced.
+#: What a web folder holds at its top: a folder holding anything else is not replaced.
 FOLDER_ENTRIES = frozenset({"index.html", "player.js", "vendor", GLB_NAME, AUDIO_NAME})
+#: The list of the files :func:`write_web` wrote (POSIX paths, one a line): on the next write,
+#: anything else found in the folder is the user's.
+FILES_NAME = ".vtts-files"
+#: The prefix of the hidden folders a write stages its files in (and the previous ones in).
+STAGING_PREFIX = ".vtts-web."
 #: vtts render's default background (0.32, 0.36, 0.42), as the page's CSS color.
 DEFAULT_BACKGROUND = "#525c6b"
 
@@ -57,8 +64,9 @@ class WebError(ExportError):
 
 def check_web_folder(directory: str | os.PathLike[str]) -> None:
     """Refuse, before anything is computed, a ``directory`` that :func:`write_web` must not
-    replace: a file, a link, or a non-empty folder that is not a previous web folder of vtts.
-    Raises :class:`WebError` naming the path."""
+    write into: a file, a link, or a non-empty folder that is not a previous web folder of vtts
+    or holds anything vtts did not write there (a file added to ``vendor/`` too). Raises
+    :class:`WebError` naming the path."""
     dest = Path(directory)
     if dest.is_symlink():
         raise WebError("a web folder must be a plain folder, and this is a link", file=str(dest))
@@ -67,7 +75,7 @@ def check_web_folder(directory: str | os.PathLike[str]) -> None:
     if not dest.is_dir():
         raise WebError("cannot write the web player here: it is a file, not a folder",
                        file=str(dest))  # fmt: skip
-    entries = {e.name for e in dest.iterdir()}
+    entries = {e.name for e in dest.iterdir()} - set(_staging(dest))
     if not entries:
         return
     index = dest / "index.html"
@@ -77,7 +85,7 @@ def check_web_folder(directory: str | os.PathLike[str]) -> None:
             "the folder is not empty and is not a vtts web folder: give a new or empty folder",
             file=str(dest),
         )
-    foreign = sorted(entries - FOLDER_ENTRIES)
+    foreign = _foreign(dest)
     if foreign:
         shown = ", ".join(foreign[:5]) + (" …" if len(foreign) > 5 else "")
         raise WebError(
@@ -85,6 +93,54 @@ def check_web_folder(directory: str | os.PathLike[str]) -> None:
             "would delete them: move them, or give another folder",
             file=str(dest),
         )
+
+
+def written_files(dest: Path) -> set[str]:
+    """What :func:`write_web` wrote into the web folder ``dest`` (POSIX paths): its list
+    (:data:`FILES_NAME`), or for a folder written before vtts kept one, the player's files."""
+    try:
+        with (dest / FILES_NAME).open("rb") as f:
+            text = f.read(1 << 20).decode("utf-8", "replace")
+    except OSError:
+        return set(FOLDER_ENTRIES - {"vendor"}) | {
+            p.relative_to(PLAYER_DIR).as_posix()
+            for p in (PLAYER_DIR / "vendor").rglob("*")
+            if p.is_file()
+        }
+    return {line for line in text.splitlines() if line} | {FILES_NAME}
+
+
+def _foreign(dest: Path, most: int = 6) -> list[str]:
+    """Up to ``most`` paths in ``dest`` (POSIX, relative) that vtts did not write there: files,
+    links or folders that hold none of its files."""
+    ours = written_files(dest)
+    folders = {str(PurePosixPath(f).parent) for f in ours} - {"."}
+    folders |= {str(p) for f in folders for p in PurePosixPath(f).parents} - {"."}
+    found: list[str] = []
+    staging = set(_staging(dest))
+    for top, dirs, files in os.walk(dest):
+        rel = PurePosixPath(Path(top).relative_to(dest).as_posix())
+        for name in sorted(dirs):
+            path = (rel / name).as_posix()
+            if rel == PurePosixPath(".") and name in staging:
+                dirs.remove(name)
+            elif path not in folders or (Path(top) / name).is_symlink():
+                found.append(path + "/")
+                dirs.remove(name)  # os.walk lists links to folders among the folders
+        found += sorted(p for n in files if (p := (rel / n).as_posix()) not in ours)
+        if len(found) >= most:
+            break
+    return found[:most]
+
+
+def _staging(dest: Path) -> list[str]:
+    """The hidden folders of earlier writes into ``dest`` that were killed before cleaning up."""
+    with contextlib.suppress(OSError):
+        return [
+            e.name for e in dest.iterdir()
+            if e.name.startswith(STAGING_PREFIX) and e.is_dir() and not e.is_symlink()
+        ]  # fmt: skip
+    return []
 
 
 def _head(path: Path) -> str:
@@ -119,7 +175,6 @@ def write_web(
     :func:`~vtts.render.color.parse_background` gives it (RGB in 0–1, or ``"transparent"``;
     default: vtts render's). ``title`` is the page's title (default: the models' names). Returns
     the folder's path."""
-    from vtts.atomic import current_umask, replace_folder
     from vtts.export.gltf import write_gltf
 
     dest = Path(directory)
@@ -128,8 +183,11 @@ def write_web(
     n_frames = _frame_count(params)
     if not (np.isfinite(fps) and fps > 0):
         raise WebError(f"the frame rate must be a positive number, got {fps}")
-    dest.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{dest.name[:40]}.", suffix=".part", dir=dest.parent))
+    created = not dest.exists()
+    dest.mkdir(parents=True, exist_ok=True)
+    for stale in _staging(dest):
+        shutil.rmtree(dest / stale, ignore_errors=True)
+    tmp = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, suffix=".part", dir=dest))
     try:
         write_gltf(
             tmp / GLB_NAME, models, params, fps,
@@ -160,13 +218,47 @@ def write_web(
             config=script_json(config),
         )
         (tmp / "index.html").write_text(page, encoding="utf-8")
-        # mkdtemp makes the folder private; a finished folder gets the usual permissions
-        os.chmod(tmp, 0o777 & ~current_umask())
-        replace_folder(tmp, dest)
+        files = sorted(p.relative_to(tmp).as_posix() for p in tmp.rglob("*") if p.is_file())
+        (tmp / FILES_NAME).write_text("\n".join([*files, FILES_NAME]) + "\n", encoding="utf-8")
+        swap_entries(tmp, dest)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
+        if created:
+            shutil.rmtree(dest, ignore_errors=True)
         raise
+    shutil.rmtree(tmp, ignore_errors=True)
     return dest
+
+
+def swap_entries(new: Path, dest: Path) -> None:
+    """Move the entries of the finished folder ``new`` (inside ``dest``) into ``dest``,
+    ``index.html`` last, so a page is never served before what it loads; the entries of the
+    previous web folder are moved aside into ``new`` first and put back if a move fails."""
+    order = sorted((e.name for e in new.iterdir()), key=lambda n: n == "index.html")
+    old = new / ".previous"  # inside new: removed with it
+    old.mkdir()
+    # what the previous write put at the top (checked to be nothing else), the index first
+    previous = sorted(
+        {PurePosixPath(f).parts[0] for f in written_files(dest)} & {e.name for e in dest.iterdir()},
+        key=lambda n: n != "index.html",
+    )
+    moved: list[str] = []
+    placed: list[str] = []
+    try:
+        for name in previous:
+            os.replace(dest / name, old / name)
+            moved.append(name)
+        for name in order:
+            os.replace(new / name, dest / name)
+            placed.append(name)
+    except BaseException:
+        for name in placed:
+            with contextlib.suppress(OSError):
+                os.replace(dest / name, new / name)
+        for name in moved:
+            with contextlib.suppress(OSError):
+                os.replace(old / name, dest / name)
+        raise
 
 
 def script_json(value) -> str:
