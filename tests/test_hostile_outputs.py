@@ -388,6 +388,21 @@ def test_web_into_the_current_folder(tmp_path):
     assert here.stat().st_ino == inode  # the shell's folder is the same folder
 
 
+def test_png_frames_into_the_current_folder(tmp_path):
+    here = tmp_path / "here"
+    here.mkdir()
+    inode = here.stat().st_ino
+    args = ("play", str(JOY), "--model", "cybatt", "--size", "32x24", "--png-dir", ".")
+    r = vtts_cli(*args, "--quiet", cwd=here)
+    assert r.returncode == 0, r.stderr
+    names = sorted(p.name for p in here.iterdir())
+    assert names[0] == "frame_000000.png" and all(n.startswith("frame_") for n in names)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["here"]
+    assert here.stat().st_ino == inode
+    r = vtts_cli(*args, cwd=here)  # not empty now: refused as before
+    assert r.returncode == 1 and "not empty" in r.stderr
+
+
 @pytest.mark.parametrize(
     "add",
     [

@@ -438,12 +438,30 @@ class _Aborted(Exception):
     """Internal signal thrown into :func:`atomic_path` so that it removes its temporary file."""
 
 
+def _move_into(tmp: Path, dest: Path) -> None:
+    """Move the files of the folder ``tmp`` (inside ``dest``) into ``dest`` and remove it; on a
+    failure the files moved so far go back, so ``dest`` is left as it was."""
+    moved: list[str] = []
+    try:
+        for f in sorted(tmp.iterdir()):
+            os.replace(f, dest / f.name)
+            moved.append(f.name)
+    except BaseException:
+        for name in moved:
+            with contextlib.suppress(OSError):
+                os.replace(dest / name, tmp / name)
+        raise
+    tmp.rmdir()
+
+
 class PngSequenceWriter:
     """Write frames losslessly as ``DIR/frame_000000.png``, ``frame_000001.png``, ...
 
     Frames go to a temporary sibling folder ``.DIR.XXXX.part`` which is renamed to ``DIR`` when
     the ``with`` block ends cleanly; on an exception or Ctrl-C it is removed and ``DIR`` is
-    untouched. An existing non-empty ``DIR`` is an error unless ``overwrite=True``; then it is
+    untouched. An existing empty ``DIR`` (``.`` too) is kept: the temporary folder is made
+    inside it and the frames are moved out of it at the end. An existing non-empty ``DIR`` is
+    an error unless ``overwrite=True``; then it is
     replaced at the end by two renames (old folder aside, new folder in), so that ``DIR`` is
     either the old or the new sequence, never a mixture.
 
@@ -458,6 +476,7 @@ class PngSequenceWriter:
         overwrite: bool = False,
         compress_level: int = 1,
     ) -> None:
+        self._inside = False
         self.directory = Path(directory)
         self.overwrite = overwrite
         self.compress_level = compress_level
@@ -469,7 +488,8 @@ class PngSequenceWriter:
         d = self.directory
         if d.exists() and not d.is_dir():
             raise RenderError(f"{d} exists and is not a folder")
-        if d.is_dir() and any(d.iterdir()) and not self.overwrite:
+        own = self._tmp.name if self._tmp is not None else None
+        if d.is_dir() and any(e.name != own for e in d.iterdir()) and not self.overwrite:
             raise RenderError(
                 f"folder {d} exists and is not empty: give a new or empty folder for the frames"
             )
@@ -477,11 +497,13 @@ class PngSequenceWriter:
     def open(self) -> PngSequenceWriter:
         """Create the temporary folder (``__enter__`` calls it)."""
         self._check_destination()  # fail before rendering anything
-        parent = self.directory.parent
+        d = self.directory
+        # an empty folder is written into, not replaced: it stays the folder it is (``.``, the
+        # one a shell is in, cannot be renamed), its frames moved in from a hidden folder
+        self._inside = d.is_dir() and not any(d.iterdir())
+        parent = d if self._inside else d.parent
         parent.mkdir(parents=True, exist_ok=True)
-        self._tmp = Path(
-            tempfile.mkdtemp(prefix=f".{self.directory.name}.", suffix=".part", dir=parent)
-        )
+        self._tmp = Path(tempfile.mkdtemp(prefix=f".{d.name}.", suffix=".part", dir=parent))
         os.chmod(self._tmp, 0o777 & ~current_umask())  # mkdtemp's 0700 is for the temp only
         self.frames_written = 0
         self._shape = None
@@ -511,7 +533,10 @@ class PngSequenceWriter:
             return
         try:
             self._check_destination()
-            replace_folder(tmp, self.directory)
+            if self._inside:
+                _move_into(tmp, self.directory)
+            else:
+                replace_folder(tmp, self.directory)
         except BaseException:
             self.abort()
             raise
