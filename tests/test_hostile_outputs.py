@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -472,3 +473,69 @@ def test_a_failed_web_rewrite_leaves_the_previous_folder(tmp_path, monkeypatch):
         web.write_web(tmp_path / "new", [head], [np.zeros((3, N_PARAMS))], 30.0,
                       audio=hostile_wav(tmp_path / "a.wav"))  # fmt: skip
     assert not (tmp_path / "new").exists()
+
+
+# ---- adi import: what is written loads back, or nothing is replaced ---------------------------
+
+
+def textured_avatar(path: Path, scale: tuple[float, float]) -> Path:
+    """A grid avatar with one target and a texture under a KHR_texture_transform ``scale``."""
+    import io
+
+    import pygltflib as gl
+    from PIL import Image
+
+    from .avatar.avatar_helpers import USHORT, Builder, grid, moves
+
+    buf = io.BytesIO()
+    Image.new("RGB", (4, 4), (200, 10, 10)).save(buf, format="PNG")
+    pos, faces = grid()
+    b = Builder()
+    uv = b.accessor(pos[:, :2] + 0.5)
+    b.doc.images.append(gl.Image(bufferView=b.view(buf.getvalue()), mimeType="image/png"))
+    b.doc.textures.append(gl.Texture(source=0))
+    info = gl.TextureInfo(index=0, extensions={"KHR_texture_transform": {"scale": list(scale)}})
+    b.doc.materials.append(
+        gl.Material(pbrMetallicRoughness=gl.PbrMetallicRoughness(baseColorTexture=info))
+    )
+    b.doc.extensionsUsed = ["KHR_texture_transform"]
+    targets = [{"POSITION": b.accessor(moves(len(pos), 1))}]
+    attributes = {"POSITION": b.accessor(pos), "TEXCOORD_0": uv}
+    indices = b.accessor(faces.reshape(-1), USHORT)
+    b.node(name="Head", mesh=b.mesh(attributes, indices, targets, ["jawOpen"], material=0))
+    return b.save(path)
+
+
+@pytest.mark.parametrize("scale", [(1e308, 1.0), (1.0, -1e308), (1e308, 1e308)])
+def test_adi_import_of_an_overflowing_model_keeps_the_previous_one(tmp_path, scale):
+    avatar = textured_avatar(tmp_path / "a.glb", scale)
+    previous = {tmp_path / n: n.encode() for n in ("me.wrl", "me.adt", "me-tex0.png")}
+    for path, data in previous.items():
+        path.write_bytes(data)
+    r = adi_cli("import", str(avatar), "-o", str(tmp_path / "me.wrl"))
+    assert r.returncode == 1 and "Traceback" not in r.stderr
+    assert "would not load back, so nothing was written" in r.stderr
+    assert "TextureCoordinate point holds a number that is not finite" in r.stderr
+    assert all(path.read_bytes() == data for path, data in previous.items())
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.glb", "me-tex0.png", "me.adt",
+                                                         "me.wrl"]  # fmt: skip
+
+
+def test_adi_import_of_a_large_but_finite_scale_loads(tmp_path):
+    avatar = textured_avatar(tmp_path / "a.glb", (1e200, 1.0))
+    r = adi_cli("import", str(avatar), "-o", str(tmp_path / "me.wrl"))
+    assert r.returncode == 0, r.stderr
+
+
+def test_imported_tables_that_are_not_finite_are_not_written(tmp_path):
+    from vtts.avatar.importer import import_avatar
+    from vtts.errors import AvatarError
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # no feature points: no FAPUs of its own
+        avatar = import_avatar(textured_avatar(tmp_path / "a.glb", (1.0, 1.0)))
+    adt = next(a for a in avatar.tables.adts.values() if a.meshes)
+    adt.meshes[0].displacements[0, 0, 1] = np.nan
+    with pytest.raises(AvatarError, match="displacements hold a number that is not finite"):
+        avatar.write(tmp_path / "me.wrl")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.glb"]

@@ -89,8 +89,8 @@ class ImportedAvatar:
         """Write ``PATH.wrl``, ``PATH.adt`` and the textures (``PATH-tex0.png`` …) beside each
         other, each renamed into place only when all are written. Returns the paths."""
         from vtts.atomic import atomic_path
-        from vtts.face.adt import format_adt
-        from vtts.vrml import dumps
+        from vtts.face.adt import check_tables, format_adt, parse_adt
+        from vtts.vrml import dumps, parse
 
         wrl = Path(path)
         if wrl.suffix.lower() != ".wrl":
@@ -100,20 +100,76 @@ class ImportedAvatar:
             url = list(node["url"])
             if url and url[0] in renamed:
                 node.fields["url"] = [renamed[url[0]]]
-        text = dumps(self.scene, comment="imported from glTF by adi import")
+        try:
+            check_finite(self.scene, self.tables)
+            text = dumps(self.scene, comment="imported from glTF by adi import")
+            adt = format_adt(self.tables)
+            # what is written is what loads back: read here, before any file is replaced
+            check_tables(parse_adt(adt, file=str(wrl.with_suffix(".adt"))),
+                         parse(text, file=str(wrl)), file=str(wrl))  # fmt: skip
+        except VttsError as e:
+            raise AvatarError(
+                f"the imported model would not load back, so nothing was written: {e.message}",
+                file=str(wrl),
+            ) from None
+        finally:
+            self._restore_urls(renamed)
         paths = self.outputs(wrl)
         with contextlib.ExitStack() as stack:
             tmp = [stack.enter_context(atomic_path(p)) for p in paths]
             tmp[0].write_text(text, encoding="utf-8")
-            tmp[1].write_text(format_adt(self.tables), encoding="utf-8")
+            tmp[1].write_text(adt, encoding="utf-8")
             for img, target in zip(self.images.values(), tmp[2:], strict=True):
                 target.write_bytes(img.data)
-        for node in self.scene.find("ImageTexture"):  # back to the keys
+        return paths
+
+    def _restore_urls(self, renamed: dict[str, str]) -> None:
+        """The scene's ImageTexture urls back to the images' keys after :meth:`write`."""
+        back = {v: k for k, v in renamed.items()}
+        for node in self.scene.find("ImageTexture"):
             url = list(node["url"])
-            back = {v: k for k, v in renamed.items()}
             if url and url[0] in back:
                 node.fields["url"] = [back[url[0]]]
-        return paths
+
+
+def check_finite(scene: Scene, tables: AnimationTables) -> None:
+    """Every number of ``scene``'s fields and of ``tables`` is finite: a glTF's huge values
+    (a texture transform's scale of 1e308) can overflow on the way, and VRML has no
+    ``inf``. Raises :class:`~vtts.errors.AvatarError` naming the node and the field."""
+    seen: set[int] = set()
+    stack = list(scene.roots)
+    while stack:
+        node = stack.pop()
+        if id(node) in seen:
+            continue
+        seen.add(id(node))
+        for name, value in node.fields.items():
+            if _numbers(value) is not None and not np.isfinite(_numbers(value)).all():
+                label = f"DEF {node.name} {node.type_name}" if node.name else node.type_name
+                raise AvatarError(f"{label} {name} holds a number that is not finite")
+        stack.extend(node.children_nodes())
+    for miap, adt in tables.adts.items():
+        for table in (*adt.meshes, *adt.transforms):
+            for name, value in vars(table).items():
+                array = _numbers(value)
+                if array is not None and not np.isfinite(array).all():
+                    raise AvatarError(
+                        f"the table of {miap.kind} {miap.number} for {table.node}: its {name} "
+                        "hold a number that is not finite"
+                    )
+
+
+def _numbers(value) -> np.ndarray | None:
+    """``value`` as a float array when it is numbers (a number, a vector, an array), else None."""
+    if isinstance(value, bool | str | Node) or value is None:
+        return None
+    if isinstance(value, list | tuple) and any(isinstance(v, str | Node) for v in value):
+        return None
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
+        return None
+    return array
 
 
 @dataclass(eq=False)
