@@ -144,7 +144,8 @@ def check_finite(scene: Scene, tables: AnimationTables) -> None:
             continue
         seen.add(id(node))
         for name, value in node.fields.items():
-            if _numbers(value) is not None and not np.isfinite(_numbers(value)).all():
+            array = _numbers(value)
+            if array is not None and not np.isfinite(array).all():
                 label = f"DEF {node.name} {node.type_name}" if node.name else node.type_name
                 raise AvatarError(f"{label} {name} holds a number that is not finite")
         stack.extend(node.children_nodes())
@@ -154,8 +155,8 @@ def check_finite(scene: Scene, tables: AnimationTables) -> None:
                 array = _numbers(value)
                 if array is not None and not np.isfinite(array).all():
                     raise AvatarError(
-                        f"the table of {miap.kind} {miap.number} for {table.node}: its {name} "
-                        "hold a number that is not finite"
+                        f"the table of {miap.kind} {miap.number} for {table.node}: a number of "
+                        f"its {name} is not finite"
                     )
 
 
