@@ -539,3 +539,27 @@ def test_imported_tables_that_are_not_finite_are_not_written(tmp_path):
     with pytest.raises(AvatarError, match="a number of its displacements is not finite"):
         avatar.write(tmp_path / "me.wrl")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.glb"]
+
+
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["--web", "w", "-o", "w/x.mp4"], "w/x.mp4: error: this output lies inside w"),
+        (["--web", "w", "--curves-out", "w/vendor/c.json"], "this output lies inside w"),
+        (["--web", "w", "--audio", "w/speech.m4a"], "w/speech.m4a: error: this input lies inside"),
+        (["--web", "w", "--png-dir", "w"], "two outputs name the same folder"),
+        (["--web", "w", "--png-dir", "w/f"], "the output folders w and w/f overlap"),
+        (["--png-dir", "f", "--web", "f/w"], "the output folders f and f/w overlap"),
+        (["--png-dir", "f", "-o", "f/x.mp4"], "this output lies inside f"),
+    ],
+)
+def test_a_folder_a_command_fills_holds_none_of_its_other_files(tmp_path, args, words):
+    if "w/speech.m4a" in args:  # a previous web folder, whose audio is given
+        assert vtts_cli("play", str(JOY), "--model", "cybatt", "--audio",
+                        str(hostile_wav(tmp_path / "a.wav")), "--web", "w", cwd=tmp_path
+                        ).returncode == 0  # fmt: skip
+        (tmp_path / "a.wav").unlink()
+    before = tree(tmp_path)
+    r = vtts_cli("play", str(JOY), "--model", "cybatt", "--size", "32x24", *args, cwd=tmp_path)
+    assert r.returncode == 1 and words in r.stderr and "Traceback" not in r.stderr
+    assert tree(tmp_path) == before

@@ -365,10 +365,38 @@ def check_io(options) -> None:
     check_not_stdout(options)
     # "-" is stdin or stdout, not a file
     outputs = [v for k in OUTPUT_OPTIONS if (v := getattr(options, k, None)) and v != "-"]
-    if not outputs:
+    folders = [v for k in ("web", "png_dir") if (v := getattr(options, k, None)) and v != "-"]
+    if not outputs and not folders:
         return
     inputs = [v for k in INPUT_OPTIONS if (v := getattr(options, k, None)) and v != "-"]
     models = getattr(options, "model", None) or []
     for m in [models] if isinstance(models, str) else models:
         inputs += model_files(m)
     check_outputs(outputs, inputs)
+    check_folders(folders, outputs, inputs)
+
+
+def check_folders(folders: list[str], outputs: list[str], inputs: list[str | Path]) -> None:
+    """The folders a command fills (``web``, ``png_dir``) hold none of its inputs (the web
+    folder's files are replaced: ``--audio w/speech.m4a --web w`` would lose its audio) and none
+    of its other outputs (``--web w -o w/x.mp4`` would fail after the whole render, finding
+    the folder not the player's); raises :class:`VttsError` naming the path."""
+    for folder in folders:
+        root = Path(folder).resolve()
+        for path, what in [*((p, "input") for p in inputs), *((p, "output") for p in outputs)]:
+            if root in Path(path).resolve().parents:
+                raise VttsError(
+                    f"this {what} lies inside {folder}, the folder the command fills: give "
+                    "another place for one of them",
+                    file=str(path),
+                )
+    resolved = [Path(f).resolve() for f in folders]
+    for i, a in enumerate(resolved):
+        for j, b in enumerate(resolved):
+            if i != j and a == b:
+                raise VttsError(f"two outputs name the same folder ({folders[i]})", file=str(b))
+            if i != j and a in b.parents:
+                raise VttsError(
+                    f"the output folders {folders[i]} and {folders[j]} overlap: give each its own",
+                    file=str(folders[j]),
+                )
