@@ -3,12 +3,14 @@ line each, ``FILE:LINE:COL: error: MESSAGE`` or ``… warning: …``, never a tr
 
 from __future__ import annotations
 
-import argparse
 import sys
 import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
-from typing import TextIO
+from typing import TYPE_CHECKING, Any, NoReturn, TextIO
+
+if TYPE_CHECKING:
+    import argparse
 
 from vtts.errors import VttsError, VttsWarning
 
@@ -33,12 +35,18 @@ def echo(*values: object, sep: str = " ", file: TextIO | None = None) -> None:
     print("\n".join(printable(line) for line in text.split("\n")), file=file or sys.stdout)
 
 
-class ArgumentParser(argparse.ArgumentParser):
-    """The command line's parser: its errors quote the arguments (``unrecognized arguments:
-    …``) with their control characters escaped, as every other message does."""
+def argument_parser(**kwargs: Any) -> argparse.ArgumentParser:
+    """The command line's parser (``argparse.ArgumentParser(**kwargs)``) whose errors quote the
+    arguments (``unrecognized arguments: …``) with their control characters escaped, as every
+    other message does; its subcommands' parsers too. argparse is imported here, so that the
+    library (``vtts.say`` …) runs without it."""
+    import argparse
 
-    def error(self, message: str):  # type: ignore[override]
-        super().error(printable(message))
+    class ArgumentParser(argparse.ArgumentParser):
+        def error(self, message: str) -> NoReturn:
+            super().error(printable(message))
+
+    return ArgumentParser(**kwargs)
 
 
 def printable(text: str) -> str:

@@ -16,7 +16,7 @@ from typing import NoReturn
 
 from vtts import __version__
 from vtts.api.options import check_io
-from vtts.messages import ArgumentParser
+from vtts.messages import argument_parser
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -34,7 +34,7 @@ def build_parser() -> argparse.ArgumentParser:
         voices,
     )
 
-    p = ArgumentParser(
+    p = argument_parser(
         prog="vtts",
         description="MPEG-4 face animation: talking heads, FAP playback, analysis and coding.",
     )
