@@ -83,3 +83,13 @@ def test_the_written_files_are_named_escaped(tmp_path):
     assert r.returncode == 0, r.stderr
     assert "\x1b" not in r.stdout and "wrote \\x1b[31m.png" in r.stdout
     assert (tmp_path / out).is_file()
+
+
+@pytest.mark.parametrize("dry", [True, False], ids=["dry-run", "run"])
+def test_a_bad_batch_line_is_echoed_escaped(tmp_path, dry):
+    jobs = tmp_path / "jobs.jsonl"
+    jobs.write_text(json.dumps({"say": "hi", "model": "cybatt", ESC: 1}) + "\n")
+    r = vtts("batch", str(jobs), "--out", "out", *(["--dry-run"] if dry else []), cwd=tmp_path)
+    assert r.returncode == 1 and "Traceback" not in r.stderr
+    assert "\x1b" not in r.stderr + r.stdout
+    assert "has no option '\\x1b[31m'" in r.stderr

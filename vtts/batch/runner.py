@@ -28,6 +28,7 @@ from vtts.batch.jobs import Job, JobError, JobsFile, as_jobs, read_jobs
 from vtts.batch.manifest import Manifest, read_failures, write_failures
 from vtts.batch.worker import JobResult, JobRunner
 from vtts.errors import VttsError
+from vtts.messages import printable
 
 #: How many times a job whose worker died is given again (so it runs at most 1 + RETRIES times).
 RETRIES = 2
@@ -341,6 +342,7 @@ class _Bar:
             text = next((x for x in lines if "error:" in x), lines[0])
             if entry["id"] is not None:  # a bad line's message names its line
                 text = f"{entry['id']}: {text}"
+            text = printable(text)  # a bad line's key or value, quoted as the user wrote it
             if self.progress is not None:
                 self.progress.console.print(text, markup=False, highlight=False)
             else:
