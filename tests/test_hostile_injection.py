@@ -93,3 +93,10 @@ def test_a_bad_batch_line_is_echoed_escaped(tmp_path, dry):
     assert r.returncode == 1 and "Traceback" not in r.stderr
     assert "\x1b" not in r.stderr + r.stdout
     assert "has no option '\\x1b[31m'" in r.stderr
+
+
+def test_a_progress_bar_names_the_file_escaped():
+    from vtts.render.output import progress
+
+    with progress(3, f"analyzing {ESC}.mp4", quiet=True) as bar:
+        assert bar.description == "analyzing \\x1b[31m.mp4"

@@ -759,6 +759,9 @@ def progress(total: int, description: str, quiet: bool = False) -> Iterator[Prog
                 ...
                 bar.advance()
     """
+    from vtts.messages import printable
+
+    description = printable(description)  # it names the user's file (analyzing NAME)
     bar = ProgressBar(total, description, enabled=False)
     prog = None if quiet else terminal_progress()
     if prog is None:
