@@ -19,7 +19,7 @@ import numpy as np
 
 from vtts import __version__
 from vtts.errors import VttsError
-from vtts.messages import print_error, reported_warnings
+from vtts.messages import CommandParser, print_error, reported_warnings
 
 
 def cmd_build(args: argparse.Namespace) -> int:
@@ -188,7 +188,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = CommandParser(
         prog="adi",
         description="Animation Definition Interface: build and inspect Animation Definition "
         "Tables (ADTs) of personalized face models.",

@@ -3,6 +3,7 @@ line each, ``FILE:LINE:COL: error: MESSAGE`` or ``… warning: …``, never a tr
 
 from __future__ import annotations
 
+import argparse
 import sys
 import warnings
 from collections.abc import Iterator
@@ -49,3 +50,18 @@ def reported_warnings() -> Iterator[None]:
                     print(printable(text), file=sys.stderr)
                 else:
                     print(printable(f"warning: {msg}"), file=sys.stderr)
+
+
+class CommandParser(argparse.ArgumentParser):
+    """The parser of ``vtts`` and ``adi`` (their subcommands' too): argparse's, except that an
+    option given ``--`` as its value (``--size=--``) takes that value. Python 3.11's argparse
+    strips the ``--`` and hands the command an empty list without calling the option's type, so
+    the command met a list where it checks a string (a traceback, or a value silently ignored);
+    now the type and the choices judge ``'--'`` as any other value."""
+
+    def _get_values(self, action: argparse.Action, arg_strings: list[str]) -> object:
+        if action.option_strings and arg_strings == ["--"] and action.nargs in (None, "?"):
+            value = self._get_value(action, "--")
+            self._check_value(action, value)
+            return value
+        return super()._get_values(action, arg_strings)

@@ -16,6 +16,7 @@ from typing import NoReturn
 
 from vtts import __version__
 from vtts.api.options import check_io
+from vtts.messages import CommandParser
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -33,7 +34,7 @@ def build_parser() -> argparse.ArgumentParser:
         voices,
     )
 
-    p = argparse.ArgumentParser(
+    p = CommandParser(
         prog="vtts",
         description="MPEG-4 face animation: talking heads, FAP playback, analysis and coding.",
     )
