@@ -66,6 +66,11 @@ MAX_RENDER_PIXELS = 3840 * 2160
 
 #: The most elements (vertices, indices) one glTF accessor may hold.
 MAX_ACCESSOR_COUNT = 50_000_000
+#: The most elements of a glTF accessor without a bufferView (zeros, and its sparse values: memory
+#: without bytes in the file) where nothing else in the file fixes its count: a primitive's
+#: POSITION or triangle indices. Its normals, texture coordinates and morph targets must have as
+#: many elements as its POSITION, a skin's inverse bind matrices one for each of its joints.
+MAX_UNBACKED_COUNT = 1_000_000
 #: The most morph targets one glTF mesh primitive may have (an ARKit avatar has 52, with the
 #: Oculus visemes 67; each target is a copy of the mesh's positions in memory).
 MAX_MORPH_TARGETS = 1024
