@@ -59,6 +59,10 @@ MAX_IMAGE_SIDE = 4096
 #: The most pixels of one image (a video frame, a texture): 16 megapixels. ``adi fit`` takes larger
 #: photos (up to 16384 pixels on a side) and scales them down.
 MAX_IMAGE_PIXELS = 16 << 20
+#: The most pixels of a photo ``adi fit`` reads (checked from its header, before decoding; a
+#: 61-megapixel camera's photos are within it). A JPEG larger than the fit's working size is
+#: decoded at a fraction of its size.
+MAX_PHOTO_PIXELS = 64 << 20
 #: The most pixels of a rendered image (4K UHD): rendering takes about 400 bytes a pixel.
 MAX_RENDER_PIXELS = 3840 * 2160
 
