@@ -24,7 +24,7 @@ from vtts.fap.coding import fap_set
 from vtts.render import Camera
 from vtts.render.color import TRANSPARENT, parse_background
 
-from .hostile import INTERESTING, mutate, mutations
+from .hostile import DATA, INTERESTING, mutate, mutations
 
 FUZZ = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -226,3 +226,37 @@ def test_every_option_takes_any_value(option: tuple[str, str], value: str) -> No
     """Whatever the value, an option's type gives a value or a usage error, never an exception."""
     got = _parse(*option, value)
     assert got != []
+
+
+_HEAD = str(DATA / "models" / "head.wrl")
+_JOY = str(DATA / "fap" / "xface-joy.fap")
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["render", "--model", _HEAD, "--size=--", "-o", "x.png"], "--size takes WIDTHxHEIGHT"),
+        (["say", "hi", "--model=--", "--wav-out", "x.wav"], "no model '--'"),
+        (["render", "--model", _HEAD, "--fap=--", "-o", "x.png"], "FAP '--' needs a value"),
+        (["render", "--model", _HEAD, "--camera=--", "-o", "x.png"], "--camera takes four"),
+        (
+            ["say", "hi", "--model", _HEAD, "--fps=--", "-o", "x.mp4"],
+            "--fps: invalid float value: '--'",
+        ),
+        (["encode", _JOY, "--rate=--", "-o", "x.fbs"], "--rate: expected a number, got '--'"),
+        (["play", _JOY, "--model", _HEAD, "--size=--", "-o", "x.mp4"], "--size takes"),
+    ],
+    ids=lambda v: v if isinstance(v, str) else None,
+)
+def test_dashes_as_a_value_are_a_clear_error(tmp_path, monkeypatch, capsys, argv, message):
+    """Each was a traceback (``--camera=--`` was ignored: the picture was written)."""
+    from vtts.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    try:
+        code = main(argv)
+    except SystemExit as e:
+        code = e.code
+    err = capsys.readouterr().err
+    assert code in (1, 2) and message in err and "Traceback" not in err, err
+    assert not any(tmp_path.iterdir())
