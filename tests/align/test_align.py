@@ -125,7 +125,9 @@ def test_noise_is_reported() -> None:
         (np.ones(100, np.float32) * 0.1, 16000, "Hello.", "too short"),
         (np.ones(16000, np.float32) * 0.1, 16000, "<smile 1s>", "nothing to say"),
         (np.ones((16000, 2), np.float32) * 0.1, 16000, "Hello.", "mono"),
-        (np.ones(16000, np.float32) * 0.1, 16000, "Hello. " * 40, "cannot be this recording"),
+        (np.ones(16000, np.float32) * 0.1, 16000, "Hello. " * 15, "cannot be this recording"),
+        # refused before the reference is synthesized
+        (np.ones(16000, np.float32) * 0.1, 16000, "Hello. " * 40, "40 words for a recording"),
     ],
 )
 def test_bad_input_is_a_clear_error(samples, rate, text, message) -> None:
