@@ -283,6 +283,12 @@ class GltfReader:
                 f"{what}: count {count} is more than the limit of {MAX_ACCESSOR_COUNT} "
                 "(vtts.limits)"
             )
+        if count * stride > MAX_GLTF_BYTES:
+            # the decoder allocates it before it reads a byte: no more than a file could hold
+            raise self.error(
+                f"{what}: {count} elements of {stride} bytes decode to more than the limit of "
+                f"{MAX_GLTF_BYTES >> 20} MiB of a glTF file (vtts.limits)"
+            )
         try:
             result = decode_view(data[start : start + length], count, stride, ext.get("mode"),
                                  ext.get("filter", "NONE"))  # fmt: skip
