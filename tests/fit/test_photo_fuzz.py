@@ -21,7 +21,7 @@ from PIL import Image
 
 from vtts.errors import FitError, VttsWarning
 from vtts.fit import load_photo
-from vtts.limits import LimitError
+from vtts.limits import MAX_PHOTO_PIXELS, LimitError
 
 from ..hostile import byte_mutations, mutate_bytes
 
@@ -59,9 +59,8 @@ def load_or_fit_error(path: Path, data: bytes) -> np.ndarray | None:
         assert e.message and str(path) in str(e), str(e)
         return None
     assert image.dtype == np.uint8 and image.ndim == 3 and image.shape[2] == 3
-    # photos are not held to vtts.limits: fit_photo takes up to 16384 on a side and scales
-    # them down; what load_photo decodes is bounded by Pillow's decompression-bomb limit
-    assert image.shape[0] * image.shape[1] <= 2 * Image.MAX_IMAGE_PIXELS
+    # fit_photo takes photos up to 16384 on a side and MAX_PHOTO_PIXELS and scales them down
+    assert image.shape[0] * image.shape[1] <= MAX_PHOTO_PIXELS
     assert focal is None or (math.isfinite(focal) and focal > 0)
     return image
 
@@ -194,8 +193,6 @@ def test_deep_images_are_scaled_not_clipped(folder: Path, make, fmt: str) -> Non
 
 def test_a_photo_declaring_too_many_pixels_is_refused_before_decoding(folder: Path) -> None:
     """A 68 KB JPEG declaring 13000x13000 took adi fit to 3 GB (the only cap was Pillow's)."""
-    from vtts.limits import MAX_PHOTO_PIXELS
-
     data = bytearray(PHOTOS[1])
     sof = data.find(b"\xff\xc0")
     struct.pack_into(">HH", data, sof + 5, 13000, 13000)
