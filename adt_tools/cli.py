@@ -127,6 +127,21 @@ def cmd_import(args: argparse.Namespace) -> int:
     return 0
 
 
+def _unwritable(folder: Path) -> str | None:
+    """Why no file can be made in ``folder`` (None: one can, or the folder is yet to be made).
+    Tried with a file removed at once: permissions alone do not tell (root, read-only mounts)."""
+    import tempfile
+
+    if not folder.is_dir():
+        return None
+    try:
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".adi-probe-"):
+            pass
+    except OSError as e:
+        return e.strerror or str(e)
+    return None
+
+
 def cmd_fit(args: argparse.Namespace) -> int:
     """Fit a personalized head to a photograph and write it (with a report on request)."""
     import time
@@ -146,9 +161,11 @@ def cmd_fit(args: argparse.Namespace) -> int:
         echo(f"{args.report}: error: --report names a folder, and this is a file",
               file=sys.stderr)  # fmt: skip
         return 1
-    if args.focal is not None and not 0 < args.focal < 10000:
-        echo(f"error: --focal is a 35 mm-equivalent focal length in mm, got {args.focal:g}",
-              file=sys.stderr)  # fmt: skip
+    from vtts.fit.shape import MAX_FOCAL_35MM, MIN_FOCAL_35MM
+
+    if args.focal is not None and not MIN_FOCAL_35MM <= args.focal <= MAX_FOCAL_35MM:
+        echo(f"error: --focal is a 35 mm-equivalent focal length of {MIN_FOCAL_35MM:g} to "
+             f"{MAX_FOCAL_35MM:g} mm, got {args.focal:g}", file=sys.stderr)  # fmt: skip
         return 1
     # the three outputs and the report's files must not replace the photo (me-face.png -o
     # me.wrl would, --report shots on shots/landmarks.png too), each other, links or anything
@@ -166,6 +183,13 @@ def cmd_fit(args: argparse.Namespace) -> int:
                  f"{option}", file=sys.stderr)  # fmt: skip
             return 1
     check_outputs([*outputs, *report], [photo])
+    # now, not after a fit of seconds: and naming the user's file, not its temporary .part
+    for folder in [out.parent, *([Path(args.report)] if args.report else [])]:
+        problem = _unwritable(folder)
+        if problem:
+            echo(f"{out if folder == out.parent else folder}: error: cannot write in "
+                 f"{folder}: {problem}", file=sys.stderr)  # fmt: skip
+            return 1
     name = args.name or out.stem
     with reported_warnings():
         try:

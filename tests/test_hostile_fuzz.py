@@ -254,9 +254,9 @@ def _build(t: Path, name: str, data: bytes) -> list[str]:
 
 
 def _gltf(t: Path, change: Callable[[dict], None]) -> list[str]:
-    from adi.adi_helpers import face_points, face_triangles, write_gltf
-
     from vtts.face import load_model
+
+    from .adi.adi_helpers import face_points, face_triangles, write_gltf
 
     shutil.copy(SAMPLE, t / "head.wrl")
     model = load_model(t / "head.wrl")

@@ -118,6 +118,23 @@ CASES = {
 }  # fmt: skip
 
 
+def _transcript(tmp: Path, words: int = 100_000, word: str = "word") -> Path:
+    (tmp / "long.txt").write_text(" ".join([word] * words))
+    return tmp / "long.txt"
+
+
+CASES["a 100,000-word transcript for 0.5 s of --audio"] = (
+    lambda t: ["say", "--file", str(_transcript(t)), "--model", HEAD, "--audio",
+               str(wav(t / "a.wav")), "--wav-out", "x.wav"],
+    "the transcript has 100000 words for a recording of 0.5 s: more than the 15",
+)  # fmt: skip
+CASES["a 100,000-letter word for 0.5 s of --audio"] = (
+    lambda t: ["say", "--file", str(_transcript(t, 1, "a" * 100_000)), "--model", HEAD,
+               "--audio", str(wav(t / "a.wav")), "--wav-out", "x.wav"],
+    "the transcript has 100000 characters for a recording of 0.5 s",
+)  # fmt: skip
+
+
 def _polly(tmp: Path, time: str, value: str = '"p"') -> Path:
     (tmp / "marks.json").write_text(f'{{"time": {time}, "type": "viseme", "value": {value}}}\n')
     return tmp / "marks.json"

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import math
 
+import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
@@ -23,7 +24,7 @@ from vtts.fap.coding import fap_set
 from vtts.render import Camera
 from vtts.render.color import TRANSPARENT, parse_background
 
-from .hostile import INTERESTING, mutate, mutations
+from .hostile import DATA, INTERESTING, mutate, mutations
 
 FUZZ = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -156,3 +157,106 @@ def test_seed(text: str) -> None:
         assert str(e)
         return
     assert 0 <= seed < 2**63
+
+
+# ---- every option of every command ---------------------------------------------------------------
+
+
+def _commands() -> list[tuple[str, argparse.ArgumentParser]]:
+    """``(name, parser)`` of every subcommand of ``vtts`` and ``adi``."""
+    from adt_tools.cli import build_parser as adi_parser
+    from vtts.cli._main import build_parser as vtts_parser
+
+    out = []
+    for tool, parser in (("vtts", vtts_parser()), ("adi", adi_parser())):
+        for action in parser._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                out += [(f"{tool} {n}", p) for n, p in action.choices.items()]
+    return out
+
+
+COMMANDS = _commands()
+#: ``(command, option)`` for every option of every command that takes one value.
+OPTIONS = [
+    (name, action.option_strings[-1])
+    for name, parser in COMMANDS
+    for action in parser._actions
+    if action.option_strings and action.nargs in (None, "?")  # store_true and help take none
+]  # fmt: skip
+HOSTILE = ["--", "-", "", "nan", "-inf", "1e999", "1e308", "-1", "0", "9" * 5000, "²", "\x00"]
+
+
+def _parse(name: str, option: str, value: str) -> object:
+    """What the command's parser makes of ``OPTION=VALUE`` (its positionals given as ``x`` and
+    its other options made optional): the option's value, or the exit status of a usage error."""
+    import copy
+    import io
+    from contextlib import redirect_stderr
+
+    parser = copy.deepcopy(dict(COMMANDS)[name])
+    positionals = []
+    for action in parser._actions:
+        if action.option_strings:
+            action.required = False
+        elif action.nargs not in ("?", "*"):
+            positionals.append("x")
+    dest = next(a.dest for a in parser._actions if option in a.option_strings)
+    try:
+        with redirect_stderr(io.StringIO()):
+            ns = parser.parse_args([f"{option}={value}", *positionals])
+    except SystemExit as e:
+        return e.code
+    return getattr(ns, dest)
+
+
+@pytest.mark.parametrize("name, option", OPTIONS, ids=[f"{n} {o}" for n, o in OPTIONS])
+def test_every_option_takes_dashes_as_a_value(name: str, option: str) -> None:
+    """``--size=--`` gave the command an empty list (argparse strips the ``--`` and skips the
+    type): a traceback where it met a string, or the option silently ignored (``--camera``).
+    Every option now takes ``'--'`` as its value, judged by its type like any other."""
+    value = _parse(name, option, "--")
+    assert value == 2 or isinstance(value, str | int | float | list) and value != [], value
+    if isinstance(value, list):  # an option that collects (--fap, --viseme): '--' is collected
+        assert value[-1] == "--" or not isinstance(value[-1], list)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.sampled_from(OPTIONS), st.one_of(st.sampled_from(HOSTILE), option_text))
+def test_every_option_takes_any_value(option: tuple[str, str], value: str) -> None:
+    """Whatever the value, an option's type gives a value or a usage error, never an exception."""
+    got = _parse(*option, value)
+    assert got != []
+
+
+_HEAD = str(DATA / "models" / "head.wrl")
+_JOY = str(DATA / "fap" / "xface-joy.fap")
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["render", "--model", _HEAD, "--size=--", "-o", "x.png"], "--size takes WIDTHxHEIGHT"),
+        (["say", "hi", "--model=--", "--wav-out", "x.wav"], "no model '--'"),
+        (["render", "--model", _HEAD, "--fap=--", "-o", "x.png"], "FAP '--' needs a value"),
+        (["render", "--model", _HEAD, "--camera=--", "-o", "x.png"], "--camera takes four"),
+        (
+            ["say", "hi", "--model", _HEAD, "--fps=--", "-o", "x.mp4"],
+            "--fps: invalid float value: '--'",
+        ),
+        (["encode", _JOY, "--rate=--", "-o", "x.fbs"], "--rate: expected a number, got '--'"),
+        (["play", _JOY, "--model", _HEAD, "--size=--", "-o", "x.mp4"], "--size takes"),
+    ],
+    ids=lambda v: v if isinstance(v, str) else None,
+)
+def test_dashes_as_a_value_are_a_clear_error(tmp_path, monkeypatch, capsys, argv, message):
+    """Each was a traceback (``--camera=--`` was ignored: the picture was written)."""
+    from vtts.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    try:
+        code = main(argv)
+    except SystemExit as e:
+        code = e.code
+    err = capsys.readouterr().err
+    assert code in (1, 2) and message in err and "Traceback" not in err, err
+    assert not any(tmp_path.iterdir())

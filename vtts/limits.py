@@ -59,6 +59,10 @@ MAX_IMAGE_SIDE = 4096
 #: The most pixels of one image (a video frame, a texture): 16 megapixels. ``adi fit`` takes larger
 #: photos (up to 16384 pixels on a side) and scales them down.
 MAX_IMAGE_PIXELS = 16 << 20
+#: The most pixels of a photo ``adi fit`` reads (checked from its header, before decoding; a
+#: 61-megapixel camera's photos are within it). A JPEG larger than the fit's working size is
+#: decoded at a fraction of its size.
+MAX_PHOTO_PIXELS = 64 << 20
 #: The most pixels of a rendered image (4K UHD): rendering takes about 400 bytes a pixel.
 MAX_RENDER_PIXELS = 3840 * 2160
 
@@ -66,6 +70,11 @@ MAX_RENDER_PIXELS = 3840 * 2160
 
 #: The most elements (vertices, indices) one glTF accessor may hold.
 MAX_ACCESSOR_COUNT = 50_000_000
+#: The most elements of a glTF accessor without a bufferView (zeros, and its sparse values: memory
+#: without bytes in the file) where nothing else in the file fixes its count: a primitive's
+#: POSITION or triangle indices. Its normals, texture coordinates and morph targets must have as
+#: many elements as its POSITION, a skin's inverse bind matrices one for each of its joints.
+MAX_UNBACKED_COUNT = 1_000_000
 #: The most morph targets one glTF mesh primitive may have (an ARKit avatar has 52, with the
 #: Oculus visemes 67; each target is a copy of the mesh's positions in memory).
 MAX_MORPH_TARGETS = 1024

@@ -36,17 +36,33 @@ def echo(*values: object, sep: str = " ", file: TextIO | None = None) -> None:
 
 
 def argument_parser(**kwargs: Any) -> argparse.ArgumentParser:
-    """The command line's parser (``argparse.ArgumentParser(**kwargs)``) whose errors quote the
-    arguments (``unrecognized arguments: …``) with their control characters escaped, as every
-    other message does; its subcommands' parsers too. argparse is imported here, so that the
-    library (``vtts.say`` …) runs without it."""
+    """The parser of ``vtts`` and ``adi`` (``argparse.ArgumentParser(**kwargs)``; their
+    subcommands' parsers are of the same class), with two differences from argparse's:
+
+    - its errors quote the arguments (``unrecognized arguments: …``) with their control
+      characters escaped, as every other message does;
+    - an option given ``--`` as its value (``--size=--``) takes that value. Python 3.11's argparse
+      strips the ``--`` and hands the command an empty list without calling the option's type,
+      so the command met a list where it checks a string (a traceback, or a value silently
+      ignored); now the type and the choices judge ``'--'`` as any other value.
+
+    argparse is imported here, so that the library (``vtts.say`` …) runs without it."""
     import argparse
 
-    class ArgumentParser(argparse.ArgumentParser):
+    class CommandParser(argparse.ArgumentParser):
         def error(self, message: str) -> NoReturn:
             super().error(printable(message))
 
-    return ArgumentParser(**kwargs)
+        # argparse has no public hook for an option's raw strings: _get_values is where the
+        # ``--`` is dropped
+        def _get_values(self, action: argparse.Action, arg_strings: list[str]) -> object:
+            if action.option_strings and arg_strings == ["--"] and action.nargs in (None, "?"):
+                value = self._get_value(action, "--")
+                self._check_value(action, value)
+                return value
+            return super()._get_values(action, arg_strings)
+
+    return CommandParser(**kwargs)
 
 
 def printable(text: str) -> str:

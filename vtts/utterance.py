@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from vtts.errors import SpeechError, VttsWarning
-from vtts.speech.audio import read_for_mp4
+from vtts.speech.audio import mp4_samples, read_audio, read_for_mp4
 from vtts.speech.bookmarks import Bookmark, BookmarkedText, parse_bookmarks
 from vtts.speech.timings import TimedPhone, TimedWord, write_timings
 
@@ -111,9 +111,14 @@ def _aligned(bt: BookmarkedText, audio: Path, voice: str | None) -> Utterance:
     """``--audio`` without timings: the text's phones, words and bookmarks aligned to the
     recording (:func:`vtts.align.align`); where the alignment breaks down is a warning."""
     from vtts.align import align
+    from vtts.align.aligner import check_rate, check_transcript
 
-    samples, sr = read_for_mp4(audio)
     try:
+        # the file's own rate and length: the MP4's conversion lifts 4 kHz to 7350 Hz
+        samples, sr = read_audio(audio)
+        check_rate(sr)
+        check_transcript(bt.ssml(), len(samples) / sr)
+        samples, sr = mp4_samples(samples, sr)
         found = align(samples, sr, bt.ssml(), voice=voice or "en-us")
     except SpeechError as e:
         if e.file is None:

@@ -125,7 +125,9 @@ def test_noise_is_reported() -> None:
         (np.ones(100, np.float32) * 0.1, 16000, "Hello.", "too short"),
         (np.ones(16000, np.float32) * 0.1, 16000, "<smile 1s>", "nothing to say"),
         (np.ones((16000, 2), np.float32) * 0.1, 16000, "Hello.", "mono"),
-        (np.ones(16000, np.float32) * 0.1, 16000, "Hello. " * 40, "cannot be this recording"),
+        (np.ones(16000, np.float32) * 0.1, 16000, "Hello. " * 15, "cannot be this recording"),
+        # refused before the reference is synthesized
+        (np.ones(16000, np.float32) * 0.1, 16000, "Hello. " * 40, "40 words for a recording"),
     ],
 )
 def test_bad_input_is_a_clear_error(samples, rate, text, message) -> None:
@@ -217,3 +219,27 @@ def test_bookmark_before_punctuation_is_at_the_end_of_its_word(tmp_path, other_v
     words = {w.label: w for w in utt.words}
     assert utt.bookmarks[0].time == pytest.approx(words["map"].end, abs=1e-6)
     assert words["but"].start - utt.bookmarks[0].time > 0.05  # the comma's pause between
+
+
+@pytest.mark.parametrize(
+    "text, seconds, refused",
+    [
+        ("Hello there, how are you today?", 0.5, False),
+        ("Hello there, how are you today?", 2.0, False),
+        (" ".join(["word"] * 40), 2.0, True),  # 23 + 10 words at most
+        (" ".join(["word"] * 33), 2.0, False),
+        ("<mark name='b0'/> " * 500 + "hi", 1.0, False),  # markup is no word
+        ("a" * 300, 2.0, True),  # one endless word: by its characters
+        ("a" * 280, 2.0, False),
+    ],
+)
+def test_a_transcript_far_too_long_is_refused_before_synthesis(text, seconds, refused):
+    """A 100k-word transcript was synthesized whole (gigabytes) before the length check."""
+    from vtts.align.aligner import check_transcript
+    from vtts.errors import SpeechError
+
+    if refused:
+        with pytest.raises(SpeechError, match="for a recording of"):
+            check_transcript(text, seconds)
+    else:
+        check_transcript(text, seconds)

@@ -124,6 +124,9 @@ def test_read_pipe_yields_frames_and_names_a_partial_one():
         (["--size", "176x144", "--report", "rep", "-o", "x.fap"], "pipe cannot"),
         (["--size", "176x144", "--stream", "-o", "x.fbs"], "give no -o"),
         (["--size", "176x144", "--stream"], "--model-out"),
+        # a TypeError traceback once (issue 45): the model is read, then the pipe
+        (["--size", "176x144", "--stream", "--model", str(HEAD)], "the pipe ends inside"),
+        (["--size", "176x144", "--stream", "--model=--"], "no model '--'"),
         (["--size", "176x144"], "nothing to write"),
         (["--size", "4x4", "-o", "x.fap"], "too small"),
         (["--size", "5000x5000", "-o", "x.fap"], "limit"),

@@ -159,3 +159,67 @@ def test_adi_import_errors(files, tmp_path, capsys):
     link.symlink_to(glb)
     assert adi(["import", str(glb), "-o", str(link)]) == 1
     assert glb.read_bytes()[:4] == b"glTF"
+
+
+# ---- transforms and names nothing can render or read back (issue 45) -----------------------------
+
+
+def _avatar_with(tmp_path: Path, *, positions=None, **node) -> Path:
+    from .avatar_helpers import Builder, grid, moves
+
+    pos, faces = grid(3)
+    if positions is not None:
+        pos = pos + positions
+    b = Builder()
+    p = b.accessor(pos)
+    idx = b.accessor(faces.reshape(-1), 5123)
+    mesh = b.mesh({"POSITION": p}, idx, [{"POSITION": b.accessor(moves(len(pos), 1))}],
+                  ["jawOpen"])  # fmt: skip
+    b.node(mesh=mesh, **{"name": "Head", **node})
+    return b.save(tmp_path / "a.glb")
+
+
+@pytest.mark.parametrize(
+    "node, message",
+    [
+        ({"scale": [1e300, 1e300, 1e300]}, "node 0: its transform reaches 1e+300"),
+        ({"translation": [1e308, 0, 0]}, "node 0: its transform reaches 1e+308"),
+        ({"translation": [0, -2e9, 0]}, "node 0: its transform reaches 2e+09"),
+        ({"matrix": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 3e38, 0, 0, 1]}, "reaches 3e+38"),
+        ({"positions": 3e38}, "mesh Face: its positions reach 3e+38"),
+        ({"positions": -3e38}, "mesh Face: its positions reach 3e+38"),
+        ({"positions": 1e9 * 1.5, "scale": [0.1, 0.1, 0.1]}, "its positions reach 1.5e+09"),
+        ({"positions": 1e6, "scale": [1e4, 1e4, 1e4]}, "its positions reach 1e+10"),
+    ],
+)
+def test_a_model_nothing_can_render_is_refused(tmp_path, capsys, node, message):
+    """Scale 1e300 or translation 1e308 ended in an OverflowError while writing; ±3e38
+    positions were written as a model nothing can render or frame."""
+    path = _avatar_with(tmp_path, **node)
+    out = tmp_path / "out.wrl"
+    assert adi(["import", str(path), "-o", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert f"{path}: error: " in err and message in err and "Traceback" not in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "node", [{"scale": [1e4, 1e4, 1e4]}, {"translation": [0, 9e8, 0]}, {"positions": 1e3}]
+)
+def test_large_models_within_the_extent_import(tmp_path, node):
+    path = _avatar_with(tmp_path, **node)
+    assert adi(["import", str(path), "-o", str(tmp_path / "out.wrl")]) == 0
+
+
+KEYWORDS = ["USE", "DEF", "TRUE", "FALSE", "NULL", "PROTO", "EXTERNPROTO", "ROUTE", "TO", "IS",
+            "field", "eventIn", "exposedField"]  # fmt: skip
+
+
+@pytest.mark.parametrize("name", KEYWORDS)
+def test_vrml_keywords_are_renamed_as_def_names(tmp_path, name):
+    path = _avatar_with(tmp_path, name=name)
+    out = tmp_path / "out.wrl"
+    assert adi(["import", str(path), "-o", str(out)]) == 0
+    text = out.read_text()
+    assert f"DEF {name} " not in text and f"DEF {name}_ Transform" in text
+    load_model(out)

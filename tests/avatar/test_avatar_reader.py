@@ -670,3 +670,28 @@ def test_a_webp_texture_is_converted_to_png(tmp_path):
     assert img.format == "png"
     with Image.open(io.BytesIO(img.data)) as im:
         assert im.format == "PNG" and im.convert("RGB").getpixel((3, 3)) == (10, 20, 200)
+
+
+@pytest.mark.parametrize("count, stride", [(50_000_000, 256), (3_000_000, 256), (50_000_000, 12)])
+def test_a_meshopt_view_decoding_to_gigabytes_is_refused(tmp_path, count, stride):
+    """A few bytes of meshopt data declaring 50M elements of 256 bytes: the decoder allocates
+    12.8 GB before it reads a byte (run in a process limited to 3 GB)."""
+    from ..hostile import run_cli
+
+    pos, faces = grid(3)
+    b = Builder()
+    ext = "EXT_meshopt_compression"
+    b.doc.buffers.append(gl.Buffer(byteLength=10**6, extensions={ext: {"fallback": True}}))
+    off = b.doc.bufferViews[b.view(bytes(64))].byteOffset
+    b.doc.bufferViews.append(gl.BufferView(buffer=1, byteLength=count * stride, byteStride=stride,
+        extensions={ext: {"buffer": 0, "byteOffset": off, "byteLength": 64, "byteStride": stride,
+                          "count": count, "mode": "ATTRIBUTES"}}))  # fmt: skip
+    b.doc.accessors.append(gl.Accessor(bufferView=len(b.doc.bufferViews) - 1, componentType=FLOAT,
+                                       count=len(pos), type="VEC3"))  # fmt: skip
+    p = len(b.doc.accessors) - 1
+    b.node(mesh=b.mesh({"POSITION": p}, b.accessor(faces.reshape(-1), USHORT), [], []))
+    b.doc.extensionsUsed = b.doc.extensionsRequired = [ext]
+    path = b.save(tmp_path / "m.glb")
+    r = run_cli("adi", "import", str(path), "-o", "out.wrl", cwd=tmp_path)
+    assert r.returncode == 1, r.stderr[-2000:]
+    assert "decode to more than the limit of 512 MiB" in r.stderr and "Traceback" not in r.stderr

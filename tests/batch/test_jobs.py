@@ -191,6 +191,40 @@ def test_dry_run_checks_heads_inputs_and_bookmarks_without_rendering(tmp_path, c
     assert errors[2] == f"{path}:4: error: vtts play: {tmp_path / 'none.fap'}: no such file"
 
 
+DRY = {"model": "cybatt"}
+
+
+@pytest.mark.parametrize(
+    "job, message",
+    [
+        # each passed the dry run, then failed at once (the first as an internal error)
+        ({"say": "Hi.", "size": "--", "output": "a.mp4"}, "--size takes WIDTHxHEIGHT"),
+        ({"render": True, "size": "--", "output": "a.png"}, "--size takes WIDTHxHEIGHT"),
+        ({"say": "Hi.", "size": "100000x100000", "output": "a.mp4"}, "image size must be within"),
+        ({"play": "x.fap", "size": "4000x4000", "output": "a.mp4"}, "more than the limit of"),
+        ({"say": "Hi.", "size": "8x8", "output": "a.mp4"}, "image size must be within 16"),
+        ({"say": "Hi.", "output": "a.mp4", "wav_out": "a.mp4"}, "two outputs name the same"),
+        ({"say": "Hi.", "output": "a.mp4", "fap_out": "a.mp4"}, "two outputs name the same"),
+        ({"render": True, "fap": "3=1e300", "output": "a.png"}, "1e300 must be within"),
+        ({"render": True, "viseme": "3=2", "output": "a.png"}, "must be within"),
+        ({"say": "Hi.", "fps": 1e308, "output": "a.mp4"}, "--fps must be within"),
+    ],
+)
+def test_dry_run_runs_the_checks_of_a_run(tmp_path, capsys, job, message):
+    path = _jobs_file(tmp_path, [json.dumps({**DRY, **job})])
+    assert main(["batch", str(path), "--out", str(tmp_path / "out"), "--dry-run"]) == 1
+    out, err = capsys.readouterr()
+    assert "0 valid jobs, 1 bad" in out
+    assert message in err and "Traceback" not in err and "internal" not in err
+
+
+def test_dry_run_passes_sizes_a_renderer_draws(tmp_path, capsys):
+    jobs = [{**DRY, "say": "Hi.", "size": size, "output": f"{size}.mp4"}
+            for size in ("16x16", "3840x2160", "4096x2025")]  # fmt: skip
+    path = _jobs_file(tmp_path, [json.dumps(j) for j in jobs])
+    assert main(["batch", str(path), "--out", str(tmp_path / "out"), "--dry-run"]) == 0
+
+
 def test_the_manifest_knows_finished_jobs(tmp_path):
     job = parse_job({"id": "a", "say": "Hi.", "model": "cybatt", "output": "x/a.mp4"}, tmp_path)
     (tmp_path / "x").mkdir()

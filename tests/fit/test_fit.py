@@ -278,6 +278,12 @@ def test_bad_photos(tmp_path, make, message):
         (["-o", "missing/me.wrl"], "no such folder"),
         (["-o", "me.wrl", "--personality", "nobody"], "invalid choice"),
         (["-o", "me.wrl", "--focal", "-3"], "--focal"),
+        # --focal 1e-9 wrote a garbage head and exited 0; --focal=-- was a traceback
+        (["-o", "me.wrl", "--focal", "1e-9"], "focal length of 8 to 2000 mm, got 1e-09"),
+        (["-o", "me.wrl", "--focal", "7.9"], "focal length of 8 to 2000 mm, got 7.9"),
+        (["-o", "me.wrl", "--focal", "2001"], "focal length of 8 to 2000 mm, got 2001"),
+        (["-o", "me.wrl", "--focal", "nan"], "focal length of 8 to 2000 mm, got nan"),
+        (["-o", "me.wrl", "--focal=--"], "argument --focal: invalid float value: '--'"),
     ],
 )
 def test_bad_arguments(tmp_path, args, message):
@@ -348,3 +354,41 @@ def test_outputs_must_be_plain_files(tmp_path):
     r = adi("fit", str(PHOTOS / "akiyo_frame0.png"), "-o", str(tmp_path / "me.wrl"))
     assert r.returncode == 1 and "plain file" in r.stderr
     assert (tmp_path / "real.adt").read_text() == "keep"
+
+
+def test_focal_lengths_outside_the_range_are_refused_by_the_library():
+    image = np.asarray(Image.open(PHOTOS / "akiyo_frame0.png").convert("RGB"))
+    for focal in (1e-9, 0.0, -50.0, 65535.0, math.nan):
+        with pytest.raises(FitError, match="35 mm-equivalent of 8 to 2000 mm"):
+            focal_length(image.shape[1::-1], focal)
+
+
+def test_a_folder_that_cannot_be_written_is_refused_before_the_fit(tmp_path, monkeypatch, capsys):
+    """adi fit into a read-only folder failed only after the fit, naming its hidden .part
+    file. Root writes in any folder: there, the folder refuses through the probe file."""
+    import os
+    import tempfile
+
+    from adt_tools.cli import main as adi_main
+
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o555)
+    if os.geteuid() == 0:
+        probe = tempfile.NamedTemporaryFile
+
+        def refuse(*args, **kw):
+            if Path(kw.get("dir", "")) == ro:
+                raise PermissionError(13, "Permission denied")
+            return probe(*args, **kw)
+
+        monkeypatch.setattr(tempfile, "NamedTemporaryFile", refuse)
+    try:
+        code = adi_main(["fit", str(PHOTOS / "akiyo_frame0.png"), "-o", str(ro / "me.wrl")])
+    finally:
+        ro.chmod(0o755)
+    out, err = capsys.readouterr()
+    assert code == 1, out
+    assert f"{ro / 'me.wrl'}: error: cannot write in {ro}: Permission denied" in err
+    assert ".part" not in err and "fitted" not in out
+    assert list(ro.iterdir()) == []

@@ -218,3 +218,29 @@ def test_building_a_detector_prints_nothing():
     code = "from vtts.fit.landmarks import MediaPipeDetector; MediaPipeDetector()"
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert r.returncode == 0 and r.stderr == "" and r.stdout == ""
+
+
+def _small_face(face_px: float, where=(0, 0), side: int = 1024) -> np.ndarray:
+    """The astronaut photo (a face 92 pixels wide in 512) scaled so that its face is
+    ``face_px`` wide, on a grey ``side``² canvas at ``where``."""
+    photo = Image.open(Path(__file__).parents[1] / "data" / "photos" / "astronaut.png")
+    k = face_px / 92.0
+    scaled = photo.convert("RGB").resize((round(512 * k), round(512 * k)))
+    canvas = Image.new("RGB", (side, side), (200, 200, 200))
+    canvas.paste(scaled, where)
+    return np.asarray(canvas)
+
+
+@pytest.mark.parametrize("face_px", [40, 74, 100, 150, 200])
+@pytest.mark.parametrize("where", [(0, 0), (400, 450)])
+def test_a_small_face_in_a_large_photo_is_found(face_px, where):
+    """Faces under about a tenth of a 1024² photo were not found: the detector sees the whole
+    photo at 128 pixels. Overlapping tiles find them."""
+    faces = detect_faces(_small_face(face_px, where))
+    assert len(faces) == 1
+    width = float(np.ptp(faces[0].landmarks[:, 0]))
+    assert width == pytest.approx(face_px, rel=0.15)
+
+
+def test_tiles_find_no_face_where_there_is_none():
+    assert detect_faces(np.full((1024, 1024, 3), 200, np.uint8)) == []

@@ -253,3 +253,138 @@ def test_triangle_indices_are_16_bit_while_they_fit(n_vertices, component):
     acc = b.accessors[b.indices(np.array([[0, 1, 2]]), n_vertices)]
     assert acc.componentType == component and acc.count == 3
     assert b.views[acc.bufferView].target == 34963  # ELEMENT_ARRAY_BUFFER
+
+
+# ---- hostile sizes, transforms and containers (issue 45) -----------------------------------------
+
+BIG = 50_000_000  # within MAX_ACCESSOR_COUNT: a few KB of JSON asking for gigabytes
+
+
+def _unbacked(doc: dict, count: int, kind: str = "VEC3") -> int:
+    """A new accessor of ``count`` elements without a bufferView (zeros); its index."""
+    doc["accessors"].append({"componentType": 5126, "count": count, "type": kind})
+    return len(doc["accessors"]) - 1
+
+
+def _big_target(doc: dict) -> None:
+    doc["meshes"][0]["primitives"][0]["targets"][0]["POSITION"] = _unbacked(doc, BIG)
+
+
+def _big_positions(doc: dict) -> None:
+    doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = _unbacked(doc, BIG)
+    del doc["meshes"][0]["primitives"][0]["indices"]
+
+
+def _big_normals(doc: dict) -> None:
+    doc["meshes"][0]["primitives"][0]["attributes"]["NORMAL"] = _unbacked(doc, BIG)
+
+
+def _big_indices(doc: dict) -> None:
+    doc["accessors"].append({"componentType": 5125, "count": BIG - 2, "type": "SCALAR"})
+    doc["meshes"][0]["primitives"][0]["indices"] = len(doc["accessors"]) - 1
+
+
+def _big_skin(doc: dict) -> None:
+    doc["nodes"] = [{"name": "FACE", "mesh": 0, "skin": 0}, {"name": "bone"}]
+    doc["scenes"] = [{"nodes": [0, 1]}]
+    doc["skins"] = [{"joints": [1], "inverseBindMatrices": _unbacked(doc, BIG, "MAT4")}]
+    doc["accessors"] += [  # zeros: fixed by the 3 positions
+        {"componentType": 5121, "count": 3, "type": "VEC4"},
+        {"componentType": 5126, "count": 3, "type": "VEC4"},
+    ]
+    n = len(doc["accessors"])
+    attrs = doc["meshes"][0]["primitives"][0]["attributes"]
+    attrs.update(JOINTS_0=n - 2, WEIGHTS_0=n - 1)
+
+
+def _many_targets(doc: dict) -> None:
+    doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = _unbacked(doc, 100_000)
+    del doc["meshes"][0]["primitives"][0]["indices"]
+    doc["meshes"][0]["primitives"][0]["targets"] = [{}] * 1000
+    doc["meshes"][0]["extras"]["targetNames"] = ["joy"] * 1000
+
+
+MEMORY = {
+    "a 50M-element morph target": (_big_target, "has 50000000 elements, the primitive has 3"),
+    "50M positions": (_big_positions, "count 50000000 without a bufferView (all zeros) is more"),
+    "50M normals": (_big_normals, "has 50000000 elements, POSITION has 3"),
+    "50M indices": (_big_indices, "count 49999998 without a bufferView (all zeros) is more"),
+    "50M inverse bind matrices": (_big_skin, "has 50000000 elements, one MAT4 for each of 1"),
+    "1000 targets of 100k vertices": (_many_targets, "1000 morph targets of 100000 vertices"),
+}
+
+
+@pytest.mark.parametrize("command", ["import", "build"])
+@pytest.mark.parametrize("case", MEMORY)
+def test_an_accessor_without_data_is_refused_before_it_is_allocated(tmp_path, case, command):
+    """Accessors without a bufferView (zeros) asked numpy for 3–6 GB and ended in a traceback;
+    each count is now checked against what fixes it, or a limit, before anything is allocated
+    (run in a process limited to 3 GB)."""
+    from ..hostile import run_cli
+
+    if command == "build" and case == "50M inverse bind matrices":
+        pytest.skip("adi build reads no skins")
+    doc = copy.deepcopy(triangle_gltf())
+    change, message = MEMORY[case]
+    change(doc)
+    path = write(tmp_path, doc)
+    args = ["import", str(path), "-o", "out.wrl"]
+    if command == "build":
+        (tmp_path / "neutral.wrl").write_text(NEUTRAL_WRL)
+        args = ["build", "neutral.wrl", str(path), "-o", "out.adt"]
+    r = run_cli("adi", *args, cwd=tmp_path)
+    assert r.returncode == 1, r.stderr[-2000:]
+    assert message in r.stderr and "Traceback" not in r.stderr
+    assert str(path) in r.stderr
+
+
+@USERS
+def test_accessors_without_data_where_their_count_is_fixed_still_read(tmp_path, load, error):
+    """A morph target of zeros (gltf-transform writes sparse targets without a bufferView) with
+    as many elements as the positions is legal glTF, and reads."""
+    doc = copy.deepcopy(triangle_gltf())
+    doc["meshes"][0]["primitives"][0]["targets"][0]["POSITION"] = _unbacked(doc, 3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        load(write(tmp_path, doc))
+
+
+def _glb(tmp_path: Path, doc: dict, version: int = 2) -> Path:
+    import struct
+
+    text = json.dumps(doc).encode()
+    text += b" " * (-len(text) % 4)
+    body = struct.pack("<I4s", len(text), b"JSON") + text
+    path = tmp_path / "joy.glb"
+    path.write_bytes(b"glTF" + struct.pack("<II", version, 12 + len(body)) + body)
+    return path
+
+
+@USERS
+@pytest.mark.parametrize("version", [0, 1, 3, 2**32 - 1])
+def test_only_glb_container_version_2_is_read(tmp_path, load, error, version):
+    path = _glb(tmp_path, triangle_gltf(), version)
+    with pytest.raises(error, match=f"the GLB container is version {version}, not 2"):
+        load(path)
+    _glb(tmp_path, triangle_gltf(), 2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        load(path)
+
+
+@USERS
+@pytest.mark.parametrize("extras", ["hello", 3, [1, 2], None, True, {"a": "b"}])
+@pytest.mark.parametrize("where", ["root", "asset", "node", "accessor", "primitive"])
+@pytest.mark.parametrize("glb", [False, True], ids=["gltf", "glb"])
+def test_extras_of_any_json_type_are_read(tmp_path, load, error, extras, where, glb):
+    """glTF allows extras of any JSON type; a string was refused with "'str' object has no
+    attribute 'keys'"."""
+    doc = copy.deepcopy(triangle_gltf())
+    holder = {"root": doc, "asset": doc["asset"], "node": doc["nodes"][0],
+              "accessor": doc["accessors"][0],
+              "primitive": doc["meshes"][0]["primitives"][0]}[where]  # fmt: skip
+    holder["extras"] = extras
+    path = _glb(tmp_path, doc) if glb else write(tmp_path, doc)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        load(path)

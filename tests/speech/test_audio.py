@@ -195,3 +195,71 @@ def test_flac_whose_header_states_another_length(tmp_path: Path, claimed: int) -
     samples, rate = read_audio(tmp_path / "c.flac")
     assert rate == 8000 and samples.size in (claimed, 8000)
     assert np.allclose(samples[:100], x[:100], atol=1e-3)
+
+
+# ---- channels that cancel, rates below alignment's (issue 45) ------------------------------------
+
+
+def _tone(seconds: float = SECONDS, rate: int = RATE) -> np.ndarray:
+    t = np.arange(int(rate * seconds)) / rate
+    return (0.5 * np.sin(2 * np.pi * TONE * t)).astype(np.float32)
+
+
+@pytest.mark.parametrize(
+    "channels, rms",
+    [
+        (lambda x: [x, -x], 0.5),  # an inverted right channel: the mean was silence
+        (lambda x: [-x, x], 0.5),
+        (lambda x: [x, -0.5 * x], 0.375),  # inverted and quieter: turned over, then averaged
+        (lambda x: [x, x], 0.5),  # in phase: the mean, as before
+        (lambda x: [x, 0 * x], 0.25),
+        (lambda x: [x, -x, x, -x], 0.5),
+        (lambda x: [0 * x, 0 * x], 0.0),
+    ],
+    ids=["L -L", "-L L", "L -L/2", "L L", "L 0", "4 channels", "silence"],
+)
+@pytest.mark.parametrize("fmt", ["WAV", "FLAC"])
+def test_channels_wired_against_each_other_do_not_cancel(
+    tmp_path: Path, channels, rms: float, fmt: str
+) -> None:
+    """A stereo recording with an inverted right channel was called silent."""
+    x = _tone()
+    path = tmp_path / f"c.{fmt.lower()}"
+    sf.write(path, np.stack(channels(x), axis=1), RATE, format=fmt)
+    samples, _ = read_audio(path)
+    peak = float(np.abs(samples).max())
+    assert peak == pytest.approx(rms, abs=2e-3)
+
+
+def test_an_inverted_channel_through_ffmpeg_does_not_cancel(tmp_path: Path) -> None:
+    x = _tone()
+    wav = tmp_path / "inv.wav"
+    sf.write(wav, np.stack([x, -x], axis=1), RATE)
+    m4a = _ffmpeg(wav, tmp_path / "inv.m4a", "-c:a", "aac", "-b:a", "128k")
+    samples, _ = read_audio(m4a)
+    assert float(np.sqrt(np.mean(samples**2))) > 0.25
+
+
+@pytest.mark.parametrize("rate", [100, 4000, 7350, 7999])
+def test_say_refuses_a_recording_below_8_khz(tmp_path: Path, rate: int) -> None:
+    """4000 and 100 Hz were reported as "7350 Hz" (the MP4's conversion), 7999 Hz accepted."""
+    from vtts.cli import main
+
+    path = tmp_path / f"r{rate}.wav"
+    sf.write(path, _tone(1.0, rate), rate)
+    code = main(["say", "hello there", "--audio", str(path), "--model", str(HEAD), "--wav-out",
+                 str(tmp_path / "out.wav")])  # fmt: skip
+    assert code == 1
+    assert not (tmp_path / "out.wav").exists()
+
+
+@pytest.mark.parametrize("rate", [100, 4000, 7999])
+def test_the_rate_error_names_the_recording(tmp_path: Path, capsys, rate: int) -> None:
+    from vtts.cli import main
+
+    path = tmp_path / f"r{rate}.wav"
+    sf.write(path, _tone(1.0, rate), rate)
+    main(["say", "hello there", "--audio", str(path), "--model", str(HEAD), "--wav-out",
+          str(tmp_path / "out.wav")])  # fmt: skip
+    err = capsys.readouterr().err
+    assert f"{path}: error: the recording is sampled at {rate} Hz; alignment needs at least" in err

@@ -24,6 +24,7 @@ The method (measured in ``docs/speech.md``, "Lip-sync for recorded speech"):
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -130,6 +131,33 @@ def _speech_span(speech: np.ndarray) -> tuple[int, int]:
     return max(int(idx[0]) - MARGIN, 0), min(int(idx[-1]) + 1 + MARGIN, len(speech))
 
 
+#: The most words, and characters, of a transcript for each second of its recording: four times
+#: what espeak-ng says at its default rate (the alignment refuses a reference speech more than 4
+#: times longer than the recording; this refuses it before synthesizing the reference).
+MAX_WORDS_PER_S = 4 * 175 / 60
+#: (letters of long words: a transcript of one endless "word" is refused too)
+MAX_CHARS_PER_S = 8 * MAX_WORDS_PER_S
+#: What any recording may carry besides (a short recording of a few long words).
+SPARE_WORDS, SPARE_CHARS = 10, 100
+
+
+def check_transcript(ssml: str, duration: float) -> None:
+    """Refuse a transcript far too long for ``duration`` seconds of recording, before its
+    reference speech is synthesized (a 100,000-word text would take gigabytes)."""
+    text = re.sub(r"<[^>]*>", " ", ssml)
+    words, chars = len(text.split()), len("".join(text.split()))
+    checks = ((words, "words", MAX_WORDS_PER_S, SPARE_WORDS),
+              (chars, "characters", MAX_CHARS_PER_S, SPARE_CHARS))  # fmt: skip
+    for count, unit, per_s, spare in checks:
+        most = int(per_s * duration) + spare
+        if count > most:
+            raise SpeechError(
+                f"the transcript has {count} {unit} for a recording of {duration:.1f} s: more "
+                f"than the {most} that 4 times espeak-ng's rate says in that time; is it the "
+                "transcript of this recording?"
+            )
+
+
 def check_rate(rate: int, what: str = "the recording") -> None:
     if not isinstance(rate, int | np.integer) or rate < MIN_RATE:
         raise SpeechError(f"{what} is sampled at {rate} Hz; alignment needs at least {MIN_RATE} Hz")
@@ -158,6 +186,7 @@ def align(
 
     check_rate(int(rate))
     samples = np.asarray(samples)
+    check_transcript(ssml, len(samples) / rate)
     if samples.ndim != 1:
         raise SpeechError(f"the recording must be mono samples (n,), got shape {samples.shape}")
     if samples.dtype.kind in "iu":

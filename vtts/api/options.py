@@ -195,6 +195,7 @@ class View:
         """The view's values; ``video``: whether an MP4 is written (H.264 has no alpha, so no
         ``transparent``)."""
         self.background_color(video)
+        self.frame_size()  # here, not at the first frame: a batch's dry run checks it too
         check_choice(self.layout, "--layout", LAYOUTS)
         if self.detail is not None and not 0 <= self.detail <= 100:  # NaN too
             raise RenderError(f"--detail is a distance in pixels from 0 to 100, got {self.detail}")
@@ -214,8 +215,10 @@ class View:
         return background
 
     def frame_size(self) -> tuple[int, int]:
-        """(width, height) in pixels."""
-        return parse_size(self.size)
+        """(width, height) in pixels, within what a renderer can draw."""
+        from vtts.render.renderer import check_size
+
+        return check_size(parse_size(self.size))
 
     def pinhole(self):
         """The :class:`vtts.render.Camera` of ``camera``, or None."""

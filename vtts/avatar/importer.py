@@ -32,6 +32,7 @@
 from __future__ import annotations
 
 import contextlib
+import math
 import re
 import warnings
 from dataclasses import dataclass, field
@@ -46,6 +47,7 @@ from vtts.face.adt import Adt, AnimationTables, MeshTable, TransformTable
 from vtts.face.miap import Miap
 from vtts.fap import AU
 from vtts.gltf import GLTF_SUFFIXES, GltfReader, Image, Material, Primitive
+from vtts.render.camera import MAX_EXTENT
 from vtts.vrml import Node, Scene, standard_node_types
 
 #: Target displacements smaller than this fraction of the mesh's size are left out of tables.
@@ -56,6 +58,11 @@ MAX_DEPTH = 128
 EYE_FAPS = {"left": (23, 25), "right": (24, 26)}
 
 _VRML_ID = re.compile(r"[^A-Za-z0-9_]")
+#: VRML97's reserved words (section 5.1.2): no DEF name may be one of them.
+VRML_KEYWORDS = frozenset(
+    "DEF EXTERNPROTO FALSE IS NULL PROTO ROUTE TO TRUE USE eventIn eventOut exposedField "
+    "field".split()
+)
 
 
 @dataclass(eq=False)
@@ -236,6 +243,8 @@ class _Importer:
         base = _VRML_ID.sub("_", name or "") or fallback
         if base[0].isdigit():
             base = f"_{base}"
+        if base in VRML_KEYWORDS:  # DEF USE would not read back
+            base = f"{base}_"
         out, k = base, 2
         while out in self.names:
             out, k = f"{base}_{k}", k + 1
@@ -285,7 +294,16 @@ class _Importer:
         if index in path:
             raise AvatarError(f"node {index} is its own ancestor (a cycle in the node tree)",
                               file=self.asset.file)  # fmt: skip
-        m = parent @ self.asset.local_matrix(index)
+        local = self.asset.local_matrix(index)
+        m = parent @ local
+        for matrix, frame in ((local, "its own"), (m, "the scene's")):
+            if not (np.isfinite(matrix).all() and np.abs(matrix).max() <= MAX_EXTENT):
+                raise AvatarError(
+                    f"node {index}: its transform reaches {_largest(matrix):g} in {frame} frame, "
+                    f"beyond ±{MAX_EXTENT:g} (a model nothing can render; vtts.render.camera."
+                    "MAX_EXTENT)",
+                    file=self.asset.file,
+                )
         self.world[index] = m
         n = self.asset.doc.nodes[index]
         for c in n.children or []:
@@ -387,9 +405,25 @@ class _Importer:
             for c, d in used:
                 by_name[c] = d[keep]
                 self.found.add(c)
+            self._check_extent(positions, targets, where, f"mesh {name}")
             self.face_sets.append(_FaceSet(name, positions[keep], by_name, eye, where))
             out.append(self._shape(prim, name, positions[keep], point, normals))
         return out
+
+    def _check_extent(self, positions, targets, world, what: str) -> None:
+        """Refuse a mesh whose positions (or positions moved by a target), in its own frame or
+        the scene's, lie beyond :data:`~vtts.render.camera.MAX_EXTENT`: the written model would
+        hold numbers nothing can render or frame (or ``inf``)."""
+        with np.errstate(over="ignore", invalid="ignore"):
+            moved = [positions, *(positions + d for d in targets)]
+            placed = [p @ world[:3, :3].T + world[:3, 3] for p in moved]
+            worst = max((_largest(p) for p in [*moved, *placed]), default=0.0)
+        if not worst <= MAX_EXTENT:
+            raise AvatarError(
+                f"{what}: its positions reach {worst:g}, beyond ±{MAX_EXTENT:g} (a model nothing "
+                "can render; vtts.render.camera.MAX_EXTENT)",
+                file=self.asset.file,
+            )
 
     def _skinned(self, prim: Primitive, skin: int):
         """Positions, targets and normals of a skinned primitive at the rest pose (world)."""
@@ -675,6 +709,13 @@ def _add_mesh(adt: Adt, node: str, sides: list[tuple[float, np.ndarray]], tol: f
         borders = [sides[0][0], 0.0]
     disp = np.stack(slopes)  # (n, v, 3), in border order: negative side first
     adt.meshes.append(MeshTable(node, np.array(borders), verts, _round(disp)))
+
+
+def _largest(a: np.ndarray) -> float:
+    """The largest magnitude in ``a`` (inf where any is not finite; 0 for an empty array)."""
+    if not a.size:
+        return 0.0
+    return float(np.abs(a).max()) if np.isfinite(a).all() else math.inf
 
 
 def _round(a: np.ndarray) -> np.ndarray:

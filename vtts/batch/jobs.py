@@ -453,10 +453,13 @@ INPUT_FILES = ("file", "stream", "audio", "phonemes")
 
 
 def preflight(job: Job, models: dict | None = None) -> None:
-    """What can be checked of ``job`` without running it, beyond its options: the files it
-    reads are there, its heads load, and a ``say`` text's bookmarks are ones its heads know.
+    """What can be checked of ``job`` without running it, beyond its options: what the command
+    checks before it starts (its outputs against each other and its inputs, its pose's
+    values), the files it reads are there, its heads load, and a ``say`` text's bookmarks are
+    ones its heads know.
     ``models`` keeps loaded heads between calls. Raises :class:`JobError` with the message the
     command would give."""
+    from vtts.api.options import check_io
     from vtts.face import load_model
     from vtts.limits import MAX_TEXT_BYTES, read_bytes_capped
     from vtts.speech.bookmarks import parse_bookmarks
@@ -464,6 +467,9 @@ def preflight(job: Job, models: dict | None = None) -> None:
     models = {} if models is None else models
     options = job.options
     try:
+        check_io(options)
+        if hasattr(options, "pose_values"):
+            options.pose_values()
         for key in INPUT_FILES:
             name = getattr(options, key, None)
             if name and not Path(name).is_file():

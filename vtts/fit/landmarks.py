@@ -170,6 +170,9 @@ RECROP_DEGREES = 10.0  # eyes tilted more than this in the mesh crop: crop again
 STRONG_ROLL_DEGREES = 30.0  # beyond this roll, crop again until the crop turns less than ...
 RECROP_STRONG_DEGREES = 2.0  # ... this
 MAX_RECROPS = 4
+#: Where the whole image shows no face: the detector run again over overlapping squares of a
+#: half, then a third of the image's longer side (a small face in a large photo).
+TILINGS = (2, 3)
 
 
 def _anchors() -> np.ndarray:
@@ -198,6 +201,17 @@ def _iou(box: np.ndarray, boxes: np.ndarray) -> np.ndarray:
     area = (box[2] - box[0]) * (box[3] - box[1])
     areas = (boxes[:, 2] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 1])
     return inter / np.maximum(area + areas - inter, 1e-12)
+
+
+def _suppress(found: list) -> list:
+    """Detections from overlapping tiles without the repeats: the best-scoring of each group of
+    boxes overlapping by more than :data:`IOU_THRESHOLD`."""
+    found = sorted(found, key=lambda f: -f[1])
+    kept: list = []
+    for f in found:
+        if not kept or (_iou(f[0], np.array([k[0] for k in kept])) <= IOU_THRESHOLD).all():
+            kept.append(f)
+    return kept
 
 
 def decode_detections(
@@ -328,11 +342,29 @@ class MediaPipeDetector:
 
     def _detect_boxes(self, picture: Image.Image):
         """Detections in image pixels: the image letterboxed (centred, black borders) into a
-        square, scaled to 128 px and mapped to [-1, 1]."""
+        square, scaled to 128 px and mapped to [-1, 1]. Where that finds no face, overlapping
+        squares of a half, then a third of the image's side (:data:`TILINGS`): the detector
+        looks at 128 pixels, where a face a fifth of a large photo's width is too small to
+        find."""
         w, h = picture.size
         side = float(max(w, h))
-        letterbox = _Crop(np.array([w / 2, h / 2]), side, 0.0)
-        small = _warp(picture, letterbox, DETECTOR_SIZE)
+        found = list(self._detect_in(picture, _Crop(np.array([w / 2, h / 2]), side, 0.0)))
+        for n in TILINGS:
+            if found or side / n < DETECTOR_SIZE:
+                break
+            tile = side / n
+            # tiles overlapping by half: a face up to half a tile lies whole in one of them
+            xs = np.linspace(tile / 2, max(w - tile / 2, tile / 2), max(2 * round(w / tile) - 1, 1))
+            ys = np.linspace(tile / 2, max(h - tile / 2, tile / 2), max(2 * round(h / tile) - 1, 1))
+            for y in ys:
+                for x in xs:
+                    found += self._detect_in(picture, _Crop(np.array([x, y]), tile, 0.0))
+            found = _suppress(found)
+        yield from found
+
+    def _detect_in(self, picture: Image.Image, window: _Crop):
+        """Detections in the square ``window`` of ``picture``, in image pixels."""
+        small = _warp(picture, window, DETECTOR_SIZE)
         tensor = np.asarray(small, dtype=np.float32)[None] * (2 / 255) - 1
         inp, regressors, logits = self._detector_io
         self._detector.set_tensor(inp, tensor)
@@ -342,9 +374,9 @@ class MediaPipeDetector:
             self._detector.get_tensor(logits)[0, :, 0],
             self.min_score,
         )
-        corner = letterbox.centre - side / 2
-        for box, score, keypoints in found:
-            yield box * side + np.tile(corner, 2), score, keypoints * side + corner
+        corner = window.centre - window.size / 2
+        return [(box * window.size + np.tile(corner, 2), score, keypoints * window.size + corner)
+                for box, score, keypoints in found]  # fmt: skip
 
     def _mesh_face(
         self, picture: Image.Image, box: np.ndarray, score: float, keypoints: np.ndarray

@@ -21,7 +21,7 @@ import numpy as np
 from PIL import Image
 
 from vtts.atomic import atomic_path
-from vtts.errors import FitError
+from vtts.errors import FitError, VttsWarning
 from vtts.face import FaceModel
 from vtts.face.adt import AnimationTables, format_adt
 from vtts.face.atlas import EAR_TILE
@@ -44,7 +44,14 @@ from vtts.fit.landmarks import (
     detect_faces,
 )
 from vtts.fit.neck import NECK, collar_row, cut_neck, free_neck
-from vtts.fit.shape import ShapeFit, fit_shape, focal_length
+from vtts.fit.shape import (
+    DEFAULT_FOCAL_35MM,
+    MAX_FOCAL_35MM,
+    MIN_FOCAL_35MM,
+    ShapeFit,
+    fit_shape,
+    focal_length,
+)
 from vtts.fit.texture import (
     ATLAS_SIZE,
     EAR_TILES,
@@ -65,6 +72,7 @@ from vtts.fit.texture import (
     tint_tile,
     upscale,
 )
+from vtts.limits import MAX_PHOTO_PIXELS
 from vtts.render.camera import viewpoint_fields
 from vtts.resources import models_dir
 from vtts.vrml import Scene, dumps, parse
@@ -240,36 +248,109 @@ def frame_texture_name(wrl: Path) -> str:
 
 def load_photo(path: str | Path) -> tuple[np.ndarray, float | None]:
     """The photo as ``(H, W, 3) uint8`` RGB (EXIF orientation applied) and its 35 mm-equivalent
-    focal length from EXIF, or None."""
+    focal length from EXIF, or None.
+
+    The size is checked before the pixels are decoded (:data:`~vtts.limits.MAX_PHOTO_PIXELS`);
+    a JPEG larger than the fit works at is decoded at a fraction of its size (the fit scales it
+    down to :data:`WORK_SIZE` anyway). 16-bit and floating-point images are scaled to 8 bits,
+    not clipped. A malformed EXIF block, or a focal length no lens has, is ignored with a
+    warning."""
     p = Path(path)
     try:
         with Image.open(p) as im:
             w, h = im.size
-            if max(w, h) > MAX_SIZE:  # before decoding: a 100-byte PNG may declare 89 million x 1
+            # before decoding: a 100-byte PNG may declare 89 million x 1, a 68 KB JPEG 13000²
+            if max(w, h) > MAX_SIZE or w * h > MAX_PHOTO_PIXELS:
                 raise FitError(
-                    f"{p}: the photo is {w}x{h} pixels: larger than {MAX_SIZE}; scale it down"
+                    f"{p}: the photo is {w}x{h} pixels, more than the limit of {MAX_SIZE} on a "
+                    f"side and {MAX_PHOTO_PIXELS} in all (vtts.limits); scale it down"
                 )
+            if im.format == "JPEG":
+                im.draft("RGB", (WORK_SIZE, WORK_SIZE))  # at least this size, by 1/2, 1/4, 1/8
             im.load()
-            exif = im.getexif()
-            from PIL import ImageOps
-
-            im = ImageOps.exif_transpose(im)
-            rgb = np.asarray(im.convert("RGB"))
+            exif = _exif(im, p)
+            # turned here rather than by ImageOps.exif_transpose, which writes the EXIF block
+            # back and fails on any tag it cannot write (struct.error): a bad tag loses only
+            # itself
+            orientation = exif.get(0x0112) if exif is not None else None
+            turn = ORIENTATIONS.get(orientation) if isinstance(orientation, int) else None
+            rgb = _rgb(im if turn is None else im.transpose(turn))
     except FileNotFoundError:
         raise FitError(f"{p}: no such file") from None
     except IsADirectoryError:
         raise FitError(f"{p}: is a folder, not a photo") from None
     except (OSError, SyntaxError, ValueError, Image.DecompressionBombError) as e:
         raise FitError(f"{p}: not a readable image ({e})") from None
-    focal = None
+    return rgb, _exif_focal(exif, p)
+
+
+#: EXIF Orientation → the turn that shows the photo upright.
+ORIENTATIONS = {
+    2: Image.Transpose.FLIP_LEFT_RIGHT,
+    3: Image.Transpose.ROTATE_180,
+    4: Image.Transpose.FLIP_TOP_BOTTOM,
+    5: Image.Transpose.TRANSPOSE,
+    6: Image.Transpose.ROTATE_270,
+    7: Image.Transpose.TRANSVERSE,
+    8: Image.Transpose.ROTATE_90,
+}
+
+
+def _rgb(im: Image.Image) -> np.ndarray:
+    """``(H, W, 3) uint8`` of a decoded image: 16-bit and 32-bit integer images scaled from
+    their range, floating-point ones from 0–1, 0–255 or 0–65535 (the least that holds them);
+    Pillow's ``convert`` clips them to 255 (a white picture)."""
+    if im.mode not in ("I", "F") and not im.mode.startswith("I;16"):
+        return np.asarray(im.convert("RGB"))
+    a = np.asarray(im, dtype=np.float64)
+    a = np.where(np.isfinite(a), a, 0.0)
+    if im.mode == "F":
+        # the range the samples were written for: 0–1, 8 or 16 bits, else their own maximum
+        most = float(a.max(initial=0.0))
+        top = next((t for t in (1.0, 255.0, 65535.0) if most <= t), most)
+        a = np.clip(a, 0.0, None) / top * 255.0
+    else:  # 16-bit samples, whether Pillow keeps them as I;16 or widens them to I
+        a = np.clip(a, 0.0, 65535.0) / 257.0
+    grey = (a + 0.5).astype(np.uint8)
+    return np.repeat(grey[..., None], 3, axis=2)
+
+
+def _exif(im: Image.Image, path: Path) -> Image.Exif | None:
+    """The image's EXIF block, or None (with a warning when it is malformed)."""
     try:
-        sub = exif.get_ifd(0x8769)  # the Exif IFD
-        f35 = sub.get(0xA405)  # FocalLengthIn35mmFilm
-        if f35:
-            focal = float(f35)
-    except Exception:  # noqa: BLE001 - a broken EXIF block only loses the hint
-        focal = None
-    return rgb, focal
+        exif = im.getexif()
+        list(exif.items())  # the tags are read lazily; a malformed one fails here
+    except Exception as e:  # noqa: BLE001 - struct.error and the like, from the tag's bytes
+        _warn_exif(path, f"the block is malformed ({type(e).__name__}: {e})")
+        return None
+    return exif
+
+
+def _exif_focal(exif: Image.Exif | None, path: Path) -> float | None:
+    """The 35 mm-equivalent focal length EXIF gives (FocalLengthIn35mmFilm), None where it
+    gives none (0 means unknown) or one no lens has (with a warning)."""
+    if exif is None:
+        return None
+    try:
+        f35 = exif.get_ifd(0x8769).get(0xA405)  # the Exif IFD's FocalLengthIn35mmFilm
+        focal = None if f35 is None else float(f35)
+    except Exception as e:  # noqa: BLE001 - a malformed tag only loses the hint
+        _warn_exif(path, f"its focal length cannot be read ({type(e).__name__})")
+        return None
+    if focal is None or focal == 0:
+        return None
+    if not MIN_FOCAL_35MM <= focal <= MAX_FOCAL_35MM:  # NaN (0/0) too
+        _warn_exif(path, f"its 35 mm-equivalent focal length {focal:g} mm is outside "
+                         f"{MIN_FOCAL_35MM:g}–{MAX_FOCAL_35MM:g}: ignored, the fit takes "
+                         f"{DEFAULT_FOCAL_35MM:g} mm (give --focal)")  # fmt: skip
+        return None
+    return focal
+
+
+def _warn_exif(path: Path, what: str) -> None:
+    import warnings
+
+    warnings.warn(VttsWarning(f"EXIF: {what}", file=str(path)), stacklevel=3)
 
 
 def fit_photo(
@@ -296,8 +377,11 @@ def fit_photo(
     h, w = image.shape[:2]
     if min(h, w) < MIN_SIZE:
         raise FitError(f"the photo is {w}x{h} pixels: too small to fit (at least {MIN_SIZE})")
-    if max(h, w) > MAX_SIZE:
-        raise FitError(f"the photo is {w}x{h} pixels: larger than {MAX_SIZE}; scale it down")
+    if max(h, w) > MAX_SIZE or w * h > MAX_PHOTO_PIXELS:
+        raise FitError(
+            f"the photo is {w}x{h} pixels, more than the limit of {MAX_SIZE} on a side and "
+            f"{MAX_PHOTO_PIXELS} in all (vtts.limits); scale it down"
+        )
     if max(h, w) > WORK_SIZE:
         scale = WORK_SIZE / max(h, w)
         size = (max(round(w * scale), 1), max(round(h * scale), 1))

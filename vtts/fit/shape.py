@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vtts.errors import FitError
 from vtts.fit.generic import GenericHead, LandmarkMap
 from vtts.fit.landmarks import EYE_CORNERS as LANDMARK_EYE_CORNERS
 from vtts.render.camera import Camera
@@ -34,6 +35,9 @@ from vtts.vrml import rotation_matrix
 #: Default focal length as a 35 mm-equivalent (mm) when the photo has no EXIF focal length: a
 #: normal portrait lens.
 DEFAULT_FOCAL_35MM = 50.0
+#: The 35 mm-equivalent focal lengths (mm) a fit takes: a fisheye to a long telephoto. Beyond
+#: them the camera is nothing a photo of a face was taken with (and the fit's numbers break down).
+MIN_FOCAL_35MM, MAX_FOCAL_35MM = 8.0, 2000.0
 #: The diagonal of the 35 mm frame (mm).
 FRAME_DIAGONAL_35MM = math.hypot(36.0, 24.0)
 
@@ -66,6 +70,9 @@ def focal_length(size: tuple[int, int], focal_35mm: float | None = None) -> floa
     """Focal length in pixels of a photo of ``size`` (W, H) taken with a lens of ``focal_35mm``
     (35 mm-equivalent; :data:`DEFAULT_FOCAL_35MM` when None), scaled by the diagonals."""
     f35 = DEFAULT_FOCAL_35MM if focal_35mm is None else float(focal_35mm)
+    if not MIN_FOCAL_35MM <= f35 <= MAX_FOCAL_35MM:  # NaN too
+        raise FitError(f"the focal length is a 35 mm-equivalent of {MIN_FOCAL_35MM:g} to "
+                       f"{MAX_FOCAL_35MM:g} mm, got {f35:g}")  # fmt: skip
     return f35 / FRAME_DIAGONAL_35MM * math.hypot(*size)
 
 

@@ -62,6 +62,7 @@ from vtts.limits import (
     MAX_ACCESSOR_COUNT,
     MAX_GLTF_BYTES,
     MAX_MORPH_TARGETS,
+    MAX_UNBACKED_COUNT,
     LimitError,
     read_bytes_capped,
 )
@@ -154,6 +155,11 @@ class GltfReader:
             raise self.error("is a folder, not a glTF file") from None
         except OSError as e:
             raise self.error(f"cannot read file: {e.strerror or e}") from None
+        if data[:4] == b"glTF" and len(data) >= 8 and (container := data[4:8]) != b"\2\0\0\0":
+            # pygltflib reads any version; a version 1 file (KHR_binary_glTF) is laid out otherwise
+            raise self.error(f"the GLB container is version {int.from_bytes(container, 'little')}, "
+                             "not 2 (the only one glTF 2.0 defines)")  # fmt: skip
+        data = _object_extras(data)
         try:
             if data[:4] == b"glTF":
                 doc = GLTF2.load_from_bytes(data)
@@ -277,6 +283,12 @@ class GltfReader:
                 f"{what}: count {count} is more than the limit of {MAX_ACCESSOR_COUNT} "
                 "(vtts.limits)"
             )
+        if count * stride > MAX_GLTF_BYTES:
+            # the decoder allocates it before it reads a byte: no more than a file could hold
+            raise self.error(
+                f"{what}: {count} elements of {stride} bytes decode to more than the limit of "
+                f"{MAX_GLTF_BYTES >> 20} MiB of a glTF file (vtts.limits)"
+            )
         try:
             result = decode_view(data[start : start + length], count, stride, ext.get("mode"),
                                  ext.get("filter", "NONE"))  # fmt: skip
@@ -287,19 +299,34 @@ class GltfReader:
 
     # ---- accessors ----------------------------------------------------------------------------
 
-    def accessor(self, index: Any, what: str, *, normalize: bool = True) -> np.ndarray:
+    def accessor(self, index: Any, what: str, *, normalize: bool = True,
+                 count: int | None = None, shape: str = "") -> np.ndarray:  # fmt: skip
         """``(count, components)`` values of accessor ``index``: float64 (normalized integers
         divided out) or, with ``normalize=False``, the stored numbers as int64/float64. Float
-        values must be finite."""
+        values must be finite.
+
+        ``count``: the number of elements the accessor must have, where the file fixes it
+        elsewhere (a primitive's vertices, a skin's joints), described by ``shape``; checked
+        before anything is allocated. An accessor without a bufferView holds zeros (and its
+        sparse values) that take memory but no bytes of the file, so where nothing fixes its
+        count it may have at most :data:`~vtts.limits.MAX_UNBACKED_COUNT` elements."""
         acc = self.item(self.doc.accessors, index, f"{what}: accessor")
         what = f"{what} (accessor {index})"
         ncomp = COMPONENTS.get(acc.type) if isinstance(acc.type, str) else None
         ctype = acc.componentType
         if ncomp is None or not isinstance(ctype, int) or ctype not in COMPONENT_TYPES:
             raise self.error(f"{what}: unknown type {acc.type!r}/componentType {ctype!r}")
-        count = self._count(acc.count, f"{what}: count")
+        n = self._count(acc.count, f"{what}: count")
+        if count is not None and n != count:
+            raise self.error(f"{what}: has {n} elements, {shape or f'{count} expected'}")
+        fixed, count = count is not None, n
         sparse = acc.sparse
         if acc.bufferView is None:
+            if not fixed and count > MAX_UNBACKED_COUNT:
+                raise self.error(
+                    f"{what}: count {count} without a bufferView (all zeros) is more than the "
+                    f"limit of {MAX_UNBACKED_COUNT} for an accessor without data (vtts.limits)"
+                )
             values = np.zeros((count, ncomp), dtype=COMPONENT_TYPES[ctype])
         else:
             values = self._read(acc.bufferView, acc.byteOffset or 0, count, ctype, ncomp, what)
@@ -428,13 +455,16 @@ class GltfReader:
         if "POSITION" not in attrs:
             raise self.error(f"{label} has no POSITION")
 
+        v: int | None = None  # the vertices, once POSITION is read
+
         def attr(name: str, width: tuple[int, ...]) -> np.ndarray | None:
             if name not in attrs:
                 return None
             if name in decoded:
                 a = decoded[name]
             else:
-                a = self.accessor(attrs[name], f"{label} {name}")
+                a = self.accessor(attrs[name], f"{label} {name}", count=v,
+                                  shape=f"POSITION has {v}")  # fmt: skip
             if a.shape[1] not in width:
                 raise self.error(f"{label}: {name} must have {' or '.join(map(str, width))} "
                                  f"components, has {a.shape[1]}")  # fmt: skip
@@ -458,7 +488,13 @@ class GltfReader:
             j = (
                 decoded.get("JOINTS_0")
                 if "JOINTS_0" in decoded
-                else self.accessor(attrs["JOINTS_0"], f"{label} JOINTS_0", normalize=False)
+                else self.accessor(
+                    attrs["JOINTS_0"],
+                    f"{label} JOINTS_0",
+                    normalize=False,
+                    count=v,
+                    shape=f"POSITION has {v}",
+                )
             )
             w = attr("WEIGHTS_0", (4,))
             if j.shape != (v, 4) or w.shape != (v, 4):
@@ -470,6 +506,11 @@ class GltfReader:
         if len(targets) > MAX_MORPH_TARGETS:
             raise self.error(f"{label} has {len(targets)} morph targets, more than the limit of "
                              f"{MAX_MORPH_TARGETS} (vtts.limits)")  # fmt: skip
+        if len(targets) * v > MAX_ACCESSOR_COUNT:
+            # each target is a copy of the positions in memory, whatever bytes it takes in the file
+            raise self.error(f"{label} has {len(targets)} morph targets of {v} vertices: more "
+                             f"than the limit of {MAX_ACCESSOR_COUNT} "
+                             "in all (vtts.limits)")  # fmt: skip
         for ti, t in enumerate(targets):
             ta = attributes(t)
             if ta is None:
@@ -477,7 +518,8 @@ class GltfReader:
             if "POSITION" not in ta:
                 out.targets.append(np.zeros((v, 3)))
                 continue
-            d = self.accessor(ta["POSITION"], f"{label} morph target {ti} POSITION")
+            d = self.accessor(ta["POSITION"], f"{label} morph target {ti} POSITION", count=v,
+                              shape=f"the primitive has {v} VEC3 positions")  # fmt: skip
             if d.shape != (v, 3):
                 raise self.error(f"{label}: morph target {ti} POSITION is {d.shape[0]}×"
                                  f"{d.shape[1]}, the primitive has {v} VEC3 positions")  # fmt: skip
@@ -651,7 +693,12 @@ class GltfReader:
         joints = skin.joints or []
         ibm = np.tile(np.eye(4), (len(joints), 1, 1))
         if skin.inverseBindMatrices is not None:
-            a = self.accessor(skin.inverseBindMatrices, f"skin {skin_index} inverseBindMatrices")
+            a = self.accessor(
+                skin.inverseBindMatrices,
+                f"skin {skin_index} inverseBindMatrices",
+                count=len(joints),
+                shape=f"one MAT4 for each of {len(joints)} joints",
+            )
             if a.shape != (len(joints), 16):
                 raise self.error(f"skin {skin_index}: inverseBindMatrices must be one MAT4 per "
                                  "joint")  # fmt: skip
@@ -664,6 +711,54 @@ class GltfReader:
 
 
 # ---- helpers -------------------------------------------------------------------------------------
+
+
+def _object_extras(data: bytes) -> bytes:
+    """A glTF or GLB file's bytes with every ``extras`` that is not a JSON object left out.
+
+    glTF allows ``extras`` of any JSON type, and vtts reads none but a mesh's ``targetNames``;
+    pygltflib takes every ``extras`` for an object (``'str' object has no attribute 'keys'``).
+    Bytes that are not JSON pass unchanged, for the parser to word the error."""
+    import json
+    import struct
+
+    glb = data[:4] == b"glTF"
+    try:
+        if glb:
+            length, kind = struct.unpack_from("<I4s", data, 12)
+            text, rest = data[20 : 20 + length], data[20 + length :]
+            if kind != b"JSON" or len(text) != length:
+                return data
+        else:
+            text = data
+        doc = json.loads(text)
+    except (ValueError, struct.error, RecursionError):
+        return data
+    if not _drop_extras(doc):
+        return data
+    out = json.dumps(doc).encode("utf-8")
+    if not glb:
+        return out
+    out += b" " * (-len(out) % 4)
+    chunk = struct.pack("<I4s", len(out), b"JSON") + out
+    return data[:8] + struct.pack("<I", 12 + len(chunk) + len(rest)) + chunk + rest
+
+
+def _drop_extras(value: Any) -> bool:
+    """Remove each non-object ``extras`` in a parsed JSON document (not inside an ``extras``,
+    which is the user's own data); whether any was removed."""
+    dropped = False
+    stack = [value]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, dict):
+            if "extras" in item and not isinstance(item["extras"], dict):
+                del item["extras"]
+                dropped = True
+            stack += [v for k, v in item.items() if k != "extras"]
+        elif isinstance(item, list):
+            stack += item
+    return dropped
 
 
 def is_object(value: Any) -> bool:

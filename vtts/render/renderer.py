@@ -73,7 +73,7 @@ class FaceRenderer:
             models = [models]
         if not models:
             raise RenderError("nothing to render: no model given")
-        w, h = _check_size(size)
+        w, h = check_size(size)
         if layout not in ("row", "room"):
             raise RenderError(f"layout must be 'row' or 'room', got {layout!r}")
         self.size = (w, h)
@@ -140,7 +140,7 @@ class FaceRenderer:
         if not camera.placed:
             raise RenderError("a view needs a placed camera (one with a pose)")
         if size is not None:
-            size = _check_size(size)
+            size = check_size(size)
             if self.background_image is not None and size != self.size:
                 raise RenderError("a renderer with a background image keeps its image size")
             self.size = size
@@ -578,7 +578,10 @@ def _root_pose(matrix) -> np.ndarray:
     return m
 
 
-def _check_size(size: tuple[int, int]) -> tuple[int, int]:
+def check_size(size: tuple[int, int]) -> tuple[int, int]:
+    """``size`` (W, H) checked against what a renderer can draw: 16 to
+    :data:`~vtts.limits.MAX_IMAGE_SIDE` pixels a side, :data:`~vtts.limits.MAX_RENDER_PIXELS` in
+    all."""
     w, h = int(size[0]), int(size[1])
     if not (16 <= w <= MAX_IMAGE_SIDE and 16 <= h <= MAX_IMAGE_SIDE):
         raise RenderError(f"image size must be within 16–{MAX_IMAGE_SIDE} pixels, got {w}x{h}")

@@ -5,7 +5,9 @@
 that a stereo file never sits in memory whole; anything else (M4A/AAC, WMA, a video's sound track
 …, or a file libsndfile opens but cannot decode) is decoded by the ``imageio-ffmpeg`` wheel's
 ffmpeg into a temporary 32-bit float WAV first (at the file's own rate, at most
-:data:`~vtts.limits.MAX_AUDIO_S` plus a second of it). Channels are averaged; when ``rate`` is
+:data:`~vtts.limits.MAX_AUDIO_S` plus a second of it). Channels are averaged, a channel whose
+samples run against the loudest one's (wired inverted) turned over first, so that it does not
+cancel the speech; when ``rate`` is
 given the samples are resampled with a polyphase filter (``scipy.signal.resample_poly``).
 
 The length is checked before decoding where the file states it (a 900 kB FLAC can claim ten hours
@@ -27,7 +29,7 @@ from vtts.errors import SpeechError
 from vtts.limits import MAX_AUDIO_RATE, MAX_AUDIO_S, LimitError
 from vtts.media import ffmpeg_exe
 
-__all__ = ["AAC_RATES", "read_audio", "read_for_mp4", "resample", "to_int16"]
+__all__ = ["AAC_RATES", "mp4_samples", "read_audio", "read_for_mp4", "resample", "to_int16"]
 
 #: Sample rates ffmpeg's AAC encoder takes (Hz): the MP4 of ``vtts say`` needs one of them.
 AAC_RATES = frozenset(
@@ -78,7 +80,12 @@ def read_for_mp4(path: str | os.PathLike[str]) -> tuple[np.ndarray, int]:
     one, else the next higher one up to 48 kHz. What ``vtts say --audio`` and ``vtts play
     --audio`` mux into the MP4 and the web player (written as a WAV first); errors as
     :func:`read_audio`'s."""
-    samples, sr = read_audio(path)
+    return mp4_samples(*read_audio(path))
+
+
+def mp4_samples(samples: np.ndarray, sr: int) -> tuple[np.ndarray, int]:
+    """``(samples, rate)`` of :func:`read_audio` as :func:`read_for_mp4` gives them: int16, at
+    an AAC rate."""
     if sr not in AAC_RATES:
         to = min([r for r in AAC_RATES if r >= sr] + [48000])
         samples, sr = resample(samples, sr, to), to
@@ -126,6 +133,13 @@ def _read_soundfile(p: Path) -> tuple[np.ndarray, int] | None:
         # the length the header states first (before anything is decoded) …
         if f.frames > cap and f.frames < (1 << 62):  # libsndfile says 2^63-1 for "unknown"
             raise _too_long(f.frames / native, p)
+        signs = None
+        if f.channels > 1 and f.seekable():
+            try:
+                signs = _channel_signs(f, cap, p)
+                f.seek(0)
+            except (sf.LibsndfileError, RuntimeError, ValueError):
+                return None
         # the stated length (when there is one) sized up front: one array, no concatenation
         stated = f.frames if 0 < f.frames <= cap else 0
         out = np.empty(stated, np.float32)
@@ -139,7 +153,7 @@ def _read_soundfile(p: Path) -> tuple[np.ndarray, int] | None:
                     break
                 if total + n > cap:  # … and what is really there
                     raise _too_long((total + n) / native, p, more=True)
-                mono = _mono(block)
+                mono = _mono(block, signs)
                 fits = max(min(n, stated - total), 0)
                 out[total : total + fits] = mono[:fits]
                 if fits < n:
@@ -156,8 +170,31 @@ def _read_soundfile(p: Path) -> tuple[np.ndarray, int] | None:
     return samples, native
 
 
-def _mono(block: np.ndarray) -> np.ndarray:
-    """``(n, channels)`` float32 → ``(n,)`` float32 in [-1, 1] (NaN → 0)."""
+def _channel_signs(f, cap: int, p: Path) -> np.ndarray:
+    """``(channels,)`` ±1: the sign each channel takes in the mix, so that a channel wired the
+    other way round (an inverted right channel) adds to the loudest one instead of cancelling
+    it. Read through the whole file once (the length checked as it goes); the caller seeks
+    back."""
+    gram = np.zeros((f.channels, f.channels))
+    total = 0
+    while True:
+        block = f.read(_BLOCK, dtype="float32", always_2d=True)
+        if block.shape[0] == 0:
+            break
+        total += block.shape[0]
+        if total > cap:
+            raise _too_long(total / f.samplerate, p, more=True)
+        x = np.nan_to_num(block.astype(np.float64), nan=0.0, posinf=1.0, neginf=-1.0)
+        gram += x.T @ x
+    loudest = int(np.argmax(np.diag(gram)))
+    return np.where(gram[loudest] < 0, -1.0, 1.0).astype(np.float32)
+
+
+def _mono(block: np.ndarray, signs: np.ndarray | None = None) -> np.ndarray:
+    """``(n, channels)`` float32 → ``(n,)`` float32 in [-1, 1] (NaN → 0): the channels'
+    mean, each with its sign in ``signs`` (:func:`_channel_signs`; None: all +1)."""
+    if block.shape[1] > 1 and signs is not None:
+        block = block * signs
     x = block.mean(axis=1, dtype=np.float32) if block.shape[1] > 1 else block[:, 0]
     x = np.nan_to_num(x, nan=0.0, posinf=1.0, neginf=-1.0)
     return np.clip(x, -1.0, 1.0).astype(np.float32, copy=False)
