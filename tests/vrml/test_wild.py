@@ -228,6 +228,25 @@ CASES = {
             (9, 40, "a field cannot be bound to the PROTO's eventIn"),
         ],
     ),
+    "interface members that clash": (
+        H + "PROTO Lamp [\n"
+        "  exposedField SFBool on TRUE\n"
+        "  eventIn SFBool set_on\n"
+        "  eventOut SFBool on_changed\n"
+        "] { PointLight { on IS on } }\n"
+        "DEF L Lamp { on FALSE }\n"
+        "DEF Panel Script { field SFInt32 n 1 eventIn SFInt32 n }\n",
+        (VrmlSemanticError, 4, 18, "'set_on' clashes with the implicit event of exposedField 'on'"),
+        [
+            (
+                4,
+                18,
+                "'set_on' clashes with the implicit event of exposedField 'on': the later member",
+            ),
+            (5, 19, "'on_changed' clashes with the implicit event of exposedField 'on'"),
+            (8, 54, "Script: 'n' is declared twice: the later member is left out"),
+        ],
+    ),
     "exposedField in a Script": (
         H + "DEF Counter Script {\n"
         "  exposedField SFInt32 count 3\n"
@@ -403,6 +422,26 @@ def test_a_script_exposed_field_is_a_field_with_its_value():
     counter = scene.roots[0]
     assert counter["count"] == 3 and counter.type.decls["count"].access == "field"
     assert len(scene.routes) == 1
+
+
+def test_clashing_members_keep_the_first():
+    scene, _ = lenient(CASES["interface members that clash"][0])
+    lamp, panel = scene.protos[0], scene.roots[1]
+    assert lamp.decls["on"].access == "exposedField" and "set_on" not in lamp.decls
+    assert scene.roots[0].expand()["on"] is False
+    assert [d.access for d in panel.script_decls] == ["field"]
+
+
+def test_every_conformance_file_loads_leniently():
+    """The conformance set's invalid files break VRML97 in ways browsers forgive: strict mode
+    rejects each (test_conformance), lenient mode loads each with warnings."""
+    bad = sorted((Path(__file__).parents[1] / "data" / "vrml97" / "bad").glob("*.wrl"))
+    assert len(bad) == 12
+    for path in bad:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            read(path, lenient=True)
+        assert caught and all(isinstance(w.message, VttsWarning) for w in caught), path.name
 
 
 def test_lenient_keeps_the_other_rules():

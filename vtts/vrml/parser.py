@@ -673,7 +673,7 @@ class _Builder:
             decl = FieldDecl("field", decl.type, decl.name, None, None)
         problem = interface_conflict(node.type.decls, decl)
         if problem:
-            raise self.error(f"Script: {problem}", el.children[2])
+            self.member_clash(f"Script: {problem}", el.children[2])  # lenient: left out
         node.type.decls[decl.name] = decl
         node.script_decls.append(decl)
         if is_name is not None:
@@ -719,6 +719,15 @@ class _Builder:
                 value = None
         decl = FieldDecl(str(access_tok), ftype, str(name_tok), None if in_script else value, None)
         return decl, value, is_name
+
+    def member_clash(self, msg: str, name_tok: Token) -> None:
+        """An interface member that clashes with an earlier one: an error, or in lenient mode a
+        warning and the later member left out (raises :class:`_SkipDeclaration`): the first one
+        declared keeps the name."""
+        if not self.lenient:
+            raise self.error(msg, name_tok)
+        self.warn(f"{msg}: the later member is left out (--lenient)", name_tok)
+        raise _SkipDeclaration
 
     def field_type(self, type_tok: Token, name_tok: Token, owner: str) -> FieldType:
         """The type a declaration names. One VRML97 lacks (VRML 1.0's SFLong, X3D's SFDouble) is
@@ -766,7 +775,10 @@ class _Builder:
                     )
                 problem = interface_conflict(proto.decls, decl)
                 if problem:
-                    raise self.error(f"PROTO {proto.name}: {problem}", el.children[2])
+                    try:
+                        self.member_clash(f"PROTO {proto.name}: {problem}", el.children[2])
+                    except _SkipDeclaration:
+                        continue
                 proto.decls[decl.name] = decl
             else:
                 body_trees.append(el)
@@ -811,7 +823,10 @@ class _Builder:
                 decl = FieldDecl(str(access_tok), ftype, str(member_tok), None)
                 problem = interface_conflict(proto.decls, decl)
                 if problem:
-                    raise self.error(f"EXTERNPROTO {proto.name}: {problem}", member_tok)
+                    try:
+                        self.member_clash(f"EXTERNPROTO {proto.name}: {problem}", member_tok)
+                    except _SkipDeclaration:
+                        continue
                 proto.decls[decl.name] = decl
             else:  # url_list
                 for s in el.children:
