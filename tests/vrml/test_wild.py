@@ -449,7 +449,8 @@ def test_lenient_keeps_the_other_rules():
     with pytest.raises(VrmlSyntaxError):
         parse(H + "Group { children [ Shape { } }", lenient=True)
     with pytest.raises(VrmlSemanticError, match="has no node in its body"):
-        parse(H + "PROTO P [ ] { USE Nothing }", lenient=True)
+        with pytest.warns(VttsWarning, match="USE of undefined name 'Nothing'"):
+            parse(H + "PROTO P [ ] { USE Nothing }", lenient=True)
 
 
 # ---- real files ---------------------------------------------------------------------------------
