@@ -3,11 +3,22 @@ per-face attributes with their index arrays."""
 
 from __future__ import annotations
 
+import warnings
+from pathlib import Path
+
 import numpy as np
 import pytest
 
-from vtts.errors import VrmlSemanticError
-from vtts.vrml import PRIMITIVES, parse, polygon_triangle_count, primitive_mesh, triangulate
+from vtts.errors import VrmlSemanticError, VttsError
+from vtts.vrml import (
+    PRIMITIVES,
+    check_face_set,
+    parse,
+    polygon_triangle_count,
+    primitive_mesh,
+    read,
+    triangulate,
+)
 
 H = "#VRML V2.0 utf8\n"
 CUBE_POINTS = "-1 -1 1, 1 -1 1, 1 1 1, -1 1 1, -1 -1 -1, 1 -1 -1, 1 1 -1, -1 1 -1"
@@ -171,3 +182,99 @@ def test_primitive_meshes_fill_the_vrml_bounds(node, lo, hi):
 def test_primitive_mesh_is_none_for_other_geometry():
     assert primitive_mesh(ifs()) is None
     assert PRIMITIVES == ("Box", "Sphere", "Cylinder", "Cone")
+
+
+# ---- check_face_set: what vtts check runs instead of triangulate --------------------------------
+
+#: (extra fields, coordIndex) of IndexedFaceSets on the cube's 8 points, valid and not: every
+#: index rule triangulate enforces, per vertex and per face, with and without own index arrays.
+FACE_SET_CASES = [
+    ("", CUBE_FACES),
+    ("", "0 1 8"),
+    ("", "0 1 -2"),
+    ("", "0 1 2 -1 -1 3 4 -1 5"),
+    ("", "0 1 -1 2"),
+    ("", "-1"),
+    ("", ""),
+    ("color Color { color [ 1 0 0 ] } colorIndex [ 0 1 0 ]", "0 1 2"),
+    ("color Color { color [ 1 0 0 ] } colorIndex [ 0 0 0 ]", "0 1 2"),
+    ("color Color { color [ 1 0 0 ] } colorPerVertex FALSE", "0 1 2 -1 0 2 3"),
+    ("color Color { color [ 1 0 0 0 1 0 ] } colorPerVertex FALSE", "0 1 2 -1 0 2 3"),
+    ("color Color { color [ 1 0 0 ] } colorPerVertex FALSE colorIndex [ 0 ]", "0 1 2 -1 0 2 3"),
+    ("color Color { color [ 1 0 0 ] } colorPerVertex FALSE colorIndex [ 0 3 ]", "0 1 2 -1 2 3 4"),
+    ("color Color { color [ 1 0 0 ] }", "0 1 2"),
+    ("normal Normal { vector [ 0 0 1 ] } normalIndex [ 0 ]", "0 1 2"),
+    ("normal Normal { vector [ 0 0 1 ] } normalIndex [ 0 0 0 ]", "0 1 2"),
+    ("normal Normal { vector [ 0 0 1 ] } normalIndex [ 0 0 -1 0 ]", "0 1 2 -1 0 2 3"),
+    ("normal Normal { vector [ 0 0 1 ] } normalPerVertex FALSE normalIndex [ 1 ]", "0 1 2"),
+    ("normal Normal { vector [ 0 0 1, 0 1 0 ] } normalPerVertex FALSE", "0 1 2 -1 0 2 3"),
+    ("normal Normal { vector [ 0 0 1 ] } normalPerVertex FALSE", "0 1 2 -1 0 2 3"),
+    ("texCoord TextureCoordinate { point [ 0 0, 1 0, 1 1 ] }", "0 1 2"),
+    ("texCoord TextureCoordinate { point [ 0 0, 1 0, 1 1 ] }", "0 1 3"),
+    ("texCoord TextureCoordinate { point [ 0 0, 1 0 ] } texCoordIndex [ 0 1 1 ]", "0 1 3"),
+    ("texCoord TextureCoordinate { point [ 0 0, 1 0 ] } texCoordIndex [ 0 1 2 ]", "0 1 3"),
+    ("texCoord TextureCoordinate { point [ 0 0 ] } texCoordIndex [ 0 0 ]", "0 1 3"),
+    # two broken rules: the first triangulate meets is the one named
+    (
+        "normal Normal { vector [ 0 0 1 ] } color Color { color [ 1 0 0 ] } colorIndex [ 5 ]",
+        "0 1 9",
+    ),
+    (
+        "normal Normal { vector [ 0 0 1 ] } color Color { color [ 1 0 0 ] } colorIndex [ 5 ]",
+        "0 1 2",
+    ),
+]
+
+
+def same_outcome(node) -> int:
+    """check_face_set raises exactly what triangulate raises (class, message, line, column), or
+    counts exactly its triangles; the count."""
+    try:
+        mesh = triangulate(node)
+    except VrmlSemanticError as e:
+        with pytest.raises(VrmlSemanticError) as info:
+            check_face_set(node)
+        assert (info.value.message, info.value.line, info.value.column) == (
+            e.message,
+            e.line,
+            e.column,
+        )
+        return -1
+    assert check_face_set(node) == len(mesh.faces)
+    return len(mesh.faces)
+
+
+@pytest.mark.parametrize("extra, faces", FACE_SET_CASES)
+def test_check_face_set_agrees_with_triangulate(extra, faces):
+    same_outcome(ifs(extra, faces=faces))
+
+
+def test_check_face_set_without_coord_or_index():
+    for body in ("", "coordIndex [ 0 1 2 ]", "coord Coordinate { point [ 0 0 0 ] }"):
+        same_outcome(parse(H + f"DEF G IndexedFaceSet {{ {body} }}").node("G"))
+
+
+def test_check_face_set_agrees_on_every_file_in_the_repository():
+    """Every IndexedFaceSet of the conformance files, the wild files and the bundled models."""
+    root = Path(__file__).resolve().parents[2]
+    files = [
+        *sorted((root / "tests" / "data").rglob("*.wrl")),
+        *sorted((root / "models").rglob("*.wrl")),
+    ]
+    seen = 0
+    for path in files:
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                scene = read(path, lenient=True)
+        except VttsError:
+            continue  # the conformance set's bad files: they never reach a check of faces
+        for node in scene.find("IndexedFaceSet"):
+            same_outcome(node)
+            seen += 1
+    assert seen > 10
+
+
+def test_check_face_set_is_not_for_other_nodes():
+    with pytest.raises(TypeError, match="not an IndexedFaceSet"):
+        check_face_set(parse(H + "DEF B Box { }").node("B"))

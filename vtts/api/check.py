@@ -19,9 +19,9 @@ def plural(n: int, noun: str) -> str:
 
 def check_wrl(path: Path, lenient: bool = False) -> str:
     """A scene or model: it loads, and what render would refuse (an out-of-range coordIndex)
-    is refused too; its missing textures are warnings."""
+    is refused too, checked without triangulating; its missing textures are warnings."""
     from vtts.face import load_model
-    from vtts.vrml import triangulate
+    from vtts.vrml import check_face_set
 
     model = load_model(path, lenient=lenient)
     scene = model.scene
@@ -29,7 +29,7 @@ def check_wrl(path: Path, lenient: bool = False) -> str:
         geom = shape["geometry"]
         if geom is not None and geom.expand().type.name == "IndexedFaceSet":
             try:
-                triangulate(geom)
+                check_face_set(geom)
             except VttsError as e:
                 e.file = e.file or str(path)
                 raise

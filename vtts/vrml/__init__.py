@@ -10,6 +10,7 @@ from vtts.vrml.fields import FIELD_TYPES, FieldType, SFImage
 from vtts.vrml.geometry import (
     PRIMITIVES,
     TriangleMesh,
+    check_face_set,
     polygon_triangle_count,
     primitive_mesh,
     triangulate,
@@ -32,6 +33,7 @@ __all__ = [
     "SFImage",
     "Scene",
     "TriangleMesh",
+    "check_face_set",
     "compose_transform",
     "drawn_children",
     "dumps",

@@ -61,8 +61,8 @@ def _corners(coord_index: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarra
 
 def polygon_triangle_count(coord_index: np.ndarray) -> int:
     """Number of fan triangles of a coordIndex array."""
-    _, _, k = _corners(coord_index)
-    return int(np.count_nonzero(k >= 2))
+    ci = np.asarray(coord_index, dtype=np.int64)
+    return _fan_triangle_count(ci == -1, ci.size)
 
 
 def _fan(k: np.ndarray) -> np.ndarray:
@@ -195,6 +195,49 @@ def _attribute_node_values(node: Node, field_name: str, value_field: str) -> np.
         # gives no values: the attribute is treated as absent
         return None
     return np.asarray(child[value_field], dtype=np.float64)
+
+
+def check_face_set(node: Node) -> int:
+    """Raise what :func:`triangulate` would raise for an IndexedFaceSet (an index out of range,
+    an index array too short for the corners or faces it must cover), at the same node and with
+    the same message, without building the mesh; the number of its fan triangles otherwise.
+
+    ``vtts check`` needs only this: triangulating a large mesh to validate it spends most of its
+    time on what validation never reads (generated normals, merging corners into vertices).
+    """
+    node = node.expand()
+    if node.type.name != "IndexedFaceSet":
+        raise TypeError(f"not an IndexedFaceSet: {node.type.name}")
+    pts = _attribute_node_values(node, "coord", "point")
+    n_points = 0 if pts is None else pts.size // 3
+    ci = np.asarray(node["coordIndex"], dtype=np.int64)
+    sep = ci == -1
+    pos = np.flatnonzero(~sep)
+    corner_coord = ci[pos]
+    _check_range("coordIndex", corner_coord, n_points, node, "Coordinate")
+    if pos.size == 0:
+        return 0
+    pid = np.cumsum(sep)[pos]
+    # (attribute node, its value field, its index field, per vertex?, what range errors call it)
+    attributes = (
+        ("normal", "vector", "normalIndex", node["normalPerVertex"], "Normal node"),
+        ("color", "color", "colorIndex", node["colorPerVertex"], "Color node"),
+        ("texCoord", "point", "texCoordIndex", True, "TextureCoordinate"),
+    )
+    for field_name, value_field, index_field, per_vertex, what in attributes:
+        values = _attribute_node_values(node, field_name, value_field)
+        if values is not None:
+            idx = _attribute_index(node, index_field, per_vertex, pos, pid)
+            _check_range(index_field, idx, values.shape[0], node, what)
+    return _fan_triangle_count(sep, ci.size)
+
+
+def _fan_triangle_count(sep: np.ndarray, n: int) -> int:
+    """Fan triangles of a coordIndex given where its ``-1`` separators are: a polygon of ``k``
+    corners gives ``k - 2``, a shorter run none."""
+    bounds = np.r_[-1, np.flatnonzero(sep), n]
+    corners = np.diff(bounds) - 1
+    return int(np.maximum(corners - 2, 0).sum())
 
 
 def triangulate(node: Node, points: np.ndarray | None = None) -> TriangleMesh:

@@ -408,7 +408,8 @@ class _Builder:
             scope.imports.add(str(names[-1]))  # "AS name", or the exported name itself
         self.warn(f"X3D statement {keyword} skipped (--lenient)", keyword)
 
-    def node_stmt(self, t: Tree, scope: _Scope, depth: int) -> Node:
+    def node_stmt(self, t: Tree, scope: _Scope, depth: int) -> Node | None:
+        """The node of a statement; None for a USE lenient mode dropped (an undefined name)."""
         if t.data == "use_node":
             name_tok = t.children[0]
             node = scope.defs.get(str(name_tok))
@@ -416,11 +417,15 @@ class _Builder:
                 return self.outer_use(name_tok, scope)
             if node is None:
                 known = ", ".join(sorted(scope.defs)) or "none"
-                raise self.error(
+                msg = (
                     f"USE of undefined name '{name_tok}': a USE must follow a DEF of the same "
-                    f"name in the same scope (DEF names here: {known})",
-                    name_tok,
+                    f"name in the same scope (DEF names here: {known})"
                 )
+                if not self.lenient:
+                    raise self.error(msg, name_tok)
+                # browsers draw the rest of the scene: the USE stands for no node
+                self.warn(f"{msg}: the USE is dropped (--lenient)", name_tok)
+                return None
             return node
         if t.data == "def_node":
             name_tok, node_tree = t.children
@@ -494,8 +499,10 @@ class _Builder:
                 if self.field_is(node, el, scope):
                     node.order.append(("is", str(el.children[0])))
             elif kind in ("route", "proto", "externproto"):
-                node.order.append(("extra", len(node.extras)))
-                node.extras.append(self.statement(el, scope, depth + 1))
+                extra = self.statement(el, scope, depth + 1)
+                if extra is not None:  # None: a ROUTE lenient mode skipped
+                    node.order.append(("extra", len(node.extras)))
+                    node.extras.append(extra)
             elif kind in ("event_decl", "field_decl"):
                 try:
                     self.script_decl(node, el, scope, depth)
@@ -577,11 +584,14 @@ class _Builder:
         member_tok, iface_tok = el.children
         proto = scope.in_proto()
         if proto is None:
-            raise self.error(
+            msg = (
                 f"'{member_tok} IS {iface_tok}' outside a PROTO body: IS binds a node's member "
-                "to its PROTO's interface and is legal only inside a PROTO definition",
-                member_tok,
+                "to its PROTO's interface and is legal only inside a PROTO definition"
             )
+            if not self.lenient:
+                raise self.error(msg, member_tok)
+            self.warn(f"{msg}: the binding is ignored (--lenient)", member_tok)
+            return False
         ntype = node.type
         iface = proto.decls.get(str(iface_tok))
         if iface is None:
@@ -614,21 +624,25 @@ class _Builder:
                 )
                 return False
             raise self.unknown_member(ntype, member_tok)
+        allowed = _IS_ACCESS[iface.access]
+        mismatch = None
         if member.type is not iface.type:
-            raise self.error(
+            mismatch = (
                 f"'{member_tok} IS {iface_tok}': {ntype.describe()}.{member_tok} is "
                 f"{member.type.name} but PROTO {proto.name}.{iface_tok} is {iface.type.name} "
-                "(rule: IS joins members of the same type)",
-                member_tok,
+                "(rule: IS joins members of the same type)"
             )
-        allowed = _IS_ACCESS[iface.access]
-        if access not in allowed:
-            raise self.error(
+        elif access not in allowed:
+            mismatch = (
                 f"'{member_tok} IS {iface_tok}': a {access} cannot be bound to the PROTO's "
                 f"{iface.access} (an interface {iface.access} binds to "
-                f"{' or '.join(sorted(allowed))} members)",
-                member_tok,
+                f"{' or '.join(sorted(allowed))} members)"
             )
+        if mismatch is not None:
+            if not self.lenient:
+                raise self.error(mismatch, member_tok)
+            self.warn(f"{mismatch}: the binding is ignored (--lenient)", member_tok)
+            return False
         if str(member_tok) in node.fields or str(member_tok) in node.is_maps:
             self.given_twice(node, str(member_tok), member_tok)
         node.is_maps[str(member_tok)] = str(iface_tok)
@@ -642,21 +656,30 @@ class _Builder:
                 "PROTO interfaces and Script nodes declare members",
                 access_tok,
             )
+        as_field = False
         if str(access_tok) == "exposedField":
-            raise self.error(
+            msg = (
                 "exposedField is not allowed in a Script (rule: a Script declares eventIn, "
-                "eventOut and field members only)",
-                access_tok,
+                "eventOut and field members only)"
             )
+            if not self.lenient:
+                raise self.error(msg, access_tok)
+            # X3D allows it (inputOutput); as a field the value is kept and the scene written
+            # back is VRML97 again (ROUTEs to its events then warn as any bad ROUTE does)
+            self.warn(f"{msg}: read as a field (--lenient)", access_tok)
+            as_field = True
         decl, value, is_name = self.declaration(el, scope, depth, in_script=True)
+        if as_field:
+            decl = FieldDecl("field", decl.type, decl.name, None, None)
         problem = interface_conflict(node.type.decls, decl)
         if problem:
-            raise self.error(f"Script: {problem}", el.children[2])
+            self.member_clash(f"Script: {problem}", el.children[2])  # lenient: left out
         node.type.decls[decl.name] = decl
         node.script_decls.append(decl)
         if is_name is not None:
             fake = Tree("field_is", [el.children[2], is_name])
-            self.field_is(node, fake, scope)
+            if not self.field_is(node, fake, scope) and decl.has_value:
+                node.fields[decl.name] = _empty_value(decl.type)  # lenient: binding ignored
         elif decl.has_value:
             node.fields[decl.name] = value
 
@@ -696,6 +719,15 @@ class _Builder:
                 value = None
         decl = FieldDecl(str(access_tok), ftype, str(name_tok), None if in_script else value, None)
         return decl, value, is_name
+
+    def member_clash(self, msg: str, name_tok: Token) -> None:
+        """An interface member that clashes with an earlier one: an error, or in lenient mode a
+        warning and the later member left out (raises :class:`_SkipDeclaration`): the first one
+        declared keeps the name."""
+        if not self.lenient:
+            raise self.error(msg, name_tok)
+        self.warn(f"{msg}: the later member is left out (--lenient)", name_tok)
+        raise _SkipDeclaration
 
     def field_type(self, type_tok: Token, name_tok: Token, owner: str) -> FieldType:
         """The type a declaration names. One VRML97 lacks (VRML 1.0's SFLong, X3D's SFDouble) is
@@ -743,7 +775,10 @@ class _Builder:
                     )
                 problem = interface_conflict(proto.decls, decl)
                 if problem:
-                    raise self.error(f"PROTO {proto.name}: {problem}", el.children[2])
+                    try:
+                        self.member_clash(f"PROTO {proto.name}: {problem}", el.children[2])
+                    except _SkipDeclaration:
+                        continue
                 proto.decls[decl.name] = decl
             else:
                 body_trees.append(el)
@@ -788,7 +823,10 @@ class _Builder:
                 decl = FieldDecl(str(access_tok), ftype, str(member_tok), None)
                 problem = interface_conflict(proto.decls, decl)
                 if problem:
-                    raise self.error(f"EXTERNPROTO {proto.name}: {problem}", member_tok)
+                    try:
+                        self.member_clash(f"EXTERNPROTO {proto.name}: {problem}", member_tok)
+                    except _SkipDeclaration:
+                        continue
                 proto.decls[decl.name] = decl
             else:  # url_list
                 for s in el.children:
@@ -811,7 +849,7 @@ class _Builder:
                 )
                 return None
             if node is None:
-                raise self.error(
+                return self.bad_route(
                     f"ROUTE names '{node_tok}', which is not DEFed before this point in the "
                     "same scope",
                     node_tok,
@@ -825,18 +863,27 @@ class _Builder:
             return route
         out_decl = src.type.event_out(str(out_tok))
         if out_decl is None:
-            raise self.error(self._route_member_problem(src, str(out_tok), "eventOut"), out_tok)
+            return self.bad_route(
+                self._route_member_problem(src, str(out_tok), "eventOut"), out_tok
+            )
         in_decl = dst.type.event_in(str(in_tok))
         if in_decl is None:
-            raise self.error(self._route_member_problem(dst, str(in_tok), "eventIn"), in_tok)
+            return self.bad_route(self._route_member_problem(dst, str(in_tok), "eventIn"), in_tok)
         if out_decl.type is not in_decl.type:
-            raise self.error(
+            return self.bad_route(
                 f"ROUTE {from_tok}.{out_tok} TO {to_tok}.{in_tok} connects an "
                 f"{out_decl.type.name} eventOut to an {in_decl.type.name} eventIn "
                 "(rule: a ROUTE connects events of the same type)",
                 from_tok,
             )
         return route
+
+    def bad_route(self, msg: str, tok: Token) -> None:
+        """A ROUTE that cannot connect: an error, or in lenient mode a warning and no ROUTE
+        (browsers skip it and show the scene; only the animation it would carry is lost)."""
+        if not self.lenient:
+            raise self.error(msg, tok)
+        self.warn(f"{msg}: the ROUTE is skipped (--lenient)", tok)
 
     @staticmethod
     def _route_member_problem(node: Node, name: str, wanted: str) -> str:
@@ -899,7 +946,7 @@ class _Builder:
         nodes = [
             n
             for i, n in zip(items, nodes, strict=True)
-            if self.check_role(n, decl, what, _first_token(i))
+            if n is not None and self.check_role(n, decl, what, _first_token(i))
         ]
         if ftype.multi:
             return nodes
