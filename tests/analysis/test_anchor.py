@@ -83,6 +83,7 @@ def test_the_track_goes_back_from_the_anchor_and_on_from_it(frames, tmp_path):
     assert np.abs(head).max() < 8000, head
 
 
+@pytest.mark.usefixtures("shared_fit")
 def test_an_anchor_with_a_step_and_without_one(frames, tmp_path):
     tracked = track(frames[:9], fps=25.0, model_path=tmp_path / "a.wrl", step=2, anchor=6)
     assert [fe.index for fe in tracked.analysis.frames] == [0, 2, 4, 6, 8]
