@@ -146,7 +146,7 @@ def test_english_table_agrees_with_espeak_ipa():
         if r["ipa"] in ("-", "") or r["symbol"] in DELIBERATE:
             continue
         first_ipa = r["ipa"].split()[0]
-        assert viseme_of("", "xx", ipa=first_ipa) or True  # IPA lookups never fail
+        assert viseme_of("", "xx", ipa=first_ipa) == 0  # a pause stays one, whatever its IPA
         assert viseme_of("§", "xx", ipa=first_ipa) == int(r["viseme"]), r
         checked += 1
     assert checked >= 60
