@@ -2,8 +2,13 @@
 
 from __future__ import annotations
 
+import contextlib
+import copy
+import hashlib
+from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 DATA = Path(__file__).parent / "data"
@@ -12,3 +17,52 @@ DATA = Path(__file__).parent / "data"
 @pytest.fixture
 def data_dir() -> Path:
     return DATA
+
+
+class SharedFits:
+    """Heads fitted by :func:`vtts.fit.fit_photo`, made once per photo and options in a
+    session (per xdist worker). Within :meth:`sharing` each call gets its own deep copy of the
+    head the first call fitted: a fit is seeded and deterministic, the same photo gives the
+    same head byte for byte. For tests of what comes after the fit — tracking a video with a
+    head fitted to its first face (``track(model_path=...)``) — that fit the same frame again
+    and again; not for tests of the fit itself, nor for ones that change what the fit does (a
+    patched detector, a warning it gives)."""
+
+    def __init__(self) -> None:
+        self.heads: dict[tuple, object] = {}
+
+    @contextlib.contextmanager
+    def sharing(self) -> Iterator[None]:
+        import vtts.fit
+        import vtts.fit.photo
+
+        fit = vtts.fit.photo.fit_photo
+
+        def fit_once(image, **options):
+            if options.get("detector") is not None:
+                return fit(image, **options)
+            pixels = np.ascontiguousarray(image)
+            key = (hashlib.sha256(pixels.tobytes()).hexdigest(), pixels.shape,
+                   pixels.dtype.str, repr(sorted(options.items())))  # fmt: skip
+            if key not in self.heads:
+                self.heads[key] = fit(image, **options)
+            return copy.deepcopy(self.heads[key])
+
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(vtts.fit, "fit_photo", fit_once)
+            mp.setattr(vtts.fit.photo, "fit_photo", fit_once)
+            yield
+
+
+@pytest.fixture(scope="session")
+def fits() -> SharedFits:
+    """The session's :class:`SharedFits` (for a module-scoped fixture: ``with
+    fits.sharing(): ...``)."""
+    return SharedFits()
+
+
+@pytest.fixture
+def shared_fit(fits: SharedFits) -> Iterator[None]:
+    """The test's fits are shared with the session's (:class:`SharedFits`)."""
+    with fits.sharing():
+        yield

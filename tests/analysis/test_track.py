@@ -37,9 +37,10 @@ def _frames(n: int) -> list[np.ndarray]:
 
 
 @pytest.fixture(scope="module")
-def carphone_track(tmp_path_factory):
+def carphone_track(tmp_path_factory, fits):
     folder = tmp_path_factory.mktemp("track")
-    return track(_frames(3), fps=25.0, model_path=folder / "car-model.wrl"), folder
+    with fits.sharing():
+        return track(_frames(3), fps=25.0, model_path=folder / "car-model.wrl"), folder
 
 
 def test_a_head_is_fitted_to_the_first_face_and_tracked(carphone_track):
@@ -106,6 +107,7 @@ def test_a_model_without_feature_points_cannot_be_placed():
         landmark_pose(est, np.zeros((468, 3)))
 
 
+@pytest.mark.usefixtures("shared_fit")
 def test_frames_before_the_first_face_copy_its_estimate(tmp_path):
     blank = np.zeros((144, 176, 3), np.uint8)
     frames = [blank, blank, *_frames(1)]
@@ -184,6 +186,7 @@ def test_analyze_auto_bad_input(tmp_path, args, fragment):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["clip"]
 
 
+@pytest.mark.usefixtures("shared_fit")
 def test_a_frame_that_loses_the_model_is_started_again_from_its_landmarks(tmp_path, monkeypatch):
     from vtts.errors import VttsError
 
@@ -205,6 +208,7 @@ def test_a_frame_that_loses_the_model_is_started_again_from_its_landmarks(tmp_pa
     assert abs(tracked.analysis.frames[1].translation[0]) < 1.0
 
 
+@pytest.mark.usefixtures("shared_fit")
 def test_a_frame_that_cannot_be_restarted_holds_the_last_estimate(tmp_path, monkeypatch):
     import vtts.analysis.track as track_module
     from vtts.errors import VttsError
@@ -227,6 +231,7 @@ def test_a_frame_that_cannot_be_restarted_holds_the_last_estimate(tmp_path, monk
     assert abs(frames[2].translation[0]) < 1.0  # frame 2 starts from frame 0's state
 
 
+@pytest.mark.usefixtures("shared_fit")
 def test_a_head_that_ran_away_is_placed_again_from_the_neutral_face(tmp_path, monkeypatch):
     """A frame whose estimate ends with the head turned past MAX_TURN_AU (and its FAPs off) —
     a good PSNR notwithstanding — is re-initialized from the landmarks, starting from the
@@ -285,6 +290,7 @@ def test_a_head_runs_away_beyond_a_turn_or_a_shift(rotation, shift, away):
     assert track_module._run_away(estimator) is away
 
 
+@pytest.mark.usefixtures("shared_fit")
 def test_a_held_frame_carries_no_motion_on(tmp_path, monkeypatch):
     """After a hold the next frame starts afresh: the motion of the two estimates before the
     hold would otherwise be carried on, growing with the frames held."""

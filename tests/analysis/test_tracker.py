@@ -124,6 +124,7 @@ def _carphone(n: int) -> list[np.ndarray]:
     return list(itertools.islice(read_video(CARPHONE).frames(), n))
 
 
+@pytest.mark.usefixtures("shared_fit")
 def test_a_head_made_for_the_video_is_tracked_with_few_renderings(tmp_path, monkeypatch):
     """The fitted head's face is unlit: the samples of one rendering serve several frames, no
     polish, and the face PSNR stays with the accurate mode's."""
@@ -175,6 +176,7 @@ def test_a_head_made_for_the_video_is_tracked_with_few_renderings(tmp_path, monk
     assert seen and not any(seen)
 
 
+@pytest.mark.usefixtures("shared_fit")
 def test_track_with_tracking_uses_the_tracker(tmp_path):
     tracked = track(_carphone(4), fps=30.0, model_path=tmp_path / "c.wrl", tracking=True)
     assert len(tracked.analysis.frames) == 4
@@ -255,10 +257,11 @@ def test_a_lit_face_renders_within_a_frame_sooner(cybatt):
 
 
 @pytest.fixture(scope="module")
-def carphone_head(tmp_path_factory):
+def carphone_head(tmp_path_factory, fits):
     """A head fitted to Carphone's first frame, and the camera it looks through."""
     folder = tmp_path_factory.mktemp("finish")
-    fitted = track(_carphone(1), fps=30.0, model_path=folder / "car.wrl")
+    with fits.sharing():
+        fitted = track(_carphone(1), fps=30.0, model_path=folder / "car.wrl")
     return load_model(str(folder / "car.wrl")), fitted.analysis.camera
 
 
@@ -348,6 +351,7 @@ def test_the_accurate_mode_matches_as_well_as_the_pyramid_with_fewer_renderings(
     assert ours <= 0.7 * theirs, renderings
 
 
+@pytest.mark.usefixtures("shared_fit")
 def test_track_runs_the_accurate_mode_with_finish(tmp_path, monkeypatch):
     made = []
     init = Tracker.__init__

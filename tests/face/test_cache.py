@@ -24,13 +24,28 @@ HEAD = Path(__file__).parents[1] / "data" / "models" / "head.wrl"
 
 
 @pytest.fixture
-def big_model(tmp_path, monkeypatch):
+def cybatt_model(tmp_path, monkeypatch):
     """A copy of cybatt (large enough to be cached) and an empty cache folder."""
     monkeypatch.setenv("VTTS_CACHE_DIR", str(tmp_path / "cache"))
     src = find_model("cybatt")
     for suffix in (".wrl", ".adt"):
         shutil.copy(src.with_suffix(suffix), tmp_path / f"head{suffix}")
     shutil.copy(src.with_name("cybatt-face.png"), tmp_path / "cybatt-face.png")
+    return tmp_path / "head.wrl"
+
+
+@pytest.fixture
+def big_model(tmp_path, monkeypatch):
+    """The test head (``HEAD``, its tables beside it) with comments enough to make it just
+    large enough to be cached, and an empty cache folder: a fifth of cybatt's parse, for the
+    tests of what the cache does with its entries (cybatt, whose parse the cache is for, is
+    ``cybatt_model``)."""
+    monkeypatch.setenv("VTTS_CACHE_DIR", str(tmp_path / "cache"))
+    shutil.copy(HEAD.with_suffix(".adt"), tmp_path / "head.adt")
+    text = HEAD.read_text()
+    line = "# a comment that makes the model large enough to be cached\n"
+    lines = cache.MIN_BYTES - len(text.encode()) - HEAD.with_suffix(".adt").stat().st_size
+    (tmp_path / "head.wrl").write_text(text + line * (lines // len(line) + 1))
     return tmp_path / "head.wrl"
 
 
@@ -47,11 +62,11 @@ def _same(a, b, tmp_path) -> bool:
     )
 
 
-def test_a_cached_model_is_the_parsed_one(big_model, tmp_path):
-    parsed = load_model(big_model)
-    assert len(_entries(big_model)) == 1
-    cached = load_model(big_model)
-    assert cached is not parsed and cached.path == big_model
+def test_a_cached_model_is_the_parsed_one(cybatt_model, tmp_path):
+    parsed = load_model(cybatt_model)
+    assert len(_entries(cybatt_model)) == 1
+    cached = load_model(cybatt_model)
+    assert cached is not parsed and cached.path == cybatt_model
     assert _same(parsed, cached, tmp_path)
     # standard node types stay shared with the parser's (code compares them by identity)
     assert cached.scene.roots[0].type is parsed.scene.roots[0].type
@@ -101,11 +116,13 @@ def test_small_and_lenient_models_are_not_cached(big_model):
     assert _entries(big_model) == []
 
 
-def test_an_unwritable_cache_is_no_error(big_model, monkeypatch):
-    blocker = big_model.parent / "file"
+def test_an_unwritable_cache_is_no_error(cybatt_model, monkeypatch):
+    blocker = cybatt_model.parent / "file"
     blocker.write_text("")
     monkeypatch.setenv("VTTS_CACHE_DIR", str(blocker))  # a file where the folder should be
-    assert np.isfinite(load_model(big_model).engine.deform(np.zeros(N_PARAMS)).points["FACE"]).all()
+    assert np.isfinite(
+        load_model(cybatt_model).engine.deform(np.zeros(N_PARAMS)).points["FACE"]
+    ).all()
 
 
 # ---- hostile entries: the cache holds data, never code ------------------------------------------
