@@ -273,6 +273,7 @@ def analyze(
     process's)."""
     from vtts.api.options import url_roots_set
     from vtts.atomic import check_outputs
+    from vtts.threads import PipeReader
 
     o = options
     outputs = [p for p in (None if o.stream_out else o.out, o.extra_fbs, *o.fitted) if p]
@@ -281,7 +282,8 @@ def analyze(
             check_writable(path)
     check_outputs(outputs, [] if o.pipe else [Path(o.video)])
     with url_roots_set(o.url_root):
-        stdin = sys.stdin.buffer if stdin is None else stdin
+        # the process's stdin is read so that a signal ends the wait for a frame
+        stdin = PipeReader(sys.stdin.buffer) if stdin is None else stdin
         stdout = sys.stdout.buffer if stdout is None else stdout
         return estimate(o, stdin, stdout)
 
