@@ -28,6 +28,9 @@ MAX_TEXT_BYTES = 64 << 20
 MAX_FBS_BYTES = 64 << 20
 #: A ``vtts batch`` jobs file (a million jobs of 250 bytes).
 MAX_JOBS_BYTES = 256 << 20
+#: The most jobs of one ``vtts batch`` file: every job is checked before the first runs, and a
+#: job's check (its options, as the command's) costs a fraction of a millisecond.
+MAX_JOBS = 100_000
 #: A glTF or GLB file (with its buffers).
 MAX_GLTF_BYTES = 512 << 20
 
