@@ -72,6 +72,9 @@ MAX_ACCESSOR_COUNT = 50_000_000
 #: The most morph targets one glTF mesh primitive may have (an ARKit avatar has 52, with the
 #: Oculus visemes 67; each target is a copy of the mesh's positions in memory).
 MAX_MORPH_TARGETS = 1024
+#: The most objects of one glTF file (nodes, meshes, accessors … : the lengths of its top-level
+#: arrays together); pygltflib decodes each into a dataclass, a fraction of a millisecond each.
+MAX_GLTF_OBJECTS = 20_000
 
 
 class LimitError(VttsError):

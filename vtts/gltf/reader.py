@@ -61,6 +61,7 @@ from vtts.gltf.uri import data_uri_bytes, is_data_uri, local_file
 from vtts.limits import (
     MAX_ACCESSOR_COUNT,
     MAX_GLTF_BYTES,
+    MAX_GLTF_OBJECTS,
     MAX_MORPH_TARGETS,
     LimitError,
     read_bytes_capped,
@@ -154,6 +155,7 @@ class GltfReader:
             raise self.error("is a folder, not a glTF file") from None
         except OSError as e:
             raise self.error(f"cannot read file: {e.strerror or e}") from None
+        self._check_objects(data)
         try:
             if data[:4] == b"glTF":
                 doc = GLTF2.load_from_bytes(data)
@@ -179,6 +181,31 @@ class GltfReader:
         self._meshopt: dict[int, bytes] = {}
         self._meshes: dict[int, Mesh] = {}
         self._images: dict[int, Image | None] = {}
+
+    def _check_objects(self, data: bytes) -> None:
+        """Refuse a file of more than :data:`~vtts.limits.MAX_GLTF_OBJECTS` objects before
+        pygltflib decodes them one by one. JSON that does not parse is left for pygltflib to
+        word."""
+        import json
+        import struct
+
+        try:
+            if data[:4] == b"glTF":  # the GLB's first chunk is its JSON
+                length, kind = struct.unpack_from("<II", data, 12)
+                text = data[20 : 20 + length] if kind == 0x4E4F534A else b""
+            else:
+                text = data
+            doc = json.loads(text)
+        except (ValueError, struct.error, RecursionError):
+            return
+        if isinstance(doc, dict):
+            count = sum(len(v) for v in doc.values() if isinstance(v, list))
+            if count > MAX_GLTF_OBJECTS:
+                raise LimitError(
+                    f"{count} glTF objects (nodes, meshes, accessors …), more than the limit "
+                    f"of {MAX_GLTF_OBJECTS} (vtts.limits)",
+                    file=self.file,
+                )
 
     # ---- errors -------------------------------------------------------------------------------
 
