@@ -28,6 +28,9 @@ MAX_TEXT_BYTES = 64 << 20
 MAX_FBS_BYTES = 64 << 20
 #: A ``vtts batch`` jobs file (a million jobs of 250 bytes).
 MAX_JOBS_BYTES = 256 << 20
+#: The most jobs of one ``vtts batch`` file: every job is checked before the first runs, and a
+#: job's check (its options, as the command's) costs a fraction of a millisecond.
+MAX_JOBS = 100_000
 #: A glTF or GLB file (with its buffers).
 MAX_GLTF_BYTES = 512 << 20
 
@@ -78,6 +81,9 @@ MAX_UNBACKED_COUNT = 1_000_000
 #: The most morph targets one glTF mesh primitive may have (an ARKit avatar has 52, with the
 #: Oculus visemes 67; each target is a copy of the mesh's positions in memory).
 MAX_MORPH_TARGETS = 1024
+#: The most objects of one glTF file (nodes, meshes, accessors … : the lengths of its top-level
+#: arrays together); pygltflib decodes each into a dataclass, a fraction of a millisecond each.
+MAX_GLTF_OBJECTS = 20_000
 
 
 class LimitError(VttsError):

@@ -21,6 +21,8 @@ from vtts.fap import FapStream
 from vtts.fap.coding import PAPER_17, StreamEncoder, decode, encode, frame_of, paired_predictors
 from vtts.render import probe_media
 
+from ..signals import signal_other_threads, wait_idle
+
 DATA = Path(__file__).parents[1] / "data"
 CLIP = DATA / "video" / "carphone_qcif.mp4"
 HEAD = DATA / "models" / "head.wrl"
@@ -211,6 +213,51 @@ def test_play_stdin_ctrl_c_waiting_for_a_packet():
     err = p.stderr.read()
     assert b"interrupted" in err and b"Traceback" not in err
     p.stdin.close()
+
+
+def live_player() -> subprocess.Popen:
+    return subprocess.Popen(
+        [str(EXE), "play", "-", "--model", str(HEAD), "--size", "32x24", "-o", "-"],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+
+
+def ends_interrupted(p: subprocess.Popen, within: float = 30) -> None:
+    """``p`` ends within ``within`` seconds with 130 and "interrupted" (killed if it does not)."""
+    try:
+        code = p.wait(within)
+    except subprocess.TimeoutExpired:
+        p.kill()
+        p.wait()
+        pytest.fail(f"still running {within:g} s after the signal")
+    err = p.stderr.read()
+    assert code == 130 and b"interrupted" in err and b"Traceback" not in err, (code, err)
+    p.stdin.close()
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_play_stdin_a_signal_another_thread_takes(sig):
+    """The kernel may hand a signal sent to the process to any thread that does not block it:
+    the one reading the next packet, a BLAS thread. One that does, while the main thread waits
+    for the next frame's geometry, ends the command as one to the main thread does."""
+    parts = streamed(synthetic(3))
+    p = live_player()
+    p.stdin.write(parts[0] + parts[1])
+    p.stdin.flush()
+    assert len(p.stdout.read(32 * 24 * 3)) == 32 * 24 * 3
+    wait_idle(p.pid)  # every thread asleep: the main one waits for the packet's reader
+    assert signal_other_threads(p.pid, sig) >= 1  # at least the reader of stdin
+    ends_interrupted(p)
+
+
+def test_play_stdin_a_signal_another_thread_takes_before_the_header():
+    """The same while the main thread itself waits for the stream's header."""
+    p = live_player()
+    wait_idle(p.pid)
+    if not signal_other_threads(p.pid, signal.SIGINT):
+        p.kill()
+        p.wait()
+        pytest.skip("no thread but the main one yet (no BLAS threads on one core)")
+    ends_interrupted(p)
 
 
 def test_a_batch_job_does_not_play_stdin(tmp_path):

@@ -283,3 +283,42 @@ def test_a_jobs_file_larger_than_the_cap_is_refused(tmp_path, monkeypatch):
         read_jobs(path, tmp_path)
     with pytest.raises(JobError, match="cannot read the jobs"):
         read_jobs(tmp_path / "none.jsonl", tmp_path)
+
+
+def test_a_job_may_not_write_the_jobs_file_through_a_link(tmp_path):
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "here").symlink_to(tmp_path)
+    path = _jobs_file(tmp_path, [json.dumps({"say": "x", "model": "cybatt", "output": "a.mp4"})])
+    path.write_text(json.dumps({"say": "x", "model": "cybatt", "wav_out": f"here/{path.name}"}))
+    checked = read_jobs(path, tmp_path / "out")
+    assert [e.message for e in checked.errors] == ["an output of this job is the jobs file"]
+
+
+def test_reading_jobs_resolves_no_path_per_job(tmp_path, monkeypatch):
+    """A jobs file of 400k lines took minutes to read: each job's outputs and the jobs file
+    itself were resolved component by component (realpath) to tell whether a job writes the
+    jobs file. An output that does not exist yet cannot be it: one stat tells."""
+    import os.path
+
+    lines = [
+        json.dumps({"say": f"Hi {i}.", "model": "cybatt", "output": f"c{i}.mp4"})
+        for i in range(200)
+    ]
+    path = _jobs_file(tmp_path, lines)
+    calls = []
+    real = os.path.realpath
+    monkeypatch.setattr(os.path, "realpath", lambda *a, **k: calls.append(a) or real(*a, **k))
+    checked = read_jobs(path, tmp_path / "out")
+    assert len(checked.jobs) == 200 and not checked.errors
+    assert len(calls) < 10, len(calls)  # was 2 a job
+
+
+def test_a_jobs_file_of_more_jobs_than_the_limit_is_refused(tmp_path, monkeypatch):
+    job = {"say": "Hi.", "model": "cybatt"}
+    lines = [json.dumps({**job, "output": f"{i}.mp4"}) for i in range(4)]
+    path = _jobs_file(tmp_path, [*lines, "", "  "])  # blank lines are no jobs
+    monkeypatch.setattr("vtts.limits.MAX_JOBS", 4)
+    assert len(read_jobs(path, tmp_path).jobs) == 4
+    path.write_text("\n".join([*lines, json.dumps({**job, "output": "5.mp4"})]))
+    with pytest.raises(JobError, match="5 jobs in one file, more than the limit of 4: split"):
+        read_jobs(path, tmp_path)

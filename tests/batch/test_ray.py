@@ -140,3 +140,49 @@ def test_batch_on_local_ray(tmp_path):
     assert "1 failed job not run again" in again.stdout and "start-up" not in again.stdout
     assert f"q{BAD}: error: column 7: unknown bookmark <frown>" in again.stderr
     assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()} == before
+
+
+EXE = Path(sys.executable).with_name("vtts")
+
+
+def test_an_address_nothing_answers_fails_at_once_naming_it(tmp_path):
+    """Ray retried 127.0.0.1:1 for minutes, deaf to Ctrl-C and SIGTERM, and its warning named
+    another address."""
+    jobs = tmp_path / "jobs.jsonl"
+    jobs.write_text(json.dumps({"say": "Hi.", "model": "cybatt", "output": "a.mp4"}) + "\n")
+    for address, message in [
+        ("127.0.0.1:1", "cannot reach the Ray cluster at 127.0.0.1:1: connection refused"),
+        ("ray://127.0.0.1:1", "cannot reach the Ray cluster at ray://127.0.0.1:1: connection"),
+        ("127.0.0.1", "--address is HOST:PORT, ray://HOST:PORT or auto, got '127.0.0.1'"),
+        ("h:99999", "--address is HOST:PORT"),
+    ]:
+        r = subprocess.run(
+            [str(EXE), "batch", str(jobs), "--out", str(tmp_path / "out"), f"--address={address}"],
+            capture_output=True, text=True, timeout=120, check=False)  # fmt: skip
+        assert r.returncode == 1 and message in r.stderr and "Traceback" not in r.stderr, r.stderr
+
+
+def test_sigterm_ends_a_batch_as_ctrl_c_does(tmp_path):
+    """ray.init made SIGTERM exit at once with status 15, two native stack dumps of Ray's and
+    no "interrupted"; the command's handler is put back after it."""
+    jobs = tmp_path / "jobs.jsonl"
+    lines = [{"say": f"Hello number {i}.", "model": "cybatt", "output": f"{i}.mp4",
+              "size": "64x48"} for i in range(30)]  # fmt: skip
+    jobs.write_text("".join(json.dumps(j) + "\n" for j in lines))
+    out = tmp_path / "out"
+    p = subprocess.Popen([str(EXE), "batch", str(jobs), "--out", str(out), "--workers", "1"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+    try:
+        deadline = time.monotonic() + 240
+        while not (out / "manifest.jsonl").exists():  # Ray runs: a job is done
+            assert p.poll() is None and time.monotonic() < deadline, p.stderr.read()
+            time.sleep(0.2)
+        p.send_signal(signal.SIGTERM)
+        code = p.wait(60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    err = p.stderr.read().decode()
+    assert code == 130 and "interrupted" in err, (code, err)
+    assert "SIGTERM received" not in err and "Traceback" not in err, err

@@ -388,3 +388,53 @@ def test_extras_of_any_json_type_are_read(tmp_path, load, error, extras, where, 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         load(path)
+
+
+def glb(doc: dict) -> bytes:
+    """``doc`` as a GLB of its JSON chunk alone."""
+    text = json.dumps(doc).encode()
+    text += b" " * (-len(text) % 4)
+    chunk = len(text).to_bytes(4, "little") + b"JSON" + text
+    return b"glTF" + (2).to_bytes(4, "little") + (12 + len(chunk)).to_bytes(4, "little") + chunk
+
+
+@pytest.mark.parametrize("suffix", [".gltf", ".glb"])
+def test_more_objects_than_the_limit_are_refused_before_decoding(tmp_path, monkeypatch, suffix):
+    """``adi import`` of 300k empty nodes (a 1.2 MB file) ran for minutes: pygltflib decodes
+    each object into a dataclass, then the importer walks each node. The objects are counted
+    in the JSON first."""
+    from vtts.limits import LimitError
+
+    monkeypatch.setattr("vtts.gltf.reader.MAX_GLTF_OBJECTS", 100)
+    doc = triangle_gltf()  # 1 scene, 1 node, 1 mesh, 3 accessors, 3 views, 1 buffer: 10
+    doc["nodes"] += [{} for _ in range(90)]
+    path = tmp_path / f"joy{suffix}"
+    path.write_bytes(glb(doc) if suffix == ".glb" else json.dumps(doc).encode())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        import_avatar(path)  # 100 objects: at the limit
+    doc["nodes"].append({})
+    path.write_bytes(glb(doc) if suffix == ".glb" else json.dumps(doc).encode())
+    with pytest.raises(LimitError, match="101 glTF objects .* more than the limit of 100") as e:
+        import_avatar(path)
+    assert e.value.file == str(path)
+
+
+def test_many_nodes_of_one_name_are_named_in_linear_time():
+    """DEF names are made unique with a suffix; the search for a free one starts where the last
+    one for that name stopped (it tried every suffix taken before: quadratic)."""
+    from vtts.avatar.importer import _Importer
+
+    class CountingSet(set):
+        checks = 0
+
+        def __contains__(self, item):
+            CountingSet.checks += 1
+            return super().__contains__(item)
+
+    imp = object.__new__(_Importer)
+    imp.names, imp._next_suffix = CountingSet(), {}
+    got = [imp.unique("Bone", "node") for _ in range(2000)]
+    assert got[:3] == ["Bone", "Bone_2", "Bone_3"] and len(set(got)) == 2000
+    assert imp.unique("Bone_5", "node") == "Bone_5_2"  # taken: suffixed as any other name
+    assert CountingSet.checks < 3 * 2001, CountingSet.checks

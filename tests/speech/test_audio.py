@@ -5,6 +5,7 @@ bundled ffmpeg, stereo mixed to mono, resampling, the length limit and clear err
 from __future__ import annotations
 
 import io
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -122,6 +123,23 @@ def test_missing_empty_folder_and_not_audio(tmp_path: Path) -> None:
         with pytest.raises(SpeechError, match=fragment) as err:
             read_audio(path)
         assert err.value.file == str(path)
+
+
+def test_a_named_pipe_or_a_device_is_refused_at_once(tmp_path: Path) -> None:
+    """``say --audio FIFO`` waited for ever for a writer, deaf to Ctrl-C and SIGTERM (its
+    reader thread was joined); a pipe cannot be decoded twice (libsndfile, then ffmpeg) anyway."""
+    fifo = tmp_path / "speech.wav"
+    os.mkfifo(fifo)
+    for path in (fifo, Path("/dev/zero")):
+        with pytest.raises(SpeechError, match="not a regular file .a named pipe or a device.") as e:
+            read_audio(path)
+        assert e.value.file == str(path)
+    exe = Path(sys.executable).with_name("vtts")
+    cmd = [str(exe), "say", "--text", "hello", "--audio", str(fifo), "--model", str(HEAD)]
+    cmd += ["--fap-out", str(tmp_path / "x.fap")]
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=120)  # hung before
+    assert r.returncode == 1 and "not a regular file" in r.stderr and "Traceback" not in r.stderr
+    assert str(fifo) in r.stderr and not (tmp_path / "x.fap").exists()
 
 
 def test_video_without_sound_has_no_audio_stream(tmp_path: Path) -> None:

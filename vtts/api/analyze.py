@@ -297,6 +297,7 @@ def analyze(
     from vtts.analysis.report import REPORT_FILES
     from vtts.api.options import model_files, url_roots_set
     from vtts.atomic import check_outputs
+    from vtts.threads import PipeReader
 
     o = options
     outputs = [p for p in (None if o.stream_out else o.out, o.extra_fbs, *o.fitted) if p]
@@ -312,7 +313,8 @@ def analyze(
     if not o.pipe:
         check_frames_folder(Path(o.video), [*outputs, *report])
     with url_roots_set(o.url_root):
-        stdin = sys.stdin.buffer if stdin is None else stdin
+        # the process's stdin is read so that a signal ends the wait for a frame
+        stdin = PipeReader(sys.stdin.buffer) if stdin is None else stdin
         stdout = sys.stdout.buffer if stdout is None else stdout
         return estimate(o, stdin, stdout)
 

@@ -124,11 +124,13 @@ def play(
     stdin and raw frames go (None: the process's); ``on_first_frame``: called once the first
     frame is rendered."""
     from vtts.api.options import check_io, url_roots_set
+    from vtts.threads import PipeReader
 
     check_io(options)
     with url_roots_set(options.url_root):
         if options.stream == "-":
-            stdin = sys.stdin.buffer if stdin is None else stdin
+            # the process's stdin is read so that a signal ends the wait for a packet
+            stdin = PipeReader(sys.stdin.buffer) if stdin is None else stdin
             stdout = sys.stdout.buffer if stdout is None else stdout
             return play_live(options, stdin, stdout, on_first_frame)
         from vtts.api.outputs import speech_wav

@@ -7,6 +7,7 @@ import contextlib
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -22,6 +23,9 @@ from vtts.api.options import (
 )
 from vtts.errors import RenderError, VttsError
 from vtts.messages import echo
+
+if TYPE_CHECKING:
+    from concurrent.futures import Future
 
 #: The speech synthesizers: espeak-ng, or festival's HTS voice.
 ENGINES = ("espeak", "festival")
@@ -158,6 +162,7 @@ def speak_and_set_up(o: SayOptions, text: str, models: list, known: set[str]):
 
     from vtts.animate.timeline import build_timeline
     from vtts.api.outputs import SpeechTrack
+    from vtts.threads import result
     from vtts.utterance import prepare_utterance
 
     def speak():
@@ -192,24 +197,41 @@ def speak_and_set_up(o: SayOptions, text: str, models: list, known: set[str]):
             raise
         return utt, timelines, track
 
-    with ThreadPoolExecutor(max_workers=1) as pool:
-        speaking = pool.submit(speak)
+    pool = ThreadPoolExecutor(max_workers=1)
+    speaking = pool.submit(speak)
+    try:
         renderer = None
         try:
             if o.video_file or o.png_dir:
                 renderer = o.renderer(models, video=bool(o.video_file))
-        except BaseException as e:
+        except Exception as e:
             try:
-                _, _, track = speaking.result()
-            except BaseException:
+                _, _, track = result(speaking)
+            except Exception:
                 if isinstance(e, VttsError):
                     raise  # a problem with the text is reported first, as it comes first
             else:
                 if track is not None:
                     track.close()
             raise
-        utt, timelines, track = speaking.result()
+        utt, timelines, track = result(speaking)
+    except BaseException:
+        # interrupted (Ctrl-C, SIGTERM) or failed: the speech is not waited for, as it may never
+        # come (--audio a named pipe nobody writes); a track it makes later is closed then
+        speaking.add_done_callback(_close_track)
+        raise
+    finally:
+        pool.shutdown(wait=False, cancel_futures=True)
     return utt, timelines, renderer, track
+
+
+def _close_track(speaking: Future) -> None:
+    """Close the AAC track of a speech nobody waits for any more (see
+    :func:`speak_and_set_up`)."""
+    if not speaking.cancelled() and speaking.exception() is None:
+        track = speaking.result()[2]
+        if track is not None:
+            track.close()
 
 
 def write_said(o: SayOptions, models, utt, timelines, renderer, track, on_first_frame) -> Said:

@@ -223,6 +223,7 @@ class _Importer:
         self.table = table
         self.types = standard_node_types()
         self.names: set[str] = set()
+        self._next_suffix: dict[str, int] = {}  # the suffix to try next for a name taken
         self.defs: dict[str, Node] = {}
         self.face_sets: list[_FaceSet] = []
         self.images: dict[str, Image] = {}
@@ -245,9 +246,14 @@ class _Importer:
             base = f"_{base}"
         if base in VRML_KEYWORDS:  # DEF USE would not read back
             base = f"{base}_"
-        out, k = base, 2
-        while out in self.names:
-            out, k = f"{base}_{k}", k + 1
+        out = base
+        if out in self.names:
+            # from where the last search for this name stopped: thousands of nodes of one name
+            # would otherwise try every suffix taken before (quadratic)
+            k = self._next_suffix.get(base, 2)
+            while (out := f"{base}_{k}") in self.names:
+                k += 1
+            self._next_suffix[base] = k + 1
         self.names.add(out)
         return out
 

@@ -389,7 +389,7 @@ def read_jobs(path: str | os.PathLike[str], out_dir: str | os.PathLike[str]) -> 
     """The jobs of a ``.jsonl`` file (blank lines skipped), each checked by :func:`parse_job`;
     a bad line becomes a :class:`JobError` with its line (and, for bad JSON, column) instead of
     stopping the others. Raises :class:`JobError` when the file cannot be read."""
-    from vtts.limits import MAX_JOBS_BYTES, LimitError, read_bytes_capped
+    from vtts.limits import MAX_JOBS, MAX_JOBS_BYTES, LimitError, read_bytes_capped
 
     name = os.fspath(path)
     try:
@@ -398,9 +398,17 @@ def read_jobs(path: str | os.PathLike[str], out_dir: str | os.PathLike[str]) -> 
         raise JobError(e.message, file=name) from None
     except OSError as e:
         raise JobError(f"cannot read the jobs: {e.strerror or e}", file=name) from None
+    lines = data.split(b"\n")
+    count = sum(1 for raw in lines if not raw.isspace() and raw)
+    if count > MAX_JOBS:
+        raise JobError(
+            f"{count} jobs in one file, more than the limit of {MAX_JOBS}: split it into "
+            "several batches",
+            file=name,
+        )
     jobs: list[Job] = []
     errors: list[JobError] = []
-    for n, raw in enumerate(data.split(b"\n"), 1):
+    for n, raw in enumerate(lines, 1):
         if not raw.strip():
             continue
         try:
@@ -421,14 +429,25 @@ def read_jobs(path: str | os.PathLike[str], out_dir: str | os.PathLike[str]) -> 
             e.file, e.line = name, n
             errors.append(e)
     jobs = check_unique(jobs, errors, name)
-    for job in list(jobs):
-        if any(Path(out_dir, o).resolve() == Path(path).resolve() for o in job.outputs):
+    kept = []
+    for job in jobs:
+        if any(_is_file(os.path.join(out_dir, o), name) for o in job.outputs):
             errors.append(
                 JobError("an output of this job is the jobs file", file=name, line=job.line)
             )
-            jobs.remove(job)
+        else:
+            kept.append(job)
     errors.sort(key=lambda e: e.line or 0)
-    return JobsFile(jobs, errors)
+    return JobsFile(kept, errors)
+
+
+def _is_file(output: str, jobs_file: str) -> bool:
+    """Whether ``output`` is the file ``jobs_file`` (through any link): an output that does not
+    exist yet is not, so that most cost one ``stat``, not a path resolved part by part."""
+    try:
+        return os.path.samefile(output, jobs_file)
+    except OSError:
+        return False
 
 
 def as_jobs(jobs: Iterable, out_dir: str | os.PathLike[str]) -> JobsFile:
@@ -485,8 +504,13 @@ def preflight(job: Job, models: dict | None = None) -> None:
             if options.file:
                 raw = read_bytes_capped(options.file, MAX_TEXT_BYTES, what="text")
                 text = raw.decode("utf-8", errors="replace")
-            known = {x.name for h in heads for x in h.tables.adts if x.kind == "expression"}
-            parse_bookmarks(text or "", known)
+            # the heads' expressions, once per set of heads (a batch has many jobs, few heads)
+            heads_key = ("expressions", *(id(h) for h in heads))
+            if heads_key not in models:
+                models[heads_key] = {
+                    x.name for h in heads for x in h.tables.adts if x.kind == "expression"
+                }
+            parse_bookmarks(text or "", models[heads_key])
     except VttsError as e:
         where = e.location()
         raise JobError(f"vtts {job.command}: {where + ': ' if where else ''}{e.message}") from None
@@ -498,12 +522,15 @@ def dry_run(path: str | os.PathLike[str], out_dir: str | os.PathLike[str]) -> Jo
     line."""
     checked = read_jobs(path, out_dir)
     models: dict = {}
-    for job in list(checked.jobs):
+    kept = []
+    for job in checked.jobs:
         try:
             preflight(job, models)
         except JobError as e:
             e.file, e.line = os.fspath(path), job.line
             checked.errors.append(e)
-            checked.jobs.remove(job)
+        else:
+            kept.append(job)
+    checked.jobs = kept
     checked.errors.sort(key=lambda e: e.line or 0)
     return checked

@@ -61,6 +61,7 @@ from vtts.gltf.uri import data_uri_bytes, is_data_uri, local_file
 from vtts.limits import (
     MAX_ACCESSOR_COUNT,
     MAX_GLTF_BYTES,
+    MAX_GLTF_OBJECTS,
     MAX_MORPH_TARGETS,
     MAX_UNBACKED_COUNT,
     LimitError,
@@ -159,6 +160,7 @@ class GltfReader:
             # pygltflib reads any version; a version 1 file (KHR_binary_glTF) is laid out otherwise
             raise self.error(f"the GLB container is version {int.from_bytes(container, 'little')}, "
                              "not 2 (the only one glTF 2.0 defines)")  # fmt: skip
+        self._check_objects(data)
         data = _object_extras(data)
         try:
             if data[:4] == b"glTF":
@@ -185,6 +187,31 @@ class GltfReader:
         self._meshopt: dict[int, bytes] = {}
         self._meshes: dict[int, Mesh] = {}
         self._images: dict[int, Image | None] = {}
+
+    def _check_objects(self, data: bytes) -> None:
+        """Refuse a file of more than :data:`~vtts.limits.MAX_GLTF_OBJECTS` objects before
+        pygltflib decodes them one by one. JSON that does not parse is left for pygltflib to
+        word."""
+        import json
+        import struct
+
+        try:
+            if data[:4] == b"glTF":  # the GLB's first chunk is its JSON
+                length, kind = struct.unpack_from("<II", data, 12)
+                text = data[20 : 20 + length] if kind == 0x4E4F534A else b""
+            else:
+                text = data
+            doc = json.loads(text)
+        except (ValueError, struct.error, RecursionError):
+            return
+        if isinstance(doc, dict):
+            count = sum(len(v) for v in doc.values() if isinstance(v, list))
+            if count > MAX_GLTF_OBJECTS:
+                raise LimitError(
+                    f"{count} glTF objects (nodes, meshes, accessors …), more than the limit "
+                    f"of {MAX_GLTF_OBJECTS} (vtts.limits)",
+                    file=self.file,
+                )
 
     # ---- errors -------------------------------------------------------------------------------
 

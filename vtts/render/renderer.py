@@ -387,6 +387,8 @@ class FaceRenderer:
         from concurrent.futures import ThreadPoolExecutor
         from itertools import islice
 
+        from vtts.threads import result
+
         if roots is None:
             it = ((p, None, None) for p in params)
         else:
@@ -405,7 +407,8 @@ class FaceRenderer:
             # the first frame alone, so that it does not wait for a whole batch's geometry
             nxt = pool.submit(next_batch, 1)
             while True:
-                prepared = nxt.result()
+                # in slices: a signal another thread took must still end the wait
+                prepared = result(nxt)
                 if prepared is None:
                     done = True
                     return

@@ -57,6 +57,13 @@ def read_audio(path: str | os.PathLike[str], rate: int | None = None) -> tuple[n
         raise SpeechError("the audio file does not exist", file=str(p))
     if p.is_dir():
         raise SpeechError("the audio file is a folder", file=str(p))
+    if not p.is_file():
+        # decoding may read it twice (libsndfile, then ffmpeg), and opening a named pipe
+        # nobody writes waits for ever
+        raise SpeechError(
+            "the audio file is not a regular file (a named pipe or a device): give a file",
+            file=str(p),
+        )
     try:
         if p.is_file() and p.stat().st_size == 0:
             raise SpeechError("the audio file is empty (0 bytes)", file=str(p))
