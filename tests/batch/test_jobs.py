@@ -203,8 +203,8 @@ DRY = {"model": "cybatt"}
         ({"say": "Hi.", "size": "100000x100000", "output": "a.mp4"}, "image size must be within"),
         ({"play": "x.fap", "size": "4000x4000", "output": "a.mp4"}, "more than the limit of"),
         ({"say": "Hi.", "size": "8x8", "output": "a.mp4"}, "image size must be within 16"),
-        ({"say": "Hi.", "output": "a.mp4", "wav_out": "a.mp4"}, "two outputs name the same"),
-        ({"say": "Hi.", "output": "a.mp4", "fap_out": "a.mp4"}, "two outputs name the same"),
+        ({"say": "Hi.", "output": "a.mp4", "wav_out": "a.mp4"}, "also written by this job's other"),
+        ({"say": "Hi.", "output": "a.mp4", "fap_out": "a.mp4"}, "also written by this job's other"),
         ({"render": True, "fap": "3=1e300", "output": "a.png"}, "1e300 must be within"),
         ({"render": True, "viseme": "3=2", "output": "a.png"}, "must be within"),
         ({"say": "Hi.", "fps": 1e308, "output": "a.mp4"}, "--fps must be within"),
@@ -286,12 +286,19 @@ def test_a_jobs_file_larger_than_the_cap_is_refused(tmp_path, monkeypatch):
 
 
 def test_a_job_may_not_write_the_jobs_file_through_a_link(tmp_path):
-    (tmp_path / "out").mkdir()
-    (tmp_path / "out" / "here").symlink_to(tmp_path)
+    # a link that stays inside --out (the jobs file's own folder here) passes the link rule
+    (tmp_path / "here").symlink_to(tmp_path)
     path = _jobs_file(tmp_path, [json.dumps({"say": "x", "model": "cybatt", "output": "a.mp4"})])
     path.write_text(json.dumps({"say": "x", "model": "cybatt", "wav_out": f"here/{path.name}"}))
-    checked = read_jobs(path, tmp_path / "out")
+    checked = read_jobs(path, tmp_path)
     assert [e.message for e in checked.errors] == ["an output of this job is the jobs file"]
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "here").symlink_to(tmp_path)
+    checked = read_jobs(path, tmp_path / "out")  # and one that leaves --out is refused as such
+    assert [e.message for e in checked.errors] == [
+        f"'wav_out': 'here/{path.name}' leads out of the batch's folder (--out) through a link, "
+        f"to {path}"
+    ]
 
 
 def test_reading_jobs_resolves_no_path_per_job(tmp_path, monkeypatch):
