@@ -35,6 +35,14 @@ VOWEL_VISEMES = frozenset({10, 11, 12, 13, 14})
 BILABIAL = 1
 #: Low-level FAPs that open the lips or jaw; held back during a bilabial closure.
 MOUTH_FAPS = (3, 4, 5, 8, 9, 10, 11, 16, 17, 51, 52, 55, 56, 57, 58)
+#: How far the mouth is put ahead of the phone times, s, by the engine that timed them (see
+#: :func:`speech_lead`). The lips and jaw move before the sound they shape; espeak-ng's phones
+#: start at the sound they name (a stop at its release, its silent closure in the phone before),
+#: festival's HTS segments somewhat before their sound, so the same anticipation needs less lead.
+#: ``docs/speech.md`` gives the measurement (``make bench``, lipsync) that set them.
+LEADS = {"espeak": 0.04, "festival": 0.0}
+#: The lead of phones from elsewhere (``--phonemes``, a recording aligned with espeak-ng's phones).
+LEAD = LEADS["espeak"]
 #: Ramp time of a ``<fap …>`` bookmark's values, s.
 FAP_RAMP = 0.12
 
@@ -140,6 +148,11 @@ def _near(t: float, others: list[float], window: float) -> bool:
     return any(abs(t - o) < window for o in others)
 
 
+def speech_lead(engine: str | None) -> float:
+    """The lead (s) for phones timed by ``engine`` (:data:`LEADS`; :data:`LEAD` for others)."""
+    return LEADS.get(engine or "", LEAD)
+
+
 # ---- the whole timeline --------------------------------------------------------------------------
 
 
@@ -152,9 +165,11 @@ def build_timeline(
     fps: float = 30.0,
     seed: int = 0,
     autonomous: bool = True,
+    lead: float = LEAD,
 ) -> Timeline:
     """The :class:`Timeline` of ``model`` speaking ``phones`` with ``bookmarks`` (times set)
-    for ``duration`` s."""
+    for ``duration`` s. ``lead``: how far the visemes and the bilabial closures are put ahead of
+    the phones' times, s (:func:`speech_lead` of the engine that timed them)."""
     n = max(1, int(np.ceil(duration * fps - 1e-9)))
     t = np.arange(n) / fps
     p = np.zeros((n, N_PARAMS))
@@ -162,9 +177,10 @@ def build_timeline(
     temporal = model.temporal
     have = set(model.tables.adts)
 
-    # visemes with coarticulation, then the bilabial closures
-    vw = viseme_weights(t, phones)
-    centres = [0.5 * (ph.start + ph.end) for ph in phones if ph.viseme == BILABIAL]
+    # visemes with coarticulation, then the bilabial closures, ahead of the phones by the lead
+    vw = viseme_weights(t + lead, phones)
+    # (a bilabial at the very start: the lips are shut from the first frame)
+    centres = [max(0.5 * (ph.start + ph.end) - lead, 0.0) for ph in phones if ph.viseme == BILABIAL]
     kappa = closure(t, centres, fps)
     vw = (1 - kappa)[:, None] * vw
     vw[:, BILABIAL] += kappa
