@@ -347,15 +347,18 @@ def mouth_opening_expressions(model) -> list[int]:
 
 def timeline_stream(tl: Timeline, name: str = "vtts") -> FapStream:
     """The timeline as an MPEG-4 FAP stream: low-level FAPs (rounded to FAP units) where they move,
-    FAP 1 with the two strongest visemes and their blend, FAP 2 with the two strongest
+    FAP 1 with the two strongest visemes (neutral, viseme 0, among them) and their blend, FAP 2 with the two strongest
     expressions and their intensities (0–63)."""
     n = tl.n_frames
     low = np.round(tl.params[:, :68])
     low[:, :2] = 0
     used = np.abs(low).max(axis=0) > 0
     mask = np.repeat(used[None, :], n, axis=0)
-    vis = tl.params[:, VISEME_BASE + 1 : VISEME_BASE + 15]
-    order = np.argsort(-vis, axis=1)
+    # viseme 0, neutral, takes what the others leave: in a pause the two strongest are then
+    # neutral and a trace of a viseme, where the blend of two traces alone would show a whole one
+    shown = tl.params[:, VISEME_BASE + 1 : VISEME_BASE + 15]
+    vis = np.concatenate([np.clip(1 - shown.sum(axis=1, keepdims=True), 0, 1), shown], axis=1)
+    order = np.argsort(-vis, axis=1, kind="stable")
     v1 = order[:, 0]
     v2 = order[:, 1]
     w1 = vis[np.arange(n), v1]
@@ -363,8 +366,8 @@ def timeline_stream(tl: Timeline, name: str = "vtts") -> FapStream:
     total = w1 + w2
     viseme = np.zeros((n, 4), dtype=np.int64)
     speaking = total > 1e-3
-    viseme[:, 0] = np.where(speaking, v1 + 1, 0)
-    viseme[:, 1] = np.where(speaking, v2 + 1, 0)
+    viseme[:, 0] = np.where(speaking, v1, 0)
+    viseme[:, 1] = np.where(speaking, v2, 0)
     viseme[:, 2] = np.where(speaking, np.round(63 * w1 / np.maximum(total, 1e-9)), 0)
     ex = tl.params[:, EXPRESSION_BASE + 1 : EXPRESSION_BASE + 7]
     eorder = np.argsort(-ex, axis=1)
