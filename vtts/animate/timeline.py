@@ -347,8 +347,8 @@ def mouth_opening_expressions(model) -> list[int]:
 
 def timeline_stream(tl: Timeline, name: str = "vtts") -> FapStream:
     """The timeline as an MPEG-4 FAP stream: low-level FAPs (rounded to FAP units) where they move,
-    FAP 1 with the two strongest visemes (neutral, viseme 0, among them) and their blend, FAP 2 with the two strongest
-    expressions and their intensities (0–63)."""
+    FAP 1 with the two strongest visemes (neutral, viseme 0, among them) and their blend, FAP 2
+    with the two strongest expressions and their intensities (0–63)."""
     n = tl.n_frames
     low = np.round(tl.params[:, :68])
     low[:, :2] = 0
