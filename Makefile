@@ -1,5 +1,6 @@
 # The README's commands. Every target sets up first (Debian packages + .venv), so each works on a
-# fresh Debian machine with Python 3.11.
+# fresh Debian machine with Python 3.11: the demo what it needs (espeak-ng, Mesa, the core
+# package), the others the test bench besides (scripts/setup.sh says what that is).
 VENV := .venv
 PY := $(VENV)/bin/python
 VTTS := $(VENV)/bin/vtts
@@ -9,7 +10,8 @@ VTTS := $(VENV)/bin/vtts
 setup:
 	@bash scripts/setup.sh test
 
-demo: setup
+demo:
+	@bash scripts/setup.sh core
 	@bash samples/demo.sh
 
 # The suite runs on every core (pytest-xdist), a test file per worker so that a file's

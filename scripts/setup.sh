@@ -1,24 +1,61 @@
 #!/usr/bin/env bash
-# Sets up everything vtts needs on a Debian machine: the Debian packages (installed when missing and
-# we are root, otherwise the exact apt-get line is printed) and a .venv with the project and its
+# Sets up what vtts needs on a Debian machine: the Debian packages (installed when missing and we
+# are root, otherwise the exact apt-get line is printed) and a .venv with the project and its
 # extras, at the versions pinned in constraints.txt (the lock `make lock` writes), so that a fresh
 # machine gets what the tests passed with. Re-running is cheap: pip runs again only when
-# pyproject.toml or constraints.txt changed.
+# pyproject.toml or constraints.txt changed, or when more extras are asked for than were installed
+# (`make test` after `make demo`); fewer extras than installed (`make demo` after `make test`) run
+# nothing.
 #
-# usage: scripts/setup.sh [EXTRAS]     (EXTRAS defaults to "test"; e.g. "test,bench")
+# EXTRAS is a comma-separated list of pyproject.toml's extras, or `core` for none: the demo (`make
+# demo`) needs only the core package, espeak-ng and Mesa; the test extras (`test`, `bench`) bring
+# the test bench besides (Chromium, festival and its voice, node and the glTF-Validator, Ray …).
+#
+# usage: scripts/setup.sh [--dry-run] [EXTRAS]     (EXTRAS defaults to "test"; e.g. "test,bench")
+#        --dry-run prints what it would install (Debian packages, the pip requirement, the node
+#        tools) and changes nothing.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+dry_run=0
+if [ "${1:-}" = --dry-run ]; then
+  dry_run=1
+  shift
+fi
 extras="${1:-test}"
+if ! [[ "$extras" =~ ^[a-z]+(,[a-z]+)*$ ]]; then
+  echo "setup: EXTRAS is a comma-separated list of extras, or core; got '$extras'" >&2
+  exit 2
+fi
+# the test bench: what the tests and the benchmarks need beyond what vtts itself needs
+bench=0
+case ",$extras," in
+*,test,* | *,bench,*) bench=1 ;;
+esac
+
 # espeak-ng: speech with phoneme and mark events. Offscreen rendering with Mesa's software EGL
 # (llvmpipe): libegl1 + libegl-mesa0 (the EGL vendor), libgl1 (PyOpenGL loads libGL.so.1 for
-# desktop GL), libgl1-mesa-dri (the llvmpipe driver). chromium: the web player's tests and benchmark
-# load it in headless Chromium (vtts.export.browser). nodejs and npm: the Khronos glTF-Validator the
-# tests check exported .glb/.gltf files with (tools/node/). festival and festvox-us-slt-hts: the
-# second voice, `vtts say --engine festival` (an HTS voice whose utterance structure gives its own
-# phone and word times), and test material for the forced aligner.
-deb_packages=(espeak-ng libespeak-ng1 libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri libgles2 chromium
-  nodejs npm festival festvox-us-slt-hts)
+# desktop GL), libgl1-mesa-dri (the llvmpipe driver).
+deb_packages=(espeak-ng libespeak-ng1 libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri libgles2)
+# For the test bench: chromium, in which the web player's tests and benchmark load it headless
+# (vtts.export.browser); nodejs and npm: the Khronos glTF-Validator the tests check exported
+# .glb/.gltf files with (tools/node/); festival and festvox-us-slt-hts: the second voice, `vtts
+# say --engine festival` (an HTS voice whose utterance structure gives its own phone and word
+# times), and test material for the forced aligner. A user who wants festival installs those two.
+if ((bench)); then
+  deb_packages+=(chromium nodejs npm festival festvox-us-slt-hts)
+fi
+if [ "$extras" = core ]; then
+  requirement="."
+else
+  requirement=".[$extras]"
+fi
+if ((dry_run)); then
+  echo "debian: ${deb_packages[*]}"
+  echo "python: -e $requirement"
+  echo "node: $([ "$bench" = 1 ] && echo tools/node || echo none)"
+  exit 0
+fi
 
 # node and npm installed another way count too (NodeSource's nodejs package carries npm and
 # conflicts with Debian's npm package)
@@ -59,27 +96,49 @@ fi
 if [ ! -x .venv/bin/python ]; then
   "$python" -m venv .venv
 fi
-# The stamp holds a digest of what the install was made from: a changed pyproject.toml or lock
-# (an edit, a pull, a checkout) installs again, whatever the files' times say.
-stamp=".venv/.vtts-setup-$(echo "$extras" | tr ',' '-')"
+# A stamp per set of extras holds a digest of what the install was made from: a changed
+# pyproject.toml or lock (an edit, a pull, a checkout) installs again, whatever the files' times
+# say. A stamp of the same digest for a superset of the extras asked for (test,bench for test; any
+# for core) means there is nothing to install.
 digest="$(cat pyproject.toml constraints.txt | sha256sum | cut -d' ' -f1)"
-if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$digest" ]; then
-  echo "setup: installing vtts[$extras] into .venv (versions from constraints.txt)"
-  .venv/bin/python -m pip install -q -c constraints.txt --upgrade pip
+stamp=".venv/.vtts-setup-$(echo "$extras" | tr ',' '-')"
+covered() {
+  local have f
+  for f in .venv/.vtts-setup-*; do
+    [ -f "$f" ] && [ "$(cat "$f")" = "$digest" ] || continue
+    have="-${f#.venv/.vtts-setup-}-"
+    local e ok=1
+    for e in ${extras//,/ }; do
+      [ "$e" = core ] || [[ "$have" == *"-$e-"* ]] || ok=0
+    done
+    ((ok)) && return 0
+  done
+  return 1
+}
+if ! covered; then
+  echo "setup: installing vtts$([ "$extras" = core ] || echo "[$extras]") into .venv" \
+    "(versions from constraints.txt)"
+  # --no-compile: byte-compiling every installed module took half of pip's time, for modules
+  # most commands never import; Python compiles those a command imports once, at their first
+  # import.
+  .venv/bin/python -m pip install -q --no-compile -c constraints.txt --upgrade pip
   # every package, transitive ones and the build backend (hatchling) too, at its locked version;
   # a dependency the lock lacks would come unpinned (tests/test_lock.py says so: `make lock`)
-  .venv/bin/python -m pip install -q -c constraints.txt --build-constraint constraints.txt \
-    -e ".[$extras]"
+  .venv/bin/python -m pip install -q --no-compile -c constraints.txt \
+    --build-constraint constraints.txt -e "$requirement"
   echo "$digest" >"$stamp"
 fi
-# The node tools (the glTF-Validator) at the versions tools/node/package-lock.json pins, into the
-# git-ignored tools/node/node_modules; again only when package.json or the lock changed.
-node_stamp="tools/node/node_modules/.vtts-setup"
-node_digest="$(cat tools/node/package.json tools/node/package-lock.json | sha256sum | cut -d' ' -f1)"
-if [ ! -f "$node_stamp" ] || [ "$(cat "$node_stamp")" != "$node_digest" ]; then
-  echo "setup: installing the node tools (tools/node: npm ci)"
-  (cd tools/node && npm ci --no-audit --no-fund --loglevel=error >/dev/null)
-  echo "$node_digest" >"$node_stamp"
+# The test bench's node tools (the glTF-Validator) at the versions tools/node/package-lock.json
+# pins, into the git-ignored tools/node/node_modules; again only when package.json or the lock
+# changed.
+if ((bench)); then
+  node_stamp="tools/node/node_modules/.vtts-setup"
+  node_digest="$(cat tools/node/package.json tools/node/package-lock.json | sha256sum | cut -d' ' -f1)"
+  if [ ! -f "$node_stamp" ] || [ "$(cat "$node_stamp")" != "$node_digest" ]; then
+    echo "setup: installing the node tools (tools/node: npm ci)"
+    (cd tools/node && npm ci --no-audit --no-fund --loglevel=error >/dev/null)
+    echo "$node_digest" >"$node_stamp"
+  fi
 fi
 # Byte-compile vtts itself (an editable install is not compiled, and PYTHONDONTWRITEBYTECODE=1
 # would have every command compile it again at startup); up-to-date files are skipped.

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vtts.animate.timeline import build_timeline
+from vtts.animate.timeline import LEAD, build_timeline
 from vtts.face import load_model
 from vtts.face.miap import EXPRESSION_BASE
 from vtts.fap import read_fap
@@ -54,8 +54,9 @@ def test_expressions_start_on_their_marks_frame(utterance):
     # the smile starts with "my", at its m (espeak-ng's own mark event is a phone earlier) …
     m = next(p for p in utterance.phones if p.start == smile.time)
     assert m.phoneme == "m"
-    # … and the smile, which opens the mouth, waits for the lips to open
-    assert 0 <= first - m.end * 30 <= 1.0
+    # … and the smile, which opens the mouth, waits for the lips to open (a lead before the m
+    # ends: the mouth moves ahead of the sound)
+    assert 0 <= first - (m.end - LEAD) * 30 <= 1.0
     # without the closure it starts on the mark's frame
     alone = build_timeline(model, [], utterance.bookmarks, utterance.duration, autonomous=False)
     first = int(np.flatnonzero(alone.params[:, EXPRESSION_BASE + 1] > 0)[0])

@@ -35,6 +35,14 @@ VOWEL_VISEMES = frozenset({10, 11, 12, 13, 14})
 BILABIAL = 1
 #: Low-level FAPs that open the lips or jaw; held back during a bilabial closure.
 MOUTH_FAPS = (3, 4, 5, 8, 9, 10, 11, 16, 17, 51, 52, 55, 56, 57, 58)
+#: How far the mouth is put ahead of the phone times, s, by the engine that timed them (see
+#: :func:`speech_lead`). The lips and jaw move before the sound they shape; espeak-ng's phones
+#: start at the sound they name (a stop at its release, its silent closure in the phone before),
+#: festival's HTS segments somewhat before their sound, so the same anticipation needs less lead.
+#: ``docs/speech.md`` gives the measurement (``make bench``, lipsync) that set them.
+LEADS = {"espeak": 0.04, "festival": 0.0}
+#: The lead of phones from elsewhere (``--phonemes``, a recording aligned with espeak-ng's phones).
+LEAD = LEADS["espeak"]
 #: Ramp time of a ``<fap …>`` bookmark's values, s.
 FAP_RAMP = 0.12
 
@@ -140,6 +148,11 @@ def _near(t: float, others: list[float], window: float) -> bool:
     return any(abs(t - o) < window for o in others)
 
 
+def speech_lead(engine: str | None) -> float:
+    """The lead (s) for phones timed by ``engine`` (:data:`LEADS`; :data:`LEAD` for others)."""
+    return LEADS.get(engine or "", LEAD)
+
+
 # ---- the whole timeline --------------------------------------------------------------------------
 
 
@@ -152,9 +165,11 @@ def build_timeline(
     fps: float = 30.0,
     seed: int = 0,
     autonomous: bool = True,
+    lead: float = LEAD,
 ) -> Timeline:
     """The :class:`Timeline` of ``model`` speaking ``phones`` with ``bookmarks`` (times set)
-    for ``duration`` s."""
+    for ``duration`` s. ``lead``: how far the visemes and the bilabial closures are put ahead of
+    the phones' times, s (:func:`speech_lead` of the engine that timed them)."""
     n = max(1, int(np.ceil(duration * fps - 1e-9)))
     t = np.arange(n) / fps
     p = np.zeros((n, N_PARAMS))
@@ -162,9 +177,10 @@ def build_timeline(
     temporal = model.temporal
     have = set(model.tables.adts)
 
-    # visemes with coarticulation, then the bilabial closures
-    vw = viseme_weights(t, phones)
-    centres = [0.5 * (ph.start + ph.end) for ph in phones if ph.viseme == BILABIAL]
+    # visemes with coarticulation, then the bilabial closures, ahead of the phones by the lead
+    vw = viseme_weights(t + lead, phones)
+    # (a bilabial at the very start: the lips are shut from the first frame)
+    centres = [max(0.5 * (ph.start + ph.end) - lead, 0.0) for ph in phones if ph.viseme == BILABIAL]
     kappa = closure(t, centres, fps)
     vw = (1 - kappa)[:, None] * vw
     vw[:, BILABIAL] += kappa
@@ -331,15 +347,18 @@ def mouth_opening_expressions(model) -> list[int]:
 
 def timeline_stream(tl: Timeline, name: str = "vtts") -> FapStream:
     """The timeline as an MPEG-4 FAP stream: low-level FAPs (rounded to FAP units) where they move,
-    FAP 1 with the two strongest visemes and their blend, FAP 2 with the two strongest
-    expressions and their intensities (0–63)."""
+    FAP 1 with the two strongest visemes (neutral, viseme 0, among them) and their blend, FAP 2
+    with the two strongest expressions and their intensities (0–63)."""
     n = tl.n_frames
     low = np.round(tl.params[:, :68])
     low[:, :2] = 0
     used = np.abs(low).max(axis=0) > 0
     mask = np.repeat(used[None, :], n, axis=0)
-    vis = tl.params[:, VISEME_BASE + 1 : VISEME_BASE + 15]
-    order = np.argsort(-vis, axis=1)
+    # viseme 0, neutral, takes what the others leave: in a pause the two strongest are then
+    # neutral and a trace of a viseme, where the blend of two traces alone would show a whole one
+    shown = tl.params[:, VISEME_BASE + 1 : VISEME_BASE + 15]
+    vis = np.concatenate([np.clip(1 - shown.sum(axis=1, keepdims=True), 0, 1), shown], axis=1)
+    order = np.argsort(-vis, axis=1, kind="stable")
     v1 = order[:, 0]
     v2 = order[:, 1]
     w1 = vis[np.arange(n), v1]
@@ -347,8 +366,8 @@ def timeline_stream(tl: Timeline, name: str = "vtts") -> FapStream:
     total = w1 + w2
     viseme = np.zeros((n, 4), dtype=np.int64)
     speaking = total > 1e-3
-    viseme[:, 0] = np.where(speaking, v1 + 1, 0)
-    viseme[:, 1] = np.where(speaking, v2 + 1, 0)
+    viseme[:, 0] = np.where(speaking, v1, 0)
+    viseme[:, 1] = np.where(speaking, v2, 0)
     viseme[:, 2] = np.where(speaking, np.round(63 * w1 / np.maximum(total, 1e-9)), 0)
     ex = tl.params[:, EXPRESSION_BASE + 1 : EXPRESSION_BASE + 7]
     eorder = np.argsort(-ex, axis=1)

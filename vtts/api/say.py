@@ -160,7 +160,7 @@ def speak_and_set_up(o: SayOptions, text: str, models: list, known: set[str]):
     another) and the timelines are built in a worker thread while the renderer is set up."""
     from concurrent.futures import ThreadPoolExecutor
 
-    from vtts.animate.timeline import build_timeline
+    from vtts.animate.timeline import build_timeline, speech_lead
     from vtts.api.outputs import SpeechTrack
     from vtts.threads import result
     from vtts.utterance import prepare_utterance
@@ -188,6 +188,7 @@ def speak_and_set_up(o: SayOptions, text: str, models: list, known: set[str]):
                     fps=o.fps,
                     seed=o.seed,
                     autonomous=not o.no_autonomous,
+                    lead=speech_lead(o.engine),
                 )
                 for m in models
             ]

@@ -1,0 +1,74 @@
+"""`make demo` sets up what the demo needs, `make test` the test bench besides (issue 45)."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import tomllib
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).parents[1]
+#: What only the tests and benchmarks use: Debian packages, and Python distributions.
+BENCH_DEBS = {"chromium", "nodejs", "npm", "festival", "festvox-us-slt-hts"}
+BENCH_PYTHON = {"ray", "pytest", "hypothesis", "pytest-xdist", "ruff", "build", "pyvrml97"}
+
+
+def dry_run(extras: str) -> dict[str, str]:
+    """What ``scripts/setup.sh --dry-run EXTRAS`` says it would install, by line."""
+    r = subprocess.run(
+        ["bash", str(ROOT / "scripts/setup.sh"), "--dry-run", extras],
+        capture_output=True, text=True, timeout=60, check=True,
+    )  # fmt: skip
+    return dict(line.split(": ", 1) for line in r.stdout.splitlines())
+
+
+def recipe(target: str) -> str:
+    """The Makefile's recipe of ``target``, with its prerequisites line."""
+    text = (ROOT / "Makefile").read_text()
+    m = re.search(rf"^{target}:(.*?)\n((?:\t.*\n?)*)", text, re.M)
+    assert m, f"no {target} target in the Makefile"
+    return m[1] + "\n" + m[2]
+
+
+def setup_extras(target: str) -> str:
+    """The extras the Makefile's ``target`` sets up with (following a ``setup`` prerequisite)."""
+    r = recipe(target)
+    m = re.search(r"scripts/setup\.sh\s+(\S+)", r)
+    if m:
+        return m[1]
+    assert re.search(r"\bsetup\b", r.split("\n")[0]), f"{target} does not set up"
+    return setup_extras("setup")
+
+
+def test_the_demo_sets_up_without_the_test_bench():
+    extras = setup_extras("demo")
+    assert extras == "core"
+    plan = dry_run(extras)
+    debs = set(plan["debian"].split())
+    assert {"espeak-ng", "libegl-mesa0", "libgl1-mesa-dri"} <= debs
+    assert not debs & BENCH_DEBS
+    assert plan["python"] == "-e ."  # the core package, no extras
+    assert plan["node"] == "none"
+    core = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["dependencies"]
+    names = {re.split(r"[<>=!~\[; ]", d, maxsplit=1)[0].lower() for d in core}
+    assert not names & BENCH_PYTHON
+
+
+@pytest.mark.parametrize("target", ["test", "bench"])
+def test_the_tests_set_up_the_whole_bench(target):
+    extras = setup_extras(target)
+    assert "test" in extras.split(",")
+    plan = dry_run(extras)
+    assert BENCH_DEBS <= set(plan["debian"].split())
+    assert plan["python"] == f"-e .[{extras}]"
+    assert plan["node"] == "tools/node"
+
+
+def test_setup_refuses_odd_extras():
+    r = subprocess.run(
+        ["bash", str(ROOT / "scripts/setup.sh"), "--dry-run", "test;rm"],
+        capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert r.returncode == 2 and "comma-separated" in r.stderr
