@@ -314,7 +314,8 @@ def analyze(
         check_frames_folder(Path(o.video), [*outputs, *report])
     with url_roots_set(o.url_root):
         # the process's stdin is read so that a signal ends the wait for a frame
-        stdin = PipeReader(sys.stdin.buffer) if stdin is None else stdin
+        if stdin is None:
+            stdin = PipeReader(sys.stdin.buffer) if o.pipe else sys.stdin.buffer
         stdout = sys.stdout.buffer if stdout is None else stdout
         return estimate(o, stdin, stdout)
 
