@@ -314,16 +314,22 @@ MEMORY = {
 }
 
 
-@pytest.mark.parametrize("command", ["import", "build"])
-@pytest.mark.parametrize("case", MEMORY)
+@pytest.mark.parametrize(
+    "command, case",
+    # adi build reads no skins
+    [
+        (c, k)
+        for c in ("import", "build")
+        for k in MEMORY
+        if (c, k) != ("build", "50M inverse bind matrices")
+    ],
+)
 def test_an_accessor_without_data_is_refused_before_it_is_allocated(tmp_path, case, command):
     """Accessors without a bufferView (zeros) asked numpy for 3–6 GB and ended in a traceback;
     each count is now checked against what fixes it, or a limit, before anything is allocated
     (run in a process limited to 3 GB)."""
     from ..hostile import run_cli
 
-    if command == "build" and case == "50M inverse bind matrices":
-        pytest.skip("adi build reads no skins")
     doc = copy.deepcopy(triangle_gltf())
     change, message = MEMORY[case]
     change(doc)
