@@ -203,17 +203,9 @@ def pyvrml97_version() -> str:
 
 #: What a ``vtts check FILE`` command runs (the console script's entry point).
 VTTS_CHECK_CODE = "import sys; from vtts.cli import run; sys.argv[0] = 'vtts'; sys.exit(run())"
-#: A whole PyVRML97 process reading one file, as ``PyVrml97.read`` does.
-PYVRML_CODE = """
-import sys
-from vrml.vrml97 import parseprocessor, parser
-path = sys.argv[1]
-text = open(path, 'rb').read().decode('utf-8')
-ok, children, end = parser.buildParser().parse(
-    text, processor=parseprocessor.ParseProcessor(baseURI=path))
-if not ok or end != len(text):
-    sys.exit(f'stopped at offset {end} of {len(text)}')
-"""
+#: A whole PyVRML97 process reading one file, as ``PyVrml97.read`` does (one file, exit 0 when
+#: it reads all of it; scripts/wild_vrml.py runs the same).
+PYVRML_READ = Path(__file__).with_name("pyvrml_read.py")
 PROCESS_REPEATS = 3
 PYVRML_PROCESS_REPEATS = 2
 
@@ -251,7 +243,7 @@ def check_process_rows(big: Path, big_case: str) -> list[dict]:
     # tree, would compile every module in every timed run while PyVRML97's wheel ships .pyc)
     base_env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
     base_env["PYTHONPYCACHEPREFIX"] = str(GENERATED / "pycache")
-    peer = [sys.executable, "-c", PYVRML_CODE]
+    peer = [sys.executable, str(PYVRML_READ)]
     with tempfile.TemporaryDirectory(prefix="bench-vrml-cache-") as cache:
         env = {**base_env, "VTTS_CACHE_DIR": cache}
         vtts = [sys.executable, "-c", VTTS_CHECK_CODE, "check"]

@@ -41,16 +41,7 @@ from vtts.api.check import CHECKERS
 from vtts.errors import VttsError
 
 #: What the peer's subprocess runs: one file, exit 0 when PyVRML97 reads all of it.
-PEER_CODE = """
-import sys
-from vrml.vrml97 import parseprocessor, parser
-path = sys.argv[1]
-text = open(path, 'rb').read().decode('utf-8')
-ok, children, end = parser.buildParser().parse(
-    text, processor=parseprocessor.ParseProcessor(baseURI=path))
-if not ok or end != len(text):
-    sys.exit(f'stopped at offset {end} of {len(text)}')
-"""
+PEER_READ = Path(__file__).parents[1] / "bench" / "pyvrml_read.py"
 
 
 @dataclass
@@ -112,7 +103,7 @@ def peer_reads(python: str, path: Path, timeout: float) -> str:
     """'ok' when PyVRML97 reads the file, else its last line of error."""
     try:
         r = subprocess.run(
-            [python, "-c", PEER_CODE, str(path)],
+            [python, str(PEER_READ), str(path)],
             capture_output=True,
             text=True,
             timeout=timeout,
