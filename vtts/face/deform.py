@@ -19,12 +19,15 @@ from __future__ import annotations
 
 from collections.abc import Collection
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.sparse as sp
 
 from vtts.face.adt import AnimationTables
 from vtts.face.miap import N_PARAMS
+
+if TYPE_CHECKING:  # imported where the tables are compiled: `vtts check` never needs it
+    import scipy.sparse as sp
 
 
 @dataclass
@@ -42,6 +45,8 @@ class Pose:
 
 def _row_slice(m: sp.csr_matrix, start: int, stop: int) -> sp.csr_matrix:
     """Rows ``start:stop`` of ``m``, sharing its arrays (``m[start:stop]`` copies them)."""
+    import scipy.sparse as sp
+
     a, b = m.indptr[start], m.indptr[stop]
     return sp.csr_matrix(
         (m.data[a:b], m.indices[a:b], m.indptr[start : stop + 1] - a),
@@ -97,6 +102,8 @@ class DeformationEngine:
         self._compile_transforms(tables, neutral_transforms)
 
     def _compile_meshes(self, tables: AnimationTables, neutral_points) -> None:
+        import scipy.sparse as sp
+
         # each (MIAP, IndexedFaceSet, interval) is one column; its rows are the coordinates of
         # the table's vertices, so the column-major matrix is the tables' arrays laid end to end
         cols: dict[str, list] = {}
