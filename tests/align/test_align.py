@@ -5,8 +5,6 @@ festival (scripts/setup.sh installs them); the tests fail, loudly, without them.
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +22,8 @@ from vtts.speech.audio import resample
 from vtts.speech.bookmarks import parse_bookmarks
 from vtts.speech.tts import synthesize
 from vtts.utterance import prepare_utterance
+
+from ..in_process import vtts
 
 HEAD = Path(__file__).parents[1] / "data" / "models" / "head.wrl"
 #: Rich in bilabials, with a comma's pause.
@@ -158,11 +158,6 @@ def test_corridor_warping_matches_the_full_matrix_in_bounded_memory(monkeypatch)
     assert np.array_equal(path[0], [0, 0]) and np.array_equal(path[-1], [1499, 2199])
     steps = np.diff(path, axis=0)
     assert ((steps >= 0) & (steps <= 1)).all() and (steps.sum(axis=1) >= 1).all()
-
-
-def vtts(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    exe = Path(sys.executable).with_name("vtts")
-    return subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=300, cwd=cwd)
 
 
 def test_say_audio_end_to_end(tmp_path, other_voice) -> None:

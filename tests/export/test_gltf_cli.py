@@ -4,8 +4,6 @@ animated glTF instead of a video; bad input is a clear error that writes nothing
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -14,16 +12,12 @@ import pytest
 from vtts.fap import FapStream
 from vtts.fap.coding import encode
 
+from ..in_process import vtts
 from .gltf_helpers import HEAD, Decoded, problems, validate
 
 ROOT = Path(__file__).parents[2]
 JOY = ROOT / "tests" / "data" / "fap" / "xface-joy.fap"
 FPS = 25
-
-
-def vtts(*args: str) -> subprocess.CompletedProcess:
-    exe = Path(sys.executable).with_name("vtts")
-    return subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=300)
 
 
 def test_say_writes_a_glb_and_the_speech_beside_it_when_asked(tmp_path):

@@ -5,8 +5,6 @@ from __future__ import annotations
 
 import json
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -23,15 +21,12 @@ from vtts.export.web import (
 from vtts.face.miap import N_PARAMS
 from vtts.render import probe_media, write_wav
 
+from ..in_process import vtts
+
 ROOT = Path(__file__).parents[2]
 DATA = Path(__file__).parents[1] / "data"
 HEAD = DATA / "models" / "head.wrl"
 JOY = DATA / "fap" / "xface-joy.fap"
-
-
-def vtts(*args: str) -> subprocess.CompletedProcess:
-    exe = Path(sys.executable).with_name("vtts")
-    return subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=300)
 
 
 def page_config(folder: Path) -> dict:

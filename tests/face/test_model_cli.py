@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -12,10 +10,7 @@ from vtts.cli import main
 from vtts.face import load_model
 from vtts.vrml import read
 
-
-def vtts(*args: str) -> subprocess.CompletedProcess:
-    exe = Path(sys.executable).with_name("vtts")
-    return subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=60)
+from ..in_process import vtts
 
 
 def test_pose_writes_plain_posed_vrml(model_dir: Path, capsys):

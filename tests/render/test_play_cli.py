@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -12,14 +11,11 @@ import pytest
 from vtts.fap import read_fap
 from vtts.render import probe_media, write_wav
 
+from ..in_process import vtts
+
 DATA = Path(__file__).parents[1] / "data"
 HEAD = DATA / "models" / "head.wrl"
 JOY = DATA / "fap" / "xface-joy.fap"
-
-
-def vtts(*args: str) -> subprocess.CompletedProcess:
-    exe = Path(sys.executable).with_name("vtts")
-    return subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=300)
 
 
 def test_render_writes_a_png(tmp_path):

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -14,17 +13,14 @@ import pytest
 from vtts.fap import FapStream
 from vtts.fap.coding import encode
 
+from ..in_process import vtts
+
 HEAD = Path(__file__).parents[1] / "data" / "models" / "head.wrl"
 SIZE = (176, 144)
 # Stand-in MPEG-4 feature points on the test head's FACE_MESH (Candide-3 vertices): upper and
 # lower eyelid (3.1, 3.3), the eyes (3.5, 3.6: ES0 = 0.608), the bottom of the nose (9.15), the
 # upper lip (2.2) and the mouth corners (8.3, 8.4).
 FEATURES = {"3.1": 21, "3.3": 22, "3.5": 21, "3.6": 54, "9.15": 6, "2.2": 40, "8.3": 88, "8.4": 89}
-
-
-def vtts(*args: str) -> subprocess.CompletedProcess:
-    exe = Path(sys.executable).with_name("vtts")
-    return subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=300)
 
 
 def head_with_fapu(folder: Path, eyes: tuple[int, int] = (21, 54)) -> Path:

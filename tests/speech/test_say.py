@@ -17,13 +17,10 @@ from vtts.fap import read_fap
 from vtts.render import probe_media
 from vtts.utterance import prepare_utterance
 
+from ..in_process import vtts
+
 HEAD = Path(__file__).parents[1] / "data" / "models" / "head.wrl"
 TEXT = "Hello <smile 1s> my name is Bob. <surprise 0.5s 0.7> Maybe <blink> we meet."
-
-
-def vtts(*args: str) -> subprocess.CompletedProcess:
-    exe = Path(sys.executable).with_name("vtts")
-    return subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=300)
 
 
 @pytest.fixture(scope="module")

@@ -4,8 +4,6 @@ clock, from espeak-ng's own events, and read back by ``--phonemes``."""
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 import warnings
 from pathlib import Path
 
@@ -18,14 +16,11 @@ from vtts.speech.phonemes import read_phoneme_file
 from vtts.speech.timings import HEADER, TimedPhone, TimedWord, format_timings, word_ends
 from vtts.utterance import prepare_utterance, write_utterance_timings
 
+from ..in_process import vtts
+
 HEAD = Path(__file__).parents[1] / "data" / "models" / "head.wrl"
 TEXT = 'Hello <smile 1s> my name is Bob, and 123 "friends". Maybe <blink> we meet.'
 WORDS = ["Hello", "my", "name", "is", "Bob", "and", "123", "friends", "Maybe", "we", "meet"]
-
-
-def vtts(*args: str) -> subprocess.CompletedProcess:
-    exe = Path(sys.executable).with_name("vtts")
-    return subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=300)
 
 
 def rows(path: Path) -> list[list[str]]:
