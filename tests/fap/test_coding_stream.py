@@ -26,6 +26,8 @@ from vtts.fap.coding import (
     reconstruct,
 )
 
+from ..in_process import vtts
+
 DATA = Path(__file__).resolve().parent.parent / "data" / "fap"
 
 
@@ -234,17 +236,13 @@ def test_a_stream_of_the_head_translation_alone():
 
 
 def test_vtts_info_and_decode_of_a_saved_stream(tmp_path):
-    import subprocess
-    import sys
 
     data, _ = streamed(small())
     path = tmp_path / "s.fbs"
     path.write_bytes(data)
-    exe = Path(sys.executable).with_name("vtts")
-    r = subprocess.run([str(exe), "info", str(path)], capture_output=True, text=True, check=False)
+    r = vtts("info", str(path))
     assert r.returncode == 0 and "streamed (packets and an end marker)" in r.stdout, r.stderr
     assert "6 frames at 25 Hz" in r.stdout
     out = tmp_path / "s.fap"
-    r = subprocess.run([str(exe), "decode", str(path), "-o", str(out)], capture_output=True,
-                       text=True, check=False)  # fmt: skip
+    r = vtts("decode", str(path), "-o", str(out))
     assert r.returncode == 0 and read_fap(out).n_frames == 6, r.stderr

@@ -20,6 +20,8 @@ from vtts.media import ffmpeg_exe
 from vtts.render import probe_media
 from vtts.speech.audio import read_audio, read_for_mp4, resample, to_int16
 
+from ..in_process import vtts
+
 HEAD = Path(__file__).parents[1] / "data" / "models" / "head.wrl"
 RATE = 44100
 SECONDS = 0.5
@@ -191,10 +193,9 @@ def test_say_muxes_an_mp3_into_the_mp4(tmp_path: Path, files: dict[str, Path]) -
     table = tmp_path / "p.txt"
     table.write_text("0 0.1 _\n0.1 0.2 m\n0.2 0.4 a\n0.4 0.5 _\n")
     out = tmp_path / "out.mp4"
-    exe = Path(sys.executable).with_name("vtts")
-    cmd = [str(exe), "say", "Ma", "--phonemes", str(table), "--audio", str(files["mp3"])]
+    cmd = ["say", "Ma", "--phonemes", str(table), "--audio", str(files["mp3"])]
     cmd += ["--model", str(HEAD), "--size", "160x120", "--quiet", "-o", str(out)]
-    r = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    r = vtts(*cmd)
     assert r.returncode == 0, r.stderr
     info = probe_media(out)
     assert info.audio_rate == RATE and info.duration_audio == pytest.approx(SECONDS, abs=0.07)

@@ -4,9 +4,6 @@ clock; ``vtts say --engine festival`` end to end. Needs Debian's festival and fe
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +14,8 @@ from vtts.render import probe_media
 from vtts.speech import festival
 from vtts.speech.festival import PHONE_SET, SILENCES, festival_viseme, synthesize
 from vtts.utterance import prepare_utterance
+
+from ..in_process import vtts
 
 HEAD = Path(__file__).parents[1] / "data" / "models" / "head.wrl"
 TEXT = "Hello <smile 1s> my name is Bob. Maybe <blink> we meet at 3 pm, Dr. Müller."
@@ -172,10 +171,9 @@ def test_text_cannot_escape_its_scheme_string(tmp_path: Path, attack: str) -> No
 
 def test_say_engine_festival_end_to_end(tmp_path: Path) -> None:
     out, tsv = tmp_path / "f.mp4", tmp_path / "f.tsv"
-    exe = Path(sys.executable).with_name("vtts")
-    cmd = [str(exe), "say", "Bob <smile> is here.", "--engine", "festival", "--model", str(HEAD)]
+    cmd = ["say", "Bob <smile> is here.", "--engine", "festival", "--model", str(HEAD)]
     cmd += ["--size", "160x120", "--quiet", "-o", str(out), "--timings-out", str(tsv)]
-    r = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=os.environ)
+    r = vtts(*cmd)
     assert r.returncode == 0, r.stderr
     info = probe_media(out)
     assert info.audio_rate == 32000
@@ -184,8 +182,7 @@ def test_say_engine_festival_end_to_end(tmp_path: Path) -> None:
     assert [r[3] for r in rows if r[0] == "word"] == ["Bob", "is", "here"]
     assert [r[3] for r in rows if r[0] == "phone"][:3] == ["pau", "b", "aa"]
     # an espeak-ng voice is no festival voice
-    cmd = [str(exe), "say", "Hi", "--engine", "festival", "--voice", "en-gb", "--model", str(HEAD)]
-    r = subprocess.run([*cmd, "--timings-out", str(tmp_path / "x.tsv")], capture_output=True,
-                       text=True, timeout=300)  # fmt: skip
+    cmd = ["say", "Hi", "--engine", "festival", "--voice", "en-gb", "--model", str(HEAD)]
+    r = vtts(*cmd, "--timings-out", str(tmp_path / "x.tsv"))
     assert r.returncode == 1 and "invalid festival voice 'en-gb'" in r.stderr, r.stderr
     assert "Traceback" not in r.stderr and not (tmp_path / "x.tsv").exists()
