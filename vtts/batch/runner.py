@@ -1,13 +1,15 @@
-"""Running a batch on Ray: :func:`run`.
+"""Running a batch: :func:`run`, on worker processes of this machine or on Ray.
 
-The driver (this process) checks the jobs, skips those the manifest says are finished, starts
-the workers — :class:`~vtts.batch.worker.JobRunner` as Ray actors, one CPU each — and hands each
-idle worker the next job. A worker keeps its heads, EGL context and renderers from job to job.
-A job whose command fails is recorded in ``DIR/failures.jsonl`` with the message the command
-printed, and the others go on (a re-run does not run it again while its line is unchanged and
-failures.jsonl has it); a worker that dies (killed, out of memory, a crash in a native
-library) is replaced by a new one and its job given again, at most :data:`RETRIES` times.
-Finished jobs go into ``DIR/manifest.jsonl`` as they finish.
+The driver (this process) checks the jobs, skips those the manifest says are finished, and hands
+each idle worker the next job. Without ``--address`` the workers are processes of this machine
+(:class:`~vtts.batch.pool.LocalPool`), started before the jobs are read so that they warm up
+meanwhile; with one (or ``ray=True``) they are :class:`~vtts.batch.worker.JobRunner` Ray actors,
+one CPU each, on a cluster or a local Ray instance. A worker keeps its heads, EGL context and
+renderers from job to job. A job whose command fails is recorded in ``DIR/failures.jsonl`` with
+the message the command printed, and the others go on (a re-run does not run it again while its
+line is unchanged and failures.jsonl has it); a worker that dies (killed, out of memory, a crash
+in a native library) is replaced by a new one and its job given again, at most :data:`RETRIES`
+times. Finished jobs go into ``DIR/manifest.jsonl`` as they finish.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from pathlib import Path
 
 from vtts.batch.jobs import Job, JobError, JobsFile, as_jobs, read_jobs
 from vtts.batch.manifest import Manifest, read_failures, write_failures
+from vtts.batch.pool import Died, LocalPool, default_workers
 from vtts.batch.worker import JobResult, JobRunner
 from vtts.errors import VttsError
 from vtts.messages import printable
@@ -53,7 +56,8 @@ class BatchReport:
     for a bug; ``digest``: the job's); ``unchanged``: ids of jobs that failed on their input in
     an earlier run, not run again (their line is unchanged);
     ``seconds``: the whole run's wall time; ``startup_seconds``: the engine's fixed cost (Ray
-    started or joined, the workers made and warmed up: pyrender, the EGL context);
+    started or joined, the workers made and warmed up: pyrender, the EGL context; the local
+    workers warm up while the jobs are read);
     ``workers``: how many ran; ``restarts``: workers replaced after dying.
     """
 
@@ -110,13 +114,15 @@ def run(
     *,
     retries: int = RETRIES,
     show_progress: bool = False,
+    ray: bool = False,
 ) -> BatchReport:
     """Run ``jobs`` — a ``.jsonl`` file (:mod:`vtts.batch.jobs`) or an iterable of
     :class:`~vtts.batch.jobs.Job` or job dicts — with their outputs under ``out_dir``.
 
     ``workers``: worker processes (default: one per CPU of this machine, or of the cluster);
     ``address``: an existing Ray cluster (``ray://HOST:10001``, ``HOST:6379`` or ``auto``;
-    default: a local Ray instance started for this batch and stopped after it);
+    default: worker processes of this machine, no Ray); ``ray``: without ``address``, a local
+    Ray instance started for this batch and stopped after it (as a cluster would run it);
     ``retries``: how often a job whose worker died is given again; ``show_progress``: a
     progress bar (jobs done, jobs/min, ETA, failures) and each failure on stderr.
 
@@ -131,6 +137,32 @@ def run(
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise BatchError("the output folder is a file", file=str(out))
+    if address or ray:
+        return _run(jobs, out, t0, None, workers, address, retries, show_progress)
+    n = workers or default_workers()
+    # the workers warm up while the jobs are read and checked (as many as the cores, for now:
+    # how many jobs there are to run is not known yet)
+    with LocalPool(min(n, default_workers()), os.getcwd(), _lp_threads(n)) as pool:
+        return _run(jobs, out, t0, pool, n, address, retries, show_progress)
+
+
+def _lp_threads(workers: int) -> int:
+    """llvmpipe's rasterizer threads per worker of this machine: the workers share the cores
+    (a caller's LP_NUM_THREADS stands)."""
+    return max(1, (os.cpu_count() or 1) // workers)
+
+
+def _run(
+    jobs,
+    out: Path,
+    t0: float,
+    pool: LocalPool | None,
+    workers: int | None,
+    address: str | None,
+    retries: int,
+    show_progress: bool,
+) -> BatchReport:
+    """:func:`run` once the engine is chosen: ``pool``, or Ray when None."""
     parsed: JobsFile = (
         read_jobs(jobs, out) if isinstance(jobs, str | os.PathLike) else as_jobs(jobs, out)
     )
@@ -154,7 +186,9 @@ def run(
     with _bar(len(todo), show_progress and bool(todo)) as bar:
         for entry in report.failures:
             bar.failed(entry, counted=False, show=show_progress)
-        if todo:
+        if todo and pool is not None:
+            _run_local(pool, todo, out, manifest, report, t0, workers, retries, bar)
+        elif todo:
             _run_on_ray(todo, out, manifest, report, workers, address, retries, bar)
     report.seconds = time.perf_counter() - t0
     write_failures(out, report.failures)
@@ -257,8 +291,7 @@ def _run_on_ray(
     try:
         n = min(n, len(todo))
         report.workers = n
-        # llvmpipe's threads: the workers share the cores (a caller's LP_NUM_THREADS stands)
-        lp = max(1, (os.cpu_count() or 1) // n) if not address else None
+        lp = _lp_threads(n) if not address else None
         actor_class = ray.remote(num_cpus=1, max_restarts=0, max_task_retries=0)(JobRunner)
 
         def new_actor():
@@ -301,23 +334,69 @@ def _run_on_ray(
                     _fail(report, out, bar, job, attempt, message, "internal")
                     continue
                 idle.append(actor)
-                if result.ok:
-                    manifest.record(
-                        job,
-                        result.outputs,
-                        seconds=round(result.seconds, 3),
-                        cpu_seconds=round(result.cpu_seconds, 3),
-                        attempts=attempt,
-                    )
-                    report.done.append(result)
-                    bar.done()
-                else:
-                    kind = "internal" if result.internal else "input"
-                    _fail(report, out, bar, job, attempt, result.message, kind)
+                _finished(report, out, manifest, bar, job, attempt, result)
     finally:
         with contextlib.suppress(Exception):
             ray.shutdown()
         shutil.rmtree(temp_dir, ignore_errors=True)
+
+
+def _run_local(
+    pool: LocalPool,
+    todo: list[Job],
+    out: Path,
+    manifest: Manifest,
+    report: BatchReport,
+    t0: float,
+    workers: int,
+    retries: int,
+    bar,
+) -> None:
+    """The jobs on ``pool``'s workers (started before the jobs were read), ``workers`` of
+    them at most."""
+    pool.resize(min(workers, len(todo)))
+    report.workers = len(pool.workers)
+    try:
+        pool.ready()
+    except RuntimeError as e:
+        raise BatchError(f"cannot start the workers: {e}") from None
+    report.startup_seconds = time.perf_counter() - t0
+    bar.started()
+    queue: collections.deque[tuple[Job, int]] = collections.deque((j, 1) for j in todo)
+    while queue or pool.busy():
+        while pool.idle() and queue:
+            job, attempt = queue.popleft()
+            pool.submit(job, str(out), (job, attempt))
+        (job, attempt), result = pool.next()
+        if isinstance(result, Died):
+            report.restarts += 1
+            if attempt <= retries:
+                queue.appendleft((job, attempt + 1))
+                continue
+            message = _crash_message(attempt, f"its process {result.reason}")
+            _fail(report, out, bar, job, attempt, message, "crash")
+            continue
+        _finished(report, out, manifest, bar, job, attempt, result)
+
+
+def _finished(
+    report: BatchReport, out: Path, manifest: Manifest, bar, job: Job, attempt: int,
+    result: JobResult,
+) -> None:  # fmt: skip
+    """A job's worker came back with ``result``: recorded in the manifest, or as a failure."""
+    if result.ok:
+        manifest.record(
+            job,
+            result.outputs,
+            seconds=round(result.seconds, 3),
+            cpu_seconds=round(result.cpu_seconds, 3),
+            attempts=attempt,
+        )
+        report.done.append(result)
+        bar.done()
+    else:
+        kind = "internal" if result.internal else "input"
+        _fail(report, out, bar, job, attempt, result.message, kind)
 
 
 def _first_line(e: BaseException) -> str:
@@ -325,10 +404,11 @@ def _first_line(e: BaseException) -> str:
     return text.splitlines()[0] if text else type(e).__name__
 
 
-def _crash_message(attempts: int, e: BaseException) -> str:
+def _crash_message(attempts: int, e: BaseException | str) -> str:
+    why = e if isinstance(e, str) else _first_line(e)
     return (
         f"error: the worker running this job died {attempts} times (given again at most "
-        f"{attempts - 1}): {_first_line(e)}\n"
+        f"{attempts - 1}): {why}\n"
     )
 
 

@@ -2,4 +2,5 @@
 
 from vtts.cli import run
 
-run()
+if __name__ == "__main__":  # not when a batch's worker process starts (vtts.batch.pool)
+    run()
