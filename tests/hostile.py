@@ -7,11 +7,17 @@ path for its ``conftest.py``.
 
 from __future__ import annotations
 
+import atexit
+import contextlib
+import io
+import json
 import os
 import resource
 import subprocess
 import sys
+import tempfile
 import wave
+from collections.abc import Iterator
 from pathlib import Path
 
 from hypothesis import strategies as st
@@ -53,6 +59,109 @@ def run_cli(
 def vtts(*args: str, cwd: Path) -> subprocess.CompletedProcess:
     """The ``vtts`` command under :func:`limited`."""
     return run_cli("vtts", *args, cwd=cwd)
+
+
+#: The warm parent of :func:`run_bounded`'s commands (tests/forkserver.py), one per test process.
+_server: subprocess.Popen | None = None
+
+
+def _fork_server() -> subprocess.Popen:
+    """The running fork server, started without the model cache on first use."""
+    global _server
+    if _server is None or _server.poll() is not None:
+        env = {**os.environ, "VTTS_CACHE_DIR": ""}
+        script = Path(__file__).with_name("forkserver.py")
+        _server = subprocess.Popen([sys.executable, str(script)], stdin=subprocess.PIPE,
+                                   stdout=subprocess.PIPE, text=True, env=env)  # fmt: skip
+        atexit.register(_stop, _server)
+        if _server.stdout.readline() != "ready\n":
+            raise RuntimeError("the fork server of tests/hostile.py did not start")
+    return _server
+
+
+def _stop(server: subprocess.Popen) -> None:
+    """End the fork server and wait for it (its children's processor time is counted then)."""
+    server.stdin.close()
+    server.wait(TIMEOUT)
+
+
+def _text(data: bytes) -> str:
+    """``data`` as ``subprocess.run(text=True, errors="replace")`` gives a process's output."""
+    return io.TextIOWrapper(io.BytesIO(data), errors="replace").read()
+
+
+def run_bounded(
+    tool: str, *args: str, cwd: Path, timeout: float = TIMEOUT
+) -> subprocess.CompletedProcess:
+    """``tool`` with ``args`` as :func:`run_cli` runs it — a process of its own under the limits
+    of :func:`limited`, without the model cache, its output captured as text — forked from a
+    process that has made Python's start-up and the commands' imports once
+    (tests/forkserver.py): what the process does is the command's, only the start-up of the
+    interpreter is not repeated. A run past ``timeout`` seconds raises TimeoutExpired."""
+    server = _fork_server()
+    with tempfile.TemporaryDirectory() as tmp:
+        out, err = Path(tmp, "out"), Path(tmp, "err")
+        request = dict(tool=tool, args=list(args), cwd=str(cwd), out=str(out), err=str(err),
+                       memory=MEMORY, cpu=CPU_SECONDS, timeout=timeout)  # fmt: skip
+        server.stdin.write(json.dumps(request) + "\n")
+        server.stdin.flush()
+        answer = server.stdout.readline()
+        if not answer:
+            raise RuntimeError("the fork server of tests/hostile.py ended")
+        code = json.loads(answer)["returncode"]
+        if code is None:
+            raise subprocess.TimeoutExpired([tool, *args], timeout)
+        return subprocess.CompletedProcess(
+            [tool, *args], code, _text(out.read_bytes()), _text(err.read_bytes())
+        )
+
+
+def run_main(tool: str, *args: str, cwd: Path, cache: bool = True) -> subprocess.CompletedProcess:
+    """``tool``'s main (``vtts``: :func:`vtts.cli.main`, ``adi``: ``adt_tools.cli.main``)
+    called in this process with ``args`` in the folder ``cwd``, its stdout and stderr captured
+    and its exit status returned as :func:`run_cli` returns them (a usage error's SystemExit
+    is its status). An exception the command lets through fails the test with its traceback.
+
+    For what a command says about an input and what it leaves on disk; the process — its
+    limits, a signal, no traceback reaching the user — is :func:`run_cli`'s and
+    :func:`run_bounded`'s. ``cache=False``: without the model cache, as they run. The SIGTERM
+    and SIGHUP handlers that ``vtts``'s main sets are put back after it."""
+    import signal
+
+    if tool == "vtts":
+        from vtts.cli import main
+    else:
+        from adt_tools.cli import main
+    handlers = {s: signal.getsignal(s) for s in (signal.SIGTERM, signal.SIGHUP)}
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.ExitStack() as stack:
+        if not cache:
+            stack.enter_context(_environ("VTTS_CACHE_DIR", ""))
+        stack.enter_context(contextlib.chdir(cwd))
+        stack.enter_context(contextlib.redirect_stdout(out))
+        stack.enter_context(contextlib.redirect_stderr(err))
+        try:
+            code = main(list(args))
+        except SystemExit as e:
+            code = e.code if isinstance(e.code, int) else int(e.code is not None)
+        finally:
+            for sig, handler in handlers.items():
+                signal.signal(sig, handler)
+    return subprocess.CompletedProcess([tool, *args], code, out.getvalue(), err.getvalue())
+
+
+@contextlib.contextmanager
+def _environ(name: str, value: str) -> Iterator[None]:
+    """The environment variable ``name`` set to ``value``, and put back after."""
+    before = os.environ.get(name)
+    os.environ[name] = value
+    try:
+        yield
+    finally:
+        if before is None:
+            del os.environ[name]
+        else:
+            os.environ[name] = before
 
 
 # ---- mutations -----------------------------------------------------------------------------------
