@@ -133,7 +133,8 @@ def run_main(tool: str, *args: str, cwd: Path, cache: bool = True) -> subprocess
     else:
         from adt_tools.cli import main
     handlers = {s: signal.getsignal(s) for s in (signal.SIGTERM, signal.SIGHUP)}
-    out, err = io.StringIO(), io.StringIO()
+    # text streams over bytes, as a process's: a command may write to sys.stdout.buffer
+    out, err = (io.TextIOWrapper(io.BytesIO(), write_through=True) for _ in range(2))
     with contextlib.ExitStack() as stack:
         if not cache:
             stack.enter_context(_environ("VTTS_CACHE_DIR", ""))
@@ -147,7 +148,9 @@ def run_main(tool: str, *args: str, cwd: Path, cache: bool = True) -> subprocess
         finally:
             for sig, handler in handlers.items():
                 signal.signal(sig, handler)
-    return subprocess.CompletedProcess([tool, *args], code, out.getvalue(), err.getvalue())
+    return subprocess.CompletedProcess(
+        [tool, *args], code, _text(out.buffer.getvalue()), _text(err.buffer.getvalue())
+    )
 
 
 @contextlib.contextmanager
