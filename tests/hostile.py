@@ -1,6 +1,11 @@
 """Helpers of the hostile-input tests (issue 21): the commands run in a bounded process, and the
 mutations the in-process fuzzers apply to real inputs.
 
+A command runs three ways: the installed console script under the limits (:func:`run_cli`);
+the same, forked from a process that has already started Python and made the imports
+(:func:`run_bounded`, a fraction of the processor time); or in the test's own process
+(:func:`run_main`), for what a command says and writes rather than how its process ends.
+
 Importable from every test folder (``from hostile import …``): pytest puts ``tests/`` on the
 path for its ``conftest.py``.
 """
@@ -17,7 +22,6 @@ import subprocess
 import sys
 import tempfile
 import wave
-from collections.abc import Iterator
 from pathlib import Path
 
 from hypothesis import strategies as st
@@ -116,7 +120,7 @@ def run_bounded(
         )
 
 
-def run_main(tool: str, *args: str, cwd: Path, cache: bool = True) -> subprocess.CompletedProcess:
+def run_main(tool: str, *args: str, cwd: Path) -> subprocess.CompletedProcess:
     """``tool``'s main (``vtts``: :func:`vtts.cli.main`, ``adi``: ``adt_tools.cli.main``)
     called in this process with ``args`` in the folder ``cwd``, its stdout and stderr captured
     and its exit status returned as :func:`run_cli` returns them (a usage error's SystemExit
@@ -124,8 +128,9 @@ def run_main(tool: str, *args: str, cwd: Path, cache: bool = True) -> subprocess
 
     For what a command says about an input and what it leaves on disk; the process — its
     limits, a signal, no traceback reaching the user — is :func:`run_cli`'s and
-    :func:`run_bounded`'s. ``cache=False``: without the model cache, as they run. The SIGTERM
-    and SIGHUP handlers that ``vtts``'s main sets are put back after it."""
+    :func:`run_bounded`'s. The model cache is the test process's (on, unless the environment
+    turns it off). The SIGTERM and SIGHUP handlers that ``vtts``'s main sets are put back after
+    it."""
     import signal
 
     if tool == "vtts":
@@ -135,36 +140,19 @@ def run_main(tool: str, *args: str, cwd: Path, cache: bool = True) -> subprocess
     handlers = {s: signal.getsignal(s) for s in (signal.SIGTERM, signal.SIGHUP)}
     # text streams over bytes, as a process's: a command may write to sys.stdout.buffer
     out, err = (io.TextIOWrapper(io.BytesIO(), write_through=True) for _ in range(2))
-    with contextlib.ExitStack() as stack:
-        if not cache:
-            stack.enter_context(_environ("VTTS_CACHE_DIR", ""))
-        stack.enter_context(contextlib.chdir(cwd))
-        stack.enter_context(contextlib.redirect_stdout(out))
-        stack.enter_context(contextlib.redirect_stderr(err))
+    with contextlib.chdir(cwd), contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         try:
             code = main(list(args))
-        except SystemExit as e:
+        except SystemExit as e:  # as the interpreter ends a process with it
             code = e.code if isinstance(e.code, int) else int(e.code is not None)
+            if not isinstance(e.code, int | None):
+                print(e.code, file=sys.stderr)
         finally:
             for sig, handler in handlers.items():
                 signal.signal(sig, handler)
     return subprocess.CompletedProcess(
         [tool, *args], code, _text(out.buffer.getvalue()), _text(err.buffer.getvalue())
     )
-
-
-@contextlib.contextmanager
-def _environ(name: str, value: str) -> Iterator[None]:
-    """The environment variable ``name`` set to ``value``, and put back after."""
-    before = os.environ.get(name)
-    os.environ[name] = value
-    try:
-        yield
-    finally:
-        if before is None:
-            del os.environ[name]
-        else:
-            os.environ[name] = before
 
 
 # ---- mutations -----------------------------------------------------------------------------------
