@@ -8,6 +8,7 @@ from job to job make the later outputs), and the batch goes on past the bad job 
 
 from __future__ import annotations
 
+import concurrent.futures
 import json
 import os
 import signal
@@ -67,12 +68,39 @@ def _kill_when_writing(folder: Path, stop: threading.Event, killed: list) -> Non
         time.sleep(0.005)
 
 
-def _batch(jobs: Path, out: Path) -> subprocess.CompletedProcess:
+def _start(jobs: Path, out: Path) -> subprocess.Popen:
+    """``vtts batch JOBS --out OUT --workers 2``, started."""
     env = {**os.environ, "LP_NUM_THREADS": "1"}
     command = [sys.executable, "-m", "vtts.cli", "batch", str(jobs), "--out", str(out)]
-    return subprocess.run(
-        [*command, "--workers", "2"], env=env, capture_output=True, text=True, timeout=240
-    )
+    return subprocess.Popen([*command, "--workers", "2"], env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)  # fmt: skip
+
+
+def _finish(p: subprocess.Popen) -> subprocess.CompletedProcess:
+    """What the batch ``p`` printed, when it has ended (within 240 s)."""
+    try:
+        stdout, stderr = p.communicate(timeout=240)
+    except subprocess.TimeoutExpired:
+        p.kill()
+        p.communicate()
+        raise
+    return subprocess.CompletedProcess(p.args, p.returncode, stdout, stderr)
+
+
+def _batch(jobs: Path, out: Path) -> subprocess.CompletedProcess:
+    return _finish(_start(jobs, out))
+
+
+def _references(folder: Path) -> dict[int, subprocess.CompletedProcess]:
+    """``vtts say`` of each text with the jobs' options, in this process: ``folder/refI.mp4``
+    and what the command printed (the bad one's failure as it prints it, without --quiet)."""
+    os.environ.setdefault("LP_NUM_THREADS", "1")
+    refs = {}
+    for i, text in enumerate(TEXTS):
+        quiet = ["--quiet"] if i != BAD else []
+        args = ("say", text, *OPTIONS, *quiet, "-o", str(folder / f"ref{i}.mp4"))
+        refs[i] = run_main("vtts", *args, cwd=folder)
+    return refs
 
 
 def test_batch_on_local_ray(tmp_path):
@@ -87,11 +115,19 @@ def test_batch_on_local_ray(tmp_path):
     stop, killed = threading.Event(), []
     watcher = threading.Thread(target=_kill_when_writing, args=(out, stop, killed), daemon=True)
     watcher.start()
+    batch = _start(jobs, out)
     try:
-        first = _batch(jobs, out)
+        # the references are made while the batch runs (Ray's start-up is mostly waiting)
+        with concurrent.futures.ThreadPoolExecutor(1) as pool:
+            ended = pool.submit(_finish, batch)
+            refs = _references(tmp_path)
+            first = ended.result()
     finally:
         stop.set()
         watcher.join()
+        if batch.poll() is None:
+            batch.kill()
+            batch.wait()
     assert first.returncode == 1, first.stderr
     assert killed, "the watcher never saw the job's video being written"
     assert "5 jobs done, 1 failed, 0 already done" in first.stdout, first.stdout
@@ -104,17 +140,14 @@ def test_batch_on_local_ray(tmp_path):
     assert next(e for e in manifest if e["id"] == f"q{KILLED}")["attempts"] == 2
     assert not list(out.glob(".*part*"))  # the dead worker's temporary is gone
 
-    os.environ.setdefault("LP_NUM_THREADS", "1")
-    for i, text in enumerate(TEXTS):
-        ref = tmp_path / f"ref{i}.mp4"
-        quiet = ["--quiet"] if i != BAD else []  # the failure: as the command prints it
-        r = run_main("vtts", "say", text, *OPTIONS, *quiet, "-o", str(ref), cwd=tmp_path)
+    for i, r in refs.items():
         if i == BAD:
             assert r.returncode == 1 and not (out / f"q{i}.mp4").exists()
             # the failure is what the command printed
             assert failures[0]["error"] == r.stderr.rstrip("\n")
             continue
         assert r.returncode == 0, r.stderr
+        ref = tmp_path / f"ref{i}.mp4"
         assert (out / f"q{i}.mp4").read_bytes() == ref.read_bytes(), f"q{i}"
 
     assert failures[0]["kind"] == "input"
