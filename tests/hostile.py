@@ -1,16 +1,26 @@
 """Helpers of the hostile-input tests (issue 21): the commands run in a bounded process, and the
 mutations the in-process fuzzers apply to real inputs.
 
+A command runs three ways: the installed console script under the limits (:func:`run_cli`);
+the same, forked from a process that has already started Python and made the imports
+(:func:`run_bounded`, a fraction of the processor time); or in the test's own process
+(:func:`run_main`), for what a command says and writes rather than how its process ends.
+
 Importable from every test folder (``from hostile import …``): pytest puts ``tests/`` on the
 path for its ``conftest.py``.
 """
 
 from __future__ import annotations
 
+import atexit
+import contextlib
+import io
+import json
 import os
 import resource
 import subprocess
 import sys
+import tempfile
 import wave
 from pathlib import Path
 
@@ -53,6 +63,96 @@ def run_cli(
 def vtts(*args: str, cwd: Path) -> subprocess.CompletedProcess:
     """The ``vtts`` command under :func:`limited`."""
     return run_cli("vtts", *args, cwd=cwd)
+
+
+#: The warm parent of :func:`run_bounded`'s commands (tests/forkserver.py), one per test process.
+_server: subprocess.Popen | None = None
+
+
+def _fork_server() -> subprocess.Popen:
+    """The running fork server, started without the model cache on first use."""
+    global _server
+    if _server is None or _server.poll() is not None:
+        env = {**os.environ, "VTTS_CACHE_DIR": ""}
+        script = Path(__file__).with_name("forkserver.py")
+        _server = subprocess.Popen([sys.executable, str(script)], stdin=subprocess.PIPE,
+                                   stdout=subprocess.PIPE, text=True, env=env)  # fmt: skip
+        atexit.register(_stop, _server)
+        if _server.stdout.readline() != "ready\n":
+            raise RuntimeError("the fork server of tests/hostile.py did not start")
+    return _server
+
+
+def _stop(server: subprocess.Popen) -> None:
+    """End the fork server and wait for it (its children's processor time is counted then)."""
+    server.stdin.close()
+    server.wait(TIMEOUT)
+
+
+def _text(data: bytes) -> str:
+    """``data`` as ``subprocess.run(text=True, errors="replace")`` gives a process's output."""
+    return io.TextIOWrapper(io.BytesIO(data), errors="replace").read()
+
+
+def run_bounded(
+    tool: str, *args: str, cwd: Path, timeout: float = TIMEOUT
+) -> subprocess.CompletedProcess:
+    """``tool`` with ``args`` as :func:`run_cli` runs it — a process of its own under the limits
+    of :func:`limited`, without the model cache, its output captured as text — forked from a
+    process that has made Python's start-up and the commands' imports once
+    (tests/forkserver.py): what the process does is the command's, only the start-up of the
+    interpreter is not repeated. A run past ``timeout`` seconds raises TimeoutExpired."""
+    server = _fork_server()
+    with tempfile.TemporaryDirectory() as tmp:
+        out, err = Path(tmp, "out"), Path(tmp, "err")
+        request = dict(tool=tool, args=list(args), cwd=str(cwd), out=str(out), err=str(err),
+                       memory=MEMORY, cpu=CPU_SECONDS, timeout=timeout)  # fmt: skip
+        server.stdin.write(json.dumps(request) + "\n")
+        server.stdin.flush()
+        answer = server.stdout.readline()
+        if not answer:
+            raise RuntimeError("the fork server of tests/hostile.py ended")
+        code = json.loads(answer)["returncode"]
+        if code is None:
+            raise subprocess.TimeoutExpired([tool, *args], timeout)
+        return subprocess.CompletedProcess(
+            [tool, *args], code, _text(out.read_bytes()), _text(err.read_bytes())
+        )
+
+
+def run_main(tool: str, *args: str, cwd: Path) -> subprocess.CompletedProcess:
+    """``tool``'s main (``vtts``: :func:`vtts.cli.main`, ``adi``: ``adt_tools.cli.main``)
+    called in this process with ``args`` in the folder ``cwd``, its stdout and stderr captured
+    and its exit status returned as :func:`run_cli` returns them (a usage error's SystemExit
+    is its status). An exception the command lets through fails the test with its traceback.
+
+    For what a command says about an input and what it leaves on disk; the process — its
+    limits, a signal, no traceback reaching the user — is :func:`run_cli`'s and
+    :func:`run_bounded`'s. The model cache is the test process's (on, unless the environment
+    turns it off). The SIGTERM and SIGHUP handlers that ``vtts``'s main sets are put back after
+    it."""
+    import signal
+
+    if tool == "vtts":
+        from vtts.cli import main
+    else:
+        from adt_tools.cli import main
+    handlers = {s: signal.getsignal(s) for s in (signal.SIGTERM, signal.SIGHUP)}
+    # text streams over bytes, as a process's: a command may write to sys.stdout.buffer
+    out, err = (io.TextIOWrapper(io.BytesIO(), write_through=True) for _ in range(2))
+    with contextlib.chdir(cwd), contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = main(list(args))
+        except SystemExit as e:  # as the interpreter ends a process with it
+            code = e.code if isinstance(e.code, int) else int(e.code is not None)
+            if not isinstance(e.code, int | None):
+                print(e.code, file=sys.stderr)
+        finally:
+            for sig, handler in handlers.items():
+                signal.signal(sig, handler)
+    return subprocess.CompletedProcess(
+        [tool, *args], code, _text(out.buffer.getvalue()), _text(err.buffer.getvalue())
+    )
 
 
 # ---- mutations -----------------------------------------------------------------------------------

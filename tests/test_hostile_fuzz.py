@@ -1,9 +1,10 @@
 """Hostile and mutated inputs of every kind through the real commands, in a bounded process
 (issue 21): 3 GB of address space, 60 s of processor time and 60 s of wall-clock time
-(``hostile.limited``). Each case must end with status 0 or 1 (2 for a usage error, as argparse
-reports a bad ``--seed``) and no traceback: a process beyond
-its memory dies with a MemoryError traceback, one beyond its processor time by SIGXCPU, one
-beyond its time by the test's timeout, so a passing case held its bounds.
+(``hostile.limited``; each process is forked from one that made Python's start-up and the
+imports once, ``hostile.run_bounded``). Each case must end with status 0 or 1 (2 for a usage
+error, as argparse reports a bad ``--seed``) and no traceback: a process beyond its memory dies
+with a MemoryError traceback, one beyond its processor time by SIGXCPU, one beyond its time by
+the test's timeout, so a passing case held its bounds.
 
 The in-process fuzzers (``test_*_fuzz.py`` beside each reader) try thousands of inputs; here a
 few of each kind, the hostile ones they found among them, go through argument parsing, the
@@ -13,11 +14,13 @@ run feeds the same bytes.
 
 from __future__ import annotations
 
+import functools
 import io
 import json
 import random
 import shutil
 import struct
+import tempfile
 import zlib
 from collections.abc import Callable
 from pathlib import Path
@@ -25,7 +28,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from .hostile import DATA, INTERESTING, OPS, mutate, mutate_bytes, run_cli, wav
+from .hostile import DATA, INTERESTING, OPS, mutate, mutate_bytes, run_bounded, run_main, wav
 
 ROOT = DATA.parent.parent
 HEAD = DATA / "models" / "head.wrl"
@@ -65,6 +68,7 @@ def png_size(data: bytes, w: int, h: int) -> bytes:
     return data[:16] + ihdr + struct.pack(">I", zlib.crc32(b"IHDR" + ihdr)) + data[33:]
 
 
+@functools.cache
 def small_png() -> bytes:
     from PIL import Image
 
@@ -113,11 +117,18 @@ for _seed in (4, 5):
     )
 
 
+@functools.cache
+def joy_fbs() -> bytes:
+    """JOY as ``vtts encode`` writes it (made once: each case damages a copy)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        r = run_main("vtts", "encode", str(JOY), "-o", "joy.fbs", "--quiet", cwd=Path(tmp))
+        assert r.returncode == 0, r.stderr
+        return Path(tmp, "joy.fbs").read_bytes()
+
+
 # .fbs bitstreams: header fields and frame data mutated, both CRCs recomputed
 def _fbs(t: Path, seed: int, where: str) -> list[str]:
-    r = run_cli("vtts", "encode", str(JOY), "-o", "joy.fbs", "--quiet", cwd=t)
-    assert r.returncode == 0, r.stderr
-    data = (t / "joy.fbs").read_bytes()
+    data = joy_fbs()
     from vtts.fap.coding import read_header
 
     size = read_header(data).header_size
@@ -204,17 +215,24 @@ def _analyze(t: Path, video: str) -> list[str]:
     return ["analyze", video, "--model", str(HEAD), "-o", "x.fap", "--quiet"]
 
 
-def _mp4(t: Path, seed: int) -> list[str]:
-    """Three frames from vtts's VideoWriter, damaged in their second half (the frame data)."""
+@functools.cache
+def small_mp4() -> bytes:
+    """Three frames from vtts's VideoWriter (made once: each case damages a copy)."""
     from PIL import Image
 
     from vtts.render import VideoWriter
 
     frame = np.asarray(Image.open(io.BytesIO(small_png())))
-    with VideoWriter(t / "ok.mp4", 10, (176, 144)) as video:
-        for k in range(3):
-            video.write(np.roll(frame, 4 * k, axis=1))
-    data = (t / "ok.mp4").read_bytes()
+    with tempfile.TemporaryDirectory() as tmp:
+        with VideoWriter(Path(tmp, "ok.mp4"), 10, (176, 144)) as video:
+            for k in range(3):
+                video.write(np.roll(frame, 4 * k, axis=1))
+        return Path(tmp, "ok.mp4").read_bytes()
+
+
+def _mp4(t: Path, seed: int) -> list[str]:
+    """:func:`small_mp4` damaged in its second half (the frame data)."""
+    data = small_mp4()
     (t / "x.mp4").write_bytes(mutate_bytes(data, byte_ops(seed), start=len(data) // 2))
     return _analyze(t, "x.mp4")
 
@@ -307,7 +325,7 @@ ADI = ("fit", "build")
 def test_a_hostile_input_is_a_clear_error_within_bounds(tmp_path: Path, name: str) -> None:
     args = CASES[name](tmp_path)
     tool = "adi" if args[0] in ADI else "vtts"
-    r = run_cli(tool, *args, cwd=tmp_path)
+    r = run_bounded(tool, *args, cwd=tmp_path)
     assert r.returncode in (0, 1) or (r.returncode == 2 and "usage:" in r.stderr), (
         r.returncode,
         r.stderr[-2000:],

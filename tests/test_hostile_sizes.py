@@ -1,7 +1,7 @@
 """Inputs whose size is hostile fail at once with a clear error naming the limit: each case runs
-the CLI in a process limited to 3 GB of address space and 60 s (``hostile.vtts``), and must exit
-1 with the message and no traceback (before the limits of vtts.limits, these took 6 to 24 GB or
-ran for minutes)."""
+the CLI in a process limited to 3 GB of address space and 60 s (``hostile.run_bounded``), and
+must exit 1 with the message and no traceback (before the limits of vtts.limits, these took 6 to
+24 GB or ran for minutes)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import pytest
 
 from vtts import limits
 
-from .hostile import DATA, vtts, wav
+from .hostile import DATA, run_bounded, run_main, wav
 
 HEAD = str(DATA / "models" / "head.wrl")
 JOY = str(DATA / "fap" / "xface-joy.fap")
@@ -28,7 +28,7 @@ def _slow_fap(tmp: Path) -> Path:
 def _long_fbs(tmp: Path) -> Path:
     """A valid bitstream whose header claims 200,000 frames at 0.05 Hz (46 days)."""
     fbs = tmp / "joy.fbs"
-    r = vtts("encode", JOY, "-o", str(fbs), "--quiet", cwd=tmp)
+    r = run_main("vtts", "encode", JOY, "-o", str(fbs), "--quiet", cwd=tmp)
     assert r.returncode == 0, r.stderr
     data = bytearray(fbs.read_bytes())
     struct.pack_into(">d", data, 7, 0.05)
@@ -158,7 +158,7 @@ for _name, (_polly_args, _message) in POLLY.items():
 @pytest.mark.parametrize("case", CASES)
 def test_a_hostile_size_is_a_clear_error(tmp_path, case):
     make_args, message = CASES[case]
-    r = vtts(*make_args(tmp_path), cwd=tmp_path)
+    r = run_bounded("vtts", *make_args(tmp_path), cwd=tmp_path)
     assert r.returncode == 1, (r.returncode, r.stderr[-2000:])
     assert message in r.stderr
     assert "Traceback" not in r.stderr
@@ -175,7 +175,7 @@ LOADS = {
 @pytest.mark.parametrize("case", LOADS)
 def test_a_large_input_stays_within_bounds(tmp_path, case):
     make, code, fragment = LOADS[case]
-    r = vtts("check", str(make(tmp_path)), cwd=tmp_path)
+    r = run_bounded("vtts", "check", str(make(tmp_path)), cwd=tmp_path)
     assert r.returncode == code, r.stderr[-2000:]
     assert fragment in r.stdout + r.stderr
 

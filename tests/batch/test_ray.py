@@ -1,10 +1,14 @@
-"""vtts batch on a local Ray instance: 10 short jobs on 2 workers, one with an unknown bookmark,
-one whose worker is killed (SIGKILL) while it writes the video. The other 9 outputs are complete
+"""vtts batch on a local Ray instance: 6 short jobs on 2 workers, one with an unknown bookmark,
+one whose worker is killed (SIGKILL) while it writes the video. The other 5 outputs are complete
 and byte-identical to the single command's, the bad job is in failures.jsonl with the command's
-message, the killed one ran again on a new worker; a re-run does nothing."""
+message, the killed one ran again on a new worker; a re-run does nothing.
+
+Six jobs are enough for all of it: each worker runs several (the heads and renderers it keeps
+from job to job make the later outputs), and the batch goes on past the bad job and the kill."""
 
 from __future__ import annotations
 
+import concurrent.futures
 import json
 import os
 import signal
@@ -16,22 +20,18 @@ from pathlib import Path
 
 import ray  # noqa: F401  (the test extra installs it: without it this test fails, loudly)
 
-from vtts import cli
+from ..hostile import run_main
 
 TEXTS = [
     "Hi.",
     "Hello there.",
-    "Good day.",
     "Hello <frown> you.",  # unknown bookmark: fails as vtts say would
-    "Nice to meet you.",
-    "See you.",
-    "Thank you.",
     # the job whose worker is killed: long enough to be caught writing its video
     "Good morning and welcome. <smile> I speak for a while, so that you can catch me at it.",
-    "Bye now.",
+    "See you.",
     "Good night.",
 ]
-BAD, KILLED = 3, 7
+BAD, KILLED = 2, 3
 OPTIONS = ["--model", "cybatt", "--size", "160x120"]
 
 
@@ -68,12 +68,39 @@ def _kill_when_writing(folder: Path, stop: threading.Event, killed: list) -> Non
         time.sleep(0.005)
 
 
-def _batch(jobs: Path, out: Path) -> subprocess.CompletedProcess:
+def _start(jobs: Path, out: Path) -> subprocess.Popen:
+    """``vtts batch JOBS --out OUT --workers 2``, started."""
     env = {**os.environ, "LP_NUM_THREADS": "1"}
     command = [sys.executable, "-m", "vtts.cli", "batch", str(jobs), "--out", str(out)]
-    return subprocess.run(
-        [*command, "--workers", "2"], env=env, capture_output=True, text=True, timeout=240
-    )
+    return subprocess.Popen([*command, "--workers", "2"], env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)  # fmt: skip
+
+
+def _finish(p: subprocess.Popen) -> subprocess.CompletedProcess:
+    """What the batch ``p`` printed, when it has ended (within 240 s)."""
+    try:
+        stdout, stderr = p.communicate(timeout=240)
+    except subprocess.TimeoutExpired:
+        p.kill()
+        p.communicate()
+        raise
+    return subprocess.CompletedProcess(p.args, p.returncode, stdout, stderr)
+
+
+def _batch(jobs: Path, out: Path) -> subprocess.CompletedProcess:
+    return _finish(_start(jobs, out))
+
+
+def _references(folder: Path) -> dict[int, subprocess.CompletedProcess]:
+    """``vtts say`` of each text with the jobs' options, in this process: ``folder/refI.mp4``
+    and what the command printed (the bad one's failure as it prints it, without --quiet)."""
+    os.environ.setdefault("LP_NUM_THREADS", "1")
+    refs = {}
+    for i, text in enumerate(TEXTS):
+        quiet = ["--quiet"] if i != BAD else []
+        args = ("say", text, *OPTIONS, *quiet, "-o", str(folder / f"ref{i}.mp4"))
+        refs[i] = run_main("vtts", *args, cwd=folder)
+    return refs
 
 
 def test_batch_on_local_ray(tmp_path):
@@ -88,55 +115,48 @@ def test_batch_on_local_ray(tmp_path):
     stop, killed = threading.Event(), []
     watcher = threading.Thread(target=_kill_when_writing, args=(out, stop, killed), daemon=True)
     watcher.start()
+    batch = _start(jobs, out)
     try:
-        first = _batch(jobs, out)
+        # the references are made while the batch runs (Ray's start-up is mostly waiting)
+        with concurrent.futures.ThreadPoolExecutor(1) as pool:
+            ended = pool.submit(_finish, batch)
+            refs = _references(tmp_path)
+            first = ended.result()
     finally:
         stop.set()
         watcher.join()
+        if batch.poll() is None:
+            batch.kill()
+            batch.wait()
     assert first.returncode == 1, first.stderr
     assert killed, "the watcher never saw the job's video being written"
-    assert "9 jobs done, 1 failed, 0 already done" in first.stdout, first.stdout
+    assert "5 jobs done, 1 failed, 0 already done" in first.stdout, first.stdout
     assert "1 worker replaced" in first.stdout
 
     failures = [json.loads(x) for x in (out / "failures.jsonl").read_text().splitlines()]
     assert [(f["id"], f["line"]) for f in failures] == [(f"q{BAD}", BAD + 1)]
     manifest = [json.loads(x) for x in (out / "manifest.jsonl").read_text().splitlines()]
-    assert sorted(e["id"] for e in manifest) == sorted(f"q{i}" for i in range(10) if i != BAD)
+    assert sorted(e["id"] for e in manifest) == sorted(f"q{i}" for i in range(6) if i != BAD)
     assert next(e for e in manifest if e["id"] == f"q{KILLED}")["attempts"] == 2
     assert not list(out.glob(".*part*"))  # the dead worker's temporary is gone
 
-    os.environ.setdefault("LP_NUM_THREADS", "1")
-    for i, text in enumerate(TEXTS):
-        ref = tmp_path / f"ref{i}.mp4"
-        code = cli.main(["say", text, *OPTIONS, "--quiet", "-o", str(ref)])
+    for i, r in refs.items():
         if i == BAD:
-            assert code == 1 and not (out / f"q{i}.mp4").exists()
+            assert r.returncode == 1 and not (out / f"q{i}.mp4").exists()
+            # the failure is what the command printed
+            assert failures[0]["error"] == r.stderr.rstrip("\n")
             continue
+        assert r.returncode == 0, r.stderr
+        ref = tmp_path / f"ref{i}.mp4"
         assert (out / f"q{i}.mp4").read_bytes() == ref.read_bytes(), f"q{i}"
-    # the failure is what the command printed
-    bad = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "vtts.cli",
-            "say",
-            TEXTS[BAD],
-            *OPTIONS,
-            "-o",
-            str(tmp_path / "x.mp4"),
-        ],
-        capture_output=True,
-        text=True,
-    )
-    assert failures[0]["error"] == bad.stderr.rstrip("\n")
 
     assert failures[0]["kind"] == "input"
 
-    # a re-run does nothing: the 9 are finished, the bad job's line is unchanged
+    # a re-run does nothing: the 5 are finished, the bad job's line is unchanged
     before = {p.name: p.stat().st_mtime_ns for p in out.iterdir()}
     again = _batch(jobs, out)
     assert again.returncode == 1  # the batch is still not complete
-    assert "0 jobs done, 1 failed, 9 already done" in again.stdout, again.stdout
+    assert "0 jobs done, 1 failed, 5 already done" in again.stdout, again.stdout
     assert "1 failed job not run again" in again.stdout and "start-up" not in again.stdout
     assert f"q{BAD}: error: column 7: unknown bookmark <frown>" in again.stderr
     assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()} == before
@@ -150,21 +170,47 @@ def test_an_address_nothing_answers_fails_at_once_naming_it(tmp_path):
     another address."""
     jobs = tmp_path / "jobs.jsonl"
     jobs.write_text(json.dumps({"say": "Hi.", "model": "cybatt", "output": "a.mp4"}) + "\n")
-    for address, message in [
-        ("127.0.0.1:1", "cannot reach the Ray cluster at 127.0.0.1:1: connection refused"),
-        ("ray://127.0.0.1:1", "cannot reach the Ray cluster at ray://127.0.0.1:1: connection"),
-        ("127.0.0.1", "--address is HOST:PORT, ray://HOST:PORT or auto, got '127.0.0.1'"),
-        ("h:99999", "--address is HOST:PORT"),
-    ]:
-        r = subprocess.run(
-            [str(EXE), "batch", str(jobs), "--out", str(tmp_path / "out"), f"--address={address}"],
-            capture_output=True, text=True, timeout=120, check=False)  # fmt: skip
+    for address, message, connects in [
+        ("127.0.0.1:1", "cannot reach the Ray cluster at 127.0.0.1:1: connection refused", True),
+        ("ray://127.0.0.1:1", "cannot reach the Ray cluster at ray://127.0.0.1:1: connection",
+         True),
+        ("127.0.0.1", "--address is HOST:PORT, ray://HOST:PORT or auto, got '127.0.0.1'", False),
+        ("h:99999", "--address is HOST:PORT", False),
+    ]:  # fmt: skip
+        args = ["batch", str(jobs), "--out", str(tmp_path / "out"), f"--address={address}"]
+        if connects:  # a process of its own: were the address not checked, Ray would hang
+            r = subprocess.run([str(EXE), *args], capture_output=True, text=True, timeout=120)
+        else:  # refused before Ray starts: the message, in this process
+            r = run_main("vtts", *args, cwd=tmp_path)
         assert r.returncode == 1 and message in r.stderr and "Traceback" not in r.stderr, r.stderr
+
+
+def _has_worker(pid: int) -> bool:
+    """Whether a process below ``pid`` is a JobRunner actor: the batch's driver made it after
+    ``ray.init`` had returned."""
+    children: dict[int, list[int]] = {}
+    for proc in Path("/proc").iterdir():
+        try:
+            stat = (proc / "stat").read_text()
+            children.setdefault(int(stat.rsplit(")", 1)[1].split()[1]), []).append(int(proc.name))
+        except (OSError, ValueError):
+            continue
+    below = list(children.get(pid, []))
+    while below:
+        child = below.pop()
+        try:
+            if b"ray::JobRunner" in (Path("/proc") / str(child) / "cmdline").read_bytes():
+                return True
+        except OSError:
+            continue
+        below += children.get(child, [])
+    return False
 
 
 def test_sigterm_ends_a_batch_as_ctrl_c_does(tmp_path):
     """ray.init made SIGTERM exit at once with status 15, two native stack dumps of Ray's and
-    no "interrupted"; the command's handler is put back after it."""
+    no "interrupted"; the command's handler is put back after it. The signal comes once Ray
+    runs a worker of the batch (ray.init has returned), while the driver waits for it."""
     jobs = tmp_path / "jobs.jsonl"
     lines = [{"say": f"Hello number {i}.", "model": "cybatt", "output": f"{i}.mp4",
               "size": "64x48"} for i in range(30)]  # fmt: skip
@@ -174,7 +220,7 @@ def test_sigterm_ends_a_batch_as_ctrl_c_does(tmp_path):
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
     try:
         deadline = time.monotonic() + 240
-        while not (out / "manifest.jsonl").exists():  # Ray runs: a job is done
+        while not _has_worker(p.pid):  # Ray runs
             assert p.poll() is None and time.monotonic() < deadline, p.stderr.read()
             time.sleep(0.2)
         p.send_signal(signal.SIGTERM)
