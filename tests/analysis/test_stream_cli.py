@@ -36,6 +36,23 @@ def vtts(*args: str, stdin: bytes = b"") -> subprocess.CompletedProcess:
     )
 
 
+def vtts_here(capfd, monkeypatch, *args: str, stdin: bytes = b"") -> subprocess.CompletedProcess:
+    """``vtts ARGS`` run in this process (:func:`vtts.cli.main`), ``stdin`` coming through an OS
+    pipe as the process's would: its status, stdout and stderr (bytes). A traceback would be an
+    exception here, failing the test."""
+    from vtts.cli import main
+
+    read, write = os.pipe()
+    os.write(write, stdin)  # within the pipe's buffer: the test's inputs are a few bytes
+    os.close(write)
+    capfd.readouterr()
+    with open(read, encoding="utf-8") as pipe:
+        monkeypatch.setattr(sys, "stdin", pipe)
+        code = main(list(args))
+    out, err = capfd.readouterr()
+    return subprocess.CompletedProcess(["vtts", *args], code, out.encode(), err.encode())
+
+
 def synthetic(n: int = 6) -> FapStream:
     rng = np.random.default_rng(1)
     values = np.zeros((n, 68))
@@ -136,16 +153,22 @@ def test_read_pipe_yields_frames_and_names_a_partial_one():
         (["--size", "176x144", "--texture", "mean", "-o", "x.fap"], "needs the whole video"),
     ],
 )
-def test_analyze_stdin_errors(tmp_path, args, message):
+def test_analyze_stdin_errors(tmp_path, capfd, monkeypatch, args, message):
+    """The errors of the frames' bytes run the command as a process; the others run it in this
+    process, from the same bytes through a pipe."""
     args = [str(tmp_path / a) if a.startswith(("x.", "rep")) else a for a in args]
-    r = vtts("analyze", "-", *args, stdin=b"garbage, not frames")
+    stdin = b"garbage, not frames"
+    if "the pipe ends inside" in message:
+        r = vtts("analyze", "-", *args, stdin=stdin)
+    else:
+        r = vtts_here(capfd, monkeypatch, "analyze", "-", *args, stdin=stdin)
     err = r.stderr.decode()
     assert r.returncode == 1 and message in err and "Traceback" not in err, err
     assert r.stdout == b""
 
 
-def test_size_is_for_a_pipe():
-    r = vtts("analyze", str(CLIP), "--size", "176x144", "-o", "x.fap")
+def test_size_is_for_a_pipe(capfd, monkeypatch):
+    r = vtts_here(capfd, monkeypatch, "analyze", str(CLIP), "--size", "176x144", "-o", "x.fap")
     assert r.returncode == 1 and b"--size is the size of raw frames" in r.stderr
 
 
