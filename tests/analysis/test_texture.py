@@ -5,8 +5,6 @@ from __future__ import annotations
 
 import itertools
 import shutil
-import subprocess
-import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -117,22 +115,27 @@ def test_bad_input_is_a_clear_error(tracked):
     assert MIN_WEIGHT > 0
 
 
-def test_analyze_writes_the_mean_texture_unless_told_the_anchor(tmp_path):
+def test_analyze_writes_the_mean_texture_unless_told_the_anchor(tmp_path, fits, capsys):
+    """``vtts analyze`` in this process (test_analyze_cli runs the command): both runs fit the
+    same anchor frame, once (conftest.py's ``SharedFits``)."""
+    from vtts.cli import main
+
     clip = tmp_path / "clip"
     clip.mkdir()
     frames = _frames(6)
     for i, frame in enumerate(frames):
         Image.fromarray(frame).save(clip / f"f{i}.png")
-    exe = Path(sys.executable).with_name("vtts")
     textures = {}
     for how in ("mean", "anchor"):
         out = tmp_path / how / "talk.fbs"
         args = ["--texture", how] if how == "anchor" else []
-        r = subprocess.run([str(exe), "analyze", str(clip), "-o", str(out), "--track", *args],
-                           capture_output=True, text=True, timeout=300)  # fmt: skip
-        assert r.returncode == 0, r.stderr
+        capsys.readouterr()
+        with fits.sharing():
+            code = main(["analyze", str(clip), "-o", str(out), "--track", *args])
+        stdout, stderr = capsys.readouterr()
+        assert code == 0, stderr
         # the summary says what the texture is
-        assert ("-frame.png: what 6 frames show)" in r.stdout) == (how == "mean"), r.stdout
+        assert ("-frame.png: what 6 frames show)" in stdout) == (how == "mean"), stdout
         textures[how] = np.asarray(Image.open(out.with_name("talk-model-frame.png")))
         assert not [p for p in out.parent.iterdir() if p.name.startswith(".")]
     # --texture anchor: one of the frames as it is; the mean: close to it, but not it
