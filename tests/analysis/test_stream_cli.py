@@ -191,21 +191,30 @@ def test_play_stdin_renders_each_frame_and_a_whole_fbs_too(tmp_path):
         (lambda d, p: d[:-4], "inside the end marker's CRC"),
     ],
 )
-def test_play_stdin_bad_streams(tmp_path, cut, message):
+def test_play_stdin_bad_streams(tmp_path, capfd, monkeypatch, cut, message):
+    """The garbage ends a real process; the other cuts run the command in this process, through
+    a pipe."""
     parts = streamed(synthetic(3))
     out = tmp_path / "o.mp4"
-    r = vtts("play", "-", "--model", str(HEAD), "--size", "32x24", "-o", str(out),
-             stdin=cut(b"".join(parts), parts))  # fmt: skip
+    args = ["play", "-", "--model", str(HEAD), "--size", "32x24", "-o", str(out)]
+    data = cut(b"".join(parts), parts)
+    if message.startswith("byte 0"):
+        r = vtts(*args, stdin=data)
+    else:
+        r = vtts_here(capfd, monkeypatch, *args, stdin=data)
     err = r.stderr.decode()
     assert r.returncode == 1 and message in err and "Traceback" not in err, err
     assert not out.exists()  # an MP4 is renamed into place only at the end of the stream
 
 
-def test_play_stdin_rejects_another_rate_and_whole_stream_options():
+def test_play_stdin_rejects_another_rate_and_whole_stream_options(capfd, monkeypatch):
+    """In this process, the stream through a pipe."""
     data = b"".join(streamed(synthetic(2)))
-    r = vtts("play", "-", "--model", str(HEAD), "--fps", "30", "-o", "-", stdin=data)
+    r = vtts_here(capfd, monkeypatch, "play", "-", "--model", str(HEAD), "--fps", "30", "-o", "-",
+                  stdin=data)  # fmt: skip
     assert r.returncode == 1 and b"its own rate, 25 Hz" in r.stderr
-    r = vtts("play", "-", "--model", str(HEAD), "--web", "w", "-o", "-", stdin=data)
+    r = vtts_here(capfd, monkeypatch, "play", "-", "--model", str(HEAD), "--web", "w", "-o", "-",
+                  stdin=data)  # fmt: skip
     assert r.returncode == 1 and b"need the whole stream" in r.stderr
 
 
