@@ -21,7 +21,7 @@ from vtts.fit.generic import generic_head, landmark_map
 from vtts.fit.head import transfer_tables
 from vtts.fit.report import figures
 from vtts.fit.shape import focal_length
-from vtts.fit.texture import pull_push, skin_texels
+from vtts.fit.texture import EAR_TILES, pull_push, skin_texels
 from vtts.render import FaceRenderer
 from vtts.render.camera import Camera, find_viewpoint, look_at
 from vtts.vrml import triangulate
@@ -108,6 +108,16 @@ def test_face_is_the_subdivision_of_its_control_points(akiyo):
     face = model.neutral_points("FACE")
     assert np.abs(g.face_points(head.shape.control) - face).max() < 1e-5
     assert refined_face().S.shape[0] == len(face)
+
+
+def test_a_photo_head_keeps_the_shared_generic_ear(akiyo):
+    """A head fitted to a photo (PHOTO_PARTS) leaves the ears' generic tile as it is; a head
+    made for a video gives each ear its own (test_frame)."""
+    head, _, _, _ = akiyo
+    left = np.asarray(head.scene.node("L_EAR").expand()["texCoord"].expand()["point"])
+    right = np.asarray(head.scene.node("R_EAR").expand()["texCoord"].expand()["point"])
+    assert left[:, 1].min() < EAR_TILES["L_EAR"][1]  # the whole generic tile, not a half
+    assert np.allclose(np.sort(left[:, 0]).mean(), np.sort(right[:, 0]).mean(), atol=0.1)
 
 
 def test_the_model_passes_check_and_show(akiyo, capsys):
