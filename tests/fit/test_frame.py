@@ -113,10 +113,16 @@ def _neck_points(head) -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
-def carphone():
-    """Carphone's first frame and a head fitted to it as for a video (not yet made for it)."""
+def carphone(fits):
+    """Carphone's first frame and a head fitted to it as for a video (not yet made for it), as
+    the tracking fits it: one fit with the tracking tests that ran in this process before
+    (conftest.py's ``SharedFits``)."""
+    import vtts.fit
+
     frame = next(iter(read_video(CARPHONE).frames()))
-    return frame, fit_photo(frame, photo_parts=VIDEO_PARTS)
+    with fits.sharing():
+        head = vtts.fit.fit_photo(frame, face=1, detector=None, photo_parts=VIDEO_PARTS)
+    return frame, head
 
 
 def test_a_video_head_ends_its_neck_at_the_collar(carphone, tmp_path):
