@@ -57,7 +57,7 @@ def views_of(name: str, detector) -> list[tuple[int, int, np.ndarray, np.ndarray
     model = load_model(name)
     face_pts = model.neutral_points("FACE")
     tm = triangulate(model.scene.node("FACE"))
-    face_tris = tm.coord_index[tm.faces]
+    surface = Surface(face_pts, tm.coord_index[tm.faces])
     lo, hi = face_pts.min(axis=0), face_pts.max(axis=0)
     target = (lo + hi) / 2
     f = SIZE * 1.4
@@ -97,7 +97,7 @@ def views_of(name: str, detector) -> list[tuple[int, int, np.ndarray, np.ndarray
         ids = np.full((len(lm), 3), -1)
         bary = np.zeros((len(lm), 3))
         for j in np.flatnonzero(~np.isnan(hit[:, 0])):
-            v, w = surface_point(face_pts, face_tris, hit[j])
+            v, w = surface.nearest(hit[j])
             limit = MAX_OFF_FACE_OVAL if j in OVAL else MAX_OFF_FACE
             if on_face[j] or np.linalg.norm(w @ face_pts[v] - hit[j]) < limit:
                 ids[j], bary[j] = v, w
@@ -105,29 +105,46 @@ def views_of(name: str, detector) -> list[tuple[int, int, np.ndarray, np.ndarray
     return out
 
 
-def surface_point(points: np.ndarray, faces: np.ndarray, p: np.ndarray):
-    """The triangle ``(3,)`` vertex ids and barycentric weights ``(3,)`` of the point of the
-    mesh nearest ``p`` (``p`` lies on or near the surface: the triangles around its nearest
-    vertex are searched)."""
-    nearest = np.argsort(np.linalg.norm(points - p, axis=1))[:4]
-    cand = faces[np.isin(faces, nearest).any(axis=1)]
-    w = trimesh.triangles.points_to_barycentric(points[cand], np.repeat(p[None], len(cand), 0))
-    w = np.clip(w, 0, None)
-    w /= w.sum(axis=1, keepdims=True)
-    q = np.einsum("ij,ijk->ik", w, points[cand])
-    d = np.linalg.norm(q - p, axis=1)
-    # a point on an edge or a vertex lies in several triangles at the same distance, to rounding
-    # that varies from run to run: of those, the triangle with the smallest vertex ids
-    ties = np.flatnonzero(d <= d.min() + 1e-9 * max(1.0, float(np.abs(p).max())))
-    best = int(ties[np.lexsort(np.sort(cand[ties], axis=1).T[::-1])[0]])
-    return cand[best], w[best]
+class Surface:
+    """A triangle mesh to find the points nearest to others on: ``points (n, 3)`` and ``faces (m,
+    3)`` vertex ids, with each vertex's triangles listed once for all."""
+
+    def __init__(self, points: np.ndarray, faces: np.ndarray) -> None:
+        self.points, self.faces = points, faces
+        # each vertex's rows of faces, ascending: the vertex ids sorted, stable
+        order = np.argsort(faces.ravel(), kind="stable")
+        counts = np.bincount(faces.ravel(), minlength=len(points))
+        self.around = np.split(order // faces.shape[1], np.cumsum(counts)[:-1])
+
+    def nearest(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The triangle ``(3,)`` vertex ids and barycentric weights ``(3,)`` of the point of the
+        mesh nearest ``p`` (``p`` lies on or near the surface: the triangles around its four
+        nearest vertices are searched)."""
+        points = self.points
+        d = np.linalg.norm(points - p, axis=1)
+        part = np.argpartition(d, 4)
+        nearest = part[:4]
+        if d[nearest].max() >= d[part[4]]:  # a tie at the fourth: broken as argsort breaks it
+            nearest = np.argsort(d)[:4]
+        cand = self.faces[np.unique(np.concatenate([self.around[v] for v in nearest]))]
+        w = trimesh.triangles.points_to_barycentric(points[cand], np.repeat(p[None], len(cand), 0))
+        w = np.clip(w, 0, None)
+        w /= w.sum(axis=1, keepdims=True)
+        q = np.einsum("ij,ijk->ik", w, points[cand])
+        d = np.linalg.norm(q - p, axis=1)
+        # a point on an edge or a vertex lies in several triangles at the same distance, to
+        # rounding that varies from run to run: of those, the triangle with the smallest vertex
+        # ids
+        ties = np.flatnonzero(d <= d.min() + 1e-9 * max(1.0, float(np.abs(p).max())))
+        best = int(ties[np.lexsort(np.sort(cand[ties], axis=1).T[::-1])[0]])
+        return cand[best], w[best]
 
 
 def build(out: Path) -> None:
     detector = MediaPipeDetector()
     reference = load_model("cybatt").neutral_points("FACE")
     tm = triangulate(load_model("cybatt").scene.node("FACE"))
-    ref_faces = tm.coord_index[tm.faces]
+    ref_surface = Surface(reference, tm.coord_index[tm.faces])
     oval = np.zeros(468, bool)
     oval[list(FACE_OVAL)] = True
     samples: list[list[np.ndarray]] = [[] for _ in range(468)]
@@ -144,7 +161,7 @@ def build(out: Path) -> None:
         pts = np.array(samples[j])
         p = np.median(pts, axis=0)
         spread = float(np.median(np.linalg.norm(pts - p, axis=1)))
-        v, w = surface_point(reference, ref_faces, p)
+        v, w = ref_surface.nearest(p)
         rows.append(f"{j}\t{v[0]}\t{v[1]}\t{v[2]}\t{w[0]:.6f}\t{w[1]:.6f}\t{w[2]:.6f}\t"
                     f"{'oval' if oval[j] else 'inner'}\t{spread:.4f}")  # fmt: skip
     header = (

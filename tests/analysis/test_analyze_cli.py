@@ -21,6 +21,20 @@ def vtts(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
     return subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=300, cwd=cwd)
 
 
+def vtts_here(capfd, *args: str) -> subprocess.CompletedProcess:
+    """``vtts ARGS`` run in this process (:func:`vtts.cli.main`): its status, stdout and stderr.
+    A traceback would be an exception here, failing the test."""
+    from vtts.cli import main
+
+    capfd.readouterr()
+    try:
+        code = main(list(args))
+    except SystemExit as e:  # argparse's usage errors
+        code = e.code
+    out, err = capfd.readouterr()
+    return subprocess.CompletedProcess(["vtts", *args], code, out, err)
+
+
 def _inputs(root: Path) -> None:
     """Inputs of the bad-input cases, all in ``root/in``."""
     d = root / "in"
@@ -61,7 +75,17 @@ def _inputs(root: Path) -> None:
         (["{in}/ok", "--model", "{in}/none.wrl"], ["no model"]),
     ],
 )
-def test_bad_input_is_a_clear_error(tmp_path, args, fragments):
+def test_bad_input_is_a_clear_error(tmp_path, capfd, args, fragments):
+    """In this process (test_bad_input_ends_the_process_… runs the command)."""
+    _bad_input(tmp_path, args, fragments, lambda *a: vtts_here(capfd, *a))
+
+
+def test_bad_input_ends_the_process_with_a_clear_error(tmp_path):
+    _bad_input(tmp_path, ["{in}/mixed"], ["f10.png: error:", "40x30", "64x48", "f1.png"], vtts)
+
+
+def _bad_input(tmp_path: Path, args: list[str], fragments: list[str], run) -> None:
+    """``vtts analyze ARGS`` (``run``) fails with ``fragments`` on stderr and writes nothing."""
     _inputs(tmp_path)
     before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
     argv = [a.replace("{in}", str(tmp_path / "in")) for a in args]
@@ -69,7 +93,7 @@ def test_bad_input_is_a_clear_error(tmp_path, args, fragments):
         argv += ["--model", HEAD]
     if "-o" not in argv:
         argv += ["-o", str(tmp_path / "out" / "x.fap")]
-    r = vtts("analyze", *argv)
+    r = run("analyze", *argv)
     assert r.returncode == 1, (r.returncode, r.stderr)
     for fragment in fragments:
         assert fragment in r.stderr, r.stderr
@@ -106,18 +130,19 @@ def rendered_frames(tmp_path_factory) -> Path:
     return d
 
 
-def test_the_bitstream_carries_the_steps_measured_on_the_head(tmp_path, rendered_frames):
+def test_the_bitstream_carries_the_steps_measured_on_the_head(tmp_path, rendered_frames, capfd):
     """``-o X.fbs`` codes with the base steps measured on the model (``--steps face``, the
     default): the lip corner's (FAP 6, a few pixels of the test head) coarser than MPEG-4's,
-    the head's pitch (every pixel) finer; ``--steps mpeg4`` the standard's."""
+    the head's pitch (every pixel) finer; ``--steps mpeg4`` the standard's. The runs are in this
+    process; the usage error is the process's."""
     from vtts.fap.coding import read_header
     from vtts.fap.table import FAPS
 
     headers = {}
     for steps in ("face", "mpeg4"):
         out = tmp_path / f"{steps}.fbs"
-        r = vtts("analyze", str(rendered_frames), "--model", HEAD, "-o", str(out),
-                 "--faps", "6,48", "--fps", "30", "--steps", steps, "--quiet")  # fmt: skip
+        r = vtts_here(capfd, "analyze", str(rendered_frames), "--model", HEAD, "-o", str(out),
+                      "--faps", "6,48", "--fps", "30", "--steps", steps, "--quiet")  # fmt: skip
         assert r.returncode == 0, r.stderr
         headers[steps] = read_header(out.read_bytes())
     assert headers["mpeg4"].base_steps == (FAPS[5].quant_step, FAPS[47].quant_step)

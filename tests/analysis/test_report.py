@@ -61,9 +61,16 @@ def read_csv(path: Path) -> list[dict[str, str]]:
         return list(csv.DictReader(f))
 
 
-def test_report_files_appear_in_a_new_folder(tmp_path):
-    out = tmp_path / "deep" / "report"
-    written = write_report(make_analysis(), out)
+@pytest.fixture(scope="module")
+def report(tmp_path_factory) -> tuple[Path, list[Path]]:
+    """The report of :func:`make_analysis`, written once into a new folder: the folder and the
+    files :func:`write_report` said it wrote."""
+    out = tmp_path_factory.mktemp("report") / "deep" / "report"
+    return out, write_report(make_analysis(), out)
+
+
+def test_report_files_appear_in_a_new_folder(report):
+    out, written = report
     assert written == [out / CSV_NAME, out / PSNR_PLOT, out / FAPS_PLOT]
     assert sorted(p.name for p in out.iterdir()) == sorted([CSV_NAME, PSNR_PLOT, FAPS_PLOT])
     for name in (PSNR_PLOT, FAPS_PLOT):
@@ -93,10 +100,9 @@ def test_csv_columns_follow_the_unknowns():
     ]
 
 
-def test_csv_values_read_back_exactly(tmp_path):
+def test_csv_values_read_back_exactly(report):
     analysis = make_analysis()
-    write_report(analysis, tmp_path)
-    rows = read_csv(tmp_path / CSV_NAME)
+    rows = read_csv(report[0] / CSV_NAME)
     assert len(rows) == len(analysis.frames)
     for fe, row in zip(analysis.frames, rows, strict=True):
         assert int(row["frame"]) == fe.index
@@ -178,7 +184,7 @@ def test_one_small_plot_per_fap_and_one_for_the_translation():
     assert all(ax.get_xlabel() == "time (s)" for ax in shown[-4:])
 
 
-def test_truth_is_drawn_dashed(tmp_path):
+def test_truth_is_drawn_dashed(tmp_path, report):
     analysis = make_analysis()
     truth = analysis.fap_values() + 5.0
     fig = faps_figure(analysis, truth)
@@ -186,9 +192,8 @@ def test_truth_is_drawn_dashed(tmp_path):
     est, tru = ax.get_lines()
     assert tru.get_linestyle() == "--" and est.get_linestyle() == "-"
     np.testing.assert_allclose(tru.get_ydata(), truth[:, 1])
-    write_report(analysis, tmp_path / "a")
     write_report(analysis, tmp_path / "b", truth=truth)
-    a = np.asarray(Image.open(tmp_path / "a" / FAPS_PLOT).convert("RGB"))
+    a = np.asarray(Image.open(report[0] / FAPS_PLOT).convert("RGB"))  # without the truth
     b = np.asarray(Image.open(tmp_path / "b" / FAPS_PLOT).convert("RGB"))
     assert a.shape == b.shape and np.any(a != b)
 

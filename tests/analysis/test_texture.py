@@ -5,8 +5,6 @@ from __future__ import annotations
 
 import itertools
 import shutil
-import subprocess
-import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -30,14 +28,20 @@ def _frames(n: int) -> list[np.ndarray]:
     return list(itertools.islice(read_video(CARPHONE).frames(), n))
 
 
+#: The frame the tracked head is fitted to: the one ``vtts analyze`` fits on frames 16–21 too
+#: (its most typical), so that test_analyze_writes_… shares the fit.
+ANCHOR = 18
+
+
 @pytest.fixture(scope="module")
-def tracked(tmp_path_factory):
-    """Carphone's first 40 frames, every second one, tracked with a head fitted to frame 20
-    (the man moves his head and mouth in them)."""
+def tracked(tmp_path_factory, fits):
+    """Carphone's first 40 frames, every second one, tracked with a head fitted to frame
+    :data:`ANCHOR` (the man moves his head and mouth in them)."""
     folder = tmp_path_factory.mktemp("texture")
     frames = _frames(40)
-    result = track(frames, fps=FPS, model_path=folder / "car.wrl", step=2, tracking=True,
-                   anchor=20)  # fmt: skip
+    with fits.sharing():
+        result = track(frames, fps=FPS, model_path=folder / "car.wrl", step=2, tracking=True,
+                       anchor=ANCHOR)  # fmt: skip
     return result, frames, folder
 
 
@@ -57,14 +61,14 @@ def test_the_mean_texture_brings_the_decoded_frames_closer(tracked, tmp_path):
     before = stream_psnr(frames, stream, model, video_fps=FPS)
     png = wrl.with_name("car-frame.png")
     old = np.asarray(Image.open(png).convert("RGB"))
-    assert np.array_equal(old, frame_texture(frames[20]))  # the anchor's texture to start
+    assert np.array_equal(old, frame_texture(frames[ANCHOR]))  # the anchor's texture to start
     copied = replace(result, model=model, fitted=[wrl.with_name(p.name) for p in result.fitted])
     again = retexture(copied, iter(frames), (176, 144))
     after = stream_psnr(frames, stream, again, video_fps=FPS)
     # the summed error over the frames falls: more than a dB on these 20 frames (about +1.7
     # dB on the whole sequence); the anchor frame itself, no longer its own texture, falls
     assert sequence_psnr(after) > sequence_psnr(before) + 1.0, (before, after)
-    assert after[10] < before[10]
+    assert after[ANCHOR // 2] < before[ANCHOR // 2]
     new = np.asarray(Image.open(png).convert("RGB"))
     assert new.shape == old.shape
     # the canvas around the frame (nothing drawn there) keeps its texels
@@ -117,22 +121,28 @@ def test_bad_input_is_a_clear_error(tracked):
     assert MIN_WEIGHT > 0
 
 
-def test_analyze_writes_the_mean_texture_unless_told_the_anchor(tmp_path):
+def test_analyze_writes_the_mean_texture_unless_told_the_anchor(tmp_path, fits, capsys):
+    """``vtts analyze`` in this process (test_analyze_cli runs the command) on frames 16–21:
+    both runs fit the same anchor frame, :data:`ANCHOR`, the fit ``tracked`` made when it ran
+    first (conftest.py's ``SharedFits``)."""
+    from vtts.cli import main
+
     clip = tmp_path / "clip"
     clip.mkdir()
-    frames = _frames(6)
+    frames = _frames(22)[16:]
     for i, frame in enumerate(frames):
         Image.fromarray(frame).save(clip / f"f{i}.png")
-    exe = Path(sys.executable).with_name("vtts")
     textures = {}
     for how in ("mean", "anchor"):
         out = tmp_path / how / "talk.fbs"
         args = ["--texture", how] if how == "anchor" else []
-        r = subprocess.run([str(exe), "analyze", str(clip), "-o", str(out), "--track", *args],
-                           capture_output=True, text=True, timeout=300)  # fmt: skip
-        assert r.returncode == 0, r.stderr
+        capsys.readouterr()
+        with fits.sharing():
+            code = main(["analyze", str(clip), "-o", str(out), "--track", *args])
+        stdout, stderr = capsys.readouterr()
+        assert code == 0, stderr
         # the summary says what the texture is
-        assert ("-frame.png: what 6 frames show)" in r.stdout) == (how == "mean"), r.stdout
+        assert ("-frame.png: what 6 frames show)" in stdout) == (how == "mean"), stdout
         textures[how] = np.asarray(Image.open(out.with_name("talk-model-frame.png")))
         assert not [p for p in out.parent.iterdir() if p.name.startswith(".")]
     # --texture anchor: one of the frames as it is; the mean: close to it, but not it
@@ -147,7 +157,7 @@ def test_the_surface_under_each_pixel(tracked):
     result, frames, folder = tracked
     model = load_model(str(folder / "car.wrl"))
     estimator = Estimator(model, size=(176, 144), camera=result.analysis.camera)
-    fe = result.analysis.frames[10]  # the frame the head was fitted to
+    fe = result.analysis.frames[ANCHOR // 2]  # the frame the head was fitted to
     estimator.params, estimator.translation = fe.params.copy(), fe.translation.copy()
     pixels, tri, lam = estimator.surface()
     inner, _, _ = estimator.surface(shrink=2)

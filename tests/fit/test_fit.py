@@ -21,7 +21,7 @@ from vtts.fit.generic import generic_head, landmark_map
 from vtts.fit.head import transfer_tables
 from vtts.fit.report import figures
 from vtts.fit.shape import focal_length
-from vtts.fit.texture import pull_push, skin_texels
+from vtts.fit.texture import EAR_TILES, pull_push, skin_texels
 from vtts.render import FaceRenderer
 from vtts.render.camera import Camera, find_viewpoint, look_at
 from vtts.vrml import triangulate
@@ -29,7 +29,6 @@ from vtts.vrml import triangulate
 DATA = Path(__file__).parents[1] / "data"
 PHOTOS = DATA / "photos"
 ADI = Path(sys.executable).with_name("adi")
-VTTS = Path(sys.executable).with_name("vtts")
 
 
 def photo(name: str) -> np.ndarray:
@@ -38,6 +37,20 @@ def photo(name: str) -> np.ndarray:
 
 def adi(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([str(ADI), *args], capture_output=True, text=True, timeout=300)
+
+
+def adi_here(capsys, *args: str) -> subprocess.CompletedProcess:
+    """``adi ARGS`` run in this process (``adt_tools.cli.main``, as the console script runs it):
+    its status, stdout and stderr. A traceback would be an exception here, failing the test."""
+    from adt_tools.cli import main as adi_main
+
+    capsys.readouterr()
+    try:
+        code = adi_main(list(args))
+    except SystemExit as e:  # argparse's usage errors
+        code = e.code
+    out, err = capsys.readouterr()
+    return subprocess.CompletedProcess(["adi", *args], code, out, err)
 
 
 def similarity_rms(a: np.ndarray, b: np.ndarray) -> float:
@@ -97,13 +110,25 @@ def test_face_is_the_subdivision_of_its_control_points(akiyo):
     assert refined_face().S.shape[0] == len(face)
 
 
-def test_the_model_passes_check_and_show(akiyo):
+def test_a_photo_head_keeps_the_shared_generic_ear(akiyo):
+    """A head fitted to a photo (PHOTO_PARTS) leaves the ears' generic tile as it is; a head
+    made for a video gives each ear its own (test_frame)."""
+    head, _, _, _ = akiyo
+    left = np.asarray(head.scene.node("L_EAR").expand()["texCoord"].expand()["point"])
+    right = np.asarray(head.scene.node("R_EAR").expand()["texCoord"].expand()["point"])
+    assert left[:, 1].min() < EAR_TILES["L_EAR"][1]  # the whole generic tile, not a half
+    assert np.allclose(np.sort(left[:, 0]).mean(), np.sort(right[:, 0]).mean(), atol=0.1)
+
+
+def test_the_model_passes_check_and_show(akiyo, capsys):
+    from vtts.cli import main as vtts_main
+
     _, _, _, files = akiyo
-    check = subprocess.run([str(VTTS), "check", str(files[0]), str(files[1])],
-                           capture_output=True, text=True, timeout=120)  # fmt: skip
-    assert check.returncode == 0, check.stderr
-    assert "OK" in check.stdout and "86 MIAPs" in check.stdout
-    show = adi("show", str(files[0]))
+    capsys.readouterr()
+    assert vtts_main(["check", str(files[0]), str(files[1])]) == 0, capsys.readouterr().err
+    out = capsys.readouterr().out
+    assert "OK" in out and "86 MIAPs" in out
+    show = adi_here(capsys, "show", str(files[0]))
     assert show.returncode == 0, show.stderr
 
 
@@ -262,10 +287,10 @@ def test_no_face_is_a_clear_error_and_writes_nothing(tmp_path):
         (lambda p: None, "no such file"),
     ],
 )
-def test_bad_photos(tmp_path, make, message):
+def test_bad_photos(tmp_path, capsys, make, message):
     path = tmp_path / "in.png"
     make(path)
-    r = adi("fit", str(path), "-o", str(tmp_path / "me.wrl"))
+    r = adi_here(capsys, "fit", str(path), "-o", str(tmp_path / "me.wrl"))
     assert r.returncode == 1, r.stdout
     assert message in r.stderr and "Traceback" not in r.stderr
     assert not (tmp_path / "me.wrl").exists()
@@ -286,9 +311,10 @@ def test_bad_photos(tmp_path, make, message):
         (["-o", "me.wrl", "--focal=--"], "argument --focal: invalid float value: '--'"),
     ],
 )
-def test_bad_arguments(tmp_path, args, message):
+def test_bad_arguments(tmp_path, capsys, args, message):
+    """In this process: the process's own exit on bad input is test_no_face_…'s."""
     args = [str(tmp_path / a) if a.startswith(("me.", "missing/")) else a for a in args]
-    r = adi("fit", str(PHOTOS / "akiyo_frame0.png"), *args)
+    r = adi_here(capsys, "fit", str(PHOTOS / "akiyo_frame0.png"), *args)
     assert r.returncode != 0
     assert message in r.stderr and "Traceback" not in r.stderr
 
@@ -312,13 +338,17 @@ def test_several_faces_take_the_largest_and_say_so(tmp_path):
 
 
 def test_landmark_table_is_what_the_script_makes(tmp_path):
-    """The shipped table is a rebuild of models/src/landmark_map.py (deterministic)."""
+    """The shipped table is a rebuild of models/src/landmark_map.py (deterministic). The script's
+    ``main`` runs in this process: its work is its renderings and the detector's, not its start."""
+    import importlib.util
+
     root = Path(__file__).parents[2]
     out = tmp_path / "face_landmarks.tsv"
     script = root / "models" / "src" / "landmark_map.py"
-    r = subprocess.run([sys.executable, str(script), "--out", str(out)],
-                       capture_output=True, text=True, timeout=300)  # fmt: skip
-    assert r.returncode == 0, r.stderr
+    spec = importlib.util.spec_from_file_location("landmark_map_script", script)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert module.main(["--out", str(out)]) == 0
     shipped = root / "vtts" / "data" / "fit" / "face_landmarks.tsv"
     assert out.read_text() == shipped.read_text()
 
@@ -338,20 +368,20 @@ def test_large_photos_are_fitted_at_the_working_size():
     assert np.abs(full.project(pts) - scaled).max() < 0.25  # the working size is rounded
 
 
-def test_outputs_never_replace_the_photo(tmp_path):
+def test_outputs_never_replace_the_photo(tmp_path, capsys):
     photo_path = tmp_path / "me-face.png"
     photo_path.write_bytes((PHOTOS / "akiyo_frame0.png").read_bytes())
     before = photo_path.read_bytes()
-    r = adi("fit", str(photo_path), "-o", str(tmp_path / "me.wrl"))
+    r = adi_here(capsys, "fit", str(photo_path), "-o", str(tmp_path / "me.wrl"))
     assert r.returncode == 1 and "over its photo" in r.stderr
     assert photo_path.read_bytes() == before
     assert not (tmp_path / "me.wrl").exists()
 
 
-def test_outputs_must_be_plain_files(tmp_path):
+def test_outputs_must_be_plain_files(tmp_path, capsys):
     (tmp_path / "real.adt").write_text("keep")
     (tmp_path / "me.adt").symlink_to(tmp_path / "real.adt")
-    r = adi("fit", str(PHOTOS / "akiyo_frame0.png"), "-o", str(tmp_path / "me.wrl"))
+    r = adi_here(capsys, "fit", str(PHOTOS / "akiyo_frame0.png"), "-o", str(tmp_path / "me.wrl"))
     assert r.returncode == 1 and "plain file" in r.stderr
     assert (tmp_path / "real.adt").read_text() == "keep"
 

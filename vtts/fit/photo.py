@@ -59,9 +59,9 @@ from vtts.fit.texture import (
     PAINTED_PARTS,
     PHOTO_PARTS,
     PROBE_GREY,
+    SkinPainter,
     depth_map,
     iris_colour,
-    paint_skin,
     project_skin,
     rechart_skin,
     skin_texels,
@@ -479,16 +479,17 @@ def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.nd
         names = [*PAINTED_PARTS, *(n for n in photo_parts if n not in PAINTED_PARTS)]
         parts = {n: model.scene.node(n).expand() for n in names if n in model.scene.defs}
         texels = skin_texels(parts, ATLAS_SIZE, photo_parts)
-        proj = project_skin(texels, shape.camera, (w, h), depth, gain, offset)
+        painter = SkinPainter(project_skin(texels, shape.camera, (w, h), depth, gain, offset),
+                              ATLAS_SIZE)  # fmt: skip
         target = photo
         for k in range(TEXTURE_PASSES):
-            atlas, seen = paint_skin(generic_atlas.copy(), proj, target)
             if k == 0 and ears:
                 # what the picture does not show of a painted ear keeps the generic ear, in the
-                # skin's colour: tinted before the passes paint over it
+                # skin's colour (the painted skin chart's): tinted before the passes paint over it
+                skin, _ = painter.paint(generic_atlas.copy(), target, tiles=False)
                 for name in ears:
-                    tint_tile(generic_atlas, EAR_TILES[name], _skin_ratio(atlas, generic_atlas))
-                atlas, seen = paint_skin(generic_atlas.copy(), proj, target)
+                    tint_tile(generic_atlas, EAR_TILES[name], _skin_ratio(skin, generic_atlas))
+            atlas, seen = painter.paint(generic_atlas.copy(), target)
             if k == TEXTURE_PASSES - 1:
                 break
             # render what the texture gives and aim the next pass at what it missed: the

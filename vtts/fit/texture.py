@@ -23,6 +23,7 @@ photo's skin); only the skin chart is painted anew, at :data:`ATLAS_SIZE` texels
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -105,12 +106,14 @@ def skin_texels(
         count = wbox * np.maximum(y1 - y0 + 1, 0)
         t = np.repeat(np.arange(len(tri), dtype=np.int32), count)
         k = np.arange(count.sum(), dtype=np.int32) - np.repeat(np.cumsum(count) - count, count)
-        px = x0[t] + k % wbox[t]
-        py = y0[t] + k // wbox[t]
+        down, across = np.divmod(k, np.take(wbox, t))
+        px = np.take(x0, t) + across
+        py = np.take(y0, t) + down
         # barycentric coordinates of the texel centre in its triangle's texture coordinates
-        ax, ay = tx[t, 0], ty[t, 0]
-        e1x, e1y = tx[t, 1] - ax, ty[t, 1] - ay
-        e2x, e2y = tx[t, 2] - ax, ty[t, 2] - ay
+        ax, bx, cx = (np.take(corner, t) for corner in tx.T)
+        ay, by, cy = (np.take(corner, t) for corner in ty.T)
+        e1x, e1y = bx - ax, by - ay
+        e2x, e2y = cx - ax, cy - ay
         det = e1x * e2y - e1y * e2x
         ok = np.abs(det) > 1e-9
         det = np.where(ok, det, np.float32(1.0))
@@ -119,11 +122,11 @@ def skin_texels(
         b2 = (e1x * qy - e1y * qx) / det
         b0 = 1 - b1 - b2
         inside = ok & (b0 >= -1e-6) & (b1 >= -1e-6) & (b2 >= -1e-6)
-        lam = np.stack([b0, b1, b2], axis=1)[inside].astype(np.float64)
+        lam = np.stack([b0[inside], b1[inside], b2[inside]], axis=1).astype(np.float64)
         t = t[inside]
-        corners = tri[t]
-        p = np.einsum("ij,ijk->ik", lam, tm.positions[corners])
-        n = np.einsum("ij,ijk->ik", lam, tm.normals[corners])
+        corners = np.take(tri, t, axis=0)
+        p = np.einsum("ij,ijk->ik", lam, np.take(tm.positions, corners, axis=0))
+        n = np.einsum("ij,ijk->ik", lam, np.take(tm.normals, corners, axis=0))
         n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
         rows.append(py[inside])
         cols.append(px[inside] % size)  # the chart repeats across the back seam
@@ -168,46 +171,102 @@ def linear_to_srgb(c: np.ndarray) -> np.ndarray:
 def sample(image: np.ndarray, xy: np.ndarray) -> np.ndarray:
     """Bilinear samples ``(N, C)`` of ``image (H, W, C)`` at pixel coordinates ``xy (N, 2)``
     (pixel centres at +0.5), clamped to the border."""
-    h, w = image.shape[:2]
-    x = np.clip(xy[:, 0] - 0.5, 0, w - 1)
-    y = np.clip(xy[:, 1] - 0.5, 0, h - 1)
-    x0 = np.minimum(x.astype(np.int64), w - 2 if w > 1 else 0)
-    y0 = np.minimum(y.astype(np.int64), h - 2 if h > 1 else 0)
-    fx, fy = (x - x0)[:, None].astype(np.float32), (y - y0)[:, None].astype(np.float32)
-    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
-    img = image.astype(np.float32, copy=False)
-    return (
-        img[y0, x0] * (1 - fx) * (1 - fy)
-        + img[y0, x1] * fx * (1 - fy)
-        + img[y1, x0] * (1 - fx) * fy
-        + img[y1, x1] * fx * fy
-    )
+    return Taps.at(image.shape[:2], xy)(image)
+
+
+@dataclass
+class Taps:
+    """Where :func:`sample` reads an image of ``size`` (H, W) at ``N`` points, for images of
+    that size sampled at the same points again: the four pixels around each point, as flat
+    indices ``(N,)`` into the image's ``H·W`` pixels (``i01`` is ``i00``'s right neighbour,
+    ``i10`` the one below), and the bilinear weights ``(N, 1)`` float32 (``gx = 1 − fx``,
+    ``gy = 1 − fy``)."""
+
+    size: tuple[int, int]
+    i00: np.ndarray
+    i01: np.ndarray
+    i10: np.ndarray
+    i11: np.ndarray
+    fx: np.ndarray
+    fy: np.ndarray
+    gx: np.ndarray
+    gy: np.ndarray
+
+    @classmethod
+    def at(cls, size: tuple[int, int], xy: np.ndarray) -> Taps:
+        """The taps of an image of ``size`` (H, W) at pixel coordinates ``xy (N, 2)``."""
+        h, w = size
+        x = np.clip(xy[:, 0] - 0.5, 0, w - 1)
+        y = np.clip(xy[:, 1] - 0.5, 0, h - 1)
+        x0 = np.minimum(x.astype(np.int64), w - 2 if w > 1 else 0)
+        y0 = np.minimum(y.astype(np.int64), h - 2 if h > 1 else 0)
+        fx, fy = (x - x0)[:, None].astype(np.float32), (y - y0)[:, None].astype(np.float32)
+        x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
+        corners = (y0 * w + x0, y0 * w + x1, y1 * w + x0, y1 * w + x1)
+        return cls((h, w), *corners, fx, fy, 1 - fx, 1 - fy)
+
+    def __call__(self, image: np.ndarray) -> np.ndarray:
+        """The samples ``(N, C)`` of ``image (H, W, C)``."""
+        if image.shape[:2] != self.size:
+            raise ValueError(f"taps of a {self.size} image, got {image.shape[:2]}")
+        img = image.astype(np.float32, copy=False).reshape(-1, image.shape[2])
+        return (
+            np.take(img, self.i00, axis=0) * self.gx * self.gy
+            + np.take(img, self.i01, axis=0) * self.fx * self.gy
+            + np.take(img, self.i10, axis=0) * self.gx * self.fy
+            + np.take(img, self.i11, axis=0) * self.fx * self.fy
+        )
+
+    def select(self, keep: np.ndarray) -> Taps:
+        """The taps of the points ``keep`` selects (a mask or indices)."""
+        arrays = (self.i00, self.i01, self.i10, self.i11, self.fx, self.fy, self.gx, self.gy)
+        return Taps(self.size, *(a[keep] for a in arrays))
 
 
 def pull_push(color: np.ndarray, weight: np.ndarray) -> np.ndarray:
     """Fill ``color (H, W, C)`` where ``weight (H, W)`` (0–1) is low by pull-push: weighted
     averages down a pyramid, then back up, each level filling what the finer one lacks."""
-    color, weight = color.astype(np.float32), weight.astype(np.float32)
-    levels = [(color * weight[..., None], weight)]
-    while min(levels[-1][1].shape) > 1:
-        c, w = levels[-1]
-        h2, w2 = (c.shape[0] + 1) // 2, (c.shape[1] + 1) // 2
-        cp = np.zeros((h2 * 2, w2 * 2, c.shape[2]), np.float32)
-        wp = np.zeros((h2 * 2, w2 * 2), np.float32)
-        cp[: c.shape[0], : c.shape[1]] = c
-        wp[: w.shape[0], : w.shape[1]] = w
-        cs = cp.reshape(h2, 2, w2, 2, -1).sum(axis=(1, 3))
-        ws = wp.reshape(h2, 2, w2, 2).sum(axis=(1, 3))
-        # a coarse texel is as sure as its surest child (clipped sum), its colour their mean
-        scale = np.minimum(ws, 1.0) / np.maximum(ws, 1e-12)
-        levels.append((cs * scale[..., None], np.minimum(ws, 1.0)))
-    c, w = levels[-1]
-    filled = c / np.maximum(w, 1e-12)[..., None]
-    for c, w in reversed(levels[:-1]):
-        # bilinear, not blocky: the fill is as smooth as the pyramid allows
-        up = _upsample2(_upsample2(filled, 0), 1)
-        filled = c + (1 - w)[..., None] * up[: c.shape[0], : c.shape[1]]
-    return filled
+    return PullPush(weight).fill(color)
+
+
+class PullPush:
+    """:func:`pull_push` with one ``weight (H, W)`` (0–1) for several colours: the weights'
+    pyramid is built once."""
+
+    def __init__(self, weight: np.ndarray) -> None:
+        w = weight.astype(np.float32)
+        self._first = w[..., None]
+        # per coarser level: what its summed colour is scaled by; per finer level: 1 − weight
+        self._scales: list[np.ndarray] = []
+        self._rest: list[np.ndarray] = []
+        while min(w.shape) > 1:
+            h2, w2 = (w.shape[0] + 1) // 2, (w.shape[1] + 1) // 2
+            wp = np.zeros((h2 * 2, w2 * 2), np.float32)
+            wp[: w.shape[0], : w.shape[1]] = w
+            ws = wp.reshape(h2, 2, w2, 2).sum(axis=(1, 3))
+            # a coarse texel is as sure as its surest child (clipped sum), its colour their mean
+            scale = np.minimum(ws, 1.0) / np.maximum(ws, 1e-12)
+            self._rest.append((1 - w)[..., None])
+            self._scales.append(scale[..., None])
+            w = np.minimum(ws, 1.0)
+        self._last = np.maximum(w, 1e-12)[..., None]
+
+    def fill(self, color: np.ndarray) -> np.ndarray:
+        """``color (H, W, C)`` filled where the weight is low (float32)."""
+        c = color.astype(np.float32) * self._first
+        levels = [c]
+        for scale in self._scales:
+            h2, w2 = (c.shape[0] + 1) // 2, (c.shape[1] + 1) // 2
+            cp = np.zeros((h2 * 2, w2 * 2, c.shape[2]), np.float32)
+            cp[: c.shape[0], : c.shape[1]] = c
+            c = cp.reshape(h2, 2, w2, 2, -1).sum(axis=(1, 3)) * scale
+            levels.append(c)
+        filled = levels[-1] / self._last
+        for c, rest in zip(reversed(levels[:-1]), reversed(self._rest), strict=True):
+            # bilinear, not blocky: the fill is as smooth as the pyramid allows
+            up = _upsample2(_upsample2(filled, 0), 1)
+            filled = c + rest * up[: c.shape[0], : c.shape[1]]
+        return filled
 
 
 def _upsample2(a: np.ndarray, axis: int) -> np.ndarray:
@@ -238,6 +297,7 @@ class Projection:
     xy      ``(K, 2)`` their photo pixels
     weight  ``(K,)`` how much each trusts the photo (0–1, falling towards grazing views)
     gain, offset  ``(K, 3)`` the renderer's shading there (pixel^2.2 = gain · T + offset)
+    taps    the :class:`Taps` of ``xy`` in the photo (None: worked out when needed)
     """
 
     texels: SkinTexels
@@ -246,6 +306,7 @@ class Projection:
     weight: np.ndarray
     gain: np.ndarray
     offset: np.ndarray
+    taps: Taps | None = None
 
 
 def project_skin(
@@ -261,7 +322,8 @@ def project_skin(
     of what each pixel shows, :func:`depth_map`). ``gain`` and ``offset`` ``(H, W, 3)`` are the
     renderer's shading at the photo's view (see the module docstring)."""
     w, h = size
-    texels = _select(texels, texels.photo)
+    if not texels.photo.all():
+        texels = _select(texels, texels.photo)
     xy = camera.project(texels.points)
     inside = (xy[:, 0] >= 0) & (xy[:, 0] < w) & (xy[:, 1] >= 0) & (xy[:, 1] < h)
     ray = texels.points - camera.pose[:3, 3]
@@ -271,11 +333,12 @@ def project_skin(
     row = np.clip(xy[:, 1].astype(np.int64), 0, h - 1)
     seen = inside & texels.photo & (cosine > 0) & (dist <= depth[row, col] + DEPTH_TOLERANCE)
     idx = np.flatnonzero(seen)
-    a = sample(gain, xy[idx])
+    taps = Taps.at((h, w), xy[idx])
+    a = taps(gain)
     weight = np.where(a.min(axis=1) > 0.02, grazing_weight(cosine[idx]), 0.0)
     keep = weight > 0
-    idx, a = idx[keep], a[keep]
-    return Projection(texels, idx, xy[idx], weight[keep], a, sample(offset, xy[idx]))
+    idx, a, taps = idx[keep], a[keep], taps.select(keep)
+    return Projection(texels, idx, xy[idx], weight[keep], a, taps(offset), taps)
 
 
 def _select(texels: SkinTexels, keep: np.ndarray) -> SkinTexels:
@@ -289,46 +352,89 @@ def paint_skin(
     head rendered at the photo's view shows ``target (H, W, 3)`` (linear light: the photo's
     pixels ** 2.2). With ``fill``, what the photo does not see is filled (mirror, then pull-push);
     without, it keeps the atlas's colours. Returns the atlas and the fraction of skin texels the
-    photo saw."""
-    size = atlas.shape[0]
-    tx = proj.texels
-    rows, cols = tx.rows[proj.index], tx.cols[proj.index]
-    lin = (sample(target, proj.xy) - proj.offset) / np.maximum(proj.gain, 1e-6)
-    colour = linear_to_srgb(lin)
-    skin_rows = tx.rows[tx.rows < int(round((1 - SKIN_TILE[1]) * size))]
-    seen_rows = rows[rows < int(round((1 - SKIN_TILE[1]) * size))]
-    seen_fraction = float(len(seen_rows) / max(len(skin_rows), 1))
-    r0, r1 = int(round((1 - SKIN_TILE[3]) * size)), int(round((1 - SKIN_TILE[1]) * size))
-    # tiles (eyes, teeth, tongue): the photo over the generic tile, as far as it is trusted,
-    # and carried a few texels beyond what it saw: the renderer's texture filtering reaches
-    # that far, and the generic white around a small painted eye would brighten it
-    tile = rows >= r1
-    if tile.any():
-        band = slice(r1, size)
-        paint = np.zeros((size - r1, size, 3), np.float32)
-        trust = np.zeros((size - r1, size), np.float32)
-        paint[rows[tile] - r1, cols[tile]] = colour[tile]
-        trust[rows[tile] - r1, cols[tile]] = proj.weight[tile]
-        reach = np.clip(1 - ndimage.distance_transform_edt(trust == 0) / TILE_REACH, 0, 1)
-        near = reach * (trust == 0) + trust
-        filled = pull_push(paint, trust)
-        atlas[band] = near[..., None] * filled + (1 - near[..., None]) * atlas[band]
-    rows, cols, colour, weight = rows[~tile], cols[~tile], colour[~tile], proj.weight[~tile]
-    if not fill:
-        atlas[rows, cols] = colour
-        return atlas, seen_fraction
-    skin = np.zeros((size, size, 3), np.float32)
-    wmap = np.zeros((size, size), np.float32)
-    skin[rows, cols] = colour
-    wmap[rows, cols] = weight
-    # the other side of the face where this side was not seen
-    mirror_skin, mirror_w = skin[:, ::-1], wmap[:, ::-1]
-    total = wmap + (1 - wmap) * mirror_w
-    colour = (skin * wmap[..., None] + mirror_skin * ((1 - wmap) * mirror_w)[..., None]) / (
-        np.maximum(total, 1e-12)[..., None]
-    )
-    atlas[r0:r1] = pull_push(colour[r0:r1], total[r0:r1])
-    return atlas, seen_fraction
+    photo saw. (:class:`SkinPainter` paints one projection again and again.)"""
+    return SkinPainter(proj, atlas.shape[0]).paint(atlas, target, fill=fill)
+
+
+class SkinPainter:
+    """:func:`paint_skin` for one :class:`Projection` into atlases of ``size`` texels, for
+    several targets (``adi fit`` paints in passes): what does not change with the target — which
+    texels are painted and how far they are trusted, the tiles' reach, the fill's weights — is
+    worked out once."""
+
+    def __init__(self, proj: Projection, size: int) -> None:
+        self.proj, self.size = proj, size
+        tx = proj.texels
+        rows, cols = tx.rows[proj.index], tx.cols[proj.index]
+        self.r0 = int(round((1 - SKIN_TILE[3]) * size))
+        self.r1 = r1 = int(round((1 - SKIN_TILE[1]) * size))
+        skin_rows = tx.rows[tx.rows < r1]
+        seen_rows = rows[rows < r1]
+        self.seen = float(len(seen_rows) / max(len(skin_rows), 1))
+        self.taps = proj.taps  # None: taken from the first target's size
+        self.gain = np.maximum(proj.gain, 1e-6)
+        self.tile = tile = rows >= r1
+        self.tile_at = (rows[tile] - r1, cols[tile])
+        self.skin_at = (rows[~tile], cols[~tile])
+        self.weight = proj.weight[~tile]
+        if tile.any():
+            trust = np.zeros((size - r1, size), np.float32)
+            trust[self.tile_at] = proj.weight[tile]
+            reach = np.clip(1 - ndimage.distance_transform_edt(trust == 0) / TILE_REACH, 0, 1)
+            near = reach * (trust == 0) + trust
+            self.near, self.far = near[..., None], (1 - near[..., None])
+            self.tile_fill = PullPush(trust)
+
+    def paint(
+        self, atlas: np.ndarray, target: np.ndarray, *, fill: bool = True, tiles: bool = True
+    ) -> tuple[np.ndarray, float]:
+        """:func:`paint_skin` of ``target`` into ``atlas``; without ``tiles`` the skin chart
+        alone (the eye, teeth and tongue tiles keep the atlas's colours)."""
+        size, r1 = self.size, self.r1
+        if self.taps is None:
+            self.taps = Taps.at(target.shape[:2], self.proj.xy)
+        lin = (self.taps(target) - self.proj.offset) / self.gain
+        colour = linear_to_srgb(lin)
+        # tiles (eyes, teeth, tongue): the photo over the generic tile, as far as it is trusted,
+        # and carried a few texels beyond what it saw: the renderer's texture filtering reaches
+        # that far, and the generic white around a small painted eye would brighten it
+        if tiles and self.tile.any():
+            band = slice(r1, size)
+            paint = np.zeros((size - r1, size, 3), np.float32)
+            paint[self.tile_at] = colour[self.tile]
+            filled = self.tile_fill.fill(paint)
+            atlas[band] = self.near * filled + self.far * atlas[band]
+        colour = colour[~self.tile]
+        if not fill:
+            atlas[self.skin_at] = colour
+            return atlas, self.seen
+        fill_at, own, other, total, skin_fill = self._fill
+        # the other side of the face where this side was not seen
+        skin = np.zeros((self.r1 - self.r0, size, 3), np.float32)
+        skin[fill_at] = colour[self._in_band]
+        mirror_skin = skin[:, ::-1]
+        atlas[self.r0 : r1] = skin_fill.fill((skin * own + mirror_skin * other) / total)
+        return atlas, self.seen
+
+    @functools.cached_property
+    def _in_band(self) -> np.ndarray:
+        """``(K',)`` bool: the skin texels of the rows the fill paints."""
+        return self.skin_at[0] >= self.r0
+
+    @functools.cached_property
+    def _fill(self) -> tuple:
+        """What the fill of the skin chart's rows (``r0``–``r1``) takes from the weights: where
+        the seen texels go in those rows, their own weight and the mirrored texels' (``(R, S,
+        1)``), the sum of the two (at least 1e-12), and the pull-push of that sum."""
+        rows, cols = self.skin_at
+        inside = self._in_band
+        at = (rows[inside] - self.r0, cols[inside])
+        wmap = np.zeros((self.r1 - self.r0, self.size), np.float32)
+        wmap[at] = self.weight[inside]
+        mirror_w = wmap[:, ::-1]
+        total = wmap + (1 - wmap) * mirror_w
+        other = ((1 - wmap) * mirror_w)[..., None]
+        return at, wmap[..., None], other, np.maximum(total, 1e-12)[..., None], PullPush(total)
 
 
 def iris_colour(
