@@ -113,10 +113,10 @@ def test_one_frame_from_neutral(cybatt, estimator):
 
 
 def test_a_short_table1_sequence_every_fifth_frame(cybatt):
-    truth = table1_truth(100)[:30]
+    truth = table1_truth(100)[:20]
     frames = render_sequence(cybatt, truth, size=SIZE)
     result = analyze(frames, cybatt, fps=25, step=5, unknowns=TABLE1_FAPS)
-    assert [fe.index for fe in result.frames] == [0, 5, 10, 15, 20, 25]
+    assert [fe.index for fe in result.frames] == [0, 5, 10, 15]
     assert result.fps == 5
     idx = [f - 1 for f in TABLE1_FAPS]
     extremes = np.array([TABLE1_EXTREMES[f] for f in TABLE1_FAPS])
@@ -226,19 +226,32 @@ def _estimate_from(est, frame, index):
         del est._solve
 
 
+def _going_on(est: Estimator, **options) -> Estimator:
+    """A new estimator of ``est``'s model and size with ``options`` that goes on from where
+    ``est`` is: its estimate, the motion of its last estimates and the last frame's final
+    rendering."""
+    again = Estimator(est.model, size=est.size, **options)
+    again.restore(est.snapshot())
+    again._shown = est._shown
+    return again
+
+
 def test_the_head_starts_where_its_motion_leads(cybatt):
     """A head turning and a jaw opening at steady speeds: by default the third estimate starts
     with the head turned on as far again (a head has inertia) but the jaw where it was (speech
     changes it too abruptly), and needs fewer solves than without prediction; both end at the
-    truth."""
+    truth. (The first two frames have no motion before them to carry on: their estimates, with
+    prediction and without, are the same, made once.)"""
     truth = [_params({3: 60 * i, 49: 400 * i}) for i in range(3)]
     frames = [FaceRenderer(cybatt, size=SIZE).render(t) for t in truth]
+    # (the jaw's search after the solves, on this lit face, left out: the prediction alone)
+    options = dict(unknowns=TABLE1_FAPS, lit_refine=())
+    first = Estimator(cybatt, size=SIZE, predict=(), **options)
+    ends = [first.estimate(frame, index=5 * i).params for i, frame in enumerate(frames[:2])]
     solves = {}
     for predict in (HEAD_MOTION, ()):
-        # (the jaw's search after the solves, on this lit face, left out: the prediction alone)
-        est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, predict=predict, lit_refine=())
+        est = _going_on(first, predict=predict, **options)
         assert est.predicted == ((48, 49, 50) if predict else ())
-        ends = [est.estimate(frame, index=5 * i).params for i, frame in enumerate(frames[:2])]
         fe, start = _estimate_from(est, frames[2], 10)
         assert abs(fe.params[2] - truth[2][2]) <= 2 and abs(fe.params[48] - truth[2][48]) <= 20
         solves[bool(predict)] = fe.iterations
@@ -336,12 +349,13 @@ def _noisy(model, params: np.ndarray, seed: int, sigma: float = 3.0) -> np.ndarr
 def test_settled_levels_end_early_on_a_noisy_frame_at_the_same_estimate(cybatt, monkeypatch):
     """On camera noise the finest level's solves reach the noise floor after a few steps; with
     robust matching the solves and halvings that followed are not made, and the estimate is
-    as good. Without robust matching (rendered frames) nothing changes."""
+    as good. Without robust matching (rendered frames) nothing changes. The frames after the
+    first are estimated, from the first's truth as if tracked there."""
     import vtts.analysis.estimator as estimator_module
 
     truth = [_params({3: 100 + 40 * i, 12: 30 * i, 48: 300 * i, 49: -500 * i}) for i in range(3)]
     frames = [np.clip(_noisy(cybatt, t, seed=5 + i, sigma=4.0), 0, 255).astype(np.uint8)
-              for i, t in enumerate(truth)]  # fmt: skip
+              for i, t in enumerate(truth[1:], 1)]  # fmt: skip
     found = {}
     for robust in (True, False):
         for settle in (False, True):
@@ -351,8 +365,9 @@ def test_settled_levels_end_early_on_a_noisy_frame_at_the_same_estimate(cybatt, 
             else:
                 monkeypatch.undo()
             est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, lit_refine=(), robust=robust)
-            est.estimate(frames[0], 0)
-            fes = [est.estimate(f, 5 * i) for i, f in enumerate(frames[1:], 1)]
+            est.params[:] = truth[0]
+            est._history = [(0, truth[0].copy(), np.zeros(3))]  # as if tracked
+            fes = [est.estimate(f, 5 * i) for i, f in enumerate(frames, 1)]
             found[robust, settle] = (sum(fe.iterations for fe in fes), [fe.params for fe in fes])
     (solves_all, ends_all), (solves, ends) = found[True, False], found[True, True]
     assert solves < solves_all, (solves, solves_all)
@@ -373,13 +388,15 @@ def test_a_level_too_small_at_the_last_estimate_is_skipped_without_a_rendering(c
 
     size = (96, 80)  # the head 32 eroded pixels at 1/4, 222 at 1/2: 4 × 10 unknowns needed
     renderer = FaceRenderer(cybatt, size=size)
-    frames = [renderer.render(_params({3: 60 * i, 48: 300 * i})) for i in range(4)]
+    frames = [renderer.render(_params({3: 60 * i, 48: 300 * i})) for i in range(3)]
+    # the first frame, where each level judges itself (there is no last estimate): made once
+    first = Estimator(cybatt, size=size, unknowns=TABLE1_FAPS)
+    first.estimate(frames[0], 0)
     runs = {}
     for skip in (True, False):
         if not skip:
             monkeypatch.setattr(Estimator, "_too_small", lambda self, faces, factor: False)
-        est = Estimator(cybatt, size=size, unknowns=TABLE1_FAPS)
-        est.estimate(frames[0], 0)
+        est = _going_on(first, unknowns=TABLE1_FAPS)
         if skip:
             _, ids, _ = est._render_window(4)  # the level's own count at the same estimate
             rows = np.nonzero(estimator_module.binary_erosion(ids >= 0, iterations=2))[0]
@@ -388,7 +405,7 @@ def test_a_level_too_small_at_the_last_estimate_is_skipped_without_a_rendering(c
         drawn = _count_renderings(est)
         ends = [est.estimate(f, 5 * i).params for i, f in enumerate(frames[1:], 1)]
         runs[skip] = (len(drawn), ends)
-    assert runs[True][0] == runs[False][0] - 3, (runs[True][0], runs[False][0])
+    assert runs[True][0] == runs[False][0] - 2, (runs[True][0], runs[False][0])
     assert all(np.array_equal(a, b) for a, b in zip(runs[True][1], runs[False][1], strict=True))
 
 
