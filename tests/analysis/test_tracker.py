@@ -84,9 +84,9 @@ def cybatt():
 
 def test_a_lit_synthetic_head_is_followed_as_the_accurate_estimator_does(cybatt):
     """cybatt is lit: its shading changes with the pose, so the tracker finishes each frame
-    with the accurate estimator's pyramid and comes as close to the truth as it. (Four analyzed
-    frames: the tracker renders most in the second and third, the later ones render less.)"""
-    truth = table1_truth(100)[::5][:4]  # Table 1's pace, every 5th frame, at CIF
+    with the accurate estimator's pyramid and comes as close to the truth as it. (Three
+    analyzed frames: the tracker renders most in the second and third, later ones less.)"""
+    truth = table1_truth(100)[::5][:3]  # Table 1's pace, every 5th frame, at CIF
     frames = render_sequence(cybatt, truth, size=(352, 288))
     tracker = Tracker(cybatt, size=(352, 288), unknowns=TABLE1_FAPS)
     accurate = Estimator(cybatt, size=(352, 288), unknowns=TABLE1_FAPS)
@@ -146,8 +146,8 @@ def _track_carphone(folder: Path, fits, n: int, tracking: bool) -> tuple[Tracked
 
 @pytest.fixture(scope="module")
 def accurate_track(tmp_path_factory, fits) -> tuple[Tracked, list[bool]]:
-    """Carphone's first ten frames in the accurate mode (:func:`_track_carphone`)."""
-    return _track_carphone(tmp_path_factory.mktemp("accurate"), fits, 10, tracking=False)
+    """Carphone's first six frames in the accurate mode (:func:`_track_carphone`)."""
+    return _track_carphone(tmp_path_factory.mktemp("accurate"), fits, 6, tracking=False)
 
 
 @pytest.fixture(scope="module")
@@ -158,8 +158,9 @@ def tracking_track(tmp_path_factory, fits) -> tuple[Tracked, list[bool]]:
 
 def test_a_head_made_for_the_video_is_tracked_with_few_renderings(accurate_track, monkeypatch):
     """The fitted head's face is unlit: the samples of one rendering serve several frames, no
-    polish, and the face PSNR stays with the accurate mode's."""
-    frames = _carphone(10)
+    polish, and the face PSNR stays with the accurate mode's. (Six frames: one rendering's
+    samples serve the five after the first.)"""
+    frames = _carphone(6)
     accurate, model = accurate_track[0], accurate_track[0].model  # the head it wrote, loaded
     tracker = Tracker(model, size=(176, 144), camera=accurate.analysis.camera,
                       ignore=FITTED_IGNORED, robust=True)  # fmt: skip
@@ -353,7 +354,7 @@ def test_the_accurate_mode_matches_as_well_as_the_pyramid_with_fewer_renderings(
     """Carphone's first frames: the samples' solves standing in for the coarse levels leave
     the face PSNR where the whole pyramid of renderings puts it, for fewer renderings."""
     model, camera = carphone_head
-    frames = _carphone(7)
+    frames = _carphone(5)
     options = dict(size=(176, 144), camera=camera, ignore=FITTED_IGNORED, robust=True)
     finish = Tracker(model, finish=True, **options)
     pyramid = Estimator(model, **options)
