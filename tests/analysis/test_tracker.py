@@ -232,11 +232,17 @@ def test_the_cli_tracks_frames_from_stdin_by_default_and_refuses_both_modes(tmp_
     assert refused.value.code == 2 and "not allowed with argument" in capsys.readouterr().err
 
 
+def _tracked_to_frame_1(tracker: Tracker) -> Tracker:
+    """``tracker`` after Table 1's second frame (QCIF), tracked to from the first (neutral, the
+    tracker's start) as if that had been estimated."""
+    frame = render_sequence(tracker.model, table1_truth(10)[1:2], size=(176, 144))[0]
+    tracker._history = [(0, tracker.params.copy(), tracker.translation.copy())]  # as if tracked
+    tracker.estimate(frame, 1)
+    return tracker
+
+
 def test_between_frames_renders_only_samples_that_moved(cybatt):
-    frames = render_sequence(cybatt, table1_truth(10)[:2], size=(176, 144))
-    tracker = Tracker(cybatt, size=(176, 144), unknowns=TABLE1_FAPS)
-    for i, frame in enumerate(frames):
-        tracker.estimate(frame, i)
+    tracker = _tracked_to_frame_1(Tracker(cybatt, size=(176, 144), unknowns=TABLE1_FAPS))
     samples = tracker._samples
     tracker.between_frames()  # polished: the samples are where the estimate is
     assert tracker._samples is samples
@@ -257,10 +263,7 @@ def test_the_lost_rule_caps_its_reference_in_the_tracking_mode_only():
 
 
 def test_a_face_that_left_the_window_is_found_in_the_whole_frame_or_dropped(cybatt):
-    frames = render_sequence(cybatt, table1_truth(10)[:2], size=(176, 144))
-    tracker = Tracker(cybatt, size=(176, 144), unknowns=(*TABLE1_FAPS, "tx"))
-    for i, frame in enumerate(frames):
-        tracker.estimate(frame, i)
+    tracker = _tracked_to_frame_1(Tracker(cybatt, size=(176, 144), unknowns=(*TABLE1_FAPS, "tx")))
     assert tracker._box[2:] != (176, 144)  # a window around the face
     width = np.ptp(tracker.geometry.positions(tracker.params, tracker.translation)[:, 0])
     tracker.translation[0] += width / 2  # the head moves sideways out of its window
