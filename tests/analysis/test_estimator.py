@@ -10,6 +10,7 @@ import vtts
 from vtts.analysis import TABLE1_FAPS, Estimator, analyze, face_psnr
 from vtts.analysis.estimator import PYRAMID
 from vtts.analysis.geometry import HeadGeometry
+from vtts.analysis.result import FrameEstimate
 from vtts.analysis.solve import gradients_at, normal_equations, smooth, subsample
 from vtts.analysis.synthetic import (
     TABLE1_EXTREMES,
@@ -113,10 +114,10 @@ def test_one_frame_from_neutral(cybatt, estimator):
 
 
 def test_a_short_table1_sequence_every_fifth_frame(cybatt):
-    truth = table1_truth(100)[:30]
+    truth = table1_truth(100)[:20]
     frames = render_sequence(cybatt, truth, size=SIZE)
     result = analyze(frames, cybatt, fps=25, step=5, unknowns=TABLE1_FAPS)
-    assert [fe.index for fe in result.frames] == [0, 5, 10, 15, 20, 25]
+    assert [fe.index for fe in result.frames] == [0, 5, 10, 15]
     assert result.fps == 5
     idx = [f - 1 for f in TABLE1_FAPS]
     extremes = np.array([TABLE1_EXTREMES[f] for f in TABLE1_FAPS])
@@ -215,6 +216,13 @@ def test_on_a_lit_face_the_jaw_and_lip_corners_are_searched_after_the_solves(cyb
         assert error.max() >= 2, error
 
 
+def _tracked_from_neutral(est: Estimator, frame: np.ndarray) -> FrameEstimate:
+    """``est``'s estimate of ``frame`` (frame 5), tracked to from a neutral frame 0 as if that
+    had been estimated: no first frame's search and restarts."""
+    est._history = [(0, est.params.copy(), est.translation.copy())]
+    return est.estimate(frame, 5)
+
+
 def _estimate_from(est, frame, index):
     """``est.estimate(frame, index)`` and the parameters its first solve started from."""
     starts = []
@@ -226,20 +234,33 @@ def _estimate_from(est, frame, index):
         del est._solve
 
 
+def _going_on(est: Estimator, **options) -> Estimator:
+    """A new estimator of ``est``'s model and size with ``options`` that goes on from where
+    ``est`` is: its estimate, the motion of its last estimates and the last frame's final
+    rendering."""
+    again = Estimator(est.model, size=est.size, **options)
+    again.restore(est.snapshot())
+    again._shown = est._shown
+    return again
+
+
 def test_the_head_starts_where_its_motion_leads(cybatt):
     """A head turning and a jaw opening at steady speeds: by default the third estimate starts
     with the head turned on as far again (a head has inertia) but the jaw where it was (speech
     changes it too abruptly), and needs fewer solves than without prediction; both end at the
-    truth."""
+    truth. (The first frame, neutral, is taken as estimated; the second has no motion before
+    it to carry on: its estimate, with prediction and without, is the same, made once.)"""
     truth = [_params({3: 60 * i, 49: 400 * i}) for i in range(3)]
-    frames = [FaceRenderer(cybatt, size=SIZE).render(t) for t in truth]
+    frames = [FaceRenderer(cybatt, size=SIZE).render(t) for t in truth[1:]]
+    # (the jaw's search after the solves, on this lit face, left out: the prediction alone)
+    options = dict(unknowns=TABLE1_FAPS, lit_refine=())
+    first = Estimator(cybatt, size=SIZE, predict=(), **options)
+    ends = [first.params.copy(), _tracked_from_neutral(first, frames[0]).params]
     solves = {}
     for predict in (HEAD_MOTION, ()):
-        # (the jaw's search after the solves, on this lit face, left out: the prediction alone)
-        est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, predict=predict, lit_refine=())
+        est = _going_on(first, predict=predict, **options)
         assert est.predicted == ((48, 49, 50) if predict else ())
-        ends = [est.estimate(frame, index=5 * i).params for i, frame in enumerate(frames[:2])]
-        fe, start = _estimate_from(est, frames[2], 10)
+        fe, start = _estimate_from(est, frames[1], 10)
         assert abs(fe.params[2] - truth[2][2]) <= 2 and abs(fe.params[48] - truth[2][48]) <= 20
         solves[bool(predict)] = fe.iterations
         ahead = 2 * ends[1][48] - ends[0][48] if predict else ends[1][48]
@@ -336,12 +357,13 @@ def _noisy(model, params: np.ndarray, seed: int, sigma: float = 3.0) -> np.ndarr
 def test_settled_levels_end_early_on_a_noisy_frame_at_the_same_estimate(cybatt, monkeypatch):
     """On camera noise the finest level's solves reach the noise floor after a few steps; with
     robust matching the solves and halvings that followed are not made, and the estimate is
-    as good. Without robust matching (rendered frames) nothing changes."""
+    as good. Without robust matching (rendered frames) nothing changes. The frames after the
+    first are estimated, from the first's truth as if tracked there."""
     import vtts.analysis.estimator as estimator_module
 
     truth = [_params({3: 100 + 40 * i, 12: 30 * i, 48: 300 * i, 49: -500 * i}) for i in range(3)]
     frames = [np.clip(_noisy(cybatt, t, seed=5 + i, sigma=4.0), 0, 255).astype(np.uint8)
-              for i, t in enumerate(truth)]  # fmt: skip
+              for i, t in enumerate(truth[1:], 1)]  # fmt: skip
     found = {}
     for robust in (True, False):
         for settle in (False, True):
@@ -351,8 +373,9 @@ def test_settled_levels_end_early_on_a_noisy_frame_at_the_same_estimate(cybatt, 
             else:
                 monkeypatch.undo()
             est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, lit_refine=(), robust=robust)
-            est.estimate(frames[0], 0)
-            fes = [est.estimate(f, 5 * i) for i, f in enumerate(frames[1:], 1)]
+            est.params[:] = truth[0]
+            est._history = [(0, truth[0].copy(), np.zeros(3))]  # as if tracked
+            fes = [est.estimate(f, 5 * i) for i, f in enumerate(frames, 1)]
             found[robust, settle] = (sum(fe.iterations for fe in fes), [fe.params for fe in fes])
     (solves_all, ends_all), (solves, ends) = found[True, False], found[True, True]
     assert solves < solves_all, (solves, solves_all)
@@ -373,13 +396,15 @@ def test_a_level_too_small_at_the_last_estimate_is_skipped_without_a_rendering(c
 
     size = (96, 80)  # the head 32 eroded pixels at 1/4, 222 at 1/2: 4 × 10 unknowns needed
     renderer = FaceRenderer(cybatt, size=size)
-    frames = [renderer.render(_params({3: 60 * i, 48: 300 * i})) for i in range(4)]
+    frames = [renderer.render(_params({3: 60 * i, 48: 300 * i})) for i in range(3)]
+    # the first frame, where each level judges itself (there is no last estimate): made once
+    first = Estimator(cybatt, size=size, unknowns=TABLE1_FAPS)
+    first.estimate(frames[0], 0)
     runs = {}
     for skip in (True, False):
         if not skip:
             monkeypatch.setattr(Estimator, "_too_small", lambda self, faces, factor: False)
-        est = Estimator(cybatt, size=size, unknowns=TABLE1_FAPS)
-        est.estimate(frames[0], 0)
+        est = _going_on(first, unknowns=TABLE1_FAPS)
         if skip:
             _, ids, _ = est._render_window(4)  # the level's own count at the same estimate
             rows = np.nonzero(estimator_module.binary_erosion(ids >= 0, iterations=2))[0]
@@ -388,7 +413,7 @@ def test_a_level_too_small_at_the_last_estimate_is_skipped_without_a_rendering(c
         drawn = _count_renderings(est)
         ends = [est.estimate(f, 5 * i).params for i, f in enumerate(frames[1:], 1)]
         runs[skip] = (len(drawn), ends)
-    assert runs[True][0] == runs[False][0] - 3, (runs[True][0], runs[False][0])
+    assert runs[True][0] == runs[False][0] - 2, (runs[True][0], runs[False][0])
     assert all(np.array_equal(a, b) for a, b in zip(runs[True][1], runs[False][1], strict=True))
 
 
@@ -470,12 +495,16 @@ def test_normal_equations_are_those_of_the_per_channel_equations():
 
 
 def test_a_change_of_light_is_not_read_as_motion(cybatt):
+    """A frame brighter than the model's light (a gain of 1.15 and 4 gray levels), tracked to
+    from a neutral frame (as if that had been estimated), with the light model and without."""
     truth = _params({3: 200, 35: 100, 49: 3000})
     frame = FaceRenderer(cybatt, size=SIZE).render(truth).astype(float)
     brighter = np.clip(np.round(frame * 1.15 + 4), 0, 255).astype(np.uint8)
-    fe_light = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS).estimate(brighter)
-    fe_plain = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, illumination=False).estimate(
-        brighter
+    fe_light, fe_plain = (
+        _tracked_from_neutral(
+            Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, illumination=light), brighter
+        )
+        for light in (True, False)
     )
     err_light = np.abs(fe_light.params - truth)[[2, 34, 48]]
     err_plain = np.abs(fe_plain.params - truth)[[2, 34, 48]]

@@ -14,9 +14,10 @@ import pytest
 
 from vtts.analysis import Estimator
 from vtts.analysis.landmark_pose import feature_vertices, landmark_pose, project
-from vtts.analysis.track import FITTED_IGNORED, track
+from vtts.analysis.track import FITTED_IGNORED, Tracked, track
 from vtts.analysis.tracker import Tracker
 from vtts.analysis.video import read_video
+from vtts.cli import main
 from vtts.errors import AnalysisError
 from vtts.face import load_model
 from vtts.fap.coding import decode, read_header
@@ -135,15 +136,19 @@ def test_the_fitted_heads_made_up_parts_are_drawn_but_not_matched(carphone_track
     assert 0 < (ids >= 0).sum() < (all_ids >= 0).sum()
 
 
-def test_analyze_fits_writes_the_head_and_codes_the_translation(tmp_path):
+@pytest.mark.usefixtures("shared_fit")
+def test_analyze_fits_writes_the_head_and_codes_the_translation(tmp_path, capsys):
+    """The command's outputs, in this process (the analyze process's own: the other tests here
+    and test_analyze_cli.py)."""
     clip = tmp_path / "clip"
     clip.mkdir()
     from PIL import Image
 
     for i, frame in enumerate(_frames(2)):
         Image.fromarray(frame).save(clip / f"f{i}.png")
-    r = vtts("analyze", str(clip), "-o", str(tmp_path / "talk.fbs"), "--quiet")
-    assert r.returncode == 0, r.stderr
+    assert main(["analyze", str(clip), "-o", str(tmp_path / "talk.fbs"), "--quiet"]) == 0, (
+        capsys.readouterr().err
+    )
     for name in (
         "talk.fbs",
         "talk-model.wrl",
@@ -156,33 +161,49 @@ def test_analyze_fits_writes_the_head_and_codes_the_translation(tmp_path):
     data = (tmp_path / "talk.fbs").read_bytes()
     assert read_header(data).translation
     assert decode(data).translation is not None
-    r = vtts("check", str(tmp_path / "talk.fbs"))
-    assert "head translation" in r.stdout, r.stdout
-    r = vtts("check", str(tmp_path / "talk-model.wrl"))
-    assert r.returncode == 0, r.stderr
+    capsys.readouterr()
+    main(["check", str(tmp_path / "talk.fbs")])
+    out = capsys.readouterr().out
+    assert "head translation" in out, out
+    assert main(["check", str(tmp_path / "talk-model.wrl")]) == 0, capsys.readouterr().err
 
 
 @pytest.mark.parametrize(
-    "args, fragment",
+    "args, fragment, process",
     [
-        (["--camera", "300,300,88,72"], "--camera is for a given --model"),
-        (["--face", "0"], "--face must be 1"),
-        (["--face", "3"], "--face 3: frame 0, the one the head is fitted to, shows 1 face(s)"),
-        (["--rate", "12.5"], "--rate sets the rate of a coded .fbs"),
-        (["--model", "auto", "--model", "cybatt"], "fits one model, got 2"),
-        (["--model", "cybatt", "--texture", "mean"], "the texture of the head --model auto"),
+        (["--camera", "300,300,88,72"], "--camera is for a given --model", True),
+        (["--face", "0"], "--face must be 1", False),
+        (
+            ["--face", "3"],
+            "--face 3: frame 0, the one the head is fitted to, shows 1 face(s)",
+            False,
+        ),
+        (["--rate", "12.5"], "--rate sets the rate of a coded .fbs", False),
+        (["--model", "auto", "--model", "cybatt"], "fits one model, got 2", False),
+        (
+            ["--model", "cybatt", "--texture", "mean"],
+            "the texture of the head --model auto",
+            False,
+        ),
     ],
 )
-def test_analyze_auto_bad_input(tmp_path, args, fragment):
+def test_analyze_auto_bad_input(tmp_path, capsys, args, fragment, process):
+    """``process``: in a ``vtts`` process (its exit status and stderr), else through
+    :func:`vtts.cli.main` in this one (the same status and message)."""
     clip = tmp_path / "clip"
     clip.mkdir()
     from PIL import Image
 
     Image.fromarray(_frames(1)[0]).save(clip / "f0.png")
-    r = vtts("analyze", str(clip), "-o", str(tmp_path / "talk.fap"), "--quiet", *args)
-    assert r.returncode == 1, r.stderr
-    assert fragment in r.stderr, r.stderr
-    assert "Traceback" not in r.stderr
+    argv = ["analyze", str(clip), "-o", str(tmp_path / "talk.fap"), "--quiet", *args]
+    if process:
+        r = vtts(*argv)
+        status, stderr = r.returncode, r.stderr
+    else:
+        status, stderr = main(argv), capsys.readouterr().err
+    assert status == 1, stderr
+    assert fragment in stderr, stderr
+    assert "Traceback" not in stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["clip"]
 
 
@@ -208,27 +229,39 @@ def test_a_frame_that_loses_the_model_is_started_again_from_its_landmarks(tmp_pa
     assert abs(tracked.analysis.frames[1].translation[0]) < 1.0
 
 
-@pytest.mark.usefixtures("shared_fit")
-def test_a_frame_that_cannot_be_restarted_holds_the_last_estimate(tmp_path, monkeypatch):
+@pytest.fixture(scope="module")
+def held_track(tmp_path_factory, fits) -> tuple[Tracked, dict[int, int]]:
+    """Carphone's first four frames tracked with frame 2's estimate failing, the head thrown
+    out of view, and no restart from the landmarks to be had: the track and, for each frame,
+    how many estimates' motion the estimator held at its start."""
     import vtts.analysis.track as track_module
     from vtts.errors import VttsError
 
     real = Tracker.estimate  # the accurate mode's estimator too (finish=True)
+    history_at_start = {}
 
     def estimate(self, frame, index=0, time=0.0):
-        if index == 1:
+        history_at_start[index] = len(self._history)
+        if index == 2:
             self.translation[:] = (100.0, 0.0, 0.0)
             raise VttsError("the model covers only 0 pixels at 1/1 size")
         return real(self, frame, index, time)
 
-    monkeypatch.setattr(Tracker, "estimate", estimate)
-    monkeypatch.setattr(track_module, "_restart", lambda *a, **k: None)
-    tracked = track(_frames(3), fps=25.0, model_path=tmp_path / "m.wrl")
-    assert tracked.held == [1] and tracked.restarts == []
+    folder = tmp_path_factory.mktemp("held")
+    with fits.sharing(), pytest.MonkeyPatch.context() as mp:
+        mp.setattr(Tracker, "estimate", estimate)
+        mp.setattr(track_module, "_restart", lambda *a, **k: None)
+        tracked = track(_frames(4), fps=25.0, model_path=folder / "m.wrl")
+    return tracked, history_at_start
+
+
+def test_a_frame_that_cannot_be_restarted_holds_the_last_estimate(held_track):
+    tracked = held_track[0]
+    assert tracked.held == [2] and tracked.restarts == []
     frames = tracked.analysis.frames
-    assert np.array_equal(frames[1].params, frames[0].params)
-    assert np.isnan(frames[1].psnr) and np.isfinite(frames[2].psnr)
-    assert abs(frames[2].translation[0]) < 1.0  # frame 2 starts from frame 0's state
+    assert np.array_equal(frames[2].params, frames[1].params)
+    assert np.isnan(frames[2].psnr) and np.isfinite(frames[3].psnr)
+    assert abs(frames[3].translation[0]) < 1.0  # frame 3 starts from frame 1's state
 
 
 @pytest.mark.usefixtures("shared_fit")
@@ -290,25 +323,10 @@ def test_a_head_runs_away_beyond_a_turn_or_a_shift(rotation, shift, away):
     assert track_module._run_away(estimator) is away
 
 
-@pytest.mark.usefixtures("shared_fit")
-def test_a_held_frame_carries_no_motion_on(tmp_path, monkeypatch):
+def test_a_held_frame_carries_no_motion_on(held_track):
     """After a hold the next frame starts afresh: the motion of the two estimates before the
     hold would otherwise be carried on, growing with the frames held."""
-    import vtts.analysis.track as track_module
-    from vtts.errors import VttsError
-
-    real = Tracker.estimate  # the accurate mode's estimator too (finish=True)
-    history_at_start = {}
-
-    def estimate(self, frame, index=0, time=0.0):
-        history_at_start[index] = len(self._history)
-        if index == 2:
-            raise VttsError("the model covers only 0 pixels at 1/1 size")
-        return real(self, frame, index, time)
-
-    monkeypatch.setattr(Tracker, "estimate", estimate)
-    monkeypatch.setattr(track_module, "_restart", lambda *a, **k: None)
-    tracked = track(_frames(4), fps=25.0, model_path=tmp_path / "m.wrl")
+    tracked, history_at_start = held_track
     assert tracked.held == [2]
     assert history_at_start[2] == 2  # frames 0 and 1 carried their motion to frame 2
     assert history_at_start[3] == 0  # not past the hold
