@@ -7,6 +7,7 @@ write as ``.adt`` and read back unchanged.
 from __future__ import annotations
 
 import base64
+import functools
 import json
 import tempfile
 import warnings
@@ -29,8 +30,11 @@ from .adi_helpers import SAMPLE, face_points, face_triangles, write_gltf, write_
 NEUTRAL = read(SAMPLE)
 
 
-def _corpus() -> dict[str, bytes]:
-    """A joy pose of the sample head as OBJ, PLY, GLB and glTF (the glTF's buffer sparse)."""
+@functools.cache
+def corpus() -> dict[str, bytes]:
+    """A joy pose of the sample head as OBJ, PLY, GLB and glTF (the glTF's buffer sparse).
+    Made when a test first needs it, not when the module is collected (writing the PLY imports
+    trimesh and SciPy, which a worker that runs none of these tests need not pay for)."""
     with tempfile.TemporaryDirectory() as tmp:
         d = Path(tmp)
         (d / "head.wrl").write_bytes(SAMPLE.read_bytes())
@@ -46,8 +50,10 @@ def _corpus() -> dict[str, bytes]:
         return {p.suffix: p.read_bytes() for p in d.glob("x.*")}
 
 
-CORPUS = _corpus()
-GLTF = json.loads(CORPUS[".gltf"])
+def gltf() -> dict:
+    """A fresh copy of the corpus's glTF document."""
+    return json.loads(corpus()[".gltf"])
+
 
 FUZZ = settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -73,7 +79,7 @@ def load_or_adt_error(path: Path, data: bytes) -> None:
 
 
 def test_the_corpus_builds(folder: Path) -> None:
-    for suffix, data in CORPUS.items():
+    for suffix, data in corpus().items():
         path = folder / f"joy@1{suffix}"
         path.write_bytes(data)
         tables = build_tables(NEUTRAL, load_poses(path, NEUTRAL))
@@ -83,14 +89,14 @@ def test_the_corpus_builds(folder: Path) -> None:
 @FUZZ
 @given(st.sampled_from([".obj", ".gltf"]), mutations)
 def test_mutated_text_files(folder: Path, suffix: str, ops) -> None:
-    text = mutate(CORPUS[suffix].decode(), ops)
+    text = mutate(corpus()[suffix].decode(), ops)
     load_or_adt_error(folder / f"joy@1{suffix}", text.encode("utf-8", "surrogatepass"))
 
 
 @FUZZ
 @given(st.sampled_from([".glb", ".ply"]), byte_mutations)
 def test_mutated_binary_files(folder: Path, suffix: str, ops) -> None:
-    load_or_adt_error(folder / f"joy@1{suffix}", mutate_bytes(CORPUS[suffix], ops))
+    load_or_adt_error(folder / f"joy@1{suffix}", mutate_bytes(corpus()[suffix], ops))
 
 
 #: Where the glTF reader takes numbers and references from the JSON.
@@ -117,9 +123,14 @@ VALUES = st.one_of(
 )  # fmt: skip
 
 
-def sparse_indices(**fields) -> dict:
-    """The sparse accessor of the glTF's morph target with ``fields`` of its indices changed."""
-    return {**GLTF["accessors"][2]["sparse"], "indices": {"bufferView": 2, **fields}}
+class SparseIndices(dict):
+    """In an example: the sparse accessor of the glTF's morph target with these fields of its
+    indices changed (:func:`sparse_indices`, made when the test runs)."""
+
+
+def sparse_indices(doc: dict, **fields) -> dict:
+    """The sparse accessor of ``doc``'s morph target with ``fields`` of its indices changed."""
+    return {**doc["accessors"][2]["sparse"], "indices": {"bufferView": 2, **fields}}
 
 
 @FUZZ
@@ -130,19 +141,21 @@ def sparse_indices(**fields) -> dict:
 @example([(("accessors", 0, "count"), False)])
 @example([(("accessors", 2, "count"), 53)])
 @example([(("bufferViews", 0, "buffer"), None)])
-@example([(("accessors", 2, "sparse"), sparse_indices())])
-@example([(("accessors", 2, "sparse"), sparse_indices(componentType=5126))])
+@example([(("accessors", 2, "sparse"), SparseIndices())])
+@example([(("accessors", 2, "sparse"), SparseIndices(componentType=5126))])
 @example([(("nodes", 0, "mesh"), 0), (("bufferViews", 0, "buffer"), -1)])
 def test_gltf_values(folder: Path, changes) -> None:
-    doc = json.loads(json.dumps(GLTF))
+    doc = gltf()
     for (array, index, key), value in changes:
+        if isinstance(value, SparseIndices):
+            value = sparse_indices(doc, **value)
         if index < len(doc.get(array, [])):
             doc[array][index][key] = value
     load_or_adt_error(folder / "joy@1.gltf", json.dumps(doc).encode())
 
 
 def test_a_negative_gltf_index_is_no_index(folder: Path) -> None:
-    doc = json.loads(json.dumps(GLTF))
+    doc = gltf()
     doc["bufferViews"][0]["buffer"] = -1  # Python's last buffer, the only one
     (folder / "joy@1.gltf").write_text(json.dumps(doc))
     with pytest.raises(AdtError, match="buffer -1 does not exist"):
@@ -153,7 +166,7 @@ def test_a_negative_gltf_index_is_no_index(folder: Path) -> None:
 @given(st.binary(max_size=200))
 def test_gltf_buffer_bytes(folder: Path, blob: bytes) -> None:
     """Any buffer contents behind valid accessors (too short, NaN floats, …)."""
-    doc = json.loads(json.dumps(GLTF))
+    doc = gltf()
     doc["buffers"][0]["uri"] = (
         "data:application/octet-stream;base64," + base64.b64encode(blob).decode()
     )

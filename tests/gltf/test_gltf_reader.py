@@ -9,6 +9,7 @@ from __future__ import annotations
 import copy
 import json
 import os
+import tracemalloc
 import warnings
 from pathlib import Path
 
@@ -314,6 +315,42 @@ MEMORY = {
 }
 
 
+#: What a refusal of a tiny document may allocate: far below the smallest allocation a missing
+#: check would make (50M indices of 4 bytes).
+LITTLE = 64 << 20
+#: The cases also run as the real command, in a process limited to 3 GB (tests/hostile.py), one
+#: per command: its exit status and stderr.
+AS_A_PROCESS = {("import", "50M inverse bind matrices"), ("build", "a 50M-element morph target")}
+
+
+def _adi_in_process(
+    args: list[str], capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> tuple[int, str, int]:
+    """``adi ARGS`` run here: its exit status, its stderr, and the most memory it held at once
+    after reading the glTF file (bytes, numpy's arrays included: tracemalloc counts them). A
+    file is read into a buffer of the size limit (512 MiB), at once cut to the file's size: the
+    peak is taken from there on."""
+    import vtts.gltf.reader
+    from adt_tools.cli import main
+
+    read = vtts.gltf.reader.read_bytes_capped
+
+    def read_then_reset_peak(*args, **kwargs) -> bytes:
+        data = read(*args, **kwargs)
+        tracemalloc.reset_peak()
+        return data
+
+    monkeypatch.setattr(vtts.gltf.reader, "read_bytes_capped", read_then_reset_peak)
+    capsys.readouterr()
+    tracemalloc.start()
+    try:
+        code = main(args)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    return code, capsys.readouterr().err, peak
+
+
 @pytest.mark.parametrize(
     "command, case",
     # adi build reads no skins
@@ -324,10 +361,13 @@ MEMORY = {
         if (c, k) != ("build", "50M inverse bind matrices")
     ],
 )
-def test_an_accessor_without_data_is_refused_before_it_is_allocated(tmp_path, case, command):
+def test_an_accessor_without_data_is_refused_before_it_is_allocated(
+    tmp_path, monkeypatch, capsys, case, command
+):
     """Accessors without a bufferView (zeros) asked numpy for 3–6 GB and ended in a traceback;
-    each count is now checked against what fixes it, or a limit, before anything is allocated
-    (run in a process limited to 3 GB)."""
+    each count is now checked against what fixes it, or a limit, before anything is allocated:
+    ``adi`` run in this process allocates less than :data:`LITTLE` on the way to the error (and
+    one case per command runs as the command, in a process limited to 3 GB)."""
     from ..hostile import run_cli
 
     doc = copy.deepcopy(triangle_gltf())
@@ -338,10 +378,16 @@ def test_an_accessor_without_data_is_refused_before_it_is_allocated(tmp_path, ca
     if command == "build":
         (tmp_path / "neutral.wrl").write_text(NEUTRAL_WRL)
         args = ["build", "neutral.wrl", str(path), "-o", "out.adt"]
-    r = run_cli("adi", *args, cwd=tmp_path)
-    assert r.returncode == 1, r.stderr[-2000:]
-    assert message in r.stderr and "Traceback" not in r.stderr
-    assert str(path) in r.stderr
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("VTTS_CACHE_DIR", "")
+    code, err, peak = _adi_in_process(args, capsys, monkeypatch)
+    assert code == 1 and message in err and str(path) in err, err[-2000:]
+    assert peak < LITTLE, f"{peak / 2**20:.0f} MiB allocated on the way to the error"
+    if (command, case) in AS_A_PROCESS:
+        r = run_cli("adi", *args, cwd=tmp_path)
+        assert r.returncode == 1, r.stderr[-2000:]
+        assert message in r.stderr and "Traceback" not in r.stderr
+        assert str(path) in r.stderr
 
 
 @USERS
