@@ -69,10 +69,10 @@ def _kill_when_writing(folder: Path, stop: threading.Event, killed: list) -> Non
 
 
 def _start(jobs: Path, out: Path) -> subprocess.Popen:
-    """``vtts batch JOBS --out OUT --workers 2``, started."""
+    """``vtts batch JOBS --out OUT --workers 2 --ray``, started."""
     env = {**os.environ, "LP_NUM_THREADS": "1"}
     command = [sys.executable, "-m", "vtts.cli", "batch", str(jobs), "--out", str(out)]
-    return subprocess.Popen([*command, "--workers", "2"], env=env, stdout=subprocess.PIPE,
+    return subprocess.Popen([*command, "--workers", "2", "--ray"], env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)  # fmt: skip
 
 
@@ -216,8 +216,8 @@ def test_sigterm_ends_a_batch_as_ctrl_c_does(tmp_path):
               "size": "64x48"} for i in range(30)]  # fmt: skip
     jobs.write_text("".join(json.dumps(j) + "\n" for j in lines))
     out = tmp_path / "out"
-    p = subprocess.Popen([str(EXE), "batch", str(jobs), "--out", str(out), "--workers", "1"],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+    p = subprocess.Popen([str(EXE), "batch", str(jobs), "--out", str(out), "--workers", "1",
+                          "--ray"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
     try:
         deadline = time.monotonic() + 240
         while not _has_worker(p.pid):  # Ray runs
