@@ -142,7 +142,8 @@ def test_the_eyelids_are_refined_on_the_rendered_image(cybatt):
         frame = FaceRenderer(cybatt, size=SIZE).render(truth[index])
         found = {}
         for refine in ((), (19, 20), (20,)):
-            est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, refine=refine)
+            # (the jaw's and the lip corners' search, on this lit face, left out: the lids')
+            est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, refine=refine, lit_refine=())
             assert est.refined == refine
             est.params[:] = truth[index - 5]
             # as if tracked from there: a first frame would be searched and restarted
@@ -190,7 +191,8 @@ def test_a_lid_closing_fast_is_followed(cybatt):
     truth = random_truth(5, 100)[::5]
     assert (truth[9, 19], truth[10, 19]) == (57, 216)
     frame = FaceRenderer(cybatt, size=SIZE).render(truth[10])
-    est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS)
+    # (the jaw's and the lip corners' search, on this lit face, left out: the lids')
+    est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, lit_refine=())
     est.params[:] = truth[9]
     est._history = [(i * 5, truth[i].copy(), np.zeros(3)) for i in (8, 9)]  # as if tracked
     found = est.estimate(frame, 50).params
@@ -631,8 +633,9 @@ def test_the_search_keeps_a_fap_within_its_bounds(cybatt):
 
     truth = _params({19: 300, 20: 300})
     frame = FaceRenderer(cybatt, size=SIZE).render(truth)
+    # (the jaw's and the lip corners' search, on this lit face, left out: the lids')
     est = Estimator(cybatt, size=SIZE, unknowns=(*DEFAULT_UNKNOWNS, 19, 20), searched=(19, 20),
-                    bounds={19: (0.0, 200.0)})  # fmt: skip
+                    bounds={19: (0.0, 200.0)}, lit_refine=())  # fmt: skip
     est.params[:] = _params({19: 150, 20: 150})
     est._history = [(0, est.params.copy(), est.translation.copy())]
     fe = est.estimate(frame, 5)

@@ -38,8 +38,8 @@ def vtts(*args: str, stdin: bytes = b"") -> subprocess.CompletedProcess:
 
 def vtts_here(capfd, monkeypatch, *args: str, stdin: bytes = b"") -> subprocess.CompletedProcess:
     """``vtts ARGS`` run in this process (:func:`vtts.cli.main`), ``stdin`` coming through an OS
-    pipe as the process's would: its status, stdout and stderr (bytes). A traceback would be an
-    exception here, failing the test."""
+    pipe as the process's would: its status, stdout and stderr (bytes; ``capfd`` may be
+    ``capfdbinary``). A traceback would be an exception here, failing the test."""
     from vtts.cli import main
 
     read, write = os.pipe()
@@ -49,8 +49,8 @@ def vtts_here(capfd, monkeypatch, *args: str, stdin: bytes = b"") -> subprocess.
     with open(read, encoding="utf-8") as pipe:
         monkeypatch.setattr(sys, "stdin", pipe)
         code = main(list(args))
-    out, err = capfd.readouterr()
-    return subprocess.CompletedProcess(["vtts", *args], code, out.encode(), err.encode())
+    out, err = (t if isinstance(t, bytes) else t.encode() for t in capfd.readouterr())
+    return subprocess.CompletedProcess(["vtts", *args], code, out, err)
 
 
 def synthetic(n: int = 6) -> FapStream:
@@ -174,13 +174,15 @@ def test_size_is_for_a_pipe(capfd, monkeypatch):
     assert r.returncode == 1 and b"--size is the size of raw frames" in r.stderr
 
 
-def test_play_stdin_renders_each_frame_and_a_whole_fbs_too(tmp_path):
+def test_play_stdin_renders_each_frame_and_a_whole_fbs_too(tmp_path, capfdbinary, monkeypatch):
+    """The streamed packets through a real process; the whole .fbs in this process."""
     s = synthetic(5)
     data = b"".join(streamed(s))
     r = vtts("play", "-", "--model", str(HEAD), "--size", "32x24", "-o", "-", stdin=data)
     assert r.returncode == 0, r.stderr.decode()
     assert len(r.stdout) == 5 * 32 * 24 * 3
-    whole = vtts("play", "-", "--model", str(HEAD), "--size", "32x24", "-o", "-", stdin=encode(s))
+    whole = vtts_here(capfdbinary, monkeypatch, "play", "-", "--model", str(HEAD), "--size",
+                      "32x24", "-o", "-", stdin=encode(s))  # fmt: skip
     assert whole.returncode == 0 and whole.stdout == r.stdout
 
 
