@@ -64,6 +64,40 @@ HELD_OUT = [
     "Remember to back up your files before you update the computer.",
     "Fresh bread, warm soup and a bowl of berries made a perfect lunch.",
 ]
+#: Sentences written for issue 45 (item 4), after the constants above were tuned: NEW_TUNING may be
+#: tuned on; NEVER_TUNED is kept out of every tuning run and reported apart (names, numbers spelled
+#: out, questions, clusters, long and short words).
+NEW_TUNING = [
+    "Did Margaret really drive twelve hundred miles to Albuquerque last spring, or was it a rumor?",
+    "Thirty-three thirsty thinkers thought through the theory on Thursday.",
+    "Strong gusts scattered crisp brown leaves across the empty schoolyard.",
+    "Oh, I see, you wanted the yellow one, not the orange one!",
+    "Professor Nakamura explained the extraordinary complexity of mitochondrial genetics to a "
+    "sleepy audience.",
+    "Why would anybody leave a perfectly good umbrella in the back of a taxi?",
+    "Seventeen sheep grazed quietly beside the old stone bridge at dawn.",
+    "Judge Harrison asked the jury whether the witness had seemed truthful and calm.",
+    "It's eight forty-five, and the plane to Vancouver hasn't even started boarding yet.",
+    "Hush, said Lisa, as the owl glided silently over the frozen valley.",
+    "Ask Gwendolyn whether the sixth graders have already eaten their lunch, because the bus "
+    "leaves at noon.",
+    "Quick, grab the flashlight: the basement lights just went out again!",
+]
+NEVER_TUNED = [
+    "Could you please spell your surname for me, Mister Okonkwo?",
+    "Forty-two glimpses of splendid sculptures amazed the visitors from Zurich.",
+    "Every evening, Uncle Ahmed reads the newspaper aloud to his seven grandchildren.",
+    "The twins sprinted, stumbled, and scrambled up the steep gravel path behind the church.",
+    "Is it true that an octopus has three hearts and blue blood?",
+    "Nine hundred and sixty volunteers cleaned the sandy beaches of Lake Michigan.",
+    "Anxious about the exam, Priya stayed awake until half past two in the morning.",
+    "Wow, what a view!",
+    "Unbelievably, the old refrigerator still hums along after thirty years of service.",
+    "Charlotte measured the width of the window with a yellow tape, then ordered new curtains.",
+    "My neighbor's dog, a cheerful beagle named Rufus, barks whenever the postman walks past "
+    "the gate.",
+    "Which of these six strange jars holds the vanilla extract, and which holds the glue?",
+]
 #: (name, engine, voice, rate, pitch, SNR in dB of added white noise or None) of the truth.
 VOICES = [
     ("festival HTS", "festival", None, None, None, None),
