@@ -210,6 +210,7 @@ def align(
     ref = synthesize(ssml, voice=voice)
     if not any(p.phoneme not in PAUSES for p in ref.phonemes):
         raise SpeechError("the transcript has nothing to say: no phones to align")
+    joined = _split_merged_words(ref, ssml, voice)
     used_rate = DEFAULT_RATE
     if match_rate:
         ref_db = log_mel(
@@ -220,6 +221,7 @@ def align(
         if abs(wanted - DEFAULT_RATE) > 0.05 * DEFAULT_RATE:
             used_rate = wanted
             ref = synthesize(ssml, voice=voice, rate=used_rate)
+            joined = _split_merged_words(ref, ssml, voice)
     if ref.phonemes[0].phoneme not in PAUSES:
         # the pause before the first word, which the recording may have and espeak may not
         first = ref.phonemes[0]
@@ -246,7 +248,7 @@ def align(
     ref_x = cepstra(ref_db[ref_span[0] : ref_span[1]])
     rec_x = cepstra(rec_db[rec_span[0] : rec_span[1]])
     ref_t0, rec_t0 = ref_span[0] * step / fs, rec_span[0] * step / fs
-    boundaries = _word_boundaries(ref, ref_t0, len(ref_x)) if not baseline else {}
+    boundaries = _word_boundaries(ref, ref_t0, len(ref_x), joined) if not baseline else {}
     rows = np.zeros(len(ref_x), bool)
     for b in boundaries:
         rows[max(b - 1, 0) : b + 1] = True
@@ -268,6 +270,110 @@ def align(
     # the optional pauses at word boundaries that the recording did not make
     phones = [p for p in phones if p.duration > 0 or p.phoneme not in PAUSES]
     return Alignment(phones, words, marks, used_rate, voice, _problems(words, f0 is not None))
+
+
+#: A run of characters of the transcript without spaces or tags (tags blanked out first).
+_TOKEN = re.compile(r"\S+")
+
+
+def _tokens(ssml: str) -> list[tuple[int, int]]:
+    """``[start, end)`` in ``ssml`` of each word of the transcript: a run of characters without
+    spaces or tags that holds a letter or digit."""
+    blank = re.sub(r"<[^>]*>", lambda m: " " * len(m.group()), ssml)
+    return [
+        (m.start(), m.end())
+        for m in _TOKEN.finditer(blank)
+        if any(c.isalnum() for c in _unescape(m.group()))
+    ]
+
+
+def _split_merged_words(ref, ssml: str, voice: str) -> set[float]:
+    """Give every word of the transcript its own phones in ``ref.words``, in place; returns the
+    start times of the words split off (no pause is looked for before them: espeak-ng joins
+    only words said without one).
+
+    espeak-ng's dictionary speaks some pairs of function words as one word (``in the`` is
+    ``InD@2``, ``of a`` is ``@v@``): their phones all carry the first word's text position, and
+    the second word has no word of its own. Each such run is split: the words are spoken again
+    apart (a zero-length ``<break/>`` between them keeps the dictionary from joining them) for
+    the number of phones of each, and the run's phones are shared out in those proportions, in
+    order. A word spoken with no phones at all gets a zero-length word at its place."""
+    from vtts.speech.tts import Word, synthesize
+
+    tokens = _tokens(ssml)
+    if not ref.words or not tokens:
+        return set()
+    positions = np.array([w.position for w in ref.words])
+    # the word of ref.words each token holds, or -1
+    owner = []
+    for a, b in tokens:
+        k = int(np.searchsorted(positions, a))
+        owner.append(k if k < len(positions) and positions[k] < b else -1)
+    groups: list[tuple[int, list[int]]] = []  # (index in ref.words, tokens it speaks)
+    for t, k in enumerate(owner):
+        if k >= 0 and not (groups and groups[-1][0] == k):
+            groups.append((k, [t]))
+        elif groups:  # no word of its own: spoken with the word before
+            groups[-1][1].append(t)
+    merged = [(k, ts) for k, ts in groups if len(ts) > 1]
+    if not merged:
+        return set()
+    # each token spoken apart: its number of phones
+    pieces = [ssml[tokens[t][0] : tokens[t][1]] for _, ts in merged for t in ts]
+    apart = synthesize("<speak>" + ' <break time="0ms"/>'.join(pieces) + "</speak>", voice=voice)
+    starts, at = [], len("<speak>")
+    for piece in pieces:
+        starts.append(at)
+        at += len(piece) + len(' <break time="0ms"/>')
+    counts = dict.fromkeys(range(len(pieces)), 0)
+    phone_starts = np.array([p.start for p in apart.phonemes])
+    for w in apart.words:
+        i = int(np.searchsorted(starts, w.position, side="right")) - 1
+        k0 = int(np.searchsorted(phone_starts, w.start - 1e-9))
+        k1 = int(np.searchsorted(phone_starts, (w.end or w.start) - 1e-9))
+        counts[i] += sum(1 for p in apart.phonemes[k0:k1] if p.phoneme not in PAUSES)
+    words = list(ref.words)
+    ref_starts = np.array([p.start for p in ref.phonemes])
+    piece = 0
+    replace: dict[int, list] = {}
+    for k, ts in merged:
+        w = words[k]
+        k0 = int(np.searchsorted(ref_starts, w.start - 1e-9))
+        k1 = int(np.searchsorted(ref_starts, (w.end or w.start) - 1e-9))
+        spoken = [p for p in ref.phonemes[k0:k1] if p.phoneme not in PAUSES]
+        c = np.array([counts[piece + j] for j in range(len(ts))], float)
+        piece += len(ts)
+        if c.sum() == 0:
+            c[0] = 1.0
+        cuts = np.round(len(spoken) * np.cumsum(c) / c.sum()).astype(int)
+        cuts = np.minimum(np.maximum.accumulate(np.concatenate([[0], cuts])), len(spoken))
+        out = []
+        for j, t in enumerate(ts):
+            a, b = tokens[t]
+            if cuts[j + 1] > cuts[j]:
+                t0, t1 = spoken[cuts[j]].start, spoken[cuts[j + 1] - 1].end
+            else:  # no phones of its own: a point at its place
+                t0 = t1 = spoken[cuts[j] - 1].end if cuts[j] > 0 else w.start
+            text = w.text if j == 0 else _word_text(ssml[a:b])
+            out.append(Word(t0, a if j else w.position, b - a if j else w.length, t1, text))
+        replace[k] = out
+    ref.words[:] = [x for k, w in enumerate(words) for x in replace.get(k, [w])]
+    return {w.start for out in replace.values() for w in out[1:]}
+
+
+def _unescape(text: str) -> str:
+    for entity, char in (("&lt;", "<"), ("&gt;", ">"), ("&quot;", '"'), ("&apos;", "'")):
+        text = text.replace(entity, char)
+    return text.replace("&amp;", "&")
+
+
+def _word_text(token: str) -> str:
+    """A token of the SSML as a word's text (entities decoded, punctuation around it
+    stripped), as espeak-ng's words are written (:func:`vtts.speech.tts._word_at`)."""
+    from vtts.speech.tts import _WORD_EDGE
+
+    text = _unescape(token)
+    return text.strip(_WORD_EDGE) or text
 
 
 def _masked(ref_db: np.ndarray, rec_db: np.ndarray) -> np.ndarray:
@@ -313,12 +419,14 @@ class _Warp:
         return float((self.cumcost[b] - self.cumcost[a]) / (b - a)) if b > a else 0.0
 
 
-def _word_boundaries(ref, ref_t0: float, n: int) -> dict[int, float]:
+def _word_boundaries(ref, ref_t0: float, n: int, joined=frozenset()) -> dict[int, float]:
     """Reference frame (in the warped span) → time (s) of every word start after the first that
-    no pause of espeak's precedes."""
+    no pause of espeak's precedes, except those in ``joined``."""
     out: dict[int, float] = {}
     starts = [p.start for p in ref.phonemes]
     for w in ref.words[1:]:
+        if w.start in joined:
+            continue
         k = int(np.searchsorted(starts, w.start - 1e-9))
         if 0 < k < len(ref.phonemes) and ref.phonemes[k - 1].phoneme not in PAUSES:
             f = round((w.start - ref_t0) / HOP)
@@ -390,7 +498,8 @@ def _carry(t: float, ref: list[Phone], aligned: list[Phone]) -> float:
 
 def _words(ref, phones: list[Phone], warp: _Warp) -> list[AlignedWord]:
     """The reference's words (their first to last phone that is not a pause), carried to the
-    recording through the aligned phones, with their warping costs."""
+    recording through the aligned phones, with their warping costs; every word of the reference
+    is one, in order."""
     ref_starts = np.array([p.start for p in ref.phonemes])
     out: list[AlignedWord] = []
     for word in ref.words:
@@ -398,7 +507,9 @@ def _words(ref, phones: list[Phone], warp: _Warp) -> list[AlignedWord]:
         k0 = int(np.searchsorted(ref_starts, word.start - 1e-9))
         k1 = int(np.searchsorted(ref_starts, end - 1e-9))
         ks = [k for k in range(k0, k1) if ref.phonemes[k].phoneme not in PAUSES]
-        if not ks:
+        if not ks:  # a word with no phones of its own: a point at its place
+            t = phones[k0].start if k0 < len(phones) else phones[-1].end
+            out.append(AlignedWord(t, t, word.text, 0.0))
             continue
         a, b = phones[ks[0]], phones[ks[-1]]
         cost = warp.mean_cost(ref.phonemes[ks[0]].start, ref.phonemes[ks[-1]].end)
