@@ -30,7 +30,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from vtts.align.dtw import Pauses, dtw_path
-from vtts.align.features import ANALYSIS_RATE, MIN_RATE, cepstra, log_mel, median_f0, resample
+from vtts.align.features import (
+    ANALYSIS_RATE,
+    MIN_RATE,
+    WINDOW_S,
+    cepstra,
+    log_mel,
+    median_f0,
+    resample,
+)
 from vtts.errors import SpeechError
 from vtts.speech.phonemes import PAUSES, Mark, Phone
 
@@ -38,6 +46,8 @@ from vtts.speech.phonemes import PAUSES, Mark, Phone
 HOP = 0.010
 #: Frame step of the refinement, s.
 FINE_HOP = 0.005
+#: Analysis window of the refinement's features, s.
+REFINE_WINDOW = WINDOW_S
 #: espeak-ng's default speaking rate, words per minute.
 DEFAULT_RATE = 175
 #: A frame is speech when its energy is within this many dB of the loud frames (90th percentile).
@@ -264,11 +274,24 @@ def align(
     if refine and far and not baseline:
         from vtts.align.refine import refine_phones
 
-        phones = refine_phones(phones, fine_db, FINE_HOP, duration)
+        if REFINE_WINDOW != WINDOW_S:
+            fine_db = log_mel(rec, fs, FINE_HOP, REFINE_WINDOW)
+        if STOP_CLOSURES:
+            ref_audio = resample(ref.audio.astype(np.float32) / np.float32(32768), ref.rate, fs)
+            closed = _closures(ref.phonemes, log_mel(ref_audio, fs, FINE_HOP, CLOSURE_WINDOW))
+            phones = _warped_phones(closed, warp, duration, inserted)
+        if LINK_TO_NEXT:
+            phones = _without_links(
+                phones, lambda ps: refine_phones(ps, fine_db, FINE_HOP, duration)
+            )
+        else:
+            phones = refine_phones(phones, fine_db, FINE_HOP, duration)
         words = _words(ref, phones, warp)
     marks = [Mark(m.name, _carry(m.time, ref.phonemes, phones)) for m in ref.marks]
     # the optional pauses at word boundaries that the recording did not make
-    phones = [p for p in phones if p.duration > 0 or p.phoneme not in PAUSES]
+    phones = [
+        p for p in phones if p.duration > 0 or (p.phoneme not in PAUSES and p.phoneme not in LINKS)
+    ]
     return Alignment(phones, words, marks, used_rate, voice, _problems(words, f0 is not None))
 
 
@@ -374,6 +397,82 @@ def _word_text(token: str) -> str:
 
     text = _unescape(token)
     return text.strip(_WORD_EDGE) or text
+
+
+#: espeak-ng's stops and affricates (its English phoneme names).
+STOPS = frozenset({"p", "b", "t", "d", "k", "g", "tS", "dZ", "t#", "t2", "d#", "d2", "k2"})
+STOP_CLOSURES = True
+CLOSURE_WINDOW = 0.010
+#: How far before a stop's event its closure may begin, s; how deep the closure is, dB.
+CLOSURE_SEARCH = 0.08
+CLOSURE_DB = 12.0
+
+
+def _closures(phones: list[Phone], db: np.ndarray) -> list[Phone]:
+    """``phones`` of espeak-ng's reference with each stop (or affricate) starting where its
+    closure begins: espeak-ng's stop event comes at the release, the closure's silence (30-45
+    ms of it) ending the phone before. ``db``: the reference's log-mel energies every
+    :data:`FINE_HOP` s. (A stop after a pause or another stop is left: given a closure there,
+    the refinement measured the same.)"""
+    e = 10.0 * np.log10((10.0 ** (db / 10.0)).sum(axis=1))
+    starts = np.array([p.start for p in phones])
+    for k in range(1, len(phones)):
+        p, j = phones[k], k - 1
+        while j > 0 and phones[j].duration <= 0:  # the optional pause before a word
+            j -= 1
+        prev = phones[j]
+        if p.phoneme not in STOPS or prev.phoneme in PAUSES or prev.phoneme in STOPS:
+            continue
+        f1 = int(round(p.start / FINE_HOP))
+        f0 = max(int(round(max(p.start - CLOSURE_SEARCH, prev.start) / FINE_HOP)), 0)
+        if f1 - f0 < 3 or f1 > len(e):
+            continue
+        seg = e[f0:f1]
+        low = float(seg.min())
+        loud = np.flatnonzero(seg >= low + CLOSURE_DB)
+        if len(loud) == 0 or loud[-1] == len(seg) - 1:
+            continue
+        # the closure begins after the last frame still CLOSURE_DB above its floor
+        starts[j + 1 : k + 1] = (f0 + loud[-1] + 1) * FINE_HOP
+    starts = np.maximum.accumulate(starts)
+    ends = np.append(starts[1:], phones[-1].end)
+    return [
+        Phone(float(a), float(b), p.phoneme, p.viseme, p.ipa)
+        for p, a, b in zip(phones, starts, ends, strict=True)
+    ]
+
+
+#: espeak-ng's linking glide between a close front vowel and the next vowel ("the owl": D I2 ;
+#: aU): the onset of the next syllable, not a phone of its own.
+LINKS = frozenset({";"})
+LINK_TO_NEXT = True
+
+
+def _without_links(phones: list[Phone], refine) -> list[Phone]:
+    """``refine`` (phones → phones) run on ``phones`` with each linking glide (:data:`LINKS`)
+    made part of the phone after it; the glides come back as zero-length phones at that phone's
+    start."""
+    link = [
+        k > 0 and k + 1 < len(phones) and p.phoneme in LINKS and phones[k + 1].phoneme not in LINKS
+        for k, p in enumerate(phones)
+    ]
+    if not any(link):
+        return refine(phones)
+    kept = []
+    for k, p in enumerate(phones):
+        if link[k]:
+            continue
+        if k > 0 and link[k - 1]:
+            p = Phone(phones[k - 1].start, p.end, p.phoneme, p.viseme, p.ipa)
+        kept.append(p)
+    out = iter(refine(kept))
+    full: list[Phone | None] = [None if link[k] else next(out) for k in range(len(phones))]
+    for k in range(len(phones) - 1, -1, -1):  # each glide: zero length where the next starts
+        if link[k]:
+            q, g = full[k + 1], phones[k]
+            assert q is not None
+            full[k] = Phone(q.start, q.start, g.phoneme, g.viseme, g.ipa)
+    return [p for p in full if p is not None]
 
 
 def _masked(ref_db: np.ndarray, rec_db: np.ndarray) -> np.ndarray:
