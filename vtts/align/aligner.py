@@ -412,8 +412,8 @@ def _closures(phones: list[Phone], db: np.ndarray) -> list[Phone]:
     """``phones`` of espeak-ng's reference with each stop (or affricate) starting where its
     closure begins: espeak-ng's stop event comes at the release, the closure's silence (30-45
     ms of it) ending the phone before. ``db``: the reference's log-mel energies every
-    :data:`FINE_HOP` s. (A stop after a pause or another stop is left: given a closure there,
-    the refinement measured the same.)"""
+    :data:`FINE_HOP` s. A stop after another stop owns the closure after the first's release;
+    one after a pause is left (its closure is the pause's silence)."""
     e = 10.0 * np.log10((10.0 ** (db / 10.0)).sum(axis=1))
     starts = np.array([p.start for p in phones])
     for k in range(1, len(phones)):
@@ -421,7 +421,7 @@ def _closures(phones: list[Phone], db: np.ndarray) -> list[Phone]:
         while j > 0 and phones[j].duration <= 0:  # the optional pause before a word
             j -= 1
         prev = phones[j]
-        if p.phoneme not in STOPS or prev.phoneme in PAUSES or prev.phoneme in STOPS:
+        if p.phoneme not in STOPS or prev.phoneme in PAUSES:
             continue
         f1 = int(round(p.start / FINE_HOP))
         f0 = max(int(round(max(p.start - CLOSURE_SEARCH, prev.start) / FINE_HOP)), 0)
