@@ -127,6 +127,10 @@ REFINE_ABOVE = 5.0
 PAUSE_COST = 2.0
 #: Shortest pause of the recording that becomes a pause phone where the reference has none, s.
 MIN_PAUSE = 0.05
+#: A pause is within this many dB of the recording's quietest frames, not merely far below its
+#: loud ones: a weak fricative (f, th) or a vowel's soft onset is quiet but no pause, and a
+#: pause taken there moved the word after it late by up to 100 ms (festival's voice).
+PAUSE_DB = 3.0
 #: Largest ratio between the speech of the transcript (espeak-ng's) and of the recording.
 MAX_RATIO = 4.0
 #: Frames of pause kept on each side of the speech when warping.
@@ -263,6 +267,7 @@ def align(
     for b in boundaries:
         rows[max(b - 1, 0) : b + 1] = True
     silent = ~rec_speech[rec_span[0] : rec_span[0] + len(rec_x)]
+    silent &= _quiet(rec_db)[rec_span[0] : rec_span[0] + len(rec_x)]
     silent = np.append(silent, np.ones(len(rec_x) - len(silent), bool))
     pauses = Pauses(rows, silent, PAUSE_COST) if not baseline else None
     path, _ = dtw_path(ref_x, rec_x, pauses=pauses)
@@ -473,6 +478,13 @@ def _without_links(phones: list[Phone], refine) -> list[Phone]:
             assert q is not None
             full[k] = Phone(q.start, q.start, g.phoneme, g.viseme, g.ipa)
     return [p for p in full if p is not None]
+
+
+def _quiet(db: np.ndarray) -> np.ndarray:
+    """``(n,)`` bool: frames of ``(n, n_mels)`` log-mel energies within :data:`PAUSE_DB` of the
+    quietest (the 5th percentile): where a pause may be."""
+    energy = 10.0 * np.log10((10.0 ** (db / 10.0)).sum(axis=1))
+    return energy < np.percentile(energy, 5) + PAUSE_DB
 
 
 def _masked(ref_db: np.ndarray, rec_db: np.ndarray) -> np.ndarray:
