@@ -6,17 +6,23 @@ The method (measured in ``docs/speech.md``, "Lip-sync for recorded speech"):
    bookmark that ``vtts say`` sends it), which gives its phones, words and marks in its own clock;
    a high voice (median pitch above :data:`HIGH_VOICE_HZ`) is compared with espeak-ng's female
    variant. (Speaking it again at the recording's rate, ``match_rate``, measured no better.)
+   Words espeak-ng's dictionary speaks as one (``in the``) are split, so that every word of the
+   transcript has a time.
 2. **Silence anchoring.** Only the spans from the first to the last speech frame of each are
    warped; the clean reference is raised to the recording's noise floor.
 3. **Warping.** MFCC features of both (:mod:`vtts.align.features`) are aligned by dynamic time
    warping in bounded memory (:mod:`vtts.align.dtw`), where a word boundary of the reference may
-   rest on a pause of the recording cheaply; espeak's own phone times are carried to the
-   recording through the warping path (the method of the ``aeneas`` aligner), and a pause the
-   path rested on becomes a pause phone.
-4. **Refinement** (:mod:`vtts.align.refine`), for a voice far from espeak-ng's: the recording's
-   frames under each phone give models of *this* voice's phones; a Viterbi pass of the phone
-   sequence over the recording with those models, at a finer frame step and within a window
-   around the warped boundaries, moves each boundary to where this voice's spectrum changes.
+   rest cheaply on a pause of the recording (silence within :data:`PAUSE_DB` of its quietest
+   frames); espeak's own phone times are carried to the recording through the warping path (the
+   method of the ``aeneas`` aligner), and a pause the path rested on becomes a pause phone.
+4. **Refinement** (:mod:`vtts.align.refine`), for a voice far from espeak-ng's: the reference's
+   phones are first put in the phonetic convention (a stop owns its closure, which espeak-ng's
+   stop events leave to the phone before; its linking glide is the next vowel's onset); the
+   recording's frames under each phone give models of *this* voice's phones; a Viterbi pass of
+   the phone sequence over the recording with those models, at a finer frame step and within a
+   window around the warped boundaries, moves each boundary to where this voice's spectrum
+   changes. The reference is then warped again as this voice would say it (each state of each
+   phone its model's mean), and the Viterbi passes run again.
 5. **Check.** Each word's warping cost (the mean distance of the frames the path matched) says
    how well the recording and the transcript agree there; runs of words far above a typical
    word are reported as problems naming the words and their time.
@@ -33,7 +39,6 @@ from vtts.align.dtw import Pauses, dtw_path
 from vtts.align.features import (
     ANALYSIS_RATE,
     MIN_RATE,
-    WINDOW_S,
     cepstra,
     log_mel,
     median_f0,
@@ -46,8 +51,6 @@ from vtts.speech.phonemes import PAUSES, Mark, Phone
 HOP = 0.010
 #: Frame step of the refinement, s.
 FINE_HOP = 0.005
-#: Analysis window of the refinement's features, s.
-REFINE_WINDOW = WINDOW_S
 #: espeak-ng's default speaking rate, words per minute.
 DEFAULT_RATE = 175
 #: A frame is speech when its energy is within this many dB of the loud frames (90th percentile).
@@ -272,25 +275,15 @@ def align(
     pauses = Pauses(rows, silent, PAUSE_COST) if not baseline else None
     path, _ = dtw_path(ref_x, rec_x, pauses=pauses)
     warp = _Warp(path, ref_x, rec_x, ref_t0, rec_t0)
-    inserted = _inserted_pauses(ref, boundaries, path, silent, ref_t0, rec_t0)
+    at = _inserted_pauses(ref, boundaries)
+    spans = _pause_spans(boundaries, path, silent, rec_t0)
+    inserted = {k: span for k, span in zip(at, spans, strict=True) if span is not None}
     phones = _warped_phones(ref.phonemes, warp, duration, inserted)
     words = _words(ref, phones, warp)
     far = bool(words) and float(np.median([w.cost for w in words])) > REFINE_ABOVE
     if refine and far and not baseline:
-        from vtts.align.refine import refine_phones
-
-        if REFINE_WINDOW != WINDOW_S:
-            fine_db = log_mel(rec, fs, FINE_HOP, REFINE_WINDOW)
-        if STOP_CLOSURES:
-            ref_audio = resample(ref.audio.astype(np.float32) / np.float32(32768), ref.rate, fs)
-            closed = _closures(ref.phonemes, log_mel(ref_audio, fs, FINE_HOP, CLOSURE_WINDOW))
-            phones = _warped_phones(closed, warp, duration, inserted)
-        if LINK_TO_NEXT:
-            phones = _without_links(
-                phones, lambda ps: refine_phones(ps, fine_db, FINE_HOP, duration)
-            )
-        else:
-            phones = refine_phones(phones, fine_db, FINE_HOP, duration)
+        pause_at = (at, boundaries, pauses)
+        phones = _refined(ref, rec_x, fine_db, warp, inserted, pause_at, fs, duration)
         words = _words(ref, phones, warp)
     marks = [Mark(m.name, _carry(m.time, ref.phonemes, phones)) for m in ref.marks]
     # the optional pauses at word boundaries that the recording did not make
@@ -298,6 +291,39 @@ def align(
         p for p in phones if p.duration > 0 or (p.phoneme not in PAUSES and p.phoneme not in LINKS)
     ]
     return Alignment(phones, words, marks, used_rate, voice, _problems(words, f0 is not None))
+
+
+def _refined(ref, rec_x, fine_db, warp, inserted, pause_at, fs, duration) -> list[Phone]:
+    """The warped phones refined against the recording's own voice (:mod:`vtts.align.refine`),
+    one per phone of ``ref.phonemes``.
+
+    1. The reference's phones are put in the phonetic convention first: a stop after a sound
+       starts at its closure (:func:`_closures`), a linking glide is the next vowel's onset.
+    2. One Viterbi pass with models of the recording's phones from those warped phones.
+    3. The reference is warped again as the recording's voice speaks it: each state of each phone
+       filled with the recording's mean frame of that state (:func:`refine.voice_template`), so
+       that the warping compares one voice with itself; then the refinement's passes again."""
+    from vtts.align.refine import refine_phones, voice_template
+
+    at, boundaries, pauses = pause_at
+    ref_audio = resample(ref.audio.astype(np.float32) / np.float32(32768), ref.rate, fs)
+    layout = _linked(_closures(ref.phonemes, log_mel(ref_audio, fs, FINE_HOP, CLOSURE_WINDOW)))
+    phones = _warped_phones(layout, warp, duration, inserted)
+
+    def refined(phones: list[Phone], passes: int | None = None) -> list[Phone]:
+        return _without_links(
+            phones, lambda ps: refine_phones(ps, fine_db, FINE_HOP, duration, passes=passes)
+        )
+
+    phones = refined(phones, passes=1)
+    template, rec_y = voice_template(
+        phones, rec_x, warp.rec_t0, layout, len(warp.target), warp.ref_t0, HOP
+    )
+    path, _ = dtw_path(template, rec_y, pauses=pauses)
+    again = _Warp(path, template, rec_y, warp.ref_t0, warp.rec_t0)
+    spans = _pause_spans(boundaries, path, pauses.cols, warp.rec_t0)
+    inserted = {k: span for k, span in zip(at, spans, strict=True) if span is not None}
+    return refined(_warped_phones(layout, again, duration, inserted))
 
 
 #: A run of characters of the transcript without spaces or tags (tags blanked out first).
@@ -406,7 +432,6 @@ def _word_text(token: str) -> str:
 
 #: espeak-ng's stops and affricates (its English phoneme names).
 STOPS = frozenset({"p", "b", "t", "d", "k", "g", "tS", "dZ", "t#", "t2", "d#", "d2", "k2"})
-STOP_CLOSURES = True
 CLOSURE_WINDOW = 0.010
 #: How far before a stop's event its closure may begin, s; how deep the closure is, dB.
 CLOSURE_SEARCH = 0.08
@@ -450,7 +475,18 @@ def _closures(phones: list[Phone], db: np.ndarray) -> list[Phone]:
 #: espeak-ng's linking glide between a close front vowel and the next vowel ("the owl": D I2 ;
 #: aU): the onset of the next syllable, not a phone of its own.
 LINKS = frozenset({";"})
-LINK_TO_NEXT = True
+
+
+def _linked(phones: list[Phone]) -> list[Phone]:
+    """``phones`` with each linking glide made part of the phone after it (zero length at its
+    start)."""
+    out = list(phones)
+    for k in range(len(out) - 2, 0, -1):
+        p, q = out[k], out[k + 1]
+        if p.phoneme in LINKS and q.phoneme not in LINKS:
+            out[k + 1] = Phone(p.start, q.end, q.phoneme, q.viseme, q.ipa)
+            out[k] = Phone(p.start, p.start, p.phoneme, p.viseme, p.ipa)
+    return out
 
 
 def _without_links(phones: list[Phone], refine) -> list[Phone]:
@@ -546,13 +582,12 @@ def _word_boundaries(ref, ref_t0: float, n: int, joined=frozenset()) -> dict[int
     return out
 
 
-def _inserted_pauses(ref, boundaries, path, silent, ref_t0, rec_t0) -> dict[int, tuple]:
-    """Pauses of the recording where the reference has none: the path resting on a word
-    boundary over at least :data:`MIN_PAUSE` s of silence. Each becomes a zero-length ``_`` in
-    ``ref.phonemes`` (before the word); returns its index → (start, end) in the recording (s)."""
+def _pause_spans(boundaries, path, silent, rec_t0) -> list[tuple | None]:
+    """For each word boundary (in order), the pause of the recording the path rested on there:
+    (start, end) in the recording (s) of at least :data:`MIN_PAUSE` s of silence, or None."""
     rows = path[:, 0]  # non-decreasing
-    found: list[tuple[float, tuple | None]] = []
-    for b, t in sorted(boundaries.items()):
+    found: list[tuple | None] = []
+    for b in sorted(boundaries):
         i0, i1 = np.searchsorted(rows, b - 1), np.searchsorted(rows, b, side="right")
         cols = path[i0:i1, 1]
         cols = cols[silent[cols]]
@@ -563,19 +598,24 @@ def _inserted_pauses(ref, boundaries, path, silent, ref_t0, rec_t0) -> dict[int,
             run = max(runs, key=len)
             if len(run) * HOP >= MIN_PAUSE:
                 span = (rec_t0 + run[0] * HOP, rec_t0 + (run[-1] + 1) * HOP)
-        found.append((t, span))
-    # one pass: every word boundary gets a zero-length pause before its first phone
+        found.append(span)
+    return found
+
+
+def _inserted_pauses(ref, boundaries) -> list[int]:
+    """Every word boundary gets a zero-length ``_`` in ``ref.phonemes`` before its first phone
+    (where the recording may pause and the reference does not); returns their indices, in the
+    order of the boundaries."""
+    times = [boundaries[b] for b in sorted(boundaries)]
     starts = np.array([p.start for p in ref.phonemes])
-    at = np.searchsorted(starts, np.array([t for t, _ in found]) - 1e-9)
+    at = np.searchsorted(starts, np.array(times) - 1e-9)
     phones: list[Phone] = []
-    out: dict[int, tuple] = {}
+    out: list[int] = []
     j = 0
     for k, p in enumerate(ref.phonemes):
-        while j < len(found) and at[j] == k:
-            t, span = found[j]
-            if span is not None:
-                out[len(phones)] = span
-            phones.append(Phone(t, t, "_", 0))
+        while j < len(times) and at[j] == k:
+            out.append(len(phones))
+            phones.append(Phone(times[j], times[j], "_", 0))
             j += 1
         phones.append(p)
     ref.phonemes[:] = phones
