@@ -130,9 +130,10 @@ REFINE_ABOVE = 5.0
 PAUSE_COST = 2.0
 #: Shortest pause of the recording that becomes a pause phone where the reference has none, s.
 MIN_PAUSE = 0.05
-#: A pause is within this many dB of the recording's quietest frames, not merely far below its
-#: loud ones: a weak fricative (f, th) or a vowel's soft onset is quiet but no pause, and a
-#: pause taken there moved the word after it late by up to 100 ms (festival's voice).
+#: A pause reaches down to within this many dB of the recording's quietest frames, not merely
+#: far below its loud ones: a weak fricative (f, th) or a vowel's soft onset is quiet but no
+#: pause, and a pause taken there moved the word after it late by up to 100 ms (festival's
+#: voice).
 PAUSE_DB = 3.0
 #: Largest ratio between the speech of the transcript (espeak-ng's) and of the recording.
 MAX_RATIO = 4.0
@@ -269,8 +270,7 @@ def align(
     rows = np.zeros(len(ref_x), bool)
     for b in boundaries:
         rows[max(b - 1, 0) : b + 1] = True
-    silent = ~rec_speech[rec_span[0] : rec_span[0] + len(rec_x)]
-    silent &= _quiet(rec_db)[rec_span[0] : rec_span[0] + len(rec_x)]
+    silent = _pauses(rec_speech, rec_db)[rec_span[0] : rec_span[0] + len(rec_x)]
     silent = np.append(silent, np.ones(len(rec_x) - len(silent), bool))
     pauses = Pauses(rows, silent, PAUSE_COST) if not baseline else None
     path, _ = dtw_path(ref_x, rec_x, pauses=pauses)
@@ -516,11 +516,19 @@ def _without_links(phones: list[Phone], refine) -> list[Phone]:
     return [p for p in full if p is not None]
 
 
-def _quiet(db: np.ndarray) -> np.ndarray:
-    """``(n,)`` bool: frames of ``(n, n_mels)`` log-mel energies within :data:`PAUSE_DB` of the
-    quietest (the 5th percentile): where a pause may be."""
+def _pauses(speech: np.ndarray, db: np.ndarray) -> np.ndarray:
+    """``(n,)`` bool: frames where the recording may pause: the runs of frames that are not
+    ``speech`` and reach down to within :data:`PAUSE_DB` of its quietest frames (the 5th
+    percentile of energy of ``(n, n_mels)`` log-mel energies ``db``)."""
     energy = 10.0 * np.log10((10.0 ** (db / 10.0)).sum(axis=1))
-    return energy < np.percentile(energy, 5) + PAUSE_DB
+    quiet = energy < np.percentile(energy, 5) + PAUSE_DB
+    silent = ~speech
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], silent.view(np.int8), [0]])))
+    out = np.zeros_like(silent)
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        if quiet[a:b].any():
+            out[a:b] = True
+    return out
 
 
 def _masked(ref_db: np.ndarray, rec_db: np.ndarray) -> np.ndarray:
