@@ -98,6 +98,20 @@ def test_no_word_of_the_transcript_is_lost() -> None:
     assert np.abs(errors.signed).max() <= 0.06, errors.signed  # measured 40 ms at worst
 
 
+def test_festival_word_boundaries_on_a_sentence_no_constant_was_tuned_on() -> None:
+    # stops after sounds and after stops (their closures), "the apple" (espeak-ng's linking
+    # glide), "in the" (one word to espeak-ng), a comma's pause: the aligner of issue 19 put
+    # "apple" 110 ms late and lost "the" (issue 45)
+    text = "Grab a pickle, then dip the apple in the honey."
+    speech = festival.synthesize(text)
+    found = align(floats(speech.audio), speech.rate, ssml(text))
+    words = word_errors(found.words, speech.words, text)
+    assert not words.lost
+    assert np.abs(words.signed).max() <= 0.06, words.signed  # measured 35 ms at worst
+    phones = boundary_errors(found.phones, speech.phonemes).summary()
+    assert phones["median_ms"] <= 15 and phones["p90_ms"] <= 40, phones  # measured 12.5 and 30
+
+
 def test_bookmarks_land_between_their_words(tmp_path, other_voice):
     text = "Maybe Bob can bring <smile 1s> the map, but please <blink> remember my umbrella."
     wav = tmp_path / "rec.wav"
