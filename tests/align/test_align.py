@@ -14,7 +14,7 @@ import soundfile as sf
 from vtts.align import align
 from vtts.align import dtw as dtw_module
 from vtts.align.dtw import corridor_dtw, dtw_path
-from vtts.align.score import boundary_errors
+from vtts.align.score import boundary_errors, word_errors
 from vtts.errors import SpeechError
 from vtts.render import probe_media
 from vtts.speech import festival
@@ -84,6 +84,32 @@ def test_festival_voice_aligns() -> None:
     s = boundary_errors(found.phones, speech.phonemes).summary()
     assert s["matched"] > 0.85
     assert s["median_ms"] <= 25 and s["p90_ms"] <= 70, s  # measured 10 and 45 over 400 words
+
+
+def test_no_word_of_the_transcript_is_lost() -> None:
+    # espeak-ng's dictionary speaks "in the", "of a" and "out of" as one word each: "the" and "a"
+    # had no time (issue 45); each is a word of its own, timed against festival's word times
+    text = "Leave it in the back of a taxi, out of the rain."
+    speech = festival.synthesize(text)
+    found = align(floats(speech.audio), speech.rate, ssml(text))
+    assert [w.text for w in found.words] == text.replace(",", "").rstrip(".").split()
+    errors = word_errors(found.words, speech.words, text)
+    assert not errors.lost and not errors.unmatched
+    assert np.abs(errors.signed).max() <= 0.06, errors.signed  # measured 40 ms at worst
+
+
+def test_festival_word_boundaries_on_a_sentence_no_constant_was_tuned_on() -> None:
+    # stops after sounds and after stops (their closures), "the apple" (espeak-ng's linking
+    # glide), "in the" (one word to espeak-ng), a comma's pause: the aligner of issue 19 put
+    # "apple" 110 ms late and lost "the" (issue 45)
+    text = "Grab a pickle, then dip the apple in the honey."
+    speech = festival.synthesize(text)
+    found = align(floats(speech.audio), speech.rate, ssml(text))
+    words = word_errors(found.words, speech.words, text)
+    assert not words.lost
+    assert np.abs(words.signed).max() <= 0.06, words.signed  # measured 35 ms at worst
+    phones = boundary_errors(found.phones, speech.phonemes).summary()
+    assert phones["median_ms"] <= 15 and phones["p90_ms"] <= 40, phones  # measured 12.5 and 30
 
 
 def test_bookmarks_land_between_their_words(tmp_path, other_voice):

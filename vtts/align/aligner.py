@@ -6,17 +6,23 @@ The method (measured in ``docs/speech.md``, "Lip-sync for recorded speech"):
    bookmark that ``vtts say`` sends it), which gives its phones, words and marks in its own clock;
    a high voice (median pitch above :data:`HIGH_VOICE_HZ`) is compared with espeak-ng's female
    variant. (Speaking it again at the recording's rate, ``match_rate``, measured no better.)
+   Words espeak-ng's dictionary speaks as one (``in the``) are split, so that every word of the
+   transcript has a time.
 2. **Silence anchoring.** Only the spans from the first to the last speech frame of each are
    warped; the clean reference is raised to the recording's noise floor.
 3. **Warping.** MFCC features of both (:mod:`vtts.align.features`) are aligned by dynamic time
    warping in bounded memory (:mod:`vtts.align.dtw`), where a word boundary of the reference may
-   rest on a pause of the recording cheaply; espeak's own phone times are carried to the
-   recording through the warping path (the method of the ``aeneas`` aligner), and a pause the
-   path rested on becomes a pause phone.
-4. **Refinement** (:mod:`vtts.align.refine`), for a voice far from espeak-ng's: the recording's
-   frames under each phone give models of *this* voice's phones; a Viterbi pass of the phone
-   sequence over the recording with those models, at a finer frame step and within a window
-   around the warped boundaries, moves each boundary to where this voice's spectrum changes.
+   rest cheaply on a pause of the recording (silence within :data:`PAUSE_DB` of its quietest
+   frames); espeak's own phone times are carried to the recording through the warping path (the
+   method of the ``aeneas`` aligner), and a pause the path rested on becomes a pause phone.
+4. **Refinement** (:mod:`vtts.align.refine`), for a voice far from espeak-ng's: the reference's
+   phones are first put in the phonetic convention (a stop owns its closure, which espeak-ng's
+   stop events leave to the phone before; its linking glide is the next vowel's onset); the
+   recording's frames under each phone give models of *this* voice's phones; a Viterbi pass of
+   the phone sequence over the recording with those models, at a finer frame step and within a
+   window around the warped boundaries, moves each boundary to where this voice's spectrum
+   changes. The reference is then warped again as this voice would say it (each state of each
+   phone its model's mean), and the Viterbi passes run again.
 5. **Check.** Each word's warping cost (the mean distance of the frames the path matched) says
    how well the recording and the transcript agree there; runs of words far above a typical
    word are reported as problems naming the words and their time.
@@ -30,7 +36,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from vtts.align.dtw import Pauses, dtw_path
-from vtts.align.features import ANALYSIS_RATE, MIN_RATE, cepstra, log_mel, median_f0, resample
+from vtts.align.features import (
+    ANALYSIS_RATE,
+    MIN_RATE,
+    cepstra,
+    log_mel,
+    median_f0,
+    resample,
+)
 from vtts.errors import SpeechError
 from vtts.speech.phonemes import PAUSES, Mark, Phone
 
@@ -117,6 +130,11 @@ REFINE_ABOVE = 5.0
 PAUSE_COST = 2.0
 #: Shortest pause of the recording that becomes a pause phone where the reference has none, s.
 MIN_PAUSE = 0.05
+#: A pause reaches down to within this many dB of the recording's quietest frames, not merely
+#: far below its loud ones: a weak fricative (f, th) or a vowel's soft onset is quiet but no
+#: pause, and a pause taken there moved the word after it late by up to 100 ms (festival's
+#: voice).
+PAUSE_DB = 3.0
 #: Largest ratio between the speech of the transcript (espeak-ng's) and of the recording.
 MAX_RATIO = 4.0
 #: Frames of pause kept on each side of the speech when warping.
@@ -210,6 +228,7 @@ def align(
     ref = synthesize(ssml, voice=voice)
     if not any(p.phoneme not in PAUSES for p in ref.phonemes):
         raise SpeechError("the transcript has nothing to say: no phones to align")
+    joined = _split_merged_words(ref, ssml, voice)
     used_rate = DEFAULT_RATE
     if match_rate:
         ref_db = log_mel(
@@ -220,6 +239,7 @@ def align(
         if abs(wanted - DEFAULT_RATE) > 0.05 * DEFAULT_RATE:
             used_rate = wanted
             ref = synthesize(ssml, voice=voice, rate=used_rate)
+            joined = _split_merged_words(ref, ssml, voice)
     if ref.phonemes[0].phoneme not in PAUSES:
         # the pause before the first word, which the recording may have and espeak may not
         first = ref.phonemes[0]
@@ -246,28 +266,269 @@ def align(
     ref_x = cepstra(ref_db[ref_span[0] : ref_span[1]])
     rec_x = cepstra(rec_db[rec_span[0] : rec_span[1]])
     ref_t0, rec_t0 = ref_span[0] * step / fs, rec_span[0] * step / fs
-    boundaries = _word_boundaries(ref, ref_t0, len(ref_x)) if not baseline else {}
+    boundaries = _word_boundaries(ref, ref_t0, len(ref_x), joined) if not baseline else {}
     rows = np.zeros(len(ref_x), bool)
     for b in boundaries:
         rows[max(b - 1, 0) : b + 1] = True
-    silent = ~rec_speech[rec_span[0] : rec_span[0] + len(rec_x)]
+    silent = _pauses(rec_speech, rec_db)[rec_span[0] : rec_span[0] + len(rec_x)]
     silent = np.append(silent, np.ones(len(rec_x) - len(silent), bool))
     pauses = Pauses(rows, silent, PAUSE_COST) if not baseline else None
     path, _ = dtw_path(ref_x, rec_x, pauses=pauses)
     warp = _Warp(path, ref_x, rec_x, ref_t0, rec_t0)
-    inserted = _inserted_pauses(ref, boundaries, path, silent, ref_t0, rec_t0)
+    at = _inserted_pauses(ref, boundaries)
+    spans = _pause_spans(boundaries, path, silent, rec_t0)
+    inserted = {k: span for k, span in zip(at, spans, strict=True) if span is not None}
     phones = _warped_phones(ref.phonemes, warp, duration, inserted)
     words = _words(ref, phones, warp)
     far = bool(words) and float(np.median([w.cost for w in words])) > REFINE_ABOVE
     if refine and far and not baseline:
-        from vtts.align.refine import refine_phones
-
-        phones = refine_phones(phones, fine_db, FINE_HOP, duration)
+        pause_at = (at, boundaries, pauses)
+        phones = _refined(ref, rec_x, fine_db, warp, inserted, pause_at, fs, duration)
         words = _words(ref, phones, warp)
     marks = [Mark(m.name, _carry(m.time, ref.phonemes, phones)) for m in ref.marks]
     # the optional pauses at word boundaries that the recording did not make
-    phones = [p for p in phones if p.duration > 0 or p.phoneme not in PAUSES]
+    phones = [
+        p for p in phones if p.duration > 0 or (p.phoneme not in PAUSES and p.phoneme not in LINKS)
+    ]
     return Alignment(phones, words, marks, used_rate, voice, _problems(words, f0 is not None))
+
+
+def _refined(ref, rec_x, fine_db, warp, inserted, pause_at, fs, duration) -> list[Phone]:
+    """The warped phones refined against the recording's own voice (:mod:`vtts.align.refine`),
+    one per phone of ``ref.phonemes``.
+
+    1. The reference's phones are put in the phonetic convention first: a stop after a sound
+       starts at its closure (:func:`_closures`), a linking glide is the next vowel's onset.
+    2. One Viterbi pass with models of the recording's phones from those warped phones.
+    3. The reference is warped again as the recording's voice speaks it: each state of each phone
+       filled with the recording's mean frame of that state (:func:`refine.voice_template`), so
+       that the warping compares one voice with itself; then the refinement's passes again."""
+    from vtts.align.refine import refine_phones, voice_template
+
+    at, boundaries, pauses = pause_at
+    ref_audio = resample(ref.audio.astype(np.float32) / np.float32(32768), ref.rate, fs)
+    layout = _linked(_closures(ref.phonemes, log_mel(ref_audio, fs, FINE_HOP, CLOSURE_WINDOW)))
+    phones = _warped_phones(layout, warp, duration, inserted)
+
+    def refined(phones: list[Phone], passes: int | None = None) -> list[Phone]:
+        return _without_links(
+            phones, lambda ps: refine_phones(ps, fine_db, FINE_HOP, duration, passes=passes)
+        )
+
+    phones = refined(phones, passes=1)
+    template, rec_y = voice_template(
+        phones, rec_x, warp.rec_t0, layout, len(warp.target), warp.ref_t0, HOP
+    )
+    path, _ = dtw_path(template, rec_y, pauses=pauses)
+    again = _Warp(path, template, rec_y, warp.ref_t0, warp.rec_t0)
+    spans = _pause_spans(boundaries, path, pauses.cols, warp.rec_t0)
+    inserted = {k: span for k, span in zip(at, spans, strict=True) if span is not None}
+    return refined(_warped_phones(layout, again, duration, inserted))
+
+
+#: A run of characters of the transcript without spaces or tags (tags blanked out first).
+_TOKEN = re.compile(r"\S+")
+
+
+def _tokens(ssml: str) -> list[tuple[int, int]]:
+    """``[start, end)`` in ``ssml`` of each word of the transcript: a run of characters without
+    spaces or tags that holds a letter or digit."""
+    blank = re.sub(r"<[^>]*>", lambda m: " " * len(m.group()), ssml)
+    return [
+        (m.start(), m.end())
+        for m in _TOKEN.finditer(blank)
+        if any(c.isalnum() for c in _unescape(m.group()))
+    ]
+
+
+def _split_merged_words(ref, ssml: str, voice: str) -> set[float]:
+    """Give every word of the transcript its own phones in ``ref.words``, in place; returns the
+    start times of the words split off (no pause is looked for before them: espeak-ng joins
+    only words said without one).
+
+    espeak-ng's dictionary speaks some pairs of function words as one word (``in the`` is
+    ``InD@2``, ``of a`` is ``@v@``): their phones all carry the first word's text position, and
+    the second word has no word of its own. Each such run is split: the words are spoken again
+    apart (a zero-length ``<break/>`` between them keeps the dictionary from joining them) for
+    the number of phones of each, and the run's phones are shared out in those proportions, in
+    order. A word spoken with no phones at all gets a zero-length word at its place."""
+    from vtts.speech.tts import Word, synthesize
+
+    tokens = _tokens(ssml)
+    if not ref.words or not tokens:
+        return set()
+    positions = np.array([w.position for w in ref.words])
+    # the word of ref.words each token holds, or -1
+    owner = []
+    for a, b in tokens:
+        k = int(np.searchsorted(positions, a))
+        owner.append(k if k < len(positions) and positions[k] < b else -1)
+    groups: list[tuple[int, list[int]]] = []  # (index in ref.words, tokens it speaks)
+    for t, k in enumerate(owner):
+        if k >= 0 and not (groups and groups[-1][0] == k):
+            groups.append((k, [t]))
+        elif groups:  # no word of its own: spoken with the word before
+            groups[-1][1].append(t)
+    merged = [(k, ts) for k, ts in groups if len(ts) > 1]
+    if not merged:
+        return set()
+    # each token spoken apart: its number of phones
+    pieces = [ssml[tokens[t][0] : tokens[t][1]] for _, ts in merged for t in ts]
+    apart = synthesize("<speak>" + ' <break time="0ms"/>'.join(pieces) + "</speak>", voice=voice)
+    starts, at = [], len("<speak>")
+    for piece in pieces:
+        starts.append(at)
+        at += len(piece) + len(' <break time="0ms"/>')
+    counts = dict.fromkeys(range(len(pieces)), 0)
+    phone_starts = np.array([p.start for p in apart.phonemes])
+    for w in apart.words:
+        i = int(np.searchsorted(starts, w.position, side="right")) - 1
+        k0 = int(np.searchsorted(phone_starts, w.start - 1e-9))
+        k1 = int(np.searchsorted(phone_starts, (w.end or w.start) - 1e-9))
+        counts[i] += sum(1 for p in apart.phonemes[k0:k1] if p.phoneme not in PAUSES)
+    words = list(ref.words)
+    ref_starts = np.array([p.start for p in ref.phonemes])
+    piece = 0
+    replace: dict[int, list] = {}
+    for k, ts in merged:
+        w = words[k]
+        k0 = int(np.searchsorted(ref_starts, w.start - 1e-9))
+        k1 = int(np.searchsorted(ref_starts, (w.end or w.start) - 1e-9))
+        spoken = [p for p in ref.phonemes[k0:k1] if p.phoneme not in PAUSES]
+        c = np.array([counts[piece + j] for j in range(len(ts))], float)
+        piece += len(ts)
+        if c.sum() == 0:
+            c[0] = 1.0
+        cuts = np.round(len(spoken) * np.cumsum(c) / c.sum()).astype(int)
+        cuts = np.minimum(np.maximum.accumulate(np.concatenate([[0], cuts])), len(spoken))
+        out = []
+        for j, t in enumerate(ts):
+            a, b = tokens[t]
+            if cuts[j + 1] > cuts[j]:
+                t0, t1 = spoken[cuts[j]].start, spoken[cuts[j + 1] - 1].end
+            else:  # no phones of its own: a point at its place
+                t0 = t1 = spoken[cuts[j] - 1].end if cuts[j] > 0 else w.start
+            text = w.text if j == 0 else _word_text(ssml[a:b])
+            out.append(Word(t0, a if j else w.position, b - a if j else w.length, t1, text))
+        replace[k] = out
+    ref.words[:] = [x for k, w in enumerate(words) for x in replace.get(k, [w])]
+    return {w.start for out in replace.values() for w in out[1:]}
+
+
+def _unescape(text: str) -> str:
+    for entity, char in (("&lt;", "<"), ("&gt;", ">"), ("&quot;", '"'), ("&apos;", "'")):
+        text = text.replace(entity, char)
+    return text.replace("&amp;", "&")
+
+
+def _word_text(token: str) -> str:
+    """A token of the SSML as a word's text (entities decoded, punctuation around it
+    stripped), as espeak-ng's words are written (:func:`vtts.speech.tts._word_at`)."""
+    from vtts.speech.tts import _WORD_EDGE
+
+    text = _unescape(token)
+    return text.strip(_WORD_EDGE) or text
+
+
+#: espeak-ng's stops and affricates (its English phoneme names).
+STOPS = frozenset({"p", "b", "t", "d", "k", "g", "tS", "dZ", "t#", "t2", "d#", "d2", "k2"})
+CLOSURE_WINDOW = 0.010
+#: How far before a stop's event its closure may begin, s; how deep the closure is, dB.
+CLOSURE_SEARCH = 0.08
+CLOSURE_DB = 12.0
+
+
+def _closures(phones: list[Phone], db: np.ndarray) -> list[Phone]:
+    """``phones`` of espeak-ng's reference with each stop (or affricate) starting where its
+    closure begins: espeak-ng's stop event comes at the release, the closure's silence (30-45
+    ms of it) ending the phone before. ``db``: the reference's log-mel energies every
+    :data:`FINE_HOP` s. A stop after another stop owns the closure after the first's release;
+    one after a pause is left (its closure is the pause's silence)."""
+    e = 10.0 * np.log10((10.0 ** (db / 10.0)).sum(axis=1))
+    starts = np.array([p.start for p in phones])
+    for k in range(1, len(phones)):
+        p, j = phones[k], k - 1
+        while j > 0 and phones[j].duration <= 0:  # the optional pause before a word
+            j -= 1
+        prev = phones[j]
+        if p.phoneme not in STOPS or prev.phoneme in PAUSES:
+            continue
+        f1 = int(round(p.start / FINE_HOP))
+        f0 = max(int(round(max(p.start - CLOSURE_SEARCH, prev.start) / FINE_HOP)), 0)
+        if f1 - f0 < 3 or f1 > len(e):
+            continue
+        seg = e[f0:f1]
+        low = float(seg.min())
+        loud = np.flatnonzero(seg >= low + CLOSURE_DB)
+        if len(loud) == 0 or loud[-1] == len(seg) - 1:
+            continue
+        # the closure begins after the last frame still CLOSURE_DB above its floor
+        starts[j + 1 : k + 1] = (f0 + loud[-1] + 1) * FINE_HOP
+    starts = np.maximum.accumulate(starts)
+    ends = np.append(starts[1:], phones[-1].end)
+    return [
+        Phone(float(a), float(b), p.phoneme, p.viseme, p.ipa)
+        for p, a, b in zip(phones, starts, ends, strict=True)
+    ]
+
+
+#: espeak-ng's linking glide between a close front vowel and the next vowel ("the owl": D I2 ;
+#: aU): the onset of the next syllable, not a phone of its own.
+LINKS = frozenset({";"})
+
+
+def _linked(phones: list[Phone]) -> list[Phone]:
+    """``phones`` with each linking glide made part of the phone after it (zero length at its
+    start)."""
+    out = list(phones)
+    for k in range(len(out) - 2, 0, -1):
+        p, q = out[k], out[k + 1]
+        if p.phoneme in LINKS and q.phoneme not in LINKS:
+            out[k + 1] = Phone(p.start, q.end, q.phoneme, q.viseme, q.ipa)
+            out[k] = Phone(p.start, p.start, p.phoneme, p.viseme, p.ipa)
+    return out
+
+
+def _without_links(phones: list[Phone], refine) -> list[Phone]:
+    """``refine`` (phones → phones) run on ``phones`` with each linking glide (:data:`LINKS`)
+    made part of the phone after it; the glides come back as zero-length phones at that phone's
+    start."""
+    link = [
+        k > 0 and k + 1 < len(phones) and p.phoneme in LINKS and phones[k + 1].phoneme not in LINKS
+        for k, p in enumerate(phones)
+    ]
+    if not any(link):
+        return refine(phones)
+    kept = []
+    for k, p in enumerate(phones):
+        if link[k]:
+            continue
+        if k > 0 and link[k - 1]:
+            p = Phone(phones[k - 1].start, p.end, p.phoneme, p.viseme, p.ipa)
+        kept.append(p)
+    out = iter(refine(kept))
+    full: list[Phone | None] = [None if link[k] else next(out) for k in range(len(phones))]
+    for k in range(len(phones) - 1, -1, -1):  # each glide: zero length where the next starts
+        if link[k]:
+            q, g = full[k + 1], phones[k]
+            assert q is not None
+            full[k] = Phone(q.start, q.start, g.phoneme, g.viseme, g.ipa)
+    return [p for p in full if p is not None]
+
+
+def _pauses(speech: np.ndarray, db: np.ndarray) -> np.ndarray:
+    """``(n,)`` bool: frames where the recording may pause: the runs of frames that are not
+    ``speech`` and reach down to within :data:`PAUSE_DB` of its quietest frames (the 5th
+    percentile of energy of ``(n, n_mels)`` log-mel energies ``db``)."""
+    energy = 10.0 * np.log10((10.0 ** (db / 10.0)).sum(axis=1))
+    quiet = energy < np.percentile(energy, 5) + PAUSE_DB
+    silent = ~speech
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], silent.view(np.int8), [0]])))
+    out = np.zeros_like(silent)
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        if quiet[a:b].any():
+            out[a:b] = True
+    return out
 
 
 def _masked(ref_db: np.ndarray, rec_db: np.ndarray) -> np.ndarray:
@@ -313,12 +574,14 @@ class _Warp:
         return float((self.cumcost[b] - self.cumcost[a]) / (b - a)) if b > a else 0.0
 
 
-def _word_boundaries(ref, ref_t0: float, n: int) -> dict[int, float]:
+def _word_boundaries(ref, ref_t0: float, n: int, joined=frozenset()) -> dict[int, float]:
     """Reference frame (in the warped span) → time (s) of every word start after the first that
-    no pause of espeak's precedes."""
+    no pause of espeak's precedes, except those in ``joined``."""
     out: dict[int, float] = {}
     starts = [p.start for p in ref.phonemes]
     for w in ref.words[1:]:
+        if w.start in joined:
+            continue
         k = int(np.searchsorted(starts, w.start - 1e-9))
         if 0 < k < len(ref.phonemes) and ref.phonemes[k - 1].phoneme not in PAUSES:
             f = round((w.start - ref_t0) / HOP)
@@ -327,13 +590,12 @@ def _word_boundaries(ref, ref_t0: float, n: int) -> dict[int, float]:
     return out
 
 
-def _inserted_pauses(ref, boundaries, path, silent, ref_t0, rec_t0) -> dict[int, tuple]:
-    """Pauses of the recording where the reference has none: the path resting on a word
-    boundary over at least :data:`MIN_PAUSE` s of silence. Each becomes a zero-length ``_`` in
-    ``ref.phonemes`` (before the word); returns its index → (start, end) in the recording (s)."""
+def _pause_spans(boundaries, path, silent, rec_t0) -> list[tuple | None]:
+    """For each word boundary (in order), the pause of the recording the path rested on there:
+    (start, end) in the recording (s) of at least :data:`MIN_PAUSE` s of silence, or None."""
     rows = path[:, 0]  # non-decreasing
-    found: list[tuple[float, tuple | None]] = []
-    for b, t in sorted(boundaries.items()):
+    found: list[tuple | None] = []
+    for b in sorted(boundaries):
         i0, i1 = np.searchsorted(rows, b - 1), np.searchsorted(rows, b, side="right")
         cols = path[i0:i1, 1]
         cols = cols[silent[cols]]
@@ -344,19 +606,24 @@ def _inserted_pauses(ref, boundaries, path, silent, ref_t0, rec_t0) -> dict[int,
             run = max(runs, key=len)
             if len(run) * HOP >= MIN_PAUSE:
                 span = (rec_t0 + run[0] * HOP, rec_t0 + (run[-1] + 1) * HOP)
-        found.append((t, span))
-    # one pass: every word boundary gets a zero-length pause before its first phone
+        found.append(span)
+    return found
+
+
+def _inserted_pauses(ref, boundaries) -> list[int]:
+    """Every word boundary gets a zero-length ``_`` in ``ref.phonemes`` before its first phone
+    (where the recording may pause and the reference does not); returns their indices, in the
+    order of the boundaries."""
+    times = [boundaries[b] for b in sorted(boundaries)]
     starts = np.array([p.start for p in ref.phonemes])
-    at = np.searchsorted(starts, np.array([t for t, _ in found]) - 1e-9)
+    at = np.searchsorted(starts, np.array(times) - 1e-9)
     phones: list[Phone] = []
-    out: dict[int, tuple] = {}
+    out: list[int] = []
     j = 0
     for k, p in enumerate(ref.phonemes):
-        while j < len(found) and at[j] == k:
-            t, span = found[j]
-            if span is not None:
-                out[len(phones)] = span
-            phones.append(Phone(t, t, "_", 0))
+        while j < len(times) and at[j] == k:
+            out.append(len(phones))
+            phones.append(Phone(times[j], times[j], "_", 0))
             j += 1
         phones.append(p)
     ref.phonemes[:] = phones
@@ -390,7 +657,8 @@ def _carry(t: float, ref: list[Phone], aligned: list[Phone]) -> float:
 
 def _words(ref, phones: list[Phone], warp: _Warp) -> list[AlignedWord]:
     """The reference's words (their first to last phone that is not a pause), carried to the
-    recording through the aligned phones, with their warping costs."""
+    recording through the aligned phones, with their warping costs; every word of the reference
+    is one, in order."""
     ref_starts = np.array([p.start for p in ref.phonemes])
     out: list[AlignedWord] = []
     for word in ref.words:
@@ -398,7 +666,9 @@ def _words(ref, phones: list[Phone], warp: _Warp) -> list[AlignedWord]:
         k0 = int(np.searchsorted(ref_starts, word.start - 1e-9))
         k1 = int(np.searchsorted(ref_starts, end - 1e-9))
         ks = [k for k in range(k0, k1) if ref.phonemes[k].phoneme not in PAUSES]
-        if not ks:
+        if not ks:  # a word with no phones of its own: a point at its place
+            t = phones[k0].start if k0 < len(phones) else phones[-1].end
+            out.append(AlignedWord(t, t, word.text, 0.0))
             continue
         a, b = phones[ks[0]], phones[ks[-1]]
         cost = warp.mean_cost(ref.phonemes[ks[0]].start, ref.phonemes[ks[-1]].end)

@@ -73,13 +73,13 @@ def mel_filters(rate: int, n_fft: int, n_mels: int = N_MELS) -> np.ndarray:
     return np.maximum(0.0, np.minimum(up, down)).astype(np.float32)
 
 
-def log_mel(samples: np.ndarray, rate: int, hop: float) -> np.ndarray:
+def log_mel(samples: np.ndarray, rate: int, hop: float, window: float = WINDOW_S) -> np.ndarray:
     """``(n_frames, N_MELS)`` float32 log-mel energies (dB-like, floored :data:`FLOOR_DB` below
     the loudest frame) of ``(n,)`` samples at ``rate`` Hz, one frame every ``hop`` s, frame
     ``k`` centred on ``k * hop``."""
     x = np.asarray(samples, dtype=np.float32)
     step = max(1, round(hop * rate))
-    win = round(WINDOW_S * rate)
+    win = round(window * rate)
     n_fft = 1 << (win - 1).bit_length()
     n_frames = max(1, int(np.ceil(len(x) / step)))
     padded = np.pad(x, (win // 2, win // 2 + n_frames * step + 1 - len(x)))

@@ -230,3 +230,38 @@ def _ended_before(state, a: int, b: int) -> np.ndarray:
     if t1 > t0:
         out[t0 - a : t1 - a] = d[t0 - 1 - pa : t1 - 1 - pa]
     return out
+
+
+def voice_template(
+    phones: list[Phone],
+    x: np.ndarray,
+    t0: float,
+    layout: list[Phone],
+    n: int,
+    t1: float,
+    hop: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The reference spoken in the recording's voice, as features: each state's mean over the
+    recording's frames ``x`` (``(m, d)``, frame ``k`` at ``t0 + k * hop`` s) under ``phones``
+    (its aligned phones), laid out on ``n`` frames at ``t1 + k * hop`` s by ``layout`` (the
+    same phones in the reference's clock). Returns it and the recording's frames, both scaled
+    by the inverse pooled standard deviation (so that their distance is the refinement's)."""
+    m = len(x)
+    is_pause = np.array([p.phoneme in PAUSES for p in phones])
+    per = np.where(is_pause, 1, STATES)
+    owner = np.repeat(np.arange(len(phones)), per)
+    sub = np.concatenate([np.arange(k) for k in per])
+    label = _labels(phones, owner, sub)
+    klass = np.array(
+        [(phones[k].viseme or 0) * STATES + s for k, s in zip(owner, sub, strict=True)]
+    )
+    bounds = np.clip(np.round((np.array([p.start for p in phones]) - t0) / hop), 0, m)
+    bounds = np.maximum.accumulate(bounds.astype(np.int64))
+    means, inv_var = _models(x, _split(bounds, per, m), label, klass)
+    at = np.clip(np.round((np.array([p.start for p in layout]) - t1) / hop), 0, n)
+    at = np.maximum.accumulate(at.astype(np.int64))
+    at[0] = 0
+    starts = _split(at, per, n)
+    frame_state = np.repeat(np.arange(len(starts)), np.diff(np.append(starts, n)).clip(0))[:n]
+    scale = np.sqrt(inv_var)
+    return (means[frame_state] * scale).astype(np.float32), (x * scale).astype(np.float32)

@@ -75,3 +75,61 @@ def boundary_errors(aligned: list[Phone], truth: list[Phone], fps: float = 30.0)
                 ca, cb = 0.5 * (pa.start + pa.end), 0.5 * (pb.start + pb.end)
                 bil.append(round(ca * fps) == round(cb * fps))
     return BoundaryErrors(np.array(errors), np.array(bil, bool), len(errors), total)
+
+
+@dataclass
+class WordErrors:
+    """``signed`` ``(k,)`` s: aligned − true of each compared word boundary (the start of every
+    word found in both, and its end where a pause or the end of the speech follows it in the
+    truth); ``lost``: the words of the transcript the alignment gave no time; ``unmatched``:
+    the truth's words that no aligned word was matched with (``lost`` among them)."""
+
+    signed: np.ndarray
+    lost: list[str]
+    unmatched: list[str]
+    words: int
+
+    @property
+    def errors(self) -> np.ndarray:
+        return np.abs(self.signed)
+
+
+def _key(text: str) -> str:
+    return "".join(c for c in text.lower() if c.isalnum())
+
+
+def transcript_words(text: str) -> list[str]:
+    """The words of a plain transcript as ``vtts say`` counts them: its whitespace-separated
+    tokens that hold a letter or digit, punctuation around them stripped."""
+    return [w for w in (_key(t) for t in text.split()) if w]
+
+
+def word_errors(aligned, truth, text: str) -> WordErrors:
+    """Compare the word times of ``aligned`` (objects with ``start``, ``end``, ``text``: the
+    aligner's words) with ``truth``'s (another engine's words of the same ``text``, in one
+    clock). Words are matched by their letters, in order (:class:`difflib.SequenceMatcher`)."""
+    said = transcript_words(text)
+    a = [w for w in aligned if _key(w.text)]
+    b = [w for w in truth if _key(w.text)]
+    kept = difflib.SequenceMatcher(None, said, [_key(w.text) for w in a], autojunk=False)
+    lost_at = set(range(len(said)))
+    for block in kept.get_matching_blocks():
+        lost_at -= set(range(block.a, block.a + block.size))
+    sm = difflib.SequenceMatcher(
+        None, [_key(w.text) for w in a], [_key(w.text) for w in b], autojunk=False
+    )
+    signed, matched = [], set()
+    for block in sm.get_matching_blocks():
+        for k in range(block.size):
+            wa, wb = a[block.a + k], b[block.b + k]
+            matched.add(block.b + k)
+            signed.append(wa.start - wb.start)
+            j = block.b + k + 1
+            if j == len(b) or b[j].start > wb.end + 1e-6:
+                signed.append(wa.end - wb.end)
+    return WordErrors(
+        np.array(signed),
+        [said[k] for k in sorted(lost_at)],
+        [b[k].text for k in range(len(b)) if k not in matched],
+        len(said),
+    )

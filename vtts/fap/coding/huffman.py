@@ -67,20 +67,29 @@ def huffman_lengths(counts: dict[int, int], limit: int = MAX_CODE_LENGTH) -> dic
     if len(items) == 1:
         return {items[0][0]: 1}
     while True:
-        heap = [(c, i, [s]) for i, (s, c) in enumerate(items)]
-        heapq.heapify(heap)
-        depth = dict.fromkeys((s for s, _ in items), 0)
-        order = len(heap)
-        while len(heap) > 1:
-            c1, _, s1 = heapq.heappop(heap)
-            c2, _, s2 = heapq.heappop(heap)
-            for s in s1 + s2:
-                depth[s] += 1
-            heapq.heappush(heap, (c1 + c2, order, s1 + s2))
-            order += 1
-        if max(depth.values()) <= limit:
-            return depth
+        depth = _leaf_depths([c for _, c in items])
+        if max(depth) <= limit:
+            return {s: d for (s, _), d in zip(items, depth, strict=True)}
         items = [(s, (c + 1) // 2) for s, c in items]
+
+
+def _leaf_depths(weights: list[int]) -> list[int]:
+    """The depth of each leaf of the Huffman tree of ``weights`` (at least two): the two lightest
+    nodes merged first, ties to the one made first (the leaves in order, then the merged nodes
+    as they are made)."""
+    n = len(weights)
+    heap = [(c, i) for i, c in enumerate(weights)]
+    heapq.heapify(heap)
+    parent = [0] * (2 * n - 1)
+    for node in range(n, 2 * n - 1):
+        c1, a = heapq.heappop(heap)
+        c2, b = heapq.heappop(heap)
+        parent[a] = parent[b] = node
+        heapq.heappush(heap, (c1 + c2, node))
+    depth = [0] * (2 * n - 1)  # the root, node 2n - 2, at 0
+    for node in range(2 * n - 3, -1, -1):  # a parent is made after its children
+        depth[node] = depth[parent[node]] + 1
+    return depth[:n]
 
 
 def _code_cost(errors: dict[int, int], lengths: dict[int, int]) -> float:
@@ -105,27 +114,43 @@ def _group_code(errors: list[dict[int, int]], escape: bool, trim: bool = False) 
     for e in errors:
         for q, c in e.items():
             merged[q] = merged.get(q, 0) + c
-    cutoffs = [2 * SYMBOL_MAX + 1]
-    if trim:
-        cutoffs = sorted({zigzag(q) + 1 for q in merged if -SYMBOL_MAX <= q <= SYMBOL_MAX})
-        cutoffs = [0, *cutoffs]
+    # The table lists the first n symbols of the zigzag order (n = the cutoff); the other errors
+    # go through the escape. Symbols: (zigzag, error, count), in zigzag order.
+    symbols = sorted((zigzag(q), q, c) for q, c in merged.items() if -SYMBOL_MAX <= q <= SYMBOL_MAX)
+    # escaped by every cutoff: errors beyond the symbols, (count, bits)
+    beyond = [(c, c * _exp_golomb_bits(zigzag(q))) for q, c in merged.items()
+              if not -SYMBOL_MAX <= q <= SYMBOL_MAX]  # fmt: skip
+    if not trim:
+        return huffman_lengths(_counts(symbols, beyond, escape))
     best: tuple[float, dict[int, int]] | None = None
-    for n in cutoffs:
-        counts: dict[int, int] = {ESCAPE: 1} if escape else {}
-        escaped = 0
-        for q, c in merged.items():
-            s = q if -SYMBOL_MAX <= q <= SYMBOL_MAX and zigzag(q) < n else ESCAPE
-            counts[s] = counts.get(s, 0) + c
-            if s == ESCAPE:
-                escaped += c * _exp_golomb_bits(zigzag(q))
+    sent = [(c, c * _exp_golomb_bits(z)) for z, _, c in symbols]  # each symbol escaped
+    for k in range(len(symbols) + 1):  # the cutoffs 0, then each symbol's zigzag + 1
+        escaped = beyond + sent[k:]
+        counts = _counts(symbols[:k], escaped, escape)
         lengths = huffman_lengths(counts)
-        if not trim:
-            return lengths
-        bits = escaped + sum(c * lengths[s] for s, c in counts.items())
-        bits += 8 * len(pack_table(lengths))
+        bits = sum(b for _, b in escaped) + sum(c * lengths[s] for s, c in counts.items())
+        bits += 8 * _table_size(lengths)
         if best is None or bits < best[0]:
             best = (bits, lengths)
     return best[1] if best else {}
+
+
+def _counts(
+    listed: list[tuple[int, int, int]], escaped: list[tuple[int, int]], escape: bool
+) -> dict[int, int]:
+    """Symbol counts of a table that lists ``listed`` ((zigzag, error, count)) and sends the
+    ``escaped`` errors ((count, bits)) through the escape, which has a code if any error needs
+    it or ``escape``."""
+    counts = {q: c for _, q, c in listed}
+    if escape or escaped:
+        counts[ESCAPE] = int(escape) + sum(c for c, _ in escaped)
+    return counts
+
+
+def _table_size(lengths: dict[int, int]) -> int:
+    """``len(pack_table(lengths))``: the count byte, then two 4-bit lengths to a byte."""
+    n = max((zigzag(s) + 1 for s in lengths if s != ESCAPE), default=0)
+    return 1 + (n + 2) // 2
 
 
 def choose_tables(errors: list[dict[int, int]]) -> tuple[tuple[dict[int, int], ...], tuple]:
