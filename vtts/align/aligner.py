@@ -424,10 +424,10 @@ def _unescape(text: str) -> str:
 def _word_text(token: str) -> str:
     """A token of the SSML as a word's text (entities decoded, punctuation around it
     stripped), as espeak-ng's words are written (:func:`vtts.speech.tts._word_at`)."""
-    from vtts.speech.tts import _WORD_EDGE
+    from vtts.speech.tts import WORD_EDGE
 
     text = _unescape(token)
-    return text.strip(_WORD_EDGE) or text
+    return text.strip(WORD_EDGE) or text
 
 
 #: espeak-ng's stops and affricates (its English phoneme names).

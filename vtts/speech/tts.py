@@ -443,7 +443,8 @@ def _words(events, doc: _Document, n: int, rate: int) -> list[Word]:
     return words
 
 
-_WORD_EDGE = string.punctuation.replace("&", "").replace("'", "") + "\u201c\u201d\u2018\u2019"
+#: Characters stripped from a word's ends (punctuation, curly quotes; not ``&`` nor ``'``).
+WORD_EDGE = string.punctuation.replace("&", "").replace("'", "") + "\u201c\u201d\u2018\u2019"
 
 
 def _word_at(source: str, pos: int) -> str:
@@ -457,7 +458,7 @@ def _word_at(source: str, pos: int) -> str:
     while end < len(source) and not source[end].isspace() and source[end] != "<":
         end += 1
     text = _unescape(source[start:end])
-    return text.strip(_WORD_EDGE) or text
+    return text.strip(WORD_EDGE) or text
 
 
 def _phones(raw, ipas, n: int, rate: int, language: str) -> list[Phone]:
