@@ -133,11 +133,22 @@ def _writable(name: str) -> bool:
     return True
 
 
+def high_level(draw: st.DrawFn, ranges: list[tuple[int, int]], sent: np.ndarray) -> np.ndarray:
+    """``(n, len(ranges)) int64``: a high-level FAP's parameters in each of the ``n`` frames,
+    each column within its range; drawn only if a frame sends the FAP (``sent``): the stream
+    stores 0 where none does."""
+    n = len(sent)
+    if not sent.any():
+        return np.zeros((n, len(ranges)), dtype=np.int64)
+    columns = [draw(hnp.arrays(np.int64, n, elements=st.integers(lo, hi))) for lo, hi in ranges]
+    return np.column_stack(columns).reshape(n, len(ranges))
+
+
 @st.composite
 def streams(draw: st.DrawFn) -> FapStream:
     """Any valid stream. The name is drawn first and a refused one rejected before the arrays
     are drawn; values are drawn only where the mask sets a low-level FAP (the stream stores 0
-    elsewhere), and high-level rows are kept where FAPs 1 and 2 are set."""
+    elsewhere), the high-level parameters only if a frame sets FAP 1 or 2."""
     name = draw(names)
     if not _writable(name):
         reject()
@@ -153,18 +164,8 @@ def streams(draw: st.DrawFn) -> FapStream:
             elements=st.one_of(finite, st.integers(-5000, 5000).map(float)),
         )
     )
-    viseme = np.column_stack(
-        [
-            draw(hnp.arrays(np.int64, n, elements=st.integers(lo, hi)))
-            for lo, hi in [(0, 14), (0, 14), (0, 63), (0, 1)]
-        ]
-    ).reshape(n, 4)
-    expression = np.column_stack(
-        [
-            draw(hnp.arrays(np.int64, n, elements=st.integers(lo, hi)))
-            for lo, hi in [(0, 6), (0, 63), (0, 6), (0, 63), (0, 1), (0, 1)]
-        ]
-    ).reshape(n, 6)
+    viseme = high_level(draw, [(0, 14), (0, 14), (0, 63), (0, 1)], mask[:, 0])
+    expression = high_level(draw, [(0, 6), (0, 63), (0, 6), (0, 63), (0, 1), (0, 1)], mask[:, 1])
     return FapStream(
         fps=draw(fps_values),
         name=name,
