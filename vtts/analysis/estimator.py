@@ -35,6 +35,16 @@ import numpy as np
 from scipy.ndimage import binary_erosion
 
 from vtts.analysis.geometry import HeadGeometry
+from vtts.analysis.landmark_pose import MIN_POINTS
+from vtts.analysis.landmark_term import (
+    LANDMARK_WEIGHT,
+    LandmarkPoints,
+    LandmarkSystem,
+    crop_side,
+    landmark_points,
+    linearize,
+    unknown_values,
+)
 from vtts.analysis.result import TRANSLATION, Analysis, FrameEstimate
 from vtts.analysis.solve import (
     SMOOTH_REACH,
@@ -58,6 +68,17 @@ from vtts.mesh import ray_barycentrics
 from vtts.render.camera import Camera
 from vtts.render.renderer import FaceRenderer
 from vtts.threads import one_blas_thread
+
+#: The frame's landmark term is linearized again when the estimate moved its points further
+#: than this (pixels) since it was last.
+RELINEARIZE_PX = 2.0
+#: Gauss–Newton steps on the landmarks alone that start a frame
+#: (:meth:`Estimator._jump_to_landmarks`), …
+JUMP_STEPS = 3
+#: … each change damped by this share of its own curvature (Levenberg's), …
+JUMP_DAMPING = 0.1
+#: … the last one when it moved the points by less than this (pixels).
+JUMP_STOP_PX = 0.5
 
 #: Pixels next to the model's outline left out of the estimation.
 EDGE = 2
@@ -181,6 +202,9 @@ class Estimator:
     ``bounds``: FAP -> (lowest, highest) value the search on the rendered image may take it to
     (e.g. an eyelid of a head made from a video frame opened no further than that frame shows
     it: its eyeball is textured only where the frame showed it).
+    ``landmark_weight``: the weight of a frame's face-mesh landmarks, when :meth:`estimate` is
+    given them, beside the photometric terms of every solve (:mod:`vtts.analysis.landmark_term`;
+    0 leaves them out).
     """
 
     def __init__(
@@ -202,6 +226,7 @@ class Estimator:
         searched: Iterable[int] = (),
         bounds: dict[int, tuple[float, float]] | None = None,
         lit_refine: Iterable[int] = JAW_AND_CORNERS,
+        landmark_weight: float = LANDMARK_WEIGHT,
     ) -> None:
         self.unknowns = _check_unknowns(unknowns)
         alone = set(searched)
@@ -256,7 +281,7 @@ class Estimator:
             lsize = (w // f, h // f)
             if min(lsize) < 16:
                 raise VttsError(f"a {w}x{h} video is too small for a pyramid level of 1/{f}")
-            self._levels[f] = (_scaled(self.camera, f), lsize)
+            self._levels[f] = (self.camera.scaled(f), lsize)
         self._root = self._renderer.scene.get_pose(self._renderer.instances[0].root)
         #: the camera's distance from the model's origin at the start (world units)
         self.distance = float(np.linalg.norm(self.camera.pose[:3, 3] - self._root[:3, 3]))
@@ -275,6 +300,12 @@ class Estimator:
         self.translation = np.zeros(3)
         self.gain = np.ones(3)
         self.offset = np.zeros(3)
+        self.landmark_weight = float(landmark_weight)
+        self._landmark_points: LandmarkPoints | None = None
+        #: the frame's landmarks ``(468, 2)`` pixels and their crop's side, while it is estimated
+        self._observed: tuple[np.ndarray, float] | None = None
+        #: the frame's landmark term, linearized where it was last asked for
+        self._landmarks: LandmarkSystem | None = None
 
     # ---- rendering -----------------------------------------------------------------------------
 
@@ -385,16 +416,21 @@ class Estimator:
     # ---- estimation ----------------------------------------------------------------------------
 
     @one_blas_thread()
-    def estimate(self, frame: np.ndarray, index: int = 0, time: float = 0.0) -> FrameEstimate:
+    def estimate(self, frame: np.ndarray, index: int = 0, time: float = 0.0,
+                 landmarks=None) -> FrameEstimate:  # fmt: skip
         """Update the estimate to the camera ``frame`` ``(H, W, 3) uint8`` and return it (with
-        one BLAS thread: :mod:`vtts.threads`)."""
+        one BLAS thread: :mod:`vtts.threads`). ``landmarks``: the face mesh's
+        :class:`~vtts.fit.landmarks.Face` in this frame, observed in every solve (None: the
+        photometric terms alone, as the paper)."""
         frame = np.asarray(frame)
         w, h = self.size
         if frame.shape != (h, w, 3):
             raise VttsError(f"frame {index} is {frame.shape}, expected ({h}, {w}, 3)")
+        self.observe(landmarks)
         full = frame.astype(np.float32)
         if self.predicted:
             self._extrapolate(index)
+        self._jump_to_landmarks()
         pyramid: dict[int, np.ndarray] = {}
         for lv in self.pyramid:
             if lv.factor not in pyramid:
@@ -429,6 +465,60 @@ class Estimator:
                 best = mismatch
             self._search_from_neutral(full)
         return self._final_estimate(full, index, time, solves, self._lit_frame())
+
+    def observe(self, landmarks) -> None:
+        """Take ``landmarks`` (a :class:`~vtts.fit.landmarks.Face`, or None) as the observations
+        of the frame about to be estimated (:meth:`estimate` does)."""
+        self._landmarks = None
+        self._observed = None
+        if landmarks is None or self.landmark_weight <= 0:
+            return
+        if self._landmark_points is None:
+            self._landmark_points = landmark_points(self.geometry,
+                                                    self.model.tables.feature_points)  # fmt: skip
+        if len(self._landmark_points) >= MIN_POINTS:
+            points = np.asarray(landmarks.landmarks, np.float64)[:, :2]
+            self._observed = (points, crop_side(landmarks))
+
+    def landmark_term(self) -> LandmarkSystem | None:
+        """The frame's landmark term, linearized at the current estimate — again only when the
+        estimate moved its points by more than :data:`RELINEARIZE_PX` since (the term moves
+        them linearly until then); None without landmarks."""
+        if self._observed is None:
+            return None
+        values = unknown_values(self)
+        term = self._landmarks
+        if term is None or term.moved(values) > RELINEARIZE_PX:
+            assert self._landmark_points is not None
+            term = linearize(self, self._landmark_points, *self._observed, values)
+            term.weight = self.landmark_weight
+            self._landmarks = term
+        return term
+
+    def _jump_to_landmarks(self) -> None:
+        """Move the estimate onto the frame's landmarks before the photometric solves: a few
+        damped Gauss–Newton steps on the landmark term alone (:data:`JUMP_STEPS`, each change
+        damped by :data:`JUMP_DAMPING` of its own curvature). The photometric solves move each
+        unknown's pixels by a few pixels a solve at most; a head that moved further between two
+        frames would otherwise be followed over several frames, or lost."""
+        k = len(self.unknowns)
+        for _ in range(JUMP_STEPS):
+            term = self.landmark_term()
+            if term is None:
+                return
+            values = unknown_values(self)
+            ata, atb = term.normal_equations(values, held=self._searched_columns)
+            ata[np.diag_indices(k)] *= 1.0 + JUMP_DAMPING
+            delta = least_squares(ata, atb)
+            self._apply(np.concatenate([delta, np.zeros(6)]))
+            if term.shift(delta[:k]) < JUMP_STOP_PX:
+                return
+
+    def landmark_error(self) -> float:
+        """The median distance (pixels) between the frame's landmarks and where the current
+        estimate puts their points; NaN without landmarks."""
+        term = self.landmark_term()
+        return math.nan if term is None else term.error(term.values0)
 
     def _final_estimate(self, full: np.ndarray, index: int, time: float, solves: int,
                         lit: bool) -> FrameEstimate:  # fmt: skip
@@ -522,6 +612,7 @@ class Estimator:
             psnr=psnr,
             face_pixels=pixels,
             iterations=solves,
+            landmark_px=self.landmark_error(),
         )
 
     def between_frames(self) -> None:
@@ -609,6 +700,9 @@ class Estimator:
         # before the next linear solve: the linear model can be wrong where shading or
         # occlusion, not texture motion, dominates what an unknown does to the image
         energy = float(np.mean(np.minimum((r_p @ LUMA) ** 2, TRUNCATE**2)))
+        term = self.landmark_term()
+        if term is not None:  # the landmarks' cost, per pixel of the level as the match's
+            energy += term.cost(term.values0, lv.factor) / rows.size
         last = self._last_step
         improved = math.inf if last is None else (last.energy - energy) / max(last.energy, 1e-12)
         if self.robust and last is not None and self._settled(improved, last):
@@ -648,6 +742,10 @@ class Estimator:
         ata, atb = normal_equations(
             du, dv, gx_p, gy_p, r_p, s_p if self.illumination else None, weights
         )
+        if term is not None:
+            lm_ata, lm_atb = term.normal_equations(term.values0, lv.factor, held=held)
+            ata[:k, :k] += lm_ata
+            atb[:k] += lm_atb
         delta = least_squares(ata, atb)
         # the linearization holds for small motion: no unknown may move any of its pixels
         # further than the level's step limit in one solve
@@ -945,17 +1043,6 @@ def _face_numbers(renderer: FaceRenderer, geometry: HeadGeometry) -> np.ndarray:
         start = s.first_face
         out[first : first + len(s.mesh.faces)] = np.arange(start, start + len(s.mesh.faces))
     return out
-
-
-def _scaled(camera: Camera, factor: int) -> Camera:
-    """The camera of an image subsampled by ``factor`` (pixel edges at integers)."""
-    return replace(
-        camera,
-        fx=camera.fx / factor,
-        fy=camera.fy / factor,
-        cx=camera.cx / factor,
-        cy=camera.cy / factor,
-    )
 
 
 def _overlap(a: tuple[slice, slice], b: tuple[slice, slice]) -> bool:

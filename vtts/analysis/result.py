@@ -28,6 +28,8 @@ class FrameEstimate:
                  with the estimate; ``inf`` when identical
     face_pixels  how many pixels the face area has (model pixels at full resolution)
     iterations   linear solves made for this frame, over all pyramid levels
+    landmark_px  median distance (pixels) between the face mesh's landmarks of the frame and
+                 where the estimate puts their points; NaN when none were observed
     """
 
     index: int
@@ -39,6 +41,7 @@ class FrameEstimate:
     psnr: float = float("nan")
     face_pixels: int = 0
     iterations: int = 0
+    landmark_px: float = float("nan")
 
 
 @dataclass

@@ -47,6 +47,7 @@ import numpy as np
 from vtts.analysis.estimator import DEFAULT_UNKNOWNS, Estimator
 from vtts.analysis.landmark_pose import landmark_pose, placement_error
 from vtts.analysis.result import Analysis, FrameEstimate
+from vtts.analysis.solve import subsample
 from vtts.analysis.tracker import Tracker
 from vtts.analysis.unknowns import HEAD_MOTION
 from vtts.errors import AnalysisError, FitError, VttsError, VttsWarning
@@ -85,6 +86,11 @@ MAX_TURN_AU = 120_000.0
 MAX_SHIFT = 0.5
 #: Recent frames whose median PSNR is the reference for :data:`LOST_DB`.
 RECENT = 10
+#: In the tracking mode, a video whose face shows its eyes further apart than this (pixels, eye
+#: centre to eye centre, at the first face) is estimated at a working size: subsampled by the
+#: smallest whole factor that brings them within it (Akiyo's are 34 pixels apart at CIF). The
+#: landmarks are still found in the frame itself, and the estimates are the same parameters.
+WORKING_EYES_PX = 64.0
 #: A given model whose feature points already fall this close (median, pixels) to the first
 #: face's landmarks is left where the camera frames it (a video rendered by vtts itself).
 PLACED_PX = 3.0
@@ -99,8 +105,10 @@ class Tracked:
     fitted     the paths written for a fitted head (``.wrl``, ``.adt``, ``-face.png``), else []
     first      index of the frame the model was fitted to or placed on
     restarts   indices of the frames re-initialized from landmarks
-    held       indices of the frames whose estimate failed even so: the last good estimate is
-               held for them (their PSNR is NaN)
+    held       indices of the frames whose estimate failed even so, or where the landmarks lost
+               the face: the last good estimate is held for them (their PSNR is NaN)
+    unseen     indices of the frames where the landmarks lost the face (among ``held``)
+    scale      the working size's factor: frames were estimated subsampled by it (1: as they are)
     """
 
     analysis: Analysis
@@ -109,6 +117,8 @@ class Tracked:
     first: int = 0
     restarts: list[int] = field(default_factory=list)
     held: list[int] = field(default_factory=list)
+    unseen: list[int] = field(default_factory=list)
+    scale: int = 1
 
 
 @one_blas_thread()
@@ -127,6 +137,8 @@ def track(
     tracking: bool = False,
     on_estimate: Callable[[FrameEstimate], None] | None = None,
     anchor: int | None = None,
+    landmarks: bool = True,
+    scale: int | None = None,
     **options,
 ) -> Tracked:
     """Track the face in ``frames`` (each ``(H, W, 3) uint8`` RGB) of a video at ``fps``.
@@ -145,13 +157,24 @@ def track(
     ``anchor``: with a head to fit, the index of the frame to fit it on (a multiple of
     ``step``; :func:`vtts.analysis.anchor.choose_anchor` picks the most typical one of a video
     file): the frames before it are kept, then tracked from it backwards once it is estimated,
-    and the track goes on forwards from it (default: the first frame with a face)."""
+    and the track goes on forwards from it (default: the first frame with a face).
+
+    ``landmarks``: the face mesh's landmarks of every frame are observations of the estimate
+    (:mod:`vtts.analysis.landmark_term`), the mesh run on the crop the last frame's landmarks
+    give (:meth:`~vtts.fit.landmarks.MediaPipeDetector.follow`); a frame where they lose the
+    face holds the last estimate (``Tracked.unseen``). False: the photometric terms alone.
+
+    ``scale``: estimate the frames subsampled by this whole factor (the landmarks are found at
+    full size); None: in the tracking mode the factor that brings the first face's eyes within
+    :data:`WORKING_EYES_PX` pixels, else 1."""
     from vtts.fit.landmarks import detect_faces
 
     if not (math.isfinite(fps) and fps > 0):
         raise AnalysisError(f"fps must be a positive number, got {fps}")
     if step < 1:
         raise AnalysisError(f"step must be at least 1, got {step}")
+    if scale is not None and not (isinstance(scale, int) and scale >= 1):
+        raise AnalysisError(f"the working scale must be a whole factor of at least 1, got {scale}")
     if model is None and model_path is None:
         raise AnalysisError("fitting a head to the video needs a path to write it to")
     if model is None and camera is not None:
@@ -167,7 +190,7 @@ def track(
     waiting: list[tuple[int, float]] = []  # frames before the first face
     before: list[tuple[int, float, np.ndarray]] = []  # frames before the anchor
     result = Tracked(Analysis([], (), fps / step, Camera(1, 1, 0, 0)), model)  # type: ignore
-    run = _Run()
+    run = _Run(follow=_Follower(detector) if landmarks else None)
     for i, frame in enumerate(frames):
         if i % step:
             continue
@@ -185,14 +208,18 @@ def track(
                 _progress(progress, i)
                 continue
             chosen = _choose(faces, face, i, anchor is not None) if faces else None
+            result.scale = scale or (working_scale(chosen) if tracking else 1)
             estimator = _start(result, frame, chosen, face, model, model_path, camera, unknowns,
                                detector, {"finish": not tracking, **options})  # fmt: skip
             result.first = before[0][0] if before else i
+            if run.follow is not None and chosen is not None:
+                run.follow.last = chosen
         fe = _follow(estimator, run, frame, i, t, detector, tracking, result)
         done = [_copy(fe, j, tj) for j, tj in waiting] + [fe]
         waiting = []
         if before:
-            done = _backwards(estimator, fe, before, detector, tracking, result) + done
+            done = _backwards(estimator, fe, before, detector, tracking, result,
+                              run.follow) + done  # fmt: skip
             before = []
         out += done
         if on_estimate is not None:
@@ -207,31 +234,77 @@ def track(
         if not waiting:
             raise AnalysisError("the video has no frames")
         raise AnalysisError(f"no face found in any of the {len(waiting)} frames analyzed")
-    result.analysis = Analysis(out, estimator.unknowns, fps / step, estimator.camera,
+    result.analysis = Analysis(out, estimator.unknowns, fps / step,
+                               estimator.camera.scaled(1 / result.scale),
                                result.model.name)  # fmt: skip
     return result
 
 
 @dataclass
+class _Follower:
+    """The face mesh from frame to frame along one direction of a track: run on the crop the
+    last landmarks give (:meth:`~vtts.fit.landmarks.MediaPipeDetector.follow`), the detector
+    searching the whole frame only where that finds no face (or with a detector that cannot
+    follow). ``seen``: whether a face has been observed on this run."""
+
+    detector: object | None
+    last: object | None = None  # the last Face observed
+    seen: bool = False
+
+    def observe(self, frame: np.ndarray, estimator: Estimator, scale: int = 1):
+        """The :class:`~vtts.fit.landmarks.Face` in ``frame`` (the one nearest the tracked
+        head where the detector had to search), or None when there is none; in the pixels of
+        the working size ``scale`` times smaller."""
+        from vtts.fit.landmarks import default_detector, detect_faces
+
+        detector = self.detector if self.detector is not None else default_detector()
+        face = None
+        if self.last is not None and hasattr(detector, "follow"):
+            face = detector.follow(frame, self.last.landmarks)
+        if face is None:
+            faces = detect_faces(frame, detector)
+            if faces:
+                small = [scaled_face(f, scale) for f in faces]
+                near = _nearest(small, estimator)
+                face = faces[next(j for j, f in enumerate(small) if f is near)]
+        if face is None:
+            return None
+        self.last, self.seen = face, True
+        return scaled_face(face, scale)
+
+
+@dataclass
 class _Run:
     """What the rules of losing and finding the track keep along one direction of a track:
-    the estimator's state after the last good frame, the recent frames' PSNRs and the last
-    estimate."""
+    the estimator's state after the last good frame, the recent frames' PSNRs, the last
+    estimate, and the landmarks followed (None: none used)."""
 
     kept: tuple | None = None
     recent: list[float] = field(default_factory=list)
     last: FrameEstimate | None = None
+    follow: _Follower | None = None
 
 
 def _follow(estimator: Estimator, run: _Run, frame, i: int, t: float, detector, tracking: bool,
             result: Tracked) -> FrameEstimate:  # fmt: skip
     """Frame ``i``'s estimate, placed again from its landmarks where the track was lost or the
     head ran away, or the last good estimate held (module docstring); ``run`` and ``result``'s
-    lists of restarts and held frames are brought up to date."""
+    lists of restarts and held frames are brought up to date. Where the landmarks followed lose
+    the face, the last good estimate is held."""
+    scale = result.scale
+    seen = run.follow.observe(frame, estimator, scale) if run.follow is not None else None
+    if seen is None and run.follow is not None and run.follow.seen and run.kept is not None \
+            and run.last is not None:  # fmt: skip
+        result.held.append(i)
+        result.unseen.append(i)
+        fe = _hold(estimator, run.kept, run.last, i, t)
+        run.last = fe
+        return fe
     try:
-        fe = estimator.estimate(frame, i, t)
+        fe = estimator.estimate(shrink(frame, scale), i, t, seen)
     except VttsError as e:  # the model left the view: start again from the landmarks
-        fe = _restart(estimator, frame, i, t, None, detector, kept=run.kept)
+        fe = _restart(estimator, frame, i, t, None, detector, kept=run.kept,
+                      observe=run.follow is not None, scale=scale)  # fmt: skip
         if fe is not None:
             result.restarts.append(i)
         elif run.kept is None or run.last is None:
@@ -243,7 +316,8 @@ def _follow(estimator: Estimator, run: _Run, frame, i: int, t: float, detector, 
         away = _run_away(estimator)
         if away or _lost(fe.psnr, run.recent, LOST_REFERENCE_CAP_DB if tracking else math.inf):
             again = _restart(estimator, frame, i, t, None if away else fe, detector,
-                             kept=run.kept if away else None, neutral=away)  # fmt: skip
+                             kept=run.kept if away else None, neutral=away,
+                             observe=run.follow is not None, scale=scale)  # fmt: skip
             if again is not None:
                 fe = again
                 result.restarts.append(i)
@@ -259,12 +333,13 @@ def _follow(estimator: Estimator, run: _Run, frame, i: int, t: float, detector, 
 
 def _backwards(estimator: Estimator, at_anchor: FrameEstimate,
                frames: list[tuple[int, float, np.ndarray]], detector, tracking: bool,
-               result: Tracked) -> list[FrameEstimate]:  # fmt: skip
+               result: Tracked, follow: _Follower | None) -> list[FrameEstimate]:  # fmt: skip
     """The estimates of ``frames`` ``[(index, time, frame)]`` (those before the anchor, in
-    order), tracked from the anchor's estimate ``at_anchor`` backwards, in frame order; the
-    estimator is left as the anchor left it."""
+    order), tracked from the anchor's estimate ``at_anchor`` backwards (the landmarks followed
+    from the anchor's, ``follow``'s), in frame order; the estimator is left as the anchor left
+    it."""
     state = estimator.snapshot()
-    run = _Run(kept=state, last=at_anchor)
+    run = _Run(kept=state, last=at_anchor, follow=None if follow is None else replace(follow))
     out = []
     for i, t, frame in reversed(frames):
         estimator.between_frames()
@@ -293,8 +368,9 @@ def _choose(faces: list, face: int | None, index: int, anchored: bool = False):
 def _start(result: Tracked, frame, chosen, face, model, model_path, camera, unknowns, detector,
            options) -> Tracker:  # fmt: skip
     """The estimator for the first frame with a face: a head fitted to it, or ``model`` placed
-    on its landmarks."""
-    h, w = frame.shape[:2]
+    on its landmarks; both at the working size (``result.scale``)."""
+    scale = result.scale
+    h, w = frame.shape[0] // scale, frame.shape[1] // scale
     if model is None:
         from vtts.face import load_model
         from vtts.fit import fit_photo, with_frame
@@ -308,11 +384,14 @@ def _start(result: Tracked, frame, chosen, face, model, model_path, camera, unkn
         result.fitted = head.write(model_path)
         result.model = load_model(str(result.fitted[0]))
         options = {"ignore": FITTED_IGNORED, **options}
-        return Tracker(result.model, size=(w, h), model_camera=head.shape.camera,
+        return Tracker(result.model, size=(w, h), model_camera=head.shape.camera.scaled(scale),
                        unknowns=unknowns, **options)  # fmt: skip
+    if camera is not None:
+        camera = camera.scaled(scale)
     estimator = Tracker(model, size=(w, h), camera=camera, unknowns=unknowns, **options)
     if chosen is None:
         return estimator  # no face seen: the model starts where the camera frames it
+    chosen = scaled_face(chosen, scale)
     error = placement_error(estimator, chosen.landmarks)
     if error is None:
         warnings.warn(
@@ -327,6 +406,33 @@ def _start(result: Tracked, frame, chosen, face, model, model_path, camera, unkn
     return estimator
 
 
+def working_scale(face) -> int:
+    """The working size's factor for a track whose first face is ``face`` (a
+    :class:`~vtts.fit.landmarks.Face`): the smallest whole factor that brings its eyes within
+    :data:`WORKING_EYES_PX` pixels of each other."""
+    xy = np.asarray(face.landmarks, np.float64)[:, :2]
+    eyes = float(np.linalg.norm(xy[[33, 133]].mean(0) - xy[[362, 263]].mean(0)))
+    return max(1, math.ceil(eyes / WORKING_EYES_PX))
+
+
+def shrink(frame: np.ndarray, scale: int) -> np.ndarray:
+    """``frame`` ``(H, W, 3) uint8`` subsampled by ``scale`` (the mean of each block, rounded;
+    edges that do not fill a block dropped): ``(H // scale, W // scale, 3) uint8``."""
+    if scale == 1:
+        return frame
+    return np.round(subsample(frame, scale)).astype(np.uint8)
+
+
+def scaled_face(face, scale: int):
+    """``face`` (a :class:`~vtts.fit.landmarks.Face`) in the pixels of its image subsampled by
+    ``scale`` (pixel edges at integers)."""
+    if scale == 1:
+        return face
+    landmarks = np.asarray(face.landmarks, np.float64) / scale
+    return replace(face, box=tuple(v / scale for v in face.box), keypoints=face.keypoints / scale,
+                   landmarks=landmarks)  # fmt: skip
+
+
 def _lost(psnr: float, recent: list[float], cap: float = math.inf) -> bool:
     """Whether a frame of face PSNR ``psnr`` (dB) lost the track, given the ``recent`` ones
     (their median, at most ``cap`` dB, is the reference)."""
@@ -339,17 +445,18 @@ def _lost(psnr: float, recent: list[float], cap: float = math.inf) -> bool:
 
 
 def _restart(estimator: Estimator, frame, index: int, time: float, fe: FrameEstimate | None,
-             detector, kept: tuple | None = None,
-             neutral: bool = False) -> FrameEstimate | None:  # fmt: skip
+             detector, kept: tuple | None = None, neutral: bool = False,
+             observe: bool = True, scale: int = 1) -> FrameEstimate | None:  # fmt: skip
     """Estimate frame ``index`` again from the head placed on its landmarks; the new estimate
     when it matches better than ``fe`` (None: an estimate that failed), else None (the
     estimator is left as ``fe`` left it). ``kept``: the state to place from, when the failed
     estimate left the estimator elsewhere (the last good frame's); ``neutral``: from the neutral
     face and pose (the head ran away; its FAPs too, which may have run away with it). An
-    estimate that ran away too is no better."""
+    estimate that ran away too is no better. ``observe``: the landmarks are observations of the
+    new estimate too. ``scale``: the working size's factor (``frame`` is full size)."""
     from vtts.fit.landmarks import detect_faces
 
-    faces = detect_faces(frame, detector)
+    faces = [scaled_face(f, scale) for f in detect_faces(frame, detector)]
     if not faces:
         return None
     after = estimator.snapshot()
@@ -362,7 +469,7 @@ def _restart(estimator: Estimator, frame, index: int, time: float, fe: FrameEsti
     try:
         landmark_pose(estimator, near.landmarks)
         estimator.forget_motion()  # the motion before the loss says nothing about what follows
-        again = estimator.estimate(frame, index, time)
+        again = estimator.estimate(shrink(frame, scale), index, time, near if observe else None)
     except VttsError:
         estimator.restore(after)
         return None
@@ -407,4 +514,5 @@ def _nearest(faces: list, estimator: Estimator):
 def _copy(fe: FrameEstimate, index: int, time: float) -> FrameEstimate:
     """``fe`` standing in for frame ``index`` (before the first face, or one whose estimate
     failed): no PSNR of its own."""
-    return replace(fe, index=index, time=time, psnr=float("nan"), face_pixels=0, iterations=0)
+    return replace(fe, index=index, time=time, psnr=float("nan"), face_pixels=0, iterations=0,
+                   landmark_px=float("nan"))  # fmt: skip

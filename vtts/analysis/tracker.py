@@ -196,8 +196,10 @@ class Tracker(Estimator):
         self._samples = None
 
     @one_blas_thread()
-    def estimate(self, frame: np.ndarray, index: int = 0, time: float = 0.0) -> FrameEstimate:
-        """Update the estimate to the camera ``frame`` ``(H, W, 3) uint8`` and return it."""
+    def estimate(self, frame: np.ndarray, index: int = 0, time: float = 0.0,
+                 landmarks=None) -> FrameEstimate:  # fmt: skip
+        """Update the estimate to the camera ``frame`` ``(H, W, 3) uint8`` and return it;
+        ``landmarks`` as :meth:`Estimator.estimate`'s."""
         if not self._history or (self.finish and super()._lit_frame()):
             # a first frame: the accurate start; with ``finish``, a frame of a lit face (by the
             # last frame's last solve): the whole pyramid, as the estimator — its shading changes
@@ -205,13 +207,15 @@ class Tracker(Estimator):
             if not self._history:
                 self.forget_motion()
             self.renderings = 0
-            return super().estimate(frame, index, time)
+            return super().estimate(frame, index, time, landmarks)
         frame = np.asarray(frame)
         w, h = self.size
         if frame.shape != (h, w, 3):
             raise VttsError(f"frame {index} is {frame.shape}, expected ({h}, {w}, 3)")
+        self.observe(landmarks)
         if self.predicted:
             self._extrapolate(index)
+        self._jump_to_landmarks()
         self.renderings = 0
         samples, solves = self._stages(frame)
         if self.finish:
@@ -390,6 +394,13 @@ class Tracker(Estimator):
             dv[:, held] = 0.0
         ata, atb = _system(du, dv, gx, gy, r, model.color if self.illumination else None,
                            weights)  # fmt: skip
+        term = self.landmark_term()
+        if term is not None:  # a sample for every step² of the window's pixels
+            k = du.shape[1]
+            lm_ata, lm_atb = term.normal_equations(term.values0, density=self.sample_step**-2,
+                                                   held=held)  # fmt: skip
+            ata[:k, :k] += lm_ata
+            atb[:k] += lm_atb
         delta = least_squares(ata, atb)
         k = s.du.shape[1]
         reach = model.speed * np.abs(delta[:k])

@@ -340,6 +340,31 @@ class MediaPipeDetector:
         faces.sort(key=lambda f: -float(np.ptp(f.landmarks[:, 0]) * np.ptp(f.landmarks[:, 1])))
         return faces
 
+    def follow(self, image: np.ndarray, landmarks: np.ndarray) -> Face | None:
+        """The face mesh on the crop that ``landmarks`` ``(468, ≥2)`` give — the last frame's,
+        or where an estimate expects them — as MediaPipe tracks a face from one video frame to
+        the next: no detector pass. None when the mesh model does not see a face there (its
+        presence under ``min_presence``). The face's ``box`` is its landmarks' extent, its
+        ``score`` the presence, its ``keypoints`` taken from the landmarks."""
+        image = check_image(image)
+        points = np.asarray(landmarks, dtype=np.float64)[:, :2]
+        if points.shape != (N_LANDMARKS, 2) or not np.isfinite(points).all():
+            raise FitError(f"landmarks to follow must be ({N_LANDMARKS}, 2) finite pixels, "
+                           f"got shape {np.shape(landmarks)}")  # fmt: skip
+        crop = _crop_from_points(points, _eye_angle(points[33], points[263]))
+        found, presence = self._mesh_landmarks(Image.fromarray(image), crop)
+        if presence < self.min_presence:
+            return None
+        xy = found[:, :2]
+        keypoints = np.stack([
+            xy[[33, 133]].mean(0), xy[[362, 263]].mean(0), xy[NOSE_TIP], xy[[13, 14]].mean(0),
+            xy[234], xy[454],
+        ])  # fmt: skip
+        lo, hi = xy.min(axis=0), xy.max(axis=0)
+        box = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
+        return Face(box=box, score=presence, keypoints=keypoints, landmarks=found,
+                    presence=presence)  # fmt: skip
+
     def _detect_boxes(self, picture: Image.Image):
         """Detections in image pixels: the image letterboxed (centred, black borders) into a
         square, scaled to 128 px and mapped to [-1, 1]. Where that finds no face, overlapping

@@ -17,7 +17,7 @@ height and the principal point in the middle of the image.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -51,6 +51,12 @@ class Camera:
     znear: float = 0.01
     zfar: float = 100.0
     placed: bool = True
+
+    def scaled(self, factor: float) -> Camera:
+        """The camera of this one's image subsampled by ``factor`` (pixel edges at integers;
+        below 1: enlarged)."""
+        return replace(self, fx=self.fx / factor, fy=self.fy / factor, cx=self.cx / factor,
+                       cy=self.cy / factor)  # fmt: skip
 
     def __post_init__(self) -> None:
         for name in ("fx", "fy"):
