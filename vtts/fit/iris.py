@@ -188,10 +188,11 @@ def _check_landmarks(landmarks: np.ndarray) -> np.ndarray:
 
 
 class IrisModel:
-    """MediaPipe's iris landmark model on LiteRT; ``threads``: CPU threads of the interpreter.
-    Not thread-safe (make one per thread)."""
+    """MediaPipe's iris landmark model on LiteRT; ``threads``: CPU threads of the interpreter
+    (the model is small: a second thread costs more CPU time than it saves wall time). Not
+    thread-safe (make one per thread)."""
 
-    def __init__(self, threads: int = 2):
+    def __init__(self, threads: int = 1):
         from ai_edge_litert.interpreter import Interpreter
 
         with without_litert_banner():
