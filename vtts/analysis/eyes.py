@@ -184,6 +184,23 @@ class EyePoints:
         lids = np.array([by_eye[e].contour[c, :2] for e, c in rows]).reshape(-1, 2)
         return pupils, lids
 
+    def lid_normals(self, eyes: Eyes) -> np.ndarray:
+        """``(l, 2)`` for each lid point, the unit image direction across its eye (perpendicular
+        to the line between the eye's corners, pointing from the upper lid to the lower): the
+        direction in which a lid point is observed. Along the lid the iris model's contour
+        points are not the same points of the lid as the face mesh's landmarks (they lie up to
+        a tenth of the eye's width apart there), so only the lid's position across the eye, or
+        the difference of an upper and a lower row (the opening), is an observation."""
+        if self.lid_rows is None:
+            return np.zeros((0, 2))
+        normals = {}
+        for name, eye in eyes:
+            outer, inner = eye.contour[0, :2], eye.contour[8, :2]
+            along = (inner - outer) if name == "right" else (outer - inner)  # image x, roughly
+            along = along / max(float(np.linalg.norm(along)), 1e-9)
+            normals[name] = np.array([-along[1], along[0]])  # image y, roughly: down
+        return np.array([normals[e] for e in self.lid_rows.eye]).reshape(-1, 2)
+
 
 def mesh_vertex(geometry, node: str, point: int) -> int | None:
     """The estimator's vertex index of point ``point`` of the IndexedFaceSet named ``node``
