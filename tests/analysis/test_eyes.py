@@ -111,12 +111,17 @@ def test_a_fitted_head_is_where_the_iris_model_sees_the_eyes(fitted):
     estimator, image, landmarks = fitted
     points = eye_points(estimator)
     assert len(points.pupils) == 2 and len(points.lids) == 12
-    pupils, lids = points.targets(IrisModel().eyes(image, landmarks))
+    eyes = IrisModel().eyes(image, landmarks)
+    pupils, lids = points.targets(eyes)
+    normals = points.lid_normals(eyes)
+    np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0)
+    assert (normals[:, 1] > 0.95).all()  # an upright face: across the eye is down the image
     xy, jac = points.pupils.project(estimator)
     assert np.linalg.norm(xy - pupils, axis=1).max() < 2.0
     xy, jac = points.lids.project(estimator)
     gap = np.linalg.norm(xy - lids, axis=1)
     assert np.median(gap) < 1.0 and gap.max() < 2.0
+    assert np.abs(((xy - lids) * normals).sum(axis=1)).max() < 1.5
     # closing a lid by 100 units moves its points half a pixel or more, that way, in the image
     rows = points.lid_rows
     for (eye, lid), fap in LID_FAPS.items():
