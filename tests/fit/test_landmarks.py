@@ -207,8 +207,8 @@ def test_face_group(reference):
 def test_sampling_puts_pixel_centres_at_half(angle):
     image = np.zeros((40, 40, 3), np.uint8)
     image[10, 20] = 255
-    crop = lm._Crop(np.array([20.5, 10.5]), 3.0, angle)
-    window = np.asarray(lm._warp(Image.fromarray(image), crop, 3))
+    crop = lm.Crop(np.array([20.5, 10.5]), 3.0, angle)
+    window = np.asarray(lm.warp(Image.fromarray(image), crop, 3))
     expected = np.zeros((3, 3, 3), np.uint8)
     expected[1, 1] = 255
     np.testing.assert_array_equal(window, expected)

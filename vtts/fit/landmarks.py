@@ -250,7 +250,7 @@ def decode_detections(
 
 
 @dataclass(frozen=True)
-class _Crop:
+class Crop:
     """A square, rotated window of the image: ``centre`` (x, y) and ``size`` in pixels, ``angle``
     in radians (the crop's x axis is the image's rotated by ``angle``, clockwise on screen)."""
 
@@ -265,7 +265,7 @@ class _Crop:
         return self.centre + ((points - 0.5) * self.size) @ rotation.T
 
 
-def _crop_from_points(points: np.ndarray, angle: float) -> _Crop:
+def _crop_from_points(points: np.ndarray, angle: float) -> Crop:
     """The crop around ``points`` ``(n, 2)`` as seen rotated by ``-angle``, 1.5 x its longer
     side: MediaPipe's crop from the previous landmarks, but with the box taken in the rotated
     frame so that a strongly rolled face is not cropped too large."""
@@ -274,7 +274,7 @@ def _crop_from_points(points: np.ndarray, angle: float) -> _Crop:
     local = points @ rotation  # rotate by -angle
     lo, hi = local.min(axis=0), local.max(axis=0)
     centre = rotation @ ((lo + hi) / 2)
-    return _Crop(centre, CROP_SCALE * float(np.max(hi - lo)), angle)
+    return Crop(centre, CROP_SCALE * float(np.max(hi - lo)), angle)
 
 
 def _eye_angle(right: np.ndarray, left: np.ndarray) -> float:
@@ -302,7 +302,7 @@ class MediaPipeDetector:
 
         self.min_score = float(min_score)
         self.min_presence = float(min_presence)
-        with _without_litert_banner():
+        with without_litert_banner():
             self._detector = Interpreter(
                 model_path=str(package_data("landmarks/face_detection_short_range.tflite")),
                 num_threads=threads,
@@ -373,7 +373,7 @@ class MediaPipeDetector:
         find."""
         w, h = picture.size
         side = float(max(w, h))
-        found = list(self._detect_in(picture, _Crop(np.array([w / 2, h / 2]), side, 0.0)))
+        found = list(self._detect_in(picture, Crop(np.array([w / 2, h / 2]), side, 0.0)))
         for n in TILINGS:
             if found or side / n < DETECTOR_SIZE:
                 break
@@ -383,13 +383,13 @@ class MediaPipeDetector:
             ys = np.linspace(tile / 2, max(h - tile / 2, tile / 2), max(2 * round(h / tile) - 1, 1))
             for y in ys:
                 for x in xs:
-                    found += self._detect_in(picture, _Crop(np.array([x, y]), tile, 0.0))
+                    found += self._detect_in(picture, Crop(np.array([x, y]), tile, 0.0))
             found = _suppress(found)
         yield from found
 
-    def _detect_in(self, picture: Image.Image, window: _Crop):
+    def _detect_in(self, picture: Image.Image, window: Crop):
         """Detections in the square ``window`` of ``picture``, in image pixels."""
-        small = _warp(picture, window, DETECTOR_SIZE)
+        small = warp(picture, window, DETECTOR_SIZE)
         tensor = np.asarray(small, dtype=np.float32)[None] * (2 / 255) - 1
         inp, regressors, logits = self._detector_io
         self._detector.set_tensor(inp, tensor)
@@ -408,7 +408,7 @@ class MediaPipeDetector:
     ) -> Face | None:
         angle = _eye_angle(keypoints[0], keypoints[1])
         centre = (box[:2] + box[2:]) / 2
-        crop = _Crop(centre, CROP_SCALE * float(np.max(box[2:] - box[:2])), angle)
+        crop = Crop(centre, CROP_SCALE * float(np.max(box[2:] - box[:2])), angle)
         landmarks, presence = self._mesh_landmarks(picture, crop)
         # The detector's eye keypoints are coarse, worst on strongly rolled faces (60-90 degrees),
         # and the mesh model pulls its answer towards an upright crop: crop again from the mesh's
@@ -432,9 +432,9 @@ class MediaPipeDetector:
             presence=presence,
         )
 
-    def _mesh_landmarks(self, picture: Image.Image, crop: _Crop) -> tuple[np.ndarray, float]:
+    def _mesh_landmarks(self, picture: Image.Image, crop: Crop) -> tuple[np.ndarray, float]:
         """The mesh model on ``crop``: ``(468, 3)`` landmarks in image pixels, and presence."""
-        window = _warp(picture, crop, MESH_SIZE)
+        window = warp(picture, crop, MESH_SIZE)
         tensor = np.asarray(window, dtype=np.float32)[None] * (1 / 255)
         inp, points, logit = self._mesh_io
         self._mesh.set_tensor(inp, tensor)
@@ -447,7 +447,7 @@ class MediaPipeDetector:
         return landmarks, presence
 
 
-def _warp(picture: Image.Image, crop: _Crop, out: int) -> Image.Image:
+def warp(picture: Image.Image, crop: Crop, out: int) -> Image.Image:
     """The rotated square ``crop`` of ``picture`` resampled to ``out`` x ``out``, black outside
     the image.
 
@@ -490,7 +490,7 @@ _BANNER = "INFO: Created TensorFlow Lite XNNPACK delegate for CPU."
 
 
 @contextmanager
-def _without_litert_banner() -> Iterator[None]:
+def without_litert_banner() -> Iterator[None]:
     """LiteRT's C++ library prints an INFO line on the process's stderr when it builds its first
     interpreter, past Python's ``sys.stderr``; the CLI's output should carry only vtts's own
     lines. Everything else written there meanwhile is passed on."""
