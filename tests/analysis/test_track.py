@@ -214,12 +214,12 @@ def test_a_frame_that_loses_the_model_is_started_again_from_its_landmarks(tmp_pa
     real = Tracker.estimate  # the accurate mode's estimator too (finish=True)
     calls = []
 
-    def estimate(self, frame, index=0, time=0.0):
+    def estimate(self, frame, index=0, time=0.0, *observed):
         calls.append(index)
         if index == 1 and calls.count(1) == 1:
             self.translation[:] = (100.0, 0.0, 0.0)  # thrown out of view
             raise VttsError("the model covers only 0 pixels at 1/1 size")
-        return real(self, frame, index, time)
+        return real(self, frame, index, time, *observed)
 
     monkeypatch.setattr(Tracker, "estimate", estimate)
     tracked = track(_frames(2), fps=25.0, model_path=tmp_path / "m.wrl")
@@ -240,12 +240,12 @@ def held_track(tmp_path_factory, fits) -> tuple[Tracked, dict[int, int]]:
     real = Tracker.estimate  # the accurate mode's estimator too (finish=True)
     history_at_start = {}
 
-    def estimate(self, frame, index=0, time=0.0):
+    def estimate(self, frame, index=0, time=0.0, *observed):
         history_at_start[index] = len(self._history)
         if index == 2:
             self.translation[:] = (100.0, 0.0, 0.0)
             raise VttsError("the model covers only 0 pixels at 1/1 size")
-        return real(self, frame, index, time)
+        return real(self, frame, index, time, *observed)
 
     folder = tmp_path_factory.mktemp("held")
     with fits.sharing(), pytest.MonkeyPatch.context() as mp:
@@ -275,9 +275,9 @@ def test_a_head_that_ran_away_is_placed_again_from_the_neutral_face(tmp_path, mo
     calls = []
     placed_from = []
 
-    def estimate(self, frame, index=0, time=0.0):
+    def estimate(self, frame, index=0, time=0.0, *observed):
         calls.append(index)
-        fe = real(self, frame, index, time)
+        fe = real(self, frame, index, time, *observed)
         if index == 1 and calls.count(1) == 1:
             self.params[47] = 3 * track_module.MAX_TURN_AU  # pitched by 3.6 rad
             self.params[2] = 900.0  # and the jaw with it

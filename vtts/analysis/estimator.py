@@ -59,6 +59,7 @@ from vtts.analysis.unknowns import (  # noqa: F401
     ESTIMABLE,
     EYELIDS,
     HEAD_MOTION,
+    HEAD_ROTATION,
     JAW_AND_CORNERS,
     TABLE1_FAPS,
 )
@@ -77,8 +78,10 @@ RELINEARIZE_PX = 2.0
 JUMP_STEPS = 3
 #: … each change damped by this share of its own curvature (Levenberg's), …
 JUMP_DAMPING = 0.1
-#: … the last one when it moved the points by less than this (pixels).
+#: … the last one when it moved the points by less than this (pixels); a turn of the head by
+#: this much (AU) costs the jump as much as every landmark a pixel off.
 JUMP_STOP_PX = 0.5
+JUMP_TURN_AU = 3000.0
 
 #: Pixels next to the model's outline left out of the estimation.
 EDGE = 2
@@ -306,6 +309,8 @@ class Estimator:
         self._observed: tuple[np.ndarray, float] | None = None
         #: the frame's landmark term, linearized where it was last asked for
         self._landmarks: LandmarkSystem | None = None
+        self._eyes = None  # the frame's iris model eyes, while it is estimated
+        self._eye_points = None  # the model's pupils and lid points, once asked for
 
     # ---- rendering -----------------------------------------------------------------------------
 
@@ -417,16 +422,17 @@ class Estimator:
 
     @one_blas_thread()
     def estimate(self, frame: np.ndarray, index: int = 0, time: float = 0.0,
-                 landmarks=None) -> FrameEstimate:  # fmt: skip
+                 landmarks=None, eyes=None) -> FrameEstimate:  # fmt: skip
         """Update the estimate to the camera ``frame`` ``(H, W, 3) uint8`` and return it (with
         one BLAS thread: :mod:`vtts.threads`). ``landmarks``: the face mesh's
         :class:`~vtts.fit.landmarks.Face` in this frame, observed in every solve (None: the
-        photometric terms alone, as the paper)."""
+        photometric terms alone, as the paper); ``eyes``: the iris model's
+        :class:`~vtts.fit.iris.Eyes` there (:meth:`observe`)."""
         frame = np.asarray(frame)
         w, h = self.size
         if frame.shape != (h, w, 3):
             raise VttsError(f"frame {index} is {frame.shape}, expected ({h}, {w}, 3)")
-        self.observe(landmarks)
+        self.observe(landmarks, eyes)
         full = frame.astype(np.float32)
         if self.predicted:
             self._extrapolate(index)
@@ -466,13 +472,19 @@ class Estimator:
             self._search_from_neutral(full)
         return self._final_estimate(full, index, time, solves, self._lit_frame())
 
-    def observe(self, landmarks) -> None:
+    def observe(self, landmarks, eyes=None) -> None:
         """Take ``landmarks`` (a :class:`~vtts.fit.landmarks.Face`, or None) as the observations
-        of the frame about to be estimated (:meth:`estimate` does)."""
+        of the frame about to be estimated (:meth:`estimate` does), with the iris model's
+        ``eyes`` (:class:`~vtts.fit.iris.Eyes`) where given: pupils and lids."""
         self._landmarks = None
         self._observed = None
+        self._eyes = eyes
         if landmarks is None or self.landmark_weight <= 0:
             return
+        if eyes is not None and self._eye_points is None:
+            from vtts.analysis.eyes import eye_points
+
+            self._eye_points = eye_points(self)
         if self._landmark_points is None:
             self._landmark_points = landmark_points(self.geometry,
                                                     self.model.tables.feature_points)  # fmt: skip
@@ -490,7 +502,8 @@ class Estimator:
         term = self._landmarks
         if term is None or term.moved(values) > RELINEARIZE_PX:
             assert self._landmark_points is not None
-            term = linearize(self, self._landmark_points, *self._observed, values)
+            term = linearize(self, self._landmark_points, *self._observed, values, self._eyes,
+                             self._eye_points)  # fmt: skip
             term.weight = self.landmark_weight
             self._landmarks = term
         return term
@@ -502,6 +515,8 @@ class Estimator:
         unknown's pixels by a few pixels a solve at most; a head that moved further between two
         frames would otherwise be followed over several frames, or lost."""
         k = len(self.unknowns)
+        turns = np.array([u in HEAD_ROTATION for u in self.unknowns])
+        start = unknown_values(self)
         for _ in range(JUMP_STEPS):
             term = self.landmark_term()
             if term is None:
@@ -509,6 +524,11 @@ class Estimator:
             values = unknown_values(self)
             ata, atb = term.normal_equations(values, held=self._searched_columns)
             ata[np.diag_indices(k)] *= 1.0 + JUMP_DAMPING
+            # the head's turns held near where the frame started: the face's points lie nearly
+            # in a plane, and a turn and a shift move them much alike
+            prior = term.total_weight() / JUMP_TURN_AU**2
+            ata[turns, turns] += prior
+            atb[turns] -= prior * (values - start)[turns]
             delta = least_squares(ata, atb)
             self._apply(np.concatenate([delta, np.zeros(6)]))
             if term.shift(delta[:k]) < JUMP_STOP_PX:
@@ -578,7 +598,8 @@ class Estimator:
 
     def _settle(self, frame: np.ndarray, index: int, then: Callable[[], object] | None = None):
         """The estimate as a FAP stream carries it — integer FAPs — with the FAPs :attr:`refined`
-        searched on the rendered image (against the camera ``frame`` ``(H, W, 3)``) from there;
+        searched on the rendered image (against the camera ``frame`` ``(H, W, 3)``) from there
+        (but the eyelids on a frame whose eyes the iris model observed);
         ``then`` is called at those parameters. Returns the integer parameters ``(N_PARAMS,)``
         and what ``then`` returned; the estimator keeps its unrounded values (the searched FAPs
         as the search left them), and frame ``index`` joins the motion history."""
@@ -587,12 +608,17 @@ class Estimator:
             if not isinstance(u, str):
                 params[u - 1] = np.round(params[u - 1]) + 0.0  # no negative zeros
         kept, self.params = self.params, params
+        refined = self.refined
+        if self._observed is not None and self._eyes is not None:
+            # the iris model observed the lids: they are not searched on the image
+            self.refined = tuple(f for f in refined if f not in EYELIDS)
         try:
             self._refine(frame)
             result = then() if then is not None else None
         finally:
             for fap in self.refined:
                 kept[fap - 1] = self.params[fap - 1]
+            self.refined = refined
             params, self.params = self.params, kept
         self._history = [*self._history[-1:], (index, self.params.copy(), self.translation.copy())]
         return params, result
@@ -743,7 +769,9 @@ class Estimator:
             du, dv, gx_p, gy_p, r_p, s_p if self.illumination else None, weights
         )
         if term is not None:
-            lm_ata, lm_atb = term.normal_equations(term.values0, lv.factor, held=held)
+            # every unknown the landmarks see, the photometric terms' too-small ones included
+            lm_ata, lm_atb = term.normal_equations(term.values0, lv.factor,
+                                                   held=self._searched_columns)  # fmt: skip
             ata[:k, :k] += lm_ata
             atb[:k] += lm_atb
         delta = least_squares(ata, atb)

@@ -52,6 +52,13 @@ OBSERVED: tuple[int, ...] = (
     36, 50, 117, 205, 266, 280, 346, 425,  # cheeks
     175, 199, 200,  # chin
 )  # fmt: skip
+#: The face mesh's landmarks on the lids (the eyes' contours but their corners): with the iris
+#: model's eyes, the lids are observed from those instead (:func:`eye_rows`).
+EYE_LIDS: tuple[int, ...] = tuple(
+    i for i in (*RIGHT_EYE, *LEFT_EYE) if i not in (33, 133, 362, 263)
+)
+#: The iris model's input side (pixels).
+IRIS_SIZE = 64
 #: The face mesh model's landmark count.
 N_LANDMARKS = 468
 #: How many gray levels² of one full-size pixel's photometric residual a landmark one σ off
@@ -72,12 +79,14 @@ class LandmarkPoints:
     vertices   ``(n, 3)`` estimator vertex indices (into ``HeadGeometry.positions``)
     weights    ``(n, 3)`` barycentric weights (rows sum to 1)
     spread     ``(n,)`` how well each is known to sit there (model units)
+    landmark   ``(n,)`` the detector landmark of each (a mapped ``FACE``), or None
     """
 
     targets: np.ndarray
     vertices: np.ndarray
     weights: np.ndarray
     spread: np.ndarray
+    landmark: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.vertices)
@@ -103,7 +112,7 @@ def landmark_points(geometry, feature_points: dict[str, tuple[str, int]]) -> Lan
         targets = np.zeros((n, N_LANDMARKS))
         targets[np.arange(n), table.landmark[keep]] = 1.0
         return LandmarkPoints(targets, corner[table.vertices[keep]], table.weights[keep],
-                              table.spread[keep])  # fmt: skip
+                              table.spread[keep], table.landmark[keep])  # fmt: skip
     found = feature_vertices(geometry, feature_points)
     names = sorted(found)
     targets = np.zeros((len(names), N_LANDMARKS))
@@ -117,13 +126,15 @@ def landmark_points(geometry, feature_points: dict[str, tuple[str, int]]) -> Lan
 
 @dataclass
 class LandmarkSystem:
-    """One frame's landmark observations, linearized where the frame's estimate starts.
+    """One frame's observations, linearized where the estimate was when they were asked for.
 
     xy0        ``(n, 2)`` where the model puts the observed points at ``values0`` (pixels)
     jacobian   ``(2n, K)`` their image motion per unit of each unknown (rows x0, y0, x1, …)
     target     ``(n, 2)`` where the landmarks put them (pixels)
     sigma      ``(n,)`` each observation's σ (pixels)
     values0    ``(K,)`` the unknowns' values at the linearization
+    across     ``(n, 2)`` for an observation of one direction only, that unit direction (an
+               eyelid point seen across its eye); zeros for one of both
     weight     :data:`LANDMARK_WEIGHT`
     """
 
@@ -132,13 +143,24 @@ class LandmarkSystem:
     target: np.ndarray
     sigma: np.ndarray
     values0: np.ndarray
+    across: np.ndarray | None = None
     weight: float = LANDMARK_WEIGHT
+
+    def __post_init__(self) -> None:
+        n = len(self.xy0)
+        if self.across is None:
+            self.across = np.zeros((n, 2))
+        # each observation's 2x2 projection: the identity, or onto its one direction
+        one = np.einsum("na,nb->nab", self.across, self.across)
+        both = np.linalg.norm(self.across, axis=1) == 0
+        one[both] = np.eye(2)
+        self._project = one
 
     def residual(self, values: np.ndarray) -> np.ndarray:
         """``(n, 2)`` target minus where the points lie at the unknowns' ``values`` ``(K,)``
-        (moved linearly from the linearization)."""
+        (moved linearly from the linearization), projected onto the directions observed."""
         moved = self.xy0 + (self.jacobian @ (values - self.values0)).reshape(-1, 2)
-        return self.target - moved
+        return np.einsum("nab,nb->na", self._project, self.target - moved)
 
     def moved(self, values: np.ndarray) -> float:
         """How far (pixels) the unknowns' ``values`` ``(K,)`` move the points from the
@@ -161,6 +183,10 @@ class LandmarkSystem:
         distance = np.linalg.norm(r, axis=1) / self.sigma
         return self.weight * np.minimum(1.0, HUBER / np.maximum(distance, 1e-12)) / self.sigma**2
 
+    def total_weight(self) -> float:
+        """The observations' weights summed at the linearization (per pixel²)."""
+        return float(self._weights(self.residual(self.values0)).sum())
+
     def cost(self, values: np.ndarray, factor: float = 1.0, density: float = 1.0) -> float:
         """The term's weighted sum of squares at the unknowns' ``values`` in the units of
         :meth:`normal_equations`."""
@@ -176,39 +202,94 @@ class LandmarkSystem:
         ones) with ``density`` photometric rows per pixel (the tracking mode's samples, every
         second pixel each way: a quarter); ``held`` ``(K,)`` bool columns are left out."""
         r = self.residual(values)
-        w = np.repeat(density * self._weights(r), 2)
-        jac = self.jacobian / factor
+        w = density * self._weights(r)
+        jac = self.jacobian.reshape(len(r), 2, -1) / factor
         if held is not None and held.any():
             jac = jac.copy()
-            jac[:, held] = 0.0
-        ata = jac.T @ (jac * w[:, None])
-        atb = jac.T @ (w * r.reshape(-1) / factor)
+            jac[:, :, held] = 0.0
+        seen = np.einsum("nab,nbk->nak", self._project, jac) * w[:, None, None]
+        ata = np.einsum("nak,nal->kl", jac, seen)
+        atb = np.einsum("nak,na->k", seen, r / factor)
         return ata, atb
 
 
 def linearize(estimator, points: LandmarkPoints, landmarks: np.ndarray, crop_size: float,
-              values: np.ndarray) -> LandmarkSystem:  # fmt: skip
-    """The landmark term of ``estimator`` at its current parameters (the unknowns' ``values``
-    ``(K,)``) for the detector's ``landmarks`` ``(468, ≥2)`` image pixels, found in a crop of
-    ``crop_size`` pixels."""
-    geometry = estimator.geometry
-    params, translation = estimator.params, estimator.translation
-    uniq, inverse = np.unique(points.vertices, return_inverse=True)
-    inverse = inverse.reshape(points.vertices.shape)
-    world = geometry.positions(params, translation)[uniq]
-    motion = geometry.jacobian(params, translation, uniq)  # (U, 3, K)
-    lam = points.weights
-    p = np.einsum("nm,nma->na", lam, world[inverse])
-    dp = np.einsum("nm,nmak->nak", lam, motion[inverse])
-    xy, jac = projection_jacobian(p, dp, estimator.camera)
-    target = points.targets @ np.asarray(landmarks, np.float64)[:, :2]
-    # the spread seen at each point's depth, in pixels
-    depth = np.abs((p - np.asarray(estimator.camera.pose)[:3, 3]) @ np.asarray(
-        estimator.camera.pose)[:3, 2])  # fmt: skip
-    spread_px = points.spread * estimator.camera.fx / np.maximum(depth, 1e-9)
+              values: np.ndarray, eyes=None, eye_points=None) -> LandmarkSystem:  # fmt: skip
+    """The observations' term of ``estimator`` at its current parameters (the unknowns'
+    ``values`` ``(K,)``) for the detector's ``landmarks`` ``(468, ≥2)`` image pixels, found in
+    a crop of ``crop_size`` pixels; with ``eyes`` (the iris model's
+    :class:`~vtts.fit.iris.Eyes` in the same pixels) and the model's ``eye_points``
+    (:func:`vtts.analysis.eyes.eye_points`), the pupils and the lids' positions across the eyes
+    from them, in place of the face mesh's lid landmarks (:func:`eye_rows`)."""
+    keep = np.ones(len(points), dtype=bool)
+    if eyes is not None and points.landmark is not None:
+        keep = ~np.isin(points.landmark, EYE_LIDS)
+    xy, jac = _project(estimator, points.vertices[keep], points.weights[keep])
+    target = points.targets[keep] @ np.asarray(landmarks, np.float64)[:, :2]
+    depth = _depth(estimator, points.vertices[keep], points.weights[keep])
+    spread_px = points.spread[keep] * estimator.camera.fx / np.maximum(depth, 1e-9)
     crop_px = CROP_SIGMA * crop_size / MESH_SIZE
     sigma = np.sqrt(crop_px**2 + spread_px**2)
-    return LandmarkSystem(xy, jac, target, sigma, np.asarray(values, np.float64).copy())
+    across = np.zeros((len(xy), 2))
+    if eyes is not None and eye_points is not None:
+        rows = eye_rows(estimator, eye_points, eyes)
+        if rows is not None:
+            xy = np.concatenate([xy, rows[0]])
+            jac = np.concatenate([jac, rows[1]])
+            target = np.concatenate([target, rows[2]])
+            sigma = np.concatenate([sigma, rows[3]])
+            across = np.concatenate([across, rows[4]])
+    return LandmarkSystem(xy, jac, target, sigma, np.asarray(values, np.float64).copy(), across)
+
+
+def eye_rows(estimator, points, eyes) -> tuple[np.ndarray, ...] | None:
+    """The eyes' observations (:mod:`vtts.analysis.eyes`): each pupil where the iris model
+    puts the iris centre, its σ grown as the lids hide the iris (σ / √visible), and each lid
+    point where the iris model's lid contour crosses it, across the eye only; ``points``: the
+    model's (:func:`vtts.analysis.eyes.eye_points`), ``eyes`` the iris model's. Returns
+    ``(xy (m, 2), jacobian (2m, K), target (m, 2), sigma (m,), across (m, 2))`` or None where
+    the model shows neither."""
+    if not len(points.pupils) and not len(points.lids):
+        return None
+    pupils, lids = points.targets(eyes)
+    by_eye = dict(eyes)
+    crop = {name: CROP_SIGMA * eye.crop.size / IRIS_SIZE for name, eye in eyes}
+    xy_p, jac_p = points.pupils.project(estimator)
+    xy_l, jac_l = points.lids.project(estimator)
+    seen = [max(by_eye[n.split()[1]].visible, 1e-3) for n in points.pupils.names]
+    sigma_p = np.array([crop[n.split()[1]] for n in points.pupils.names]) / np.sqrt(seen)
+    sigma_l = np.array([crop[n.split()[1]] for n in points.lids.names])
+    across_l = points.lid_normals(eyes)
+    return (
+        np.concatenate([xy_p, xy_l]),
+        np.concatenate([jac_p, jac_l]),
+        np.concatenate([pupils, lids]),
+        np.concatenate([sigma_p, sigma_l]).reshape(-1),
+        np.concatenate([np.zeros((len(xy_p), 2)), across_l]),
+    )
+
+
+def _project(estimator, vertices: np.ndarray, weights: np.ndarray):
+    """Where points given as barycentric combinations of the estimator's ``vertices`` ``(n,
+    3)`` (``weights`` ``(n, 3)``) lie in its image ``(n, 2)``, and their image motion per unit
+    of each unknown ``(2n, K)``."""
+    geometry = estimator.geometry
+    params, translation = estimator.params, estimator.translation
+    uniq, inverse = np.unique(vertices, return_inverse=True)
+    inverse = inverse.reshape(vertices.shape)
+    world = geometry.positions(params, translation)[uniq]
+    motion = geometry.jacobian(params, translation, uniq)  # (U, 3, K)
+    p = np.einsum("nm,nma->na", weights, world[inverse])
+    dp = np.einsum("nm,nmak->nak", weights, motion[inverse])
+    return projection_jacobian(p, dp, estimator.camera)
+
+
+def _depth(estimator, vertices: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """``(n,)`` the points' distance from the camera along its axis (model units)."""
+    world = estimator.geometry.positions(estimator.params, estimator.translation)
+    p = np.einsum("nm,nma->na", weights, world[vertices])
+    pose = np.asarray(estimator.camera.pose)
+    return np.abs((p - pose[:3, 3]) @ pose[:3, 2])
 
 
 def crop_side(face) -> float:

@@ -86,6 +86,9 @@ MAX_TURN_AU = 120_000.0
 MAX_SHIFT = 0.5
 #: Recent frames whose median PSNR is the reference for :data:`LOST_DB`.
 RECENT = 10
+#: The FAPs the iris model observes (lids 19–22, gaze 23–26): when any is estimated, the eyes
+#: are looked at in every frame (:mod:`vtts.fit.iris`).
+EYE_FAPS = frozenset(range(19, 27))
 #: In the tracking mode, a video whose face shows its eyes further apart than this (pixels, eye
 #: centre to eye centre, at the first face) is estimated at a working size: subsampled by the
 #: smallest whole factor that brings them within it (Akiyo's are 34 pixels apart at CIF). The
@@ -250,6 +253,7 @@ class _Follower:
     detector: object | None
     last: object | None = None  # the last Face observed
     seen: bool = False
+    iris: object | None = None  # the iris model, once the eyes are asked for
 
     def observe(self, frame: np.ndarray, estimator: Estimator, scale: int = 1):
         """The :class:`~vtts.fit.landmarks.Face` in ``frame`` (the one nearest the tracked
@@ -272,6 +276,15 @@ class _Follower:
         self.last, self.seen = face, True
         return scaled_face(face, scale)
 
+    def eyes(self, frame: np.ndarray, scale: int = 1):
+        """The iris model's :class:`~vtts.fit.iris.Eyes` in ``frame`` around the last face
+        observed, in the pixels of the working size ``scale`` times smaller."""
+        from vtts.fit.iris import IrisModel
+
+        if self.iris is None:
+            self.iris = IrisModel()
+        return scaled_eyes(self.iris.eyes(frame, self.last.landmarks), scale)
+
 
 @dataclass
 class _Run:
@@ -293,6 +306,9 @@ def _follow(estimator: Estimator, run: _Run, frame, i: int, t: float, detector, 
     the face, the last good estimate is held."""
     scale = result.scale
     seen = run.follow.observe(frame, estimator, scale) if run.follow is not None else None
+    eyes = None
+    if seen is not None and any(u in EYE_FAPS for u in estimator.unknowns):
+        eyes = run.follow.eyes(frame, scale)
     if seen is None and run.follow is not None and run.follow.seen and run.kept is not None \
             and run.last is not None:  # fmt: skip
         result.held.append(i)
@@ -301,7 +317,7 @@ def _follow(estimator: Estimator, run: _Run, frame, i: int, t: float, detector, 
         run.last = fe
         return fe
     try:
-        fe = estimator.estimate(shrink(frame, scale), i, t, seen)
+        fe = estimator.estimate(shrink(frame, scale), i, t, seen, eyes)
     except VttsError as e:  # the model left the view: start again from the landmarks
         fe = _restart(estimator, frame, i, t, None, detector, kept=run.kept,
                       observe=run.follow is not None, scale=scale)  # fmt: skip
@@ -431,6 +447,20 @@ def scaled_face(face, scale: int):
     landmarks = np.asarray(face.landmarks, np.float64) / scale
     return replace(face, box=tuple(v / scale for v in face.box), keypoints=face.keypoints / scale,
                    landmarks=landmarks)  # fmt: skip
+
+
+def scaled_eyes(eyes, scale: int):
+    """``eyes`` (the iris model's :class:`~vtts.fit.iris.Eyes`) in the pixels of its image
+    subsampled by ``scale``."""
+    if scale == 1:
+        return eyes
+    from vtts.fit.landmarks import Crop
+
+    def one(eye):
+        crop = Crop(eye.crop.centre / scale, eye.crop.size / scale, eye.crop.angle)
+        return replace(eye, iris=eye.iris / scale, contour=eye.contour / scale, crop=crop)
+
+    return replace(eyes, right=one(eyes.right), left=one(eyes.left))
 
 
 def _lost(psnr: float, recent: list[float], cap: float = math.inf) -> bool:

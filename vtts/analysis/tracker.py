@@ -197,9 +197,9 @@ class Tracker(Estimator):
 
     @one_blas_thread()
     def estimate(self, frame: np.ndarray, index: int = 0, time: float = 0.0,
-                 landmarks=None) -> FrameEstimate:  # fmt: skip
+                 landmarks=None, eyes=None) -> FrameEstimate:  # fmt: skip
         """Update the estimate to the camera ``frame`` ``(H, W, 3) uint8`` and return it;
-        ``landmarks`` as :meth:`Estimator.estimate`'s."""
+        ``landmarks`` and ``eyes`` as :meth:`Estimator.estimate`'s."""
         if not self._history or (self.finish and super()._lit_frame()):
             # a first frame: the accurate start; with ``finish``, a frame of a lit face (by the
             # last frame's last solve): the whole pyramid, as the estimator — its shading changes
@@ -207,12 +207,12 @@ class Tracker(Estimator):
             if not self._history:
                 self.forget_motion()
             self.renderings = 0
-            return super().estimate(frame, index, time, landmarks)
+            return super().estimate(frame, index, time, landmarks, eyes)
         frame = np.asarray(frame)
         w, h = self.size
         if frame.shape != (h, w, 3):
             raise VttsError(f"frame {index} is {frame.shape}, expected ({h}, {w}, 3)")
-        self.observe(landmarks)
+        self.observe(landmarks, eyes)
         if self.predicted:
             self._extrapolate(index)
         self._jump_to_landmarks()
@@ -398,7 +398,7 @@ class Tracker(Estimator):
         if term is not None:  # a sample for every step² of the window's pixels
             k = du.shape[1]
             lm_ata, lm_atb = term.normal_equations(term.values0, density=self.sample_step**-2,
-                                                   held=held)  # fmt: skip
+                                                   held=self._searched_columns)  # fmt: skip
             ata[:k, :k] += lm_ata
             atb[:k] += lm_atb
         delta = least_squares(ata, atb)

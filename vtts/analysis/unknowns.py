@@ -28,6 +28,8 @@ DEFAULT_UNKNOWNS: tuple[int | str, ...] = (
 #: motion is what an estimator carries on from the last two frames (:class:`vtts.analysis.
 #: Estimator`'s ``predict``); the face's own FAPs change too abruptly with speech for that.
 HEAD_MOTION: tuple[int | str, ...] = (48, 49, 50, "tx", "ty", "tz")
+#: The head's rotation: pitch, yaw, roll (AU).
+HEAD_ROTATION: tuple[int, ...] = (48, 49, 50)
 
 #: The FAPs of the paper's Table 1 (estimation accuracy on synthetic sequences): jaw, lip corners
 #: raised, eyelids, outer eyebrows and the three head rotations.
