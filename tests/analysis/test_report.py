@@ -51,6 +51,7 @@ def make_analysis(
                 psnr=(psnr[i] if psnr is not None else 30 + i / 3),
                 face_pixels=5000 + i,
                 iterations=7 + i,
+                landmark_px=float("nan") if i == 1 else 0.5 + i / 7,
             )
         )
     return Analysis(frames, unknowns, fps / 2, Camera(300, 300, 32, 24), "head")
@@ -86,6 +87,7 @@ def test_csv_columns_follow_the_unknowns():
         "psnr_db",
         "face_pixels",
         "iterations",
+        "landmark_px",
         "fap48",
         "tx",
         "tz",
@@ -110,6 +112,9 @@ def test_csv_values_read_back_exactly(report):
         assert float(row["psnr_db"]) == fe.psnr
         assert int(row["face_pixels"]) == fe.face_pixels
         assert int(row["iterations"]) == fe.iterations
+        assert np.isnan(float(row["landmark_px"])) == np.isnan(fe.landmark_px)
+        if not np.isnan(fe.landmark_px):
+            assert float(row["landmark_px"]) == fe.landmark_px
         for k in (48, 3, 12):
             assert float(row[f"fap{k}"]) == fe.params[k - 1]
         assert float(row["tx"]) == fe.translation[0]

@@ -171,7 +171,8 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     analysis, tracked = found.analysis, found.tracked
     n = len(analysis.frames)
     restarts = len(tracked.restarts)
-    held = f", {len(tracked.held)} held (no estimate)" if tracked.held else ""
+    unseen = f"; {len(tracked.unseen)} showed no face" if tracked.unseen else ""
+    held = f", {len(tracked.held)} held (no estimate{unseen})" if tracked.held else ""
     # with --stream, stdout is the bitstream's
     echo(
         f"wrote {', '.join(written)}: {n} frame{'s' if n != 1 else ''} at "
