@@ -21,6 +21,7 @@ from vtts.fap import FapStream
 from vtts.fap.coding import PAPER_17, StreamEncoder, decode, encode, frame_of, paired_predictors
 from vtts.render import probe_media
 
+from .. import in_process
 from ..signals import signal_other_threads, wait_idle
 
 DATA = Path(__file__).parents[1] / "data"
@@ -36,21 +37,10 @@ def vtts(*args: str, stdin: bytes = b"") -> subprocess.CompletedProcess:
     )
 
 
-def vtts_here(capfd, monkeypatch, *args: str, stdin: bytes = b"") -> subprocess.CompletedProcess:
-    """``vtts ARGS`` run in this process (:func:`vtts.cli.main`), ``stdin`` coming through an OS
-    pipe as the process's would: its status, stdout and stderr (bytes; ``capfd`` may be
-    ``capfdbinary``). A traceback would be an exception here, failing the test."""
-    from vtts.cli import main
-
-    read, write = os.pipe()
-    os.write(write, stdin)  # within the pipe's buffer: the test's inputs are a few bytes
-    os.close(write)
-    capfd.readouterr()
-    with open(read, encoding="utf-8") as pipe:
-        monkeypatch.setattr(sys, "stdin", pipe)
-        code = main(list(args))
-    out, err = (t if isinstance(t, bytes) else t.encode() for t in capfd.readouterr())
-    return subprocess.CompletedProcess(["vtts", *args], code, out, err)
+def vtts_here(*args: str, stdin: bytes = b"") -> subprocess.CompletedProcess:
+    """``vtts ARGS`` in this process (``stdin`` through an OS pipe), as :func:`vtts` returns a
+    process's: stdout and stderr in bytes."""
+    return in_process.vtts(*args, stdin=stdin, text=False)
 
 
 def synthetic(n: int = 6) -> FapStream:
@@ -115,10 +105,9 @@ def test_webcam_pipeline_with_a_file(tmp_path):
     assert h.base_steps != tuple(FAPS[k - 1].quant_step for k in h.low), h.base_steps
     assert probe_media(out).frames == FRAMES
     # the stream as a file, played in this process: the same frames
-    from vtts.cli import main
-
-    assert main(["play", str(saved), "--model", str(head), "--size", "176x144", "--fps", "25",
-                 "--png-dir", str(tmp_path / "file"), "--quiet"]) == 0  # fmt: skip
+    r = vtts_here("play", str(saved), "--model", str(head), "--size", "176x144", "--fps", "25",
+                  "--png-dir", str(tmp_path / "file"), "--quiet")  # fmt: skip
+    assert r.returncode == 0, r.stderr.decode()
     live, whole = pngs(tmp_path / "live"), pngs(tmp_path / "file")
     assert len(live) == FRAMES and live == whole
 
@@ -155,7 +144,7 @@ def test_read_pipe_yields_frames_and_names_a_partial_one():
         (["--size", "176x144", "--texture", "mean", "-o", "x.fap"], "needs the whole video"),
     ],
 )
-def test_analyze_stdin_errors(tmp_path, capfd, monkeypatch, args, message):
+def test_analyze_stdin_errors(tmp_path, args, message):
     """The errors of the frames' bytes run the command as a process; the others run it in this
     process, from the same bytes through a pipe."""
     args = [str(tmp_path / a) if a.startswith(("x.", "rep")) else a for a in args]
@@ -163,26 +152,26 @@ def test_analyze_stdin_errors(tmp_path, capfd, monkeypatch, args, message):
     if "the pipe ends inside" in message:
         r = vtts("analyze", "-", *args, stdin=stdin)
     else:
-        r = vtts_here(capfd, monkeypatch, "analyze", "-", *args, stdin=stdin)
+        r = vtts_here("analyze", "-", *args, stdin=stdin)
     err = r.stderr.decode()
     assert r.returncode == 1 and message in err and "Traceback" not in err, err
     assert r.stdout == b""
 
 
-def test_size_is_for_a_pipe(capfd, monkeypatch):
-    r = vtts_here(capfd, monkeypatch, "analyze", str(CLIP), "--size", "176x144", "-o", "x.fap")
+def test_size_is_for_a_pipe():
+    r = vtts_here("analyze", str(CLIP), "--size", "176x144", "-o", "x.fap")
     assert r.returncode == 1 and b"--size is the size of raw frames" in r.stderr
 
 
-def test_play_stdin_renders_each_frame_and_a_whole_fbs_too(tmp_path, capfdbinary, monkeypatch):
+def test_play_stdin_renders_each_frame_and_a_whole_fbs_too(tmp_path):
     """The streamed packets through a real process; the whole .fbs in this process."""
     s = synthetic(5)
     data = b"".join(streamed(s))
     r = vtts("play", "-", "--model", str(HEAD), "--size", "32x24", "-o", "-", stdin=data)
     assert r.returncode == 0, r.stderr.decode()
     assert len(r.stdout) == 5 * 32 * 24 * 3
-    whole = vtts_here(capfdbinary, monkeypatch, "play", "-", "--model", str(HEAD), "--size",
-                      "32x24", "-o", "-", stdin=encode(s))  # fmt: skip
+    whole = vtts_here("play", "-", "--model", str(HEAD), "--size", "32x24", "-o", "-",
+                      stdin=encode(s))  # fmt: skip
     assert whole.returncode == 0 and whole.stdout == r.stdout
 
 
@@ -195,7 +184,7 @@ def test_play_stdin_renders_each_frame_and_a_whole_fbs_too(tmp_path, capfdbinary
         (lambda d, p: d[:-4], "inside the end marker's CRC"),
     ],
 )
-def test_play_stdin_bad_streams(tmp_path, capfd, monkeypatch, cut, message):
+def test_play_stdin_bad_streams(tmp_path, cut, message):
     """The garbage ends a real process; the other cuts run the command in this process, through
     a pipe."""
     parts = streamed(synthetic(3))
@@ -205,20 +194,18 @@ def test_play_stdin_bad_streams(tmp_path, capfd, monkeypatch, cut, message):
     if message.startswith("byte 0"):
         r = vtts(*args, stdin=data)
     else:
-        r = vtts_here(capfd, monkeypatch, *args, stdin=data)
+        r = vtts_here(*args, stdin=data)
     err = r.stderr.decode()
     assert r.returncode == 1 and message in err and "Traceback" not in err, err
     assert not out.exists()  # an MP4 is renamed into place only at the end of the stream
 
 
-def test_play_stdin_rejects_another_rate_and_whole_stream_options(capfd, monkeypatch):
+def test_play_stdin_rejects_another_rate_and_whole_stream_options():
     """In this process, the stream through a pipe."""
     data = b"".join(streamed(synthetic(2)))
-    r = vtts_here(capfd, monkeypatch, "play", "-", "--model", str(HEAD), "--fps", "30", "-o", "-",
-                  stdin=data)  # fmt: skip
+    r = vtts_here("play", "-", "--model", str(HEAD), "--fps", "30", "-o", "-", stdin=data)
     assert r.returncode == 1 and b"its own rate, 25 Hz" in r.stderr
-    r = vtts_here(capfd, monkeypatch, "play", "-", "--model", str(HEAD), "--web", "w", "-o", "-",
-                  stdin=data)  # fmt: skip
+    r = vtts_here("play", "-", "--model", str(HEAD), "--web", "w", "-o", "-", stdin=data)
     assert r.returncode == 1 and b"need the whole stream" in r.stderr
 
 

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import ray  # noqa: F401  (the test extra installs it: without it this test fails, loudly)
 
-from ..hostile import run_main
+from ..in_process import vtts
 
 TEXTS = [
     "Hi.",
@@ -99,7 +99,7 @@ def _references(folder: Path) -> dict[int, subprocess.CompletedProcess]:
     for i, text in enumerate(TEXTS):
         quiet = ["--quiet"] if i != BAD else []
         args = ("say", text, *OPTIONS, *quiet, "-o", str(folder / f"ref{i}.mp4"))
-        refs[i] = run_main("vtts", *args, cwd=folder)
+        refs[i] = vtts(*args, cwd=folder)
     return refs
 
 
@@ -181,7 +181,7 @@ def test_an_address_nothing_answers_fails_at_once_naming_it(tmp_path):
         if connects:  # a process of its own: were the address not checked, Ray would hang
             r = subprocess.run([str(EXE), *args], capture_output=True, text=True, timeout=120)
         else:  # refused before Ray starts: the message, in this process
-            r = run_main("vtts", *args, cwd=tmp_path)
+            r = vtts(*args, cwd=tmp_path)
         assert r.returncode == 1 and message in r.stderr and "Traceback" not in r.stderr, r.stderr
 
 
