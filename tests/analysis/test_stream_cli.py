@@ -71,45 +71,91 @@ def pngs(folder: Path) -> list[bytes]:
     return [np.asarray(Image.open(p)).tobytes() for p in sorted(folder.glob("*.png"))]
 
 
-def test_webcam_pipeline_with_a_file(tmp_path):
-    """ffmpeg | vtts analyze - --stream | tee | vtts play -: the documented pipeline, for real."""
-    ffmpeg = imageio_ffmpeg.get_ffmpeg_exe()
-    saved, head, out = tmp_path / "live.fbs", tmp_path / "head.wrl", tmp_path / "live.mp4"
-    decoder = subprocess.Popen(
-        [ffmpeg, "-v", "error", "-i", str(CLIP), "-frames:v", str(FRAMES), "-f", "rawvideo",
-         "-pix_fmt", "rgb24", "-"], stdout=subprocess.PIPE)  # fmt: skip
-    analyze = subprocess.Popen(
-        [str(EXE), "analyze", "-", "--size", "176x144", "--stream", "--model-out", str(head),
-         "--quiet"],
-        stdin=decoder.stdout, stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+def decoded_frames() -> list[str]:
+    """The ffmpeg command that decodes the first :data:`FRAMES` frames of Carphone to raw
+    ``rgb24`` on stdout, with the wheel's ffmpeg."""
+    return [imageio_ffmpeg.get_ffmpeg_exe(), "-v", "error", "-i", str(CLIP), "-frames:v",
+            str(FRAMES), "-f", "rawvideo", "-pix_fmt", "rgb24", "-"]  # fmt: skip
+
+
+def live(folder: Path, analyze: list[str], model: str, cwd: str | None = None) -> Path:
+    """ffmpeg | vtts analyze - --size 176x144 --stream ANALYZE --quiet | tee live.fbs | vtts play
+    - --model MODEL --size 176x144 -o live.mp4 --png-dir live/, three processes over OS pipes,
+    writing into ``folder`` (the analysis runs in the folder ``cwd``): the saved stream (each
+    command ended with status 0)."""
+    saved, out = folder / "live.fbs", folder / "live.mp4"
+    decoder = subprocess.Popen(decoded_frames(), stdout=subprocess.PIPE)
+    analysis = subprocess.Popen(
+        [str(EXE), "analyze", "-", "--size", "176x144", "--stream", *analyze, "--quiet"],
+        stdin=decoder.stdout, stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=cwd)  # fmt: skip
     decoder.stdout.close()
     play = subprocess.Popen(
-        [str(EXE), "play", "-", "--model", str(head), "--size", "176x144", "-o", str(out),
-         "--png-dir", str(tmp_path / "live"), "--quiet"],
+        [str(EXE), "play", "-", "--model", model, "--size", "176x144", "-o", str(out),
+         "--png-dir", str(folder / "live"), "--quiet"],
         stdin=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
     with open(saved, "wb") as keep:  # tee: the stream as it went by
-        while chunk := analyze.stdout.read1(1 << 16):
+        while chunk := analysis.stdout.read1(1 << 16):
             keep.write(chunk)
             play.stdin.write(chunk)
             play.stdin.flush()
     play.stdin.close()
     assert decoder.wait(60) == 0
-    assert analyze.wait(300) == 0, analyze.stderr.read().decode()
+    assert analysis.wait(300) == 0, analysis.stderr.read().decode()
     assert play.wait(300) == 0, play.stderr.read().decode()
     assert decode(saved.read_bytes()).n_frames == FRAMES
-    # the coder's steps measured on the fitted head at the first estimate (--steps face)
+    assert probe_media(out).frames == FRAMES
+    return saved
+
+
+def face_steps(saved: Path) -> dict:
+    """The base steps in the header of the stream ``saved`` (``encode``'s ``steps``), checked
+    to be measured on the face (--steps face), not MPEG-4's."""
     from vtts.fap.coding import read_header
     from vtts.fap.table import FAPS
 
     h = read_header(saved.read_bytes())
     assert h.base_steps != tuple(FAPS[k - 1].quant_step for k in h.low), h.base_steps
-    assert probe_media(out).frames == FRAMES
+    return {**dict(zip(h.low, h.base_steps, strict=True)),
+            **dict(zip(("tx", "ty", "tz"), h.translation_base_steps, strict=False))}  # fmt: skip
+
+
+def test_webcam_pipeline_with_a_file(tmp_path):
+    """ffmpeg | vtts analyze - --stream | tee | vtts play -: the documented pipeline, for real,
+    with the head fitted to the first face."""
+    head = tmp_path / "head.wrl"
+    saved = live(tmp_path, ["--model-out", str(head)], str(head))
+    face_steps(saved)  # measured on the fitted head at the first estimate
     # the stream as a file, played in this process: the same frames
     r = vtts_here("play", str(saved), "--model", str(head), "--size", "176x144", "--fps", "25",
                   "--png-dir", str(tmp_path / "file"), "--quiet")  # fmt: skip
     assert r.returncode == 0, r.stderr.decode()
-    live, whole = pngs(tmp_path / "live"), pngs(tmp_path / "file")
-    assert len(live) == FRAMES and live == whole
+    live_frames, whole = pngs(tmp_path / "live"), pngs(tmp_path / "file")
+    assert len(live_frames) == FRAMES and live_frames == whole
+
+
+def test_webcam_pipeline_with_a_given_model(tmp_path):
+    """The same pipeline with a bundled head (issue 40; a traceback once): nothing is fitted or
+    written, no --model-out; the stream carries what a file analysis of the same frames with
+    that model estimates (placed on the first face's landmarks), coded with the steps measured
+    at the first estimate."""
+    from PIL import Image
+
+    from vtts.api.analyze import AnalyzeOptions, analyze
+
+    # in a folder nothing can be written in: a given model needs no folder for a fitted head
+    saved = live(tmp_path, ["--model", "cybatt"], "cybatt", cwd="/proc")
+    steps = face_steps(saved)
+    frames = tmp_path / "frames"  # the same frames as a PNG folder, analyzed in this process
+    frames.mkdir()
+    raw = subprocess.run(decoded_frames(), capture_output=True, check=True).stdout
+    for i, frame in enumerate(np.frombuffer(raw, np.uint8).reshape(FRAMES, 144, 176, 3)):
+        Image.fromarray(frame).save(frames / f"f{i}.png")
+    found = analyze(AnalyzeOptions(video=str(frames), model=["cybatt"], track=True,
+                                   output=str(tmp_path / "file.fap")))  # fmt: skip
+    assert found.tracked.first == 0 and not found.fitted
+    got, want = decode(saved.read_bytes()), decode(encode(found.stream, steps=steps))
+    assert np.array_equal(got.values, want.values) and np.array_equal(got.mask, want.mask)
+    assert np.array_equal(got.translation, want.translation)
 
 
 def test_read_pipe_yields_frames_and_names_a_partial_one():
@@ -134,6 +180,10 @@ def test_read_pipe_yields_frames_and_names_a_partial_one():
         (["--size", "176x144", "--report", "rep", "-o", "x.fap"], "pipe cannot"),
         (["--size", "176x144", "--stream", "-o", "x.fbs"], "give no -o"),
         (["--size", "176x144", "--stream"], "--model-out"),
+        (
+            ["--size", "176x144", "--stream", "--model", "cybatt", "--model-out", "x.wrl"],
+            "with --model cybatt nothing is fitted",
+        ),
         # a TypeError traceback once (issue 45): the model is read, then the pipe
         (["--size", "176x144", "--stream", "--model", str(HEAD)], "the pipe ends inside"),
         (["--size", "176x144", "--stream", "--model=--"], "no model '--'"),
