@@ -1,19 +1,15 @@
 """Helpers of the hostile-input tests (issue 21): the commands run in a bounded process, and the
 mutations the in-process fuzzers apply to real inputs.
 
-A command runs three ways: the installed console script under the limits (:func:`run_cli`);
-the same, forked from a process that has already started Python and made the imports
-(:func:`run_bounded`, a fraction of the processor time); or in the test's own process
-(:func:`run_main`), for what a command says and writes rather than how its process ends.
-
-Importable from every test folder (``from hostile import …``): pytest puts ``tests/`` on the
-path for its ``conftest.py``.
+A command runs here two ways: the installed console script under the limits (:func:`run_cli`);
+or the same, forked from a process that has already started Python and made the imports
+(:func:`run_bounded`, a fraction of the processor time). For what a command says and writes
+rather than how its process ends, it runs in the test's own process (``tests/in_process.py``).
 """
 
 from __future__ import annotations
 
 import atexit
-import contextlib
 import io
 import json
 import os
@@ -58,11 +54,6 @@ def run_cli(
         env=env,
         preexec_fn=limited,
     )
-
-
-def vtts(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    """The ``vtts`` command under :func:`limited`."""
-    return run_cli("vtts", *args, cwd=cwd)
 
 
 #: The warm parent of :func:`run_bounded`'s commands (tests/forkserver.py), one per test process.
@@ -118,41 +109,6 @@ def run_bounded(
         return subprocess.CompletedProcess(
             [tool, *args], code, _text(out.read_bytes()), _text(err.read_bytes())
         )
-
-
-def run_main(tool: str, *args: str, cwd: Path) -> subprocess.CompletedProcess:
-    """``tool``'s main (``vtts``: :func:`vtts.cli.main`, ``adi``: ``adt_tools.cli.main``)
-    called in this process with ``args`` in the folder ``cwd``, its stdout and stderr captured
-    and its exit status returned as :func:`run_cli` returns them (a usage error's SystemExit
-    is its status). An exception the command lets through fails the test with its traceback.
-
-    For what a command says about an input and what it leaves on disk; the process — its
-    limits, a signal, no traceback reaching the user — is :func:`run_cli`'s and
-    :func:`run_bounded`'s. The model cache is the test process's (on, unless the environment
-    turns it off). The SIGTERM and SIGHUP handlers that ``vtts``'s main sets are put back after
-    it."""
-    import signal
-
-    if tool == "vtts":
-        from vtts.cli import main
-    else:
-        from adt_tools.cli import main
-    handlers = {s: signal.getsignal(s) for s in (signal.SIGTERM, signal.SIGHUP)}
-    # text streams over bytes, as a process's: a command may write to sys.stdout.buffer
-    out, err = (io.TextIOWrapper(io.BytesIO(), write_through=True) for _ in range(2))
-    with contextlib.chdir(cwd), contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        try:
-            code = main(list(args))
-        except SystemExit as e:  # as the interpreter ends a process with it
-            code = e.code if isinstance(e.code, int) else int(e.code is not None)
-            if not isinstance(e.code, int | None):
-                print(e.code, file=sys.stderr)
-        finally:
-            for sig, handler in handlers.items():
-                signal.signal(sig, handler)
-    return subprocess.CompletedProcess(
-        [tool, *args], code, _text(out.buffer.getvalue()), _text(err.buffer.getvalue())
-    )
 
 
 # ---- mutations -----------------------------------------------------------------------------------

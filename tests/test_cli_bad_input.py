@@ -1,7 +1,7 @@
 """Every command, given bad input, prints a clear error and exits non-zero — no traceback.
 
 The message, the status and the files left are the command's: each case runs in this process
-(``hostile.run_main``). That no traceback reaches the user is the process's: the first case of
+(``in_process.vtts``). That no traceback reaches the user is the process's: the first case of
 each command runs through the installed console script as well."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from .hostile import run_main
+from . import in_process
 
 DATA = Path(__file__).parent / "data"
 HEAD = str(DATA / "models" / "head.wrl")
@@ -66,7 +66,7 @@ def arguments(args: list[str], tmp_path: Path) -> list[str]:
 
 @pytest.mark.parametrize("args, fragment", CASES)
 def test_bad_input_is_a_clear_error(tmp_path, args, fragment):
-    check(run_main("vtts", *arguments(args, tmp_path), cwd=tmp_path), fragment, tmp_path)
+    check(in_process.vtts(*arguments(args, tmp_path), cwd=tmp_path), fragment, tmp_path)
 
 
 @pytest.mark.parametrize("args, fragment", FIRST, ids=[a[0] for a, _ in FIRST])

@@ -28,7 +28,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from .hostile import DATA, INTERESTING, OPS, mutate, mutate_bytes, run_bounded, run_main, wav
+from .hostile import DATA, INTERESTING, OPS, mutate, mutate_bytes, run_bounded, wav
+from .in_process import vtts
 
 ROOT = DATA.parent.parent
 HEAD = DATA / "models" / "head.wrl"
@@ -121,7 +122,7 @@ for _seed in (4, 5):
 def joy_fbs() -> bytes:
     """JOY as ``vtts encode`` writes it (made once: each case damages a copy)."""
     with tempfile.TemporaryDirectory() as tmp:
-        r = run_main("vtts", "encode", str(JOY), "-o", "joy.fbs", "--quiet", cwd=Path(tmp))
+        r = vtts("encode", str(JOY), "-o", "joy.fbs", "--quiet", cwd=Path(tmp))
         assert r.returncode == 0, r.stderr
         return Path(tmp, "joy.fbs").read_bytes()
 

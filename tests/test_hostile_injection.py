@@ -10,7 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from .hostile import DATA, run_bounded, run_main
+from .hostile import DATA, run_bounded
+from .in_process import vtts
 
 HEAD = DATA / "models" / "head.wrl"
 JOY = DATA / "fap" / "xface-joy.fap"
@@ -23,7 +24,7 @@ def test_a_model_name_stays_text_in_the_web_page(tmp_path, name):
         shutil.copy(HEAD.with_suffix(suffix), tmp_path / f"{name}{suffix}")
     # in this process: the page is the library's (head.wrl is below the model cache's 1 MB)
     args = ("play", str(JOY), "--model", f"{name}.wrl", "--web", "w", "--quiet")
-    r = run_main("vtts", *args, cwd=tmp_path)
+    r = vtts(*args, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     page = (tmp_path / "w" / "index.html").read_text(encoding="utf-8")
     config = re.search(r'id="vtts-config">(.*?)</script>', page, re.S)[1]
@@ -82,7 +83,7 @@ def test_echo_escapes_each_line_and_keeps_the_line_breaks(capsys):
 def test_the_written_files_are_named_escaped(tmp_path):
     out = Path(f"{ESC}.png")
     args = ("render", "--model", "cybatt", "--size", "32x24", "-o", str(out))
-    r = run_main("vtts", *args, cwd=tmp_path)
+    r = vtts(*args, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert "\x1b" not in r.stdout and "wrote \\x1b[31m.png" in r.stdout
     assert (tmp_path / out).is_file()
@@ -93,7 +94,7 @@ def test_a_bad_batch_line_is_echoed_escaped(tmp_path, dry):
     jobs = tmp_path / "jobs.jsonl"
     jobs.write_text(json.dumps({"say": "hi", "model": "cybatt", ESC: 1}) + "\n")
     args = ("batch", str(jobs), "--out", "out", *(["--dry-run"] if dry else []))
-    r = run_main("vtts", *args, cwd=tmp_path)
+    r = vtts(*args, cwd=tmp_path)
     assert r.returncode == 1 and "Traceback" not in r.stderr
     assert "\x1b" not in r.stderr + r.stdout
     assert "has no option '\\x1b[31m'" in r.stderr

@@ -14,24 +14,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from .hostile import run_main
 from .hostile import wav as hostile_wav
+
+# in this process: what a command refuses, writes and leaves alone is the command's, not its
+# process's; the process's own part, a signal, is test_sigterm_cleans_up_like_ctrl_c's
+from .in_process import adi as adi_cli
+from .in_process import vtts as vtts_cli
 
 DATA = Path(__file__).parent / "data"
 VTTS = Path(sys.executable).with_name("vtts")
 MODELS = Path(__file__).parents[1] / "models"
-
-
-def vtts_cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
-    """``vtts ARGS`` run in this process (``hostile.run_main``): what a command refuses, writes
-    and leaves alone is the command's, not its process's; the process's own part, a signal,
-    is :func:`test_sigterm_cleans_up_like_ctrl_c`'s."""
-    return run_main("vtts", *args, cwd=cwd or Path.cwd())
-
-
-def adi_cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
-    """``adi ARGS`` run in this process, as :func:`vtts_cli`."""
-    return run_main("adi", *args, cwd=cwd or Path.cwd())
 
 
 @pytest.fixture

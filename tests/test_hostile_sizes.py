@@ -12,7 +12,8 @@ import pytest
 
 from vtts import limits
 
-from .hostile import DATA, run_bounded, run_main, wav
+from .hostile import DATA, run_bounded, wav
+from .in_process import vtts
 
 HEAD = str(DATA / "models" / "head.wrl")
 JOY = str(DATA / "fap" / "xface-joy.fap")
@@ -28,7 +29,7 @@ def _slow_fap(tmp: Path) -> Path:
 def _long_fbs(tmp: Path) -> Path:
     """A valid bitstream whose header claims 200,000 frames at 0.05 Hz (46 days)."""
     fbs = tmp / "joy.fbs"
-    r = run_main("vtts", "encode", JOY, "-o", str(fbs), "--quiet", cwd=tmp)
+    r = vtts("encode", JOY, "-o", str(fbs), "--quiet", cwd=tmp)
     assert r.returncode == 0, r.stderr
     data = bytearray(fbs.read_bytes())
     struct.pack_into(">d", data, 7, 0.05)

@@ -16,16 +16,12 @@ from vtts.errors import RenderError
 from vtts.render import FaceRenderer
 from vtts.render.camera import Camera
 
-from .hostile import run_main
+# in this process: these tests are about what a command says of a value; a command's process
+# is the hostile fuzz and size tests' concern
+from .in_process import vtts as vtts_cli
 
 DATA = Path(__file__).parent / "data"
 VTTS = Path(sys.executable).with_name("vtts")
-
-
-def vtts_cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
-    """``vtts ARGS`` run in this process (``hostile.run_main``): these tests are about what a
-    command says of a value; a command's process is the hostile fuzz and size tests' concern."""
-    return run_main("vtts", *args, cwd=cwd or Path.cwd())
 
 
 def vtts_process(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:

@@ -12,6 +12,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from .. import in_process
+
 DATA = Path(__file__).parents[1] / "data"
 HEAD = str(DATA / "models" / "head.wrl")
 
@@ -19,20 +21,6 @@ HEAD = str(DATA / "models" / "head.wrl")
 def vtts(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
     exe = Path(sys.executable).with_name("vtts")
     return subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=300, cwd=cwd)
-
-
-def vtts_here(capfd, *args: str) -> subprocess.CompletedProcess:
-    """``vtts ARGS`` run in this process (:func:`vtts.cli.main`): its status, stdout and stderr.
-    A traceback would be an exception here, failing the test."""
-    from vtts.cli import main
-
-    capfd.readouterr()
-    try:
-        code = main(list(args))
-    except SystemExit as e:  # argparse's usage errors
-        code = e.code
-    out, err = capfd.readouterr()
-    return subprocess.CompletedProcess(["vtts", *args], code, out, err)
 
 
 def _inputs(root: Path) -> None:
@@ -75,9 +63,9 @@ def _inputs(root: Path) -> None:
         (["{in}/ok", "--model", "{in}/none.wrl"], ["no model"]),
     ],
 )
-def test_bad_input_is_a_clear_error(tmp_path, capfd, args, fragments):
+def test_bad_input_is_a_clear_error(tmp_path, args, fragments):
     """In this process (test_bad_input_ends_the_process_… runs the command)."""
-    _bad_input(tmp_path, args, fragments, lambda *a: vtts_here(capfd, *a))
+    _bad_input(tmp_path, args, fragments, in_process.vtts)
 
 
 def test_bad_input_ends_the_process_with_a_clear_error(tmp_path):
@@ -130,7 +118,7 @@ def rendered_frames(tmp_path_factory) -> Path:
     return d
 
 
-def test_the_bitstream_carries_the_steps_measured_on_the_head(tmp_path, rendered_frames, capfd):
+def test_the_bitstream_carries_the_steps_measured_on_the_head(tmp_path, rendered_frames):
     """``-o X.fbs`` codes with the base steps measured on the model (``--steps face``, the
     default): the lip corner's (FAP 6, a few pixels of the test head) coarser than MPEG-4's,
     the head's pitch (every pixel) finer; ``--steps mpeg4`` the standard's. The runs are in this
@@ -141,8 +129,9 @@ def test_the_bitstream_carries_the_steps_measured_on_the_head(tmp_path, rendered
     headers = {}
     for steps in ("face", "mpeg4"):
         out = tmp_path / f"{steps}.fbs"
-        r = vtts_here(capfd, "analyze", str(rendered_frames), "--model", HEAD, "-o", str(out),
-                      "--faps", "6,48", "--fps", "30", "--steps", steps, "--quiet")  # fmt: skip
+        r = in_process.vtts("analyze", str(rendered_frames), "--model", HEAD, "-o", str(out),
+                            "--faps", "6,48", "--fps", "30", "--steps", steps,
+                            "--quiet")  # fmt: skip
         assert r.returncode == 0, r.stderr
         headers[steps] = read_header(out.read_bytes())
     assert headers["mpeg4"].base_steps == (FAPS[5].quant_step, FAPS[47].quant_step)
@@ -245,9 +234,8 @@ def five_frames(tmp_path) -> Path:
     return d
 
 
-def test_outputs_of_a_run(tmp_path, five_frames, fake_estimator, capsys):
+def test_outputs_of_a_run(tmp_path, five_frames, fake_estimator):
     from vtts.api.coding import read_stream
-    from vtts.cli import main
 
     out = tmp_path / "out" / "est.fap"
     report = tmp_path / "report"
@@ -255,7 +243,8 @@ def test_outputs_of_a_run(tmp_path, five_frames, fake_estimator, capsys):
         "analyze", str(five_frames), "--model", HEAD, "-o", str(out), "--step", "2",
         "--faps", "3,tx", "--fps", "10", "--report", str(report), "--fbs",
     ]  # fmt: skip
-    assert main(argv) == 0
+    r = in_process.vtts(*argv)
+    assert r.returncode == 0, r.stderr
     (call,) = fake_estimator
     assert call == {"fps": 10.0, "step": 2, "camera": None, "unknowns": (3, "tx")}
     stream = read_stream(out)
@@ -271,19 +260,19 @@ def test_outputs_of_a_run(tmp_path, five_frames, fake_estimator, capsys):
         "psnr.png",
         "side-by-side.mp4",
     ]
-    text = capsys.readouterr().out.strip()
+    text = r.stdout.strip()
     assert len(text.splitlines()) == 1
     assert str(out) in text and str(out.with_suffix(".fbs")) in text and str(report) in text
     assert "3 frames at 5 fps" in text and "mean face PSNR 42.00 dB" in text
 
 
-def test_fbs_output_and_camera(tmp_path, five_frames, fake_estimator, capsys):
+def test_fbs_output_and_camera(tmp_path, five_frames, fake_estimator):
     from vtts.api.coding import read_stream
-    from vtts.cli import main
 
     out = tmp_path / "est.fbs"
     argv = ["analyze", str(five_frames), "--model", HEAD, "-o", str(out), "--camera", "90,80,32,24"]
-    assert main(argv) == 0
+    r = in_process.vtts(*argv)
+    assert r.returncode == 0, r.stderr
     assert out.read_bytes()[:4] == b"VFBS"
     assert read_stream(out).n_frames == 5
     (call,) = fake_estimator
@@ -296,9 +285,8 @@ def test_fbs_output_and_camera(tmp_path, five_frames, fake_estimator, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["est.fbs", "frames"]
 
 
-def test_a_failing_estimation_leaves_no_output(tmp_path, five_frames, monkeypatch, capsys):
+def test_a_failing_estimation_leaves_no_output(tmp_path, five_frames, monkeypatch):
     import vtts.analysis.track as track
-    from vtts.cli import main
     from vtts.errors import VttsError
 
     def fake_track(frames, **kw):
@@ -309,8 +297,8 @@ def test_a_failing_estimation_leaves_no_output(tmp_path, five_frames, monkeypatc
     out = tmp_path / "est.fap"
     argv = ["analyze", str(five_frames), "--model", HEAD, "-o", str(out), "--fbs"]
     argv += ["--report", str(tmp_path / "report")]
-    assert main(argv) == 1
-    assert "error: the face left the image" in capsys.readouterr().err
+    r = in_process.vtts(*argv)
+    assert r.returncode == 1 and "error: the face left the image" in r.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["frames"]
 
 

@@ -21,6 +21,7 @@ from vtts.fap import FapStream
 from vtts.fap.coding import PAPER_17, StreamEncoder, decode, encode, frame_of, paired_predictors
 from vtts.render import probe_media
 
+from .. import in_process
 from ..signals import signal_other_threads, wait_idle
 
 DATA = Path(__file__).parents[1] / "data"
@@ -36,21 +37,10 @@ def vtts(*args: str, stdin: bytes = b"") -> subprocess.CompletedProcess:
     )
 
 
-def vtts_here(capfd, monkeypatch, *args: str, stdin: bytes = b"") -> subprocess.CompletedProcess:
-    """``vtts ARGS`` run in this process (:func:`vtts.cli.main`), ``stdin`` coming through an OS
-    pipe as the process's would: its status, stdout and stderr (bytes; ``capfd`` may be
-    ``capfdbinary``). A traceback would be an exception here, failing the test."""
-    from vtts.cli import main
-
-    read, write = os.pipe()
-    os.write(write, stdin)  # within the pipe's buffer: the test's inputs are a few bytes
-    os.close(write)
-    capfd.readouterr()
-    with open(read, encoding="utf-8") as pipe:
-        monkeypatch.setattr(sys, "stdin", pipe)
-        code = main(list(args))
-    out, err = (t if isinstance(t, bytes) else t.encode() for t in capfd.readouterr())
-    return subprocess.CompletedProcess(["vtts", *args], code, out, err)
+def vtts_here(*args: str, stdin: bytes = b"") -> subprocess.CompletedProcess:
+    """``vtts ARGS`` in this process (``stdin`` through an OS pipe), as :func:`vtts` returns a
+    process's: stdout and stderr in bytes."""
+    return in_process.vtts(*args, stdin=stdin, text=False)
 
 
 def synthetic(n: int = 6) -> FapStream:
@@ -81,46 +71,91 @@ def pngs(folder: Path) -> list[bytes]:
     return [np.asarray(Image.open(p)).tobytes() for p in sorted(folder.glob("*.png"))]
 
 
-def test_webcam_pipeline_with_a_file(tmp_path):
-    """ffmpeg | vtts analyze - --stream | tee | vtts play -: the documented pipeline, for real."""
-    ffmpeg = imageio_ffmpeg.get_ffmpeg_exe()
-    saved, head, out = tmp_path / "live.fbs", tmp_path / "head.wrl", tmp_path / "live.mp4"
-    decoder = subprocess.Popen(
-        [ffmpeg, "-v", "error", "-i", str(CLIP), "-frames:v", str(FRAMES), "-f", "rawvideo",
-         "-pix_fmt", "rgb24", "-"], stdout=subprocess.PIPE)  # fmt: skip
-    analyze = subprocess.Popen(
-        [str(EXE), "analyze", "-", "--size", "176x144", "--stream", "--model-out", str(head),
-         "--quiet"],
-        stdin=decoder.stdout, stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+def decoded_frames() -> list[str]:
+    """The ffmpeg command that decodes the first :data:`FRAMES` frames of Carphone to raw
+    ``rgb24`` on stdout, with the wheel's ffmpeg."""
+    return [imageio_ffmpeg.get_ffmpeg_exe(), "-v", "error", "-i", str(CLIP), "-frames:v",
+            str(FRAMES), "-f", "rawvideo", "-pix_fmt", "rgb24", "-"]  # fmt: skip
+
+
+def live(folder: Path, analyze: list[str], model: str, cwd: str | None = None) -> Path:
+    """ffmpeg | vtts analyze - --size 176x144 --stream ANALYZE --quiet | tee live.fbs | vtts play
+    - --model MODEL --size 176x144 -o live.mp4 --png-dir live/, three processes over OS pipes,
+    writing into ``folder`` (the analysis runs in the folder ``cwd``): the saved stream (each
+    command ended with status 0)."""
+    saved, out = folder / "live.fbs", folder / "live.mp4"
+    decoder = subprocess.Popen(decoded_frames(), stdout=subprocess.PIPE)
+    analysis = subprocess.Popen(
+        [str(EXE), "analyze", "-", "--size", "176x144", "--stream", *analyze, "--quiet"],
+        stdin=decoder.stdout, stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=cwd)  # fmt: skip
     decoder.stdout.close()
     play = subprocess.Popen(
-        [str(EXE), "play", "-", "--model", str(head), "--size", "176x144", "-o", str(out),
-         "--png-dir", str(tmp_path / "live"), "--quiet"],
+        [str(EXE), "play", "-", "--model", model, "--size", "176x144", "-o", str(out),
+         "--png-dir", str(folder / "live"), "--quiet"],
         stdin=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
     with open(saved, "wb") as keep:  # tee: the stream as it went by
-        while chunk := analyze.stdout.read1(1 << 16):
+        while chunk := analysis.stdout.read1(1 << 16):
             keep.write(chunk)
             play.stdin.write(chunk)
             play.stdin.flush()
     play.stdin.close()
     assert decoder.wait(60) == 0
-    assert analyze.wait(300) == 0, analyze.stderr.read().decode()
+    assert analysis.wait(300) == 0, analysis.stderr.read().decode()
     assert play.wait(300) == 0, play.stderr.read().decode()
     assert decode(saved.read_bytes()).n_frames == FRAMES
-    # the coder's steps measured on the fitted head at the first estimate (--steps face)
+    assert probe_media(out).frames == FRAMES
+    return saved
+
+
+def face_steps(saved: Path) -> dict:
+    """The base steps in the header of the stream ``saved`` (``encode``'s ``steps``), checked
+    to be measured on the face (--steps face), not MPEG-4's."""
     from vtts.fap.coding import read_header
     from vtts.fap.table import FAPS
 
     h = read_header(saved.read_bytes())
     assert h.base_steps != tuple(FAPS[k - 1].quant_step for k in h.low), h.base_steps
-    assert probe_media(out).frames == FRAMES
-    # the stream as a file, played in this process: the same frames
-    from vtts.cli import main
+    return {**dict(zip(h.low, h.base_steps, strict=True)),
+            **dict(zip(("tx", "ty", "tz"), h.translation_base_steps, strict=False))}  # fmt: skip
 
-    assert main(["play", str(saved), "--model", str(head), "--size", "176x144", "--fps", "25",
-                 "--png-dir", str(tmp_path / "file"), "--quiet"]) == 0  # fmt: skip
-    live, whole = pngs(tmp_path / "live"), pngs(tmp_path / "file")
-    assert len(live) == FRAMES and live == whole
+
+def test_webcam_pipeline_with_a_file(tmp_path):
+    """ffmpeg | vtts analyze - --stream | tee | vtts play -: the documented pipeline, for real,
+    with the head fitted to the first face."""
+    head = tmp_path / "head.wrl"
+    saved = live(tmp_path, ["--model-out", str(head)], str(head))
+    face_steps(saved)  # measured on the fitted head at the first estimate
+    # the stream as a file, played in this process: the same frames
+    r = vtts_here("play", str(saved), "--model", str(head), "--size", "176x144", "--fps", "25",
+                  "--png-dir", str(tmp_path / "file"), "--quiet")  # fmt: skip
+    assert r.returncode == 0, r.stderr.decode()
+    live_frames, whole = pngs(tmp_path / "live"), pngs(tmp_path / "file")
+    assert len(live_frames) == FRAMES and live_frames == whole
+
+
+def test_webcam_pipeline_with_a_given_model(tmp_path):
+    """The same pipeline with a bundled head (issue 40; a traceback once): nothing is fitted or
+    written, no --model-out; the stream carries what a file analysis of the same frames with
+    that model estimates (placed on the first face's landmarks), coded with the steps measured
+    at the first estimate."""
+    from PIL import Image
+
+    from vtts.api.analyze import AnalyzeOptions, analyze
+
+    # in a folder nothing can be written in: a given model needs no folder for a fitted head
+    saved = live(tmp_path, ["--model", "cybatt"], "cybatt", cwd="/proc")
+    steps = face_steps(saved)
+    frames = tmp_path / "frames"  # the same frames as a PNG folder, analyzed in this process
+    frames.mkdir()
+    raw = subprocess.run(decoded_frames(), capture_output=True, check=True).stdout
+    for i, frame in enumerate(np.frombuffer(raw, np.uint8).reshape(FRAMES, 144, 176, 3)):
+        Image.fromarray(frame).save(frames / f"f{i}.png")
+    found = analyze(AnalyzeOptions(video=str(frames), model=["cybatt"], track=True,
+                                   output=str(tmp_path / "file.fap")))  # fmt: skip
+    assert found.tracked.first == 0 and not found.fitted
+    got, want = decode(saved.read_bytes()), decode(encode(found.stream, steps=steps))
+    assert np.array_equal(got.values, want.values) and np.array_equal(got.mask, want.mask)
+    assert np.array_equal(got.translation, want.translation)
 
 
 def test_read_pipe_yields_frames_and_names_a_partial_one():
@@ -145,6 +180,10 @@ def test_read_pipe_yields_frames_and_names_a_partial_one():
         (["--size", "176x144", "--report", "rep", "-o", "x.fap"], "pipe cannot"),
         (["--size", "176x144", "--stream", "-o", "x.fbs"], "give no -o"),
         (["--size", "176x144", "--stream"], "--model-out"),
+        (
+            ["--size", "176x144", "--stream", "--model", "cybatt", "--model-out", "x.wrl"],
+            "with --model cybatt nothing is fitted",
+        ),
         # a TypeError traceback once (issue 45): the model is read, then the pipe
         (["--size", "176x144", "--stream", "--model", str(HEAD)], "the pipe ends inside"),
         (["--size", "176x144", "--stream", "--model=--"], "no model '--'"),
@@ -155,7 +194,7 @@ def test_read_pipe_yields_frames_and_names_a_partial_one():
         (["--size", "176x144", "--texture", "mean", "-o", "x.fap"], "needs the whole video"),
     ],
 )
-def test_analyze_stdin_errors(tmp_path, capfd, monkeypatch, args, message):
+def test_analyze_stdin_errors(tmp_path, args, message):
     """The errors of the frames' bytes run the command as a process; the others run it in this
     process, from the same bytes through a pipe."""
     args = [str(tmp_path / a) if a.startswith(("x.", "rep")) else a for a in args]
@@ -163,26 +202,26 @@ def test_analyze_stdin_errors(tmp_path, capfd, monkeypatch, args, message):
     if "the pipe ends inside" in message:
         r = vtts("analyze", "-", *args, stdin=stdin)
     else:
-        r = vtts_here(capfd, monkeypatch, "analyze", "-", *args, stdin=stdin)
+        r = vtts_here("analyze", "-", *args, stdin=stdin)
     err = r.stderr.decode()
     assert r.returncode == 1 and message in err and "Traceback" not in err, err
     assert r.stdout == b""
 
 
-def test_size_is_for_a_pipe(capfd, monkeypatch):
-    r = vtts_here(capfd, monkeypatch, "analyze", str(CLIP), "--size", "176x144", "-o", "x.fap")
+def test_size_is_for_a_pipe():
+    r = vtts_here("analyze", str(CLIP), "--size", "176x144", "-o", "x.fap")
     assert r.returncode == 1 and b"--size is the size of raw frames" in r.stderr
 
 
-def test_play_stdin_renders_each_frame_and_a_whole_fbs_too(tmp_path, capfdbinary, monkeypatch):
+def test_play_stdin_renders_each_frame_and_a_whole_fbs_too(tmp_path):
     """The streamed packets through a real process; the whole .fbs in this process."""
     s = synthetic(5)
     data = b"".join(streamed(s))
     r = vtts("play", "-", "--model", str(HEAD), "--size", "32x24", "-o", "-", stdin=data)
     assert r.returncode == 0, r.stderr.decode()
     assert len(r.stdout) == 5 * 32 * 24 * 3
-    whole = vtts_here(capfdbinary, monkeypatch, "play", "-", "--model", str(HEAD), "--size",
-                      "32x24", "-o", "-", stdin=encode(s))  # fmt: skip
+    whole = vtts_here("play", "-", "--model", str(HEAD), "--size", "32x24", "-o", "-",
+                      stdin=encode(s))  # fmt: skip
     assert whole.returncode == 0 and whole.stdout == r.stdout
 
 
@@ -195,7 +234,7 @@ def test_play_stdin_renders_each_frame_and_a_whole_fbs_too(tmp_path, capfdbinary
         (lambda d, p: d[:-4], "inside the end marker's CRC"),
     ],
 )
-def test_play_stdin_bad_streams(tmp_path, capfd, monkeypatch, cut, message):
+def test_play_stdin_bad_streams(tmp_path, cut, message):
     """The garbage ends a real process; the other cuts run the command in this process, through
     a pipe."""
     parts = streamed(synthetic(3))
@@ -205,20 +244,18 @@ def test_play_stdin_bad_streams(tmp_path, capfd, monkeypatch, cut, message):
     if message.startswith("byte 0"):
         r = vtts(*args, stdin=data)
     else:
-        r = vtts_here(capfd, monkeypatch, *args, stdin=data)
+        r = vtts_here(*args, stdin=data)
     err = r.stderr.decode()
     assert r.returncode == 1 and message in err and "Traceback" not in err, err
     assert not out.exists()  # an MP4 is renamed into place only at the end of the stream
 
 
-def test_play_stdin_rejects_another_rate_and_whole_stream_options(capfd, monkeypatch):
+def test_play_stdin_rejects_another_rate_and_whole_stream_options():
     """In this process, the stream through a pipe."""
     data = b"".join(streamed(synthetic(2)))
-    r = vtts_here(capfd, monkeypatch, "play", "-", "--model", str(HEAD), "--fps", "30", "-o", "-",
-                  stdin=data)  # fmt: skip
+    r = vtts_here("play", "-", "--model", str(HEAD), "--fps", "30", "-o", "-", stdin=data)
     assert r.returncode == 1 and b"its own rate, 25 Hz" in r.stderr
-    r = vtts_here(capfd, monkeypatch, "play", "-", "--model", str(HEAD), "--web", "w", "-o", "-",
-                  stdin=data)  # fmt: skip
+    r = vtts_here("play", "-", "--model", str(HEAD), "--web", "w", "-o", "-", stdin=data)
     assert r.returncode == 1 and b"need the whole stream" in r.stderr
 
 

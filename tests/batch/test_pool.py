@@ -11,7 +11,6 @@ import os
 import signal
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -19,7 +18,7 @@ from vtts.batch import run
 from vtts.batch.jobs import parse_job
 from vtts.batch.pool import Died, LocalPool
 
-from ..in_process import vtts
+from .killed_batch import check_outputs, killing_while_writing, parent_pid, references, say_jobs
 
 TEXTS = [
     "Hi.",
@@ -31,7 +30,6 @@ TEXTS = [
     "Bye now.",
 ]
 BAD, KILLED = 1, 3
-OPTIONS = ["--model", "cybatt", "--size", "160x120"]
 
 
 def _workers(pid: int) -> list[int]:
@@ -41,7 +39,7 @@ def _workers(pid: int) -> list[int]:
         if not proc.name.isdigit():
             continue
         try:
-            parent = int((proc / "stat").read_text().rsplit(")", 1)[1].split()[1])
+            parent = parent_pid(proc)
             cmdline = (proc / "cmdline").read_bytes()
         except (OSError, ValueError):
             continue
@@ -50,77 +48,23 @@ def _workers(pid: int) -> list[int]:
     return found
 
 
-def _holder(path_glob: str, folder: Path) -> int | None:
-    """The pid of the worker whose encoder writes a file matching ``path_glob`` in ``folder``
-    (the encoder is the worker's child), or None."""
-    parts = [str(p) for p in folder.glob(path_glob)]
-    if not parts:
-        return None
-    workers = _workers(os.getpid())
-    for proc in Path("/proc").iterdir():
-        if not proc.name.isdigit():
-            continue
-        try:
-            links = [os.readlink(fd) for fd in (proc / "fd").iterdir()]
-            if not any(link in parts for link in links):
-                continue
-            parent = int((proc / "stat").read_text().rsplit(")", 1)[1].split()[1])
-        except (OSError, ValueError):
-            continue
-        if parent in workers:
-            return parent
-    return None
-
-
-def _kill_when_writing(folder: Path, stop: threading.Event, killed: list) -> None:
-    while not stop.is_set():
-        pid = _holder(f".q{KILLED}.mp4.*.part*", folder)
-        if pid is not None:
-            os.kill(pid, signal.SIGKILL)
-            killed.append(pid)
-            return
-        time.sleep(0.005)
+def _is_worker(pid: int) -> bool:
+    """Whether ``pid`` is a batch worker of this process."""
+    return pid in _workers(os.getpid())
 
 
 def test_a_batch_on_local_workers(tmp_path, monkeypatch):
     monkeypatch.setenv("LP_NUM_THREADS", "1")
-    jobs = tmp_path / "jobs.jsonl"
-    out = tmp_path / "out"
-    out.mkdir()
-    lines = [
-        {"id": f"q{i}", "say": t, "model": ["cybatt"], "size": "160x120", "output": f"q{i}.mp4"}
-        for i, t in enumerate(TEXTS)
-    ]
-    jobs.write_text("".join(json.dumps(x) + "\n" for x in lines))
-    stop, killed = threading.Event(), []
-    watcher = threading.Thread(target=_kill_when_writing, args=(out, stop, killed), daemon=True)
-    watcher.start()
-    try:
+    jobs, out = say_jobs(tmp_path, TEXTS)
+    with killing_while_writing(out, f".q{KILLED}.mp4.*.part*", _is_worker) as killed:
         report = run(jobs, out, workers=2)
-    finally:
-        stop.set()
-        watcher.join()
     assert killed, "the watcher never saw the job's video being written"
     assert report.workers == 2 and report.restarts == 1
     assert "5 jobs done, 1 failed, 0 already done" in report.summary()
     assert "1 worker replaced" in report.summary()
     assert not _workers(os.getpid()), "the workers are gone"
 
-    failures = [json.loads(x) for x in (out / "failures.jsonl").read_text().splitlines()]
-    assert [(f["id"], f["line"], f["kind"]) for f in failures] == [(f"q{BAD}", BAD + 1, "input")]
-    manifest = [json.loads(x) for x in (out / "manifest.jsonl").read_text().splitlines()]
-    assert sorted(e["id"] for e in manifest) == sorted(f"q{i}" for i in range(6) if i != BAD)
-    assert next(e for e in manifest if e["id"] == f"q{KILLED}")["attempts"] == 2
-    assert not list(out.glob(".*part*"))  # the dead worker's temporary is gone
-
-    for i, text in enumerate(TEXTS):
-        ref = tmp_path / f"ref{i}.mp4"
-        r = vtts("say", text, *OPTIONS, "--quiet", "-o", str(ref))
-        if i == BAD:
-            assert r.returncode == 1 and not (out / f"q{i}.mp4").exists()
-            assert failures[0]["error"] == r.stderr.rstrip("\n")  # what the command printed
-            continue
-        assert (out / f"q{i}.mp4").read_bytes() == ref.read_bytes(), f"q{i}"
+    check_outputs(out, references(tmp_path, TEXTS, BAD), BAD, KILLED)
 
     # a re-run does nothing and starts no worker: the 5 are finished, the bad line unchanged
     before = {p.name: p.stat().st_mtime_ns for p in out.iterdir()}

@@ -14,13 +14,13 @@ import os
 import signal
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
 import ray  # noqa: F401  (the test extra installs it: without it this test fails, loudly)
 
-from ..hostile import run_main
+from ..in_process import vtts
+from .killed_batch import check_outputs, killing_while_writing, parent_pid, references, say_jobs
 
 TEXTS = [
     "Hi.",
@@ -32,40 +32,12 @@ TEXTS = [
     "Good night.",
 ]
 BAD, KILLED = 2, 3
-OPTIONS = ["--model", "cybatt", "--size", "160x120"]
 
 
-def _holder(path_glob: str, folder: Path) -> int | None:
-    """The pid of the Ray worker whose encoder writes a file matching ``path_glob`` in
-    ``folder`` (the encoder is the worker's child), or None."""
-    parts = [str(p) for p in folder.glob(path_glob)]
-    if not parts:
-        return None
-    for proc in Path("/proc").iterdir():
-        if not proc.name.isdigit():
-            continue
-        try:
-            links = [os.readlink(fd) for fd in (proc / "fd").iterdir()]
-            if not any(link in parts for link in links):
-                continue
-            stat = (proc / "stat").read_text()
-            parent = int(stat.rsplit(")", 1)[1].split()[1])
-            cmdline = (Path("/proc") / str(parent) / "cmdline").read_bytes()
-        except (OSError, ValueError):
-            continue
-        if b"ray::" in cmdline or b"default_worker" in cmdline:
-            return parent
-    return None
-
-
-def _kill_when_writing(folder: Path, stop: threading.Event, killed: list) -> None:
-    while not stop.is_set():
-        pid = _holder(f".q{KILLED}.mp4.*.part*", folder)
-        if pid is not None:
-            os.kill(pid, signal.SIGKILL)
-            killed.append(pid)
-            return
-        time.sleep(0.005)
+def _is_worker(pid: int) -> bool:
+    """Whether ``pid`` is a Ray worker process."""
+    cmdline = (Path("/proc") / str(pid) / "cmdline").read_bytes()
+    return b"ray::" in cmdline or b"default_worker" in cmdline
 
 
 def _start(jobs: Path, out: Path) -> subprocess.Popen:
@@ -91,66 +63,26 @@ def _batch(jobs: Path, out: Path) -> subprocess.CompletedProcess:
     return _finish(_start(jobs, out))
 
 
-def _references(folder: Path) -> dict[int, subprocess.CompletedProcess]:
-    """``vtts say`` of each text with the jobs' options, in this process: ``folder/refI.mp4``
-    and what the command printed (the bad one's failure as it prints it, without --quiet)."""
-    os.environ.setdefault("LP_NUM_THREADS", "1")
-    refs = {}
-    for i, text in enumerate(TEXTS):
-        quiet = ["--quiet"] if i != BAD else []
-        args = ("say", text, *OPTIONS, *quiet, "-o", str(folder / f"ref{i}.mp4"))
-        refs[i] = run_main("vtts", *args, cwd=folder)
-    return refs
-
-
 def test_batch_on_local_ray(tmp_path):
-    jobs = tmp_path / "jobs.jsonl"
-    out = tmp_path / "out"
-    out.mkdir()
-    lines = [
-        {"id": f"q{i}", "say": t, "model": ["cybatt"], "size": "160x120", "output": f"q{i}.mp4"}
-        for i, t in enumerate(TEXTS)
-    ]
-    jobs.write_text("".join(json.dumps(x) + "\n" for x in lines))
-    stop, killed = threading.Event(), []
-    watcher = threading.Thread(target=_kill_when_writing, args=(out, stop, killed), daemon=True)
-    watcher.start()
-    batch = _start(jobs, out)
-    try:
-        # the references are made while the batch runs (Ray's start-up is mostly waiting)
-        with concurrent.futures.ThreadPoolExecutor(1) as pool:
-            ended = pool.submit(_finish, batch)
-            refs = _references(tmp_path)
-            first = ended.result()
-    finally:
-        stop.set()
-        watcher.join()
-        if batch.poll() is None:
-            batch.kill()
-            batch.wait()
+    jobs, out = say_jobs(tmp_path, TEXTS)
+    with killing_while_writing(out, f".q{KILLED}.mp4.*.part*", _is_worker) as killed:
+        batch = _start(jobs, out)
+        try:
+            # the references are made while the batch runs (Ray's start-up is mostly waiting)
+            with concurrent.futures.ThreadPoolExecutor(1) as pool:
+                ended = pool.submit(_finish, batch)
+                refs = references(tmp_path, TEXTS, BAD)
+                first = ended.result()
+        finally:
+            if batch.poll() is None:
+                batch.kill()
+                batch.wait()
     assert first.returncode == 1, first.stderr
     assert killed, "the watcher never saw the job's video being written"
     assert "5 jobs done, 1 failed, 0 already done" in first.stdout, first.stdout
     assert "1 worker replaced" in first.stdout
 
-    failures = [json.loads(x) for x in (out / "failures.jsonl").read_text().splitlines()]
-    assert [(f["id"], f["line"]) for f in failures] == [(f"q{BAD}", BAD + 1)]
-    manifest = [json.loads(x) for x in (out / "manifest.jsonl").read_text().splitlines()]
-    assert sorted(e["id"] for e in manifest) == sorted(f"q{i}" for i in range(6) if i != BAD)
-    assert next(e for e in manifest if e["id"] == f"q{KILLED}")["attempts"] == 2
-    assert not list(out.glob(".*part*"))  # the dead worker's temporary is gone
-
-    for i, r in refs.items():
-        if i == BAD:
-            assert r.returncode == 1 and not (out / f"q{i}.mp4").exists()
-            # the failure is what the command printed
-            assert failures[0]["error"] == r.stderr.rstrip("\n")
-            continue
-        assert r.returncode == 0, r.stderr
-        ref = tmp_path / f"ref{i}.mp4"
-        assert (out / f"q{i}.mp4").read_bytes() == ref.read_bytes(), f"q{i}"
-
-    assert failures[0]["kind"] == "input"
+    check_outputs(out, refs, BAD, KILLED)
 
     # a re-run does nothing: the 5 are finished, the bad job's line is unchanged
     before = {p.name: p.stat().st_mtime_ns for p in out.iterdir()}
@@ -181,7 +113,7 @@ def test_an_address_nothing_answers_fails_at_once_naming_it(tmp_path):
         if connects:  # a process of its own: were the address not checked, Ray would hang
             r = subprocess.run([str(EXE), *args], capture_output=True, text=True, timeout=120)
         else:  # refused before Ray starts: the message, in this process
-            r = run_main("vtts", *args, cwd=tmp_path)
+            r = vtts(*args, cwd=tmp_path)
         assert r.returncode == 1 and message in r.stderr and "Traceback" not in r.stderr, r.stderr
 
 
@@ -191,8 +123,7 @@ def _has_worker(pid: int) -> bool:
     children: dict[int, list[int]] = {}
     for proc in Path("/proc").iterdir():
         try:
-            stat = (proc / "stat").read_text()
-            children.setdefault(int(stat.rsplit(")", 1)[1].split()[1]), []).append(int(proc.name))
+            children.setdefault(parent_pid(proc), []).append(int(proc.name))
         except (OSError, ValueError):
             continue
     below = list(children.get(pid, []))

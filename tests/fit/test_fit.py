@@ -26,6 +26,8 @@ from vtts.render import FaceRenderer
 from vtts.render.camera import Camera, find_viewpoint, look_at
 from vtts.vrml import triangulate
 
+from .. import in_process
+
 DATA = Path(__file__).parents[1] / "data"
 PHOTOS = DATA / "photos"
 ADI = Path(sys.executable).with_name("adi")
@@ -37,20 +39,6 @@ def photo(name: str) -> np.ndarray:
 
 def adi(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([str(ADI), *args], capture_output=True, text=True, timeout=300)
-
-
-def adi_here(capsys, *args: str) -> subprocess.CompletedProcess:
-    """``adi ARGS`` run in this process (``adt_tools.cli.main``, as the console script runs it):
-    its status, stdout and stderr. A traceback would be an exception here, failing the test."""
-    from adt_tools.cli import main as adi_main
-
-    capsys.readouterr()
-    try:
-        code = adi_main(list(args))
-    except SystemExit as e:  # argparse's usage errors
-        code = e.code
-    out, err = capsys.readouterr()
-    return subprocess.CompletedProcess(["adi", *args], code, out, err)
 
 
 def similarity_rms(a: np.ndarray, b: np.ndarray) -> float:
@@ -120,15 +108,12 @@ def test_a_photo_head_keeps_the_shared_generic_ear(akiyo):
     assert np.allclose(np.sort(left[:, 0]).mean(), np.sort(right[:, 0]).mean(), atol=0.1)
 
 
-def test_the_model_passes_check_and_show(akiyo, capsys):
-    from vtts.cli import main as vtts_main
-
+def test_the_model_passes_check_and_show(akiyo):
     _, _, _, files = akiyo
-    capsys.readouterr()
-    assert vtts_main(["check", str(files[0]), str(files[1])]) == 0, capsys.readouterr().err
-    out = capsys.readouterr().out
-    assert "OK" in out and "86 MIAPs" in out
-    show = adi_here(capsys, "show", str(files[0]))
+    check = in_process.vtts("check", files[0], files[1])
+    assert check.returncode == 0, check.stderr
+    assert "OK" in check.stdout and "86 MIAPs" in check.stdout
+    show = in_process.adi("show", files[0])
     assert show.returncode == 0, show.stderr
 
 
@@ -287,10 +272,10 @@ def test_no_face_is_a_clear_error_and_writes_nothing(tmp_path):
         (lambda p: None, "no such file"),
     ],
 )
-def test_bad_photos(tmp_path, capsys, make, message):
+def test_bad_photos(tmp_path, make, message):
     path = tmp_path / "in.png"
     make(path)
-    r = adi_here(capsys, "fit", str(path), "-o", str(tmp_path / "me.wrl"))
+    r = in_process.adi("fit", path, "-o", tmp_path / "me.wrl")
     assert r.returncode == 1, r.stdout
     assert message in r.stderr and "Traceback" not in r.stderr
     assert not (tmp_path / "me.wrl").exists()
@@ -311,10 +296,10 @@ def test_bad_photos(tmp_path, capsys, make, message):
         (["-o", "me.wrl", "--focal=--"], "argument --focal: invalid float value: '--'"),
     ],
 )
-def test_bad_arguments(tmp_path, capsys, args, message):
+def test_bad_arguments(tmp_path, args, message):
     """In this process: the process's own exit on bad input is test_no_face_…'s."""
     args = [str(tmp_path / a) if a.startswith(("me.", "missing/")) else a for a in args]
-    r = adi_here(capsys, "fit", str(PHOTOS / "akiyo_frame0.png"), *args)
+    r = in_process.adi("fit", PHOTOS / "akiyo_frame0.png", *args)
     assert r.returncode != 0
     assert message in r.stderr and "Traceback" not in r.stderr
 
@@ -368,20 +353,20 @@ def test_large_photos_are_fitted_at_the_working_size():
     assert np.abs(full.project(pts) - scaled).max() < 0.25  # the working size is rounded
 
 
-def test_outputs_never_replace_the_photo(tmp_path, capsys):
+def test_outputs_never_replace_the_photo(tmp_path):
     photo_path = tmp_path / "me-face.png"
     photo_path.write_bytes((PHOTOS / "akiyo_frame0.png").read_bytes())
     before = photo_path.read_bytes()
-    r = adi_here(capsys, "fit", str(photo_path), "-o", str(tmp_path / "me.wrl"))
+    r = in_process.adi("fit", photo_path, "-o", tmp_path / "me.wrl")
     assert r.returncode == 1 and "over its photo" in r.stderr
     assert photo_path.read_bytes() == before
     assert not (tmp_path / "me.wrl").exists()
 
 
-def test_outputs_must_be_plain_files(tmp_path, capsys):
+def test_outputs_must_be_plain_files(tmp_path):
     (tmp_path / "real.adt").write_text("keep")
     (tmp_path / "me.adt").symlink_to(tmp_path / "real.adt")
-    r = adi_here(capsys, "fit", str(PHOTOS / "akiyo_frame0.png"), "-o", str(tmp_path / "me.wrl"))
+    r = in_process.adi("fit", PHOTOS / "akiyo_frame0.png", "-o", tmp_path / "me.wrl")
     assert r.returncode == 1 and "plain file" in r.stderr
     assert (tmp_path / "real.adt").read_text() == "keep"
 
@@ -393,13 +378,11 @@ def test_focal_lengths_outside_the_range_are_refused_by_the_library():
             focal_length(image.shape[1::-1], focal)
 
 
-def test_a_folder_that_cannot_be_written_is_refused_before_the_fit(tmp_path, monkeypatch, capsys):
+def test_a_folder_that_cannot_be_written_is_refused_before_the_fit(tmp_path, monkeypatch):
     """adi fit into a read-only folder failed only after the fit, naming its hidden .part
     file. Root writes in any folder: there, the folder refuses through the probe file."""
     import os
     import tempfile
-
-    from adt_tools.cli import main as adi_main
 
     ro = tmp_path / "ro"
     ro.mkdir()
@@ -414,11 +397,10 @@ def test_a_folder_that_cannot_be_written_is_refused_before_the_fit(tmp_path, mon
 
         monkeypatch.setattr(tempfile, "NamedTemporaryFile", refuse)
     try:
-        code = adi_main(["fit", str(PHOTOS / "akiyo_frame0.png"), "-o", str(ro / "me.wrl")])
+        r = in_process.adi("fit", PHOTOS / "akiyo_frame0.png", "-o", ro / "me.wrl")
     finally:
         ro.chmod(0o755)
-    out, err = capsys.readouterr()
-    assert code == 1, out
-    assert f"{ro / 'me.wrl'}: error: cannot write in {ro}: Permission denied" in err
-    assert ".part" not in err and "fitted" not in out
+    assert r.returncode == 1, r.stdout
+    assert f"{ro / 'me.wrl'}: error: cannot write in {ro}: Permission denied" in r.stderr
+    assert ".part" not in r.stderr and "fitted" not in r.stdout
     assert list(ro.iterdir()) == []

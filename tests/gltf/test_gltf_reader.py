@@ -24,6 +24,8 @@ from vtts.gltf.uri import data_uri, local_file
 from vtts.limits import MAX_MORPH_TARGETS
 from vtts.vrml import read
 
+from .. import in_process
+
 POINTS = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=np.float32)
 JOY = np.array([[0, 0, 0], [0, -0.1, 0], [0, 0, 0]], dtype=np.float32)
 NEUTRAL_WRL = """#VRML V2.0 utf8
@@ -323,15 +325,12 @@ LITTLE = 64 << 20
 AS_A_PROCESS = {("import", "50M inverse bind matrices"), ("build", "a 50M-element morph target")}
 
 
-def _adi_in_process(
-    args: list[str], capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
-) -> tuple[int, str, int]:
+def _adi_in_process(args: list[str], monkeypatch: pytest.MonkeyPatch) -> tuple[int, str, int]:
     """``adi ARGS`` run here: its exit status, its stderr, and the most memory it held at once
     after reading the glTF file (bytes, numpy's arrays included: tracemalloc counts them). A
     file is read into a buffer of the size limit (512 MiB), at once cut to the file's size: the
     peak is taken from there on."""
     import vtts.gltf.reader
-    from adt_tools.cli import main
 
     read = vtts.gltf.reader.read_bytes_capped
 
@@ -341,14 +340,13 @@ def _adi_in_process(
         return data
 
     monkeypatch.setattr(vtts.gltf.reader, "read_bytes_capped", read_then_reset_peak)
-    capsys.readouterr()
     tracemalloc.start()
     try:
-        code = main(args)
+        r = in_process.adi(*args)
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
-    return code, capsys.readouterr().err, peak
+    return r.returncode, r.stderr, peak
 
 
 @pytest.mark.parametrize(
@@ -362,7 +360,7 @@ def _adi_in_process(
     ],
 )
 def test_an_accessor_without_data_is_refused_before_it_is_allocated(
-    tmp_path, monkeypatch, capsys, case, command
+    tmp_path, monkeypatch, case, command
 ):
     """Accessors without a bufferView (zeros) asked numpy for 3–6 GB and ended in a traceback;
     each count is now checked against what fixes it, or a limit, before anything is allocated:
@@ -380,7 +378,7 @@ def test_an_accessor_without_data_is_refused_before_it_is_allocated(
         args = ["build", "neutral.wrl", str(path), "-o", "out.adt"]
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("VTTS_CACHE_DIR", "")
-    code, err, peak = _adi_in_process(args, capsys, monkeypatch)
+    code, err, peak = _adi_in_process(args, monkeypatch)
     assert code == 1 and message in err and str(path) in err, err[-2000:]
     assert peak < LITTLE, f"{peak / 2**20:.0f} MiB allocated on the way to the error"
     if (command, case) in AS_A_PROCESS:

@@ -96,10 +96,11 @@ class AnalyzeOptions:
     face) or a bundled model name or ``.wrl`` path placed on the first face's landmarks;
     ``output``: the ``.fap`` (or coded ``.fbs``) written; ``stream_out``: write a streamed
     ``.fbs`` to stdout instead, each frame as estimated; ``model_out``: where ``auto`` writes
-    the fitted head (default ``OUT-model.wrl``; needed with ``stream_out``); ``face``: which
-    face to track, 1 = the largest; ``rate``: the coded ``.fbs``'s frame rate in Hz (0–1000;
-    None: the analysis rate); ``steps``: ``face`` or ``mpeg4`` base steps; ``faps``: what to
-    estimate (:func:`vtts.analysis.unknowns.parse_unknowns`; None: paper17); ``camera``:
+    the fitted head (default ``OUT-model.wrl``; needed with ``stream_out``; refused with a
+    given model: nothing is fitted); ``face``: which face to track, 1 = the largest; ``rate``:
+    the coded ``.fbs``'s frame rate in Hz (0–1000; None: the analysis rate); ``steps``:
+    ``face`` or ``mpeg4`` base steps; ``faps``: what to estimate
+    (:func:`vtts.analysis.unknowns.parse_unknowns`; None: paper17); ``camera``:
     ``"FX,FY,X0,Y0"`` in pixels (with a given model); ``step``: analyze every N-th frame;
     ``track``: the fast tracking mode (False: accurate; None: tracking for stdin only);
     ``fps``: frame rate of a PNG folder or stdin (0–1000; None: 25, or the video's own);
@@ -168,7 +169,7 @@ class AnalyzeOptions:
         self.check_stream()
         self.frame_size = parse_size(self.size) if self.size is not None else None
         # with stream_out there is no OUT: the bitstream goes to stdout, the fitted head's
-        # staging folder is beside model_out (with a given model, in the working folder)
+        # staging folder is beside model_out (a given model needs none)
         self.out = out = Path(self.output or self.model_out or "stdout")
         fbs = out.suffix.lower() == ".fbs"
         self.extra_fbs = out.with_suffix(".fbs") if self.fbs and not fbs else None
@@ -231,7 +232,12 @@ class AnalyzeOptions:
             )
         if self.model_out is not None:
             if not auto:
-                raise AnalysisError("--model-out names the fitted head of --model auto")
+                raise AnalysisError(
+                    f"--model-out is where --model auto writes the head it fits: with --model "
+                    f"{self.model[0]} nothing is fitted and nothing would be written there "
+                    "(the estimate plays on that model): leave --model-out out",
+                    file=self.model_out,
+                )
             if Path(self.model_out).suffix.lower() != ".wrl":
                 raise AnalysisError("--model-out names a .wrl file", file=self.model_out)
 
@@ -346,15 +352,20 @@ def estimate(o: AnalyzeOptions, stdin: BinaryIO, stdout: BinaryIO) -> Analyzed:
         # and are renamed into place only when everything succeeded
         tmp_out = None if o.stream_out else stack.enter_context(atomic_path(o.out))
         tmp_fbs = stack.enter_context(atomic_path(o.extra_fbs)) if o.extra_fbs else None
-        # a fitted head is written into a hidden folder beside OUT and moved into place with OUT
-        # (with stream_out: before the stream's header, so that a reader finds it complete)
-        folder = fitted[0].parent if fitted else o.out.parent
-        staging = stack.enter_context(tempfile.TemporaryDirectory(dir=folder, prefix=".vtts-"))
+        # a fitted head is written into a hidden folder beside it and moved into place with OUT
+        # (with stream_out: before the stream's header, so that a reader finds it complete); a
+        # given model writes nothing, and needs no folder
+        staging = Path()
+        if auto:
+            folder = fitted[0].parent
+            staging = Path(
+                stack.enter_context(tempfile.TemporaryDirectory(dir=folder, prefix=".vtts-"))
+            )
         from vtts.analysis.track import track
 
         def place_fitted() -> None:
             # the .wrl last: a reader that waits for it finds its .adt and textures there
-            for written in sorted(Path(staging).iterdir(), key=lambda p: p.suffix == ".wrl"):
+            for written in sorted(staging.iterdir(), key=lambda p: p.suffix == ".wrl"):
                 os.replace(written, fitted[0].with_name(written.name))
 
         sink = None
@@ -396,7 +407,7 @@ def estimate(o: AnalyzeOptions, stdin: BinaryIO, stdout: BinaryIO) -> Analyzed:
             video.frames(),
             fps=video.fps,
             model=model,
-            model_path=Path(staging) / fitted[0].name if auto else None,
+            model_path=staging / fitted[0].name if auto else None,
             camera=camera,
             face=o.face,
             step=o.step,
@@ -433,7 +444,7 @@ def estimate(o: AnalyzeOptions, stdin: BinaryIO, stdout: BinaryIO) -> Analyzed:
             write_report(analysis, o.report)
             video = read_video(o.video, fps=o.fps)  # again: the frames were not kept
             write_side_by_side(o.report, video.frames(), analysis, tracked.model)
-        if sink is None:
+        if sink is None and auto:
             place_fitted()
     return Analyzed(
         output=None if o.stream_out else o.out,

@@ -47,7 +47,8 @@ def add_parser(sub) -> None:
         "--model-out",
         metavar="HEAD.wrl",
         help="where --model auto writes the fitted head (default OUT-model.wrl; needed with "
-        "--stream), complete before the stream's header",
+        "--stream), complete before the stream's header; not with a given --model (nothing is "
+        "fitted)",
     )
     an.add_argument(
         "--size",
