@@ -1,8 +1,9 @@
 """Tracking real people (issue 40, "The measure"): the nine clips of ``tests/data/video/``
 analyzed as ``vtts analyze VIDEO -o x.fbs --rate 12.5`` does (``--model auto``: a head fitted
 from the video's most typical frame, tracked from there backwards and forwards, then textured
-with what the tracked frames show), in the tracking mode (``--track``) and the accurate mode
-(the default for a file), the ``.fbs`` decoded on the fitted head through its camera
+with what the tracked frames show), in the tracking mode (``--track``, every frame) and the
+accurate mode (the default for a file; every second frame, ``--step 2``: see
+:data:`ACCURATE_STEP`), the ``.fbs`` decoded on the fitted head through its camera
 (:func:`vtts.analysis.quality.decoded_frames`, as ``vtts play x.fbs --model x-model.wrl
 --viewpoint photo``) and measured against the camera frames at the decoded frames' times
 (:mod:`vtts.analysis.landmark_quality`):
@@ -64,8 +65,10 @@ PARTS = (("development", DEVELOPMENT), ("set-aside", SET_ASIDE))
 MODES = (("tracking", True), ("accurate", False))
 #: The coded rate (Hz), the paper's.
 RATE = 12.5
-#: Every how many frames the accurate mode analyzes (1: every frame, as ``vtts analyze``).
-ACCURATE_STEP = 1
+#: Every how many frames the accurate mode analyzes (1: every frame, as ``vtts analyze``; 2:
+#: ``--step 2``, the paper's 12.5 Hz on the 25 fps clips): with every frame the whole benchmark
+#: took 23 minutes on the 2-core machine.
+ACCURATE_STEP = 2
 #: The largest frame (pixels) held to the CIF speed target.
 CIF_PIXELS = 352 * 288
 #: Frames per clip on the contact sheet, and the height (pixels) of each picture on it.
@@ -95,6 +98,7 @@ class Measured:
     kbps: float = math.nan
     steady_fps: float = math.nan
     steady_frames: int = 0
+    overall_fps: float = math.nan
     analyzed: int = 0
     worst: tuple | None = None  # (camera index, FrameMeasure, rgba)
     sheet: dict = field(default_factory=dict)  # camera index -> rgba
@@ -184,6 +188,7 @@ def _clip(clip: str, mode: str, tracking: bool, step: int, limit: int | None,
     result = Measured(clip, mode, (w, h))
     stamps: list[float] = []
     with tempfile.TemporaryDirectory(prefix="vtts-bench-people-") as tmp:
+        t0 = time.perf_counter()
         anchor = choose_anchor(frames, fps, len(frames), step=step)
         tracked = track(frames, fps=fps, model_path=Path(tmp) / f"{clip}-model.wrl", step=step,
                         tracking=tracking, anchor=anchor,
@@ -201,6 +206,7 @@ def _clip(clip: str, mode: str, tracking: bool, step: int, limit: int | None,
         steps = analysis_steps(tracked.analysis, model, (w, h))
         fbs = Path(tmp) / f"{clip}.fbs"
         fbs.write_bytes(encode(stream, rate=RATE, steps=steps))
+        result.overall_fps = result.analyzed / (time.perf_counter() - t0)
         result.kbps = fbs.stat().st_size * 8 / (len(frames) / fps) / 1000
         decoded = decode(fbs.read_bytes(), file=str(fbs))
         cameras = _camera_landmarks(clip, frames)
@@ -251,7 +257,7 @@ def _sheet_indices(n_frames: int, fps: float) -> list[int]:
 
 def _clip_rows(r: Measured, step: int) -> list[dict]:
     w, h = r.size
-    every = "" if step == 1 else f", every {step}. frame analyzed"
+    every = "" if step == 1 else f" --step {step}"
     base = f"{r.clip} ({w}x{h}), {r.mode} mode{every}"
     eq18, geometry = r.eq18(), r.geometry()
     accurate = r.mode == "accurate"
@@ -283,6 +289,8 @@ def _clip_rows(r: Measured, step: int) -> list[dict]:
     rows.append(_row(f"{base}: steady speed ({r.steady_frames} frames after the anchor, "
                      "fit excluded, wall)", _round(r.steady_fps), "frames/s",
                      f">= {target:g}", fps_ok))  # fmt: skip
+    rows.append(_row(f"{base}: analysis speed (anchor, fit, texture and coding included, "
+                     "wall)", _round(r.overall_fps), "frames/s"))  # fmt: skip
     rgb = np.array(r.rgb_psnr, np.float64)
     if (~np.isnan(rgb)).any():
         from vtts.analysis.quality import sequence_psnr
