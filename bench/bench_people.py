@@ -9,7 +9,9 @@ accurate mode (the default for a file; every second frame, ``--step 2``: see
 (:mod:`vtts.analysis.landmark_quality`):
 
 * **Equation 18**: luminance PSNR over the camera face's oval, the camera frame against the
-  decoded frame laid over it — the median over frames and the worst frame;
+  decoded frame laid over it — the median over frames and the worst frame — with the share of
+  the oval the decoded model covers beside it (the pixels it leaves uncovered are the camera's
+  own in the composite: a head beside the face loses less there than it should);
 * **geometry**: the landmark model on that composite and on the camera frame, the mean distance
   of the eye, brow, lip and oval landmarks in % of the eye distance — median and 95th
   percentile over frames; frames whose composite shows no tracked face are **lost**; frames
@@ -106,6 +108,10 @@ class Measured:
     def eq18(self) -> np.ndarray:
         p = np.array([m.eq18_db for _, m in self.frames if m.camera_face], np.float64)
         return p[~np.isnan(p)]
+
+    def covered(self) -> np.ndarray:
+        c = np.array([m.covered for _, m in self.frames if m.camera_face], np.float64)
+        return c[~np.isnan(c)]
 
     def geometry(self) -> np.ndarray:
         return np.array([m.geometry_pct for _, m in self.frames if m.measured], np.float64)
@@ -268,6 +274,12 @@ def _clip_rows(r: Measured, step: int) -> list[dict]:
                          f">= {TARGET_EQ18_DB:g}" if accurate else "",
                          med >= TARGET_EQ18_DB if accurate else None))  # fmt: skip
         rows.append(_row(f"{base}: Eq. 18, worst frame", round(float(eq18.min()), 2), "dB"))
+    covered = r.covered()
+    if covered.size:
+        rows.append(_row(f"{base}: share of the face oval the decoded model covers, median",
+                         round(100 * float(np.median(covered)), 1), "%"))  # fmt: skip
+        rows.append(_row(f"{base}: share of the face oval covered, least frame",
+                         round(100 * float(covered.min()), 1), "%"))  # fmt: skip
     if geometry.size:
         med, p95 = float(np.median(geometry)), float(np.percentile(geometry, 95))
         rows.append(_row(f"{base}: geometry, median", round(med, 2), "% eye dist.",
@@ -408,7 +420,8 @@ def _worst_picture(r: Measured, frames: list[np.ndarray], out: Path) -> None:
     else:
         what = "no camera face"
     ImageDraw.Draw(picture).text(
-        (4, 4), f"{r.clip} {r.mode} mode, frame {k}: {what}, Eq. 18 {m.eq18_db:.1f} dB",
+        (4, 4), f"{r.clip} {r.mode} mode, frame {k}: {what}, Eq. 18 {m.eq18_db:.1f} dB "
+        f"(the model covers {100 * m.covered:.0f} % of the oval)",
         fill=(255, 255, 0),
     )  # fmt: skip
     _save(picture, out / f"{r.clip}-{r.mode}-worst.png")

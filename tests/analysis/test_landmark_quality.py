@@ -131,12 +131,13 @@ def test_measures_of_an_identical_and_a_shifted_frame(akiyo, detector):
     transparent = np.zeros((h, w, 4), np.uint8)
     same = measure_frame(frame, transparent, landmarks, detector)
     assert same.measured and same.eq18_db == math.inf and same.geometry_pct == 0.0
+    assert same.covered == 0.0
     # the whole frame moved 6 pixels right, opaque: every landmark moves by about 6 pixels
     shift = 6
     moved = np.concatenate([np.repeat(frame[:, :1], shift, axis=1), frame[:, :-shift]], axis=1)
     rgba = np.concatenate([moved, np.full((h, w, 1), 255, np.uint8)], axis=2)
     m = measure_frame(frame, rgba, landmarks, detector)
-    assert m.measured
+    assert m.measured and m.covered == 1.0
     assert m.geometry_pct == pytest.approx(100 * shift / eye_distance(landmarks), rel=0.15)
     assert 12 < m.eq18_db < 25
     # no camera face: not measured; a head nowhere near the face: lost

@@ -63,14 +63,17 @@ class FrameMeasure:
     distance (NaN without a camera face, or when lost). ``camera_face``: whether the landmark
     model found the face on the camera frame (frames without one are left out of both
     measures). ``lost``: the camera face was found but the composite's was not (or not the
-    tracked one). ``camera`` and ``composite``: the ``(468, 3)`` landmarks found (None where
-    none), for drawing.
+    tracked one). ``covered``: the share (0–1) of the oval's pixels the decoded model covers
+    fully (alpha 255; NaN without a camera face): Equation 18 counts the pixels it leaves
+    uncovered as the camera's own, so read it with this beside it. ``camera`` and
+    ``composite``: the ``(468, 3)`` landmarks found (None where none), for drawing.
     """
 
     eq18_db: float
     geometry_pct: float
     camera_face: bool
     lost: bool
+    covered: float = math.nan
     camera: np.ndarray | None = None
     composite: np.ndarray | None = None
 
@@ -214,9 +217,13 @@ def measure_frame(
     frame = _check_rgb(frame, "the camera frame", (3,))
     over = lay_over(frame, rgba)
     h, w = frame.shape[:2]
-    eq18 = oval_psnr(frame, over, oval_mask(camera, (w, h)))
+    oval = oval_mask(camera, (w, h))
+    eq18 = oval_psnr(frame, over, oval)
+    covered = float((np.asarray(rgba)[..., 3][oval] == 255).mean()) if oval.any() else math.nan
     found = tracked_face(detect_faces(over, detector), camera)
     if found is None:
-        return FrameMeasure(eq18, math.nan, camera_face=True, lost=True, camera=camera)
+        return FrameMeasure(eq18, math.nan, camera_face=True, lost=True, covered=covered,
+                            camera=camera)  # fmt: skip
     return FrameMeasure(eq18, geometry_error(camera, found.landmarks), camera_face=True,
-                        lost=False, camera=camera, composite=found.landmarks)  # fmt: skip
+                        lost=False, covered=covered, camera=camera,
+                        composite=found.landmarks)  # fmt: skip
