@@ -79,6 +79,9 @@ SHEET_HEIGHT = 180
 #: The least height (pixels) of a worst-frame picture: smaller frames are enlarged.
 PICTURE_HEIGHT = 400
 
+#: The coder's quantizers measured beside the default (1): the bit rate and what it costs.
+QUANTIZERS = (2, 4)
+
 TARGET_GEOMETRY_MEDIAN = 3.0
 TARGET_GEOMETRY_P95 = 8.0
 TARGET_EQ18_DB = 30.0
@@ -103,6 +106,8 @@ class Measured:
     overall_fps: float = math.nan
     analyzed: int = 0
     worst: tuple | None = None  # (camera index, FrameMeasure, rgba)
+    #: quantizer -> (kbit/s, Eq. 18 median dB, geometry median %) of the same estimates
+    coarser: dict = field(default_factory=dict)
     sheet: dict = field(default_factory=dict)  # camera index -> rgba
 
     def eq18(self) -> np.ndarray:
@@ -130,6 +135,8 @@ def run() -> list[dict]:
     limit = int(os.environ.get("VTTS_BENCH_FRAMES", "0")) or None
     chosen = [c.strip() for c in os.environ.get("VTTS_BENCH_CLIPS", "").split(",") if c.strip()]
     accurate_step = int(os.environ.get("VTTS_BENCH_ACCURATE_STEP", str(ACCURATE_STEP)))
+    modes = [m.strip() for m in os.environ.get("VTTS_BENCH_MODES", "").split(",") if m.strip()]
+    unknowns = _unknowns(os.environ.get("VTTS_BENCH_FAPS", ""))
     clips = [c for c in (*DEVELOPMENT, *SET_ASIDE) if not chosen or c in chosen]
     unknown = sorted(set(chosen) - set(DEVELOPMENT) - set(SET_ASIDE))
     if unknown:
@@ -139,20 +146,29 @@ def run() -> list[dict]:
     results: dict[tuple[str, str], Measured] = {}
     for clip in clips:
         for mode, tracking in MODES:
+            if modes and mode not in modes:
+                continue
             step = 1 if tracking else accurate_step
             t0 = time.perf_counter()
-            measured = _clip(clip, mode, tracking, step, limit, out)
+            measured = _clip(clip, mode, tracking, step, limit, out, unknowns)
             print(f"  bench_people: {clip} {mode}: {time.perf_counter() - t0:.0f} s",
                   file=sys.stderr)  # fmt: skip
             results[clip, mode] = measured
             rows += _clip_rows(measured, step)
-        _sheet(clip, [results[clip, mode] for mode, _ in MODES], limit, out)
+        _sheet(clip, [results[clip, m] for m, _ in MODES if (clip, m) in results], limit, out)
     for part, members in PARTS:
         for mode, _ in MODES:
             done = [results[c, mode] for c in members if (c, mode) in results]
             if done:
                 rows += _summary_rows(part, mode, done)
     return rows
+
+
+def _unknowns(text: str):
+    """``VTTS_BENCH_FAPS`` (``--faps``' syntax) as unknowns; None (the default) when empty."""
+    from vtts.analysis.unknowns import parse_unknowns
+
+    return parse_unknowns(text) if text.strip() else None
 
 
 def _out_folder() -> Path:
@@ -178,7 +194,7 @@ def _frames(clip: str, limit: int | None) -> tuple[list[np.ndarray], float]:
 
 
 def _clip(clip: str, mode: str, tracking: bool, step: int, limit: int | None,
-          out: Path) -> Measured:  # fmt: skip
+          out: Path, unknowns=None) -> Measured:  # fmt: skip
     """``clip`` analyzed in ``mode`` as ``vtts analyze CLIP.mp4 -o x.fbs --rate 12.5
     [--track]`` does, decoded and measured."""
     from vtts.analysis.anchor import choose_anchor
@@ -196,8 +212,9 @@ def _clip(clip: str, mode: str, tracking: bool, step: int, limit: int | None,
     with tempfile.TemporaryDirectory(prefix="vtts-bench-people-") as tmp:
         t0 = time.perf_counter()
         anchor = choose_anchor(frames, fps, len(frames), step=step)
+        options = {} if unknowns is None else {"unknowns": unknowns}
         tracked = track(frames, fps=fps, model_path=Path(tmp) / f"{clip}-model.wrl", step=step,
-                        tracking=tracking, anchor=anchor,
+                        tracking=tracking, anchor=anchor, **options,
                         on_estimate=lambda _fe: stamps.append(time.perf_counter()))  # fmt: skip
         # the frames handed on after the anchor's batch (anchor and frames before it) came
         # one by one: the steady part
@@ -230,6 +247,23 @@ def _clip(clip: str, mode: str, tracking: bool, step: int, limit: int | None,
                 result.worst, worst_key = (k, m, rgba), key
             if k in wanted:
                 result.sheet[k] = rgba
+        quantizers = os.environ.get("VTTS_BENCH_QUANTIZERS", "")
+        for q in [float(x) for x in quantizers.split(",") if x.strip()] or QUANTIZERS:
+            coded = encode(stream, rate=RATE, steps=steps, quantizer=q)
+            kbps = len(coded) * 8 / (len(frames) / fps) / 1000
+            again = decode(coded)
+            eq18, geometry = [], []
+            for i, rgba in enumerate(decoded_frames(again, model, (w, h))):
+                k = round(i / again.fps * fps)
+                if k >= len(frames):
+                    break
+                m = measure_frame(frames[k], rgba, cameras(k))
+                if m.camera_face:
+                    eq18.append(m.eq18_db)
+                if m.measured:
+                    geometry.append(m.geometry_pct)
+            result.coarser[q] = (kbps, float(np.nanmedian(eq18)) if eq18 else math.nan,
+                                 float(np.median(geometry)) if geometry else math.nan)  # fmt: skip
     _worst_picture(result, frames, out)
     return result
 
@@ -296,6 +330,12 @@ def _clip_rows(r: Measured, step: int) -> list[dict]:
     rows.append(_row(f"{base}: held frames", r.held, "frames"))
     rows.append(_row(f"{base}: bit rate at {RATE:g} Hz", round(r.kbps, 3), "kbit/s",
                      f"<= {TARGET_KBPS:g}", r.kbps <= TARGET_KBPS))  # fmt: skip
+    for q, (kbps, eq18_q, geometry_q) in r.coarser.items():
+        rows.append(_row(f"{base}: quantizer {q}: bit rate at {RATE:g} Hz", round(kbps, 3),
+                         "kbit/s"))  # fmt: skip
+        rows.append(_row(f"{base}: quantizer {q}: Eq. 18 median", round(eq18_q, 2), "dB"))
+        rows.append(_row(f"{base}: quantizer {q}: geometry median", round(geometry_q, 2),
+                         "% eye dist."))  # fmt: skip
     target = _speed_target(r)
     fps_ok = None if math.isnan(r.steady_fps) else r.steady_fps >= target
     rows.append(_row(f"{base}: steady speed ({r.steady_frames} frames after the anchor, "

@@ -12,6 +12,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from vtts.api.analyze import QUANTIZER
+
 from .. import in_process
 
 DATA = Path(__file__).parents[1] / "data"
@@ -53,6 +55,7 @@ def _inputs(root: Path) -> None:
         (["{in}/ok", "--camera", "0,400,176,144"], ["camera fx must be a positive"]),
         (["{in}/ok", "--step", "0"], ["--step must be"]),
         (["{in}/ok", "--fps", "0"], ["--fps must be"]),
+        (["{in}/ok", "--quantizer", "0"], ["--quantizer must be a number within 0–1000"]),
         (["{in}/ok", "--model", HEAD, "--model", HEAD], ["one model"]),
         (["{in}/ok", "-o", "{in}/file.txt/x.fap"], ["x.fap: error: cannot write here", "file"]),
         (["{in}/ok", "-o", "{in}/ok"], ["error: cannot write here: it is a folder"]),
@@ -94,8 +97,9 @@ def test_help_lists_the_options():
     r = vtts("analyze", "--help")
     assert r.returncode == 0
     for option in ("--model", "-o", "--faps", "--camera", "--step", "--fps", "--report", "--fbs",
-                   "--steps"):  # fmt: skip
+                   "--steps", "--quantizer"):  # fmt: skip
         assert option in r.stdout
+    assert f"(default {QUANTIZER:g}:" in " ".join(r.stdout.split())  # the library's default
 
 
 # ---- a whole run (needs the estimator) -----------------------------------------------------------
@@ -134,9 +138,16 @@ def test_the_bitstream_carries_the_steps_measured_on_the_head(tmp_path, rendered
                             "--quiet")  # fmt: skip
         assert r.returncode == 0, r.stderr
         headers[steps] = read_header(out.read_bytes())
+    # the coder's quantizer: the command's default (docs/analysis.md, "Measuring on people")
+    assert headers["face"].quantizer == headers["mpeg4"].quantizer == QUANTIZER == 4.0
     assert headers["mpeg4"].base_steps == (FAPS[5].quant_step, FAPS[47].quant_step)
     face = dict(zip(headers["face"].low, headers["face"].base_steps, strict=True))
     assert face[6] > FAPS[5].quant_step and face[48] < FAPS[47].quant_step, face
+    out = tmp_path / "q1.fbs"
+    r = in_process.vtts("analyze", str(rendered_frames), "--model", HEAD, "-o", str(out),
+                        "--faps", "6,48", "--fps", "30", "--quantizer", "1", "--quiet")  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert read_header(out.read_bytes()).quantizer == 1.0
     r = vtts("analyze", str(rendered_frames), "--model", HEAD, "-o", str(tmp_path / "x.fbs"),
              "--steps", "even")  # fmt: skip
     assert r.returncode == 2 and "invalid choice: 'even'" in r.stderr
@@ -241,7 +252,7 @@ def test_outputs_of_a_run(tmp_path, five_frames, fake_estimator):
     report = tmp_path / "report"
     argv = [
         "analyze", str(five_frames), "--model", HEAD, "-o", str(out), "--step", "2",
-        "--faps", "3,tx", "--fps", "10", "--report", str(report), "--fbs",
+        "--faps", "3,tx", "--fps", "10", "--report", str(report), "--fbs", "--quantizer", "1",
     ]  # fmt: skip
     r = in_process.vtts(*argv)
     assert r.returncode == 0, r.stderr

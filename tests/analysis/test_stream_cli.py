@@ -16,9 +16,18 @@ import numpy as np
 import pytest
 
 from vtts.analysis.video import read_pipe
+from vtts.api.analyze import QUANTIZER
 from vtts.errors import AnalysisError
 from vtts.fap import FapStream
-from vtts.fap.coding import PAPER_17, StreamEncoder, decode, encode, frame_of, paired_predictors
+from vtts.fap.coding import (
+    PAPER_17,
+    StreamEncoder,
+    decode,
+    encode,
+    frame_of,
+    paired_predictors,
+    read_header,
+)
 from vtts.render import probe_media
 
 from .. import in_process
@@ -110,7 +119,6 @@ def live(folder: Path, analyze: list[str], model: str, cwd: str | None = None) -
 def face_steps(saved: Path) -> dict:
     """The base steps in the header of the stream ``saved`` (``encode``'s ``steps``), checked
     to be measured on the face (--steps face), not MPEG-4's."""
-    from vtts.fap.coding import read_header
     from vtts.fap.table import FAPS
 
     h = read_header(saved.read_bytes())
@@ -153,7 +161,11 @@ def test_webcam_pipeline_with_a_given_model(tmp_path):
     found = analyze(AnalyzeOptions(video=str(frames), model=["cybatt"], track=True,
                                    output=str(tmp_path / "file.fap")))  # fmt: skip
     assert found.tracked.first == 0 and not found.fitted
-    got, want = decode(saved.read_bytes()), decode(encode(found.stream, steps=steps))
+    # the stream's quantizer is the command's default, as a file's
+    header = read_header(saved.read_bytes())
+    assert header.quantizer == QUANTIZER
+    coded = encode(found.stream, steps=steps, quantizer=header.quantizer)
+    got, want = decode(saved.read_bytes()), decode(coded)
     assert np.array_equal(got.values, want.values) and np.array_equal(got.mask, want.mask)
     assert np.array_equal(got.translation, want.translation)
 

@@ -40,9 +40,11 @@ from vtts.analysis.landmark_term import (
     LANDMARK_WEIGHT,
     LandmarkPoints,
     LandmarkSystem,
+    Projection,
     crop_side,
     landmark_points,
-    linearize,
+    observed,
+    project_points,
     unknown_values,
 )
 from vtts.analysis.result import TRANSLATION, Analysis, FrameEstimate
@@ -70,8 +72,10 @@ from vtts.render.camera import Camera
 from vtts.render.renderer import FaceRenderer
 from vtts.threads import one_blas_thread
 
-#: The frame's landmark term is linearized again when the estimate moved its points further
-#: than this (pixels) since it was last.
+#: The landmark term is linearized at each frame's start, and again when the estimate moved its
+#: points further than this (pixels) since. Carried on from frame to frame while the head's
+#: motion moved them less than 4 pixels (the FAPs' motion is linear within their tables'
+#: intervals), the linearization cost Carphone 0.8 dB and 1.4 % of geometry (docs/analysis.md).
 RELINEARIZE_PX = 2.0
 #: Gauss–Newton steps on the landmarks alone that start a frame
 #: (:meth:`Estimator._jump_to_landmarks`), …
@@ -311,6 +315,7 @@ class Estimator:
         self._landmarks: LandmarkSystem | None = None
         self._eyes = None  # the frame's iris model eyes, while it is estimated
         self._eye_points = None  # the model's pupils and lid points, once asked for
+        self._projection: Projection | None = None  # where they lie, linearized
 
     # ---- rendering -----------------------------------------------------------------------------
 
@@ -477,6 +482,7 @@ class Estimator:
         of the frame about to be estimated (:meth:`estimate` does), with the iris model's
         ``eyes`` (:class:`~vtts.fit.iris.Eyes`) where given: pupils and lids."""
         self._landmarks = None
+        self._projection = None
         self._observed = None
         self._eyes = eyes
         if landmarks is None or self.landmark_weight <= 0:
@@ -493,19 +499,25 @@ class Estimator:
             self._observed = (points, crop_side(landmarks))
 
     def landmark_term(self) -> LandmarkSystem | None:
-        """The frame's landmark term, linearized at the current estimate — again only when the
-        estimate moved its points by more than :data:`RELINEARIZE_PX` since (the term moves
+        """The frame's landmark term, linearized where the frame's estimate starts and again
+        when the estimate moved its points further than :data:`RELINEARIZE_PX` (the term moves
         them linearly until then); None without landmarks."""
         if self._observed is None:
             return None
         values = unknown_values(self)
-        term = self._landmarks
-        if term is None or term.moved(values) > RELINEARIZE_PX:
-            assert self._landmark_points is not None
-            term = linearize(self, self._landmark_points, *self._observed, values, self._eyes,
-                             self._eye_points)  # fmt: skip
-            term.weight = self.landmark_weight
-            self._landmarks = term
+        points = self._landmark_points
+        assert points is not None
+        eyes = self._eye_points if self._eyes is not None else None
+        projection = self._projection
+        if (projection is None or projection.eyes != (eyes is not None)
+                or projection.moved(values) > RELINEARIZE_PX):  # fmt: skip
+            projection = self._projection = project_points(self, points, values, eyes)
+            self._landmarks = None
+        if self._landmarks is not None:
+            return self._landmarks
+        term = observed(projection, points, *self._observed, self._eyes, eyes)
+        term.weight = self.landmark_weight
+        self._landmarks = term
         return term
 
     def _jump_to_landmarks(self) -> None:

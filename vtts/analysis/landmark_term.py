@@ -213,59 +213,100 @@ class LandmarkSystem:
         return ata, atb
 
 
-def linearize(estimator, points: LandmarkPoints, landmarks: np.ndarray, crop_size: float,
-              values: np.ndarray, eyes=None, eye_points=None) -> LandmarkSystem:  # fmt: skip
-    """The observations' term of ``estimator`` at its current parameters (the unknowns'
-    ``values`` ``(K,)``) for the detector's ``landmarks`` ``(468, ≥2)`` image pixels, found in
-    a crop of ``crop_size`` pixels; with ``eyes`` (the iris model's
-    :class:`~vtts.fit.iris.Eyes` in the same pixels) and the model's ``eye_points``
-    (:func:`vtts.analysis.eyes.eye_points`), the pupils and the lids' positions across the eyes
-    from them, in place of the face mesh's lid landmarks (:func:`eye_rows`)."""
-    keep = np.ones(len(points), dtype=bool)
-    if eyes is not None and points.landmark is not None:
-        keep = ~np.isin(points.landmark, EYE_LIDS)
+@dataclass(frozen=True)
+class Projection:
+    """Where a model's observed points lie in the image, linearized at the unknowns'
+    ``values0`` ``(K,)``: ``xy0`` ``(n, 2)`` pixels and ``jacobian`` ``(2n, K)`` as in
+    :class:`LandmarkSystem`; ``spread_px`` ``(n,)`` each landmark's spread seen at its depth
+    (pixels; 0 for the eyes' points); ``eyes``: whether the rows are the face mesh's without its
+    lid landmarks followed by the eyes' (:func:`eye_rows`), else the face mesh's alone."""
+
+    xy0: np.ndarray
+    jacobian: np.ndarray
+    values0: np.ndarray
+    spread_px: np.ndarray
+    eyes: bool
+
+    def moved(self, values: np.ndarray) -> float:
+        """How far (pixels) the unknowns' ``values`` move the points from the linearization."""
+        change = values - self.values0
+        step = (self.jacobian @ change).reshape(-1, 2)
+        return float(np.sqrt((step * step).sum(1).max(initial=0.0)))
+
+
+def project_points(estimator, points: LandmarkPoints, values: np.ndarray,
+                   eye_points=None) -> Projection:  # fmt: skip
+    """The :class:`Projection` of ``points`` at ``estimator``'s current parameters (the
+    unknowns' ``values`` ``(K,)``); with the model's ``eye_points``
+    (:func:`vtts.analysis.eyes.eye_points`), the face mesh's lid landmarks left out and the
+    pupils and lid points added."""
+    keep = _kept(points, eye_points is not None)
     xy, jac = _project(estimator, points.vertices[keep], points.weights[keep])
-    target = points.targets[keep] @ np.asarray(landmarks, np.float64)[:, :2]
     depth = _depth(estimator, points.vertices[keep], points.weights[keep])
     spread_px = points.spread[keep] * estimator.camera.fx / np.maximum(depth, 1e-9)
+    if eye_points is not None:
+        xy_p, jac_p = eye_points.pupils.project(estimator)
+        xy_l, jac_l = eye_points.lids.project(estimator)
+        xy = np.concatenate([xy, xy_p, xy_l])
+        jac = np.concatenate([jac, jac_p, jac_l])
+        spread_px = np.concatenate([spread_px, np.zeros(len(xy_p) + len(xy_l))])
+    values0 = np.asarray(values, np.float64).copy()
+    return Projection(xy, jac, values0, spread_px, eye_points is not None)
+
+
+def observed(projection: Projection, points: LandmarkPoints, landmarks: np.ndarray,
+             crop_size: float, eyes=None, eye_points=None) -> LandmarkSystem:  # fmt: skip
+    """One frame's :class:`LandmarkSystem` on ``projection``: the detector's ``landmarks``
+    ``(468, ≥2)`` image pixels, found in a crop of ``crop_size`` pixels; with the iris model's
+    ``eyes`` (:class:`~vtts.fit.iris.Eyes` in the same pixels; ``projection`` made with the
+    model's ``eye_points``), the pupils and the lids across the eyes (:func:`eye_rows`)."""
+    keep = _kept(points, projection.eyes)
+    target = points.targets[keep] @ np.asarray(landmarks, np.float64)[:, :2]
+    n = len(target)
     crop_px = CROP_SIGMA * crop_size / MESH_SIZE
-    sigma = np.sqrt(crop_px**2 + spread_px**2)
-    across = np.zeros((len(xy), 2))
-    if eyes is not None and eye_points is not None:
-        rows = eye_rows(estimator, eye_points, eyes)
-        if rows is not None:
-            xy = np.concatenate([xy, rows[0]])
-            jac = np.concatenate([jac, rows[1]])
-            target = np.concatenate([target, rows[2]])
-            sigma = np.concatenate([sigma, rows[3]])
-            across = np.concatenate([across, rows[4]])
-    return LandmarkSystem(xy, jac, target, sigma, np.asarray(values, np.float64).copy(), across)
+    sigma = np.sqrt(crop_px**2 + projection.spread_px[:n] ** 2)
+    across = np.zeros((n, 2))
+    if projection.eyes:
+        rows = eye_rows(eye_points, eyes)
+        target = np.concatenate([target, rows[0]])
+        sigma = np.concatenate([sigma, rows[1]])
+        across = np.concatenate([across, rows[2]])
+    return LandmarkSystem(projection.xy0, projection.jacobian, target, sigma, projection.values0,
+                          across)  # fmt: skip
 
 
-def eye_rows(estimator, points, eyes) -> tuple[np.ndarray, ...] | None:
-    """The eyes' observations (:mod:`vtts.analysis.eyes`): each pupil where the iris model
-    puts the iris centre, its σ grown as the lids hide the iris (σ / √visible), and each lid
-    point where the iris model's lid contour crosses it, across the eye only; ``points``: the
-    model's (:func:`vtts.analysis.eyes.eye_points`), ``eyes`` the iris model's. Returns
-    ``(xy (m, 2), jacobian (2m, K), target (m, 2), sigma (m,), across (m, 2))`` or None where
-    the model shows neither."""
-    if not len(points.pupils) and not len(points.lids):
-        return None
+def linearize(estimator, points: LandmarkPoints, landmarks: np.ndarray, crop_size: float,
+              values: np.ndarray, eyes=None, eye_points=None) -> LandmarkSystem:  # fmt: skip
+    """The observations' term of ``estimator`` linearized at its current parameters (the
+    unknowns' ``values`` ``(K,)``): :func:`project_points`, then :func:`observed`."""
+    both = eyes is not None and eye_points is not None
+    projection = project_points(estimator, points, values, eye_points if both else None)
+    return observed(projection, points, landmarks, crop_size, eyes, eye_points)
+
+
+def _kept(points: LandmarkPoints, eyes: bool) -> np.ndarray:
+    """Which of ``points`` are observed: all, or without the lids' when the eyes are."""
+    if eyes and points.landmark is not None:
+        return ~np.isin(points.landmark, EYE_LIDS)
+    return np.ones(len(points), dtype=bool)
+
+
+def eye_rows(points, eyes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The eyes' observations (:mod:`vtts.analysis.eyes`) of the model's ``points``
+    (:func:`vtts.analysis.eyes.eye_points`: its pupils, then its lid points) by the iris
+    model's ``eyes``: each pupil where the iris centre is, its σ grown as the lids hide the
+    iris (σ / √visible), and each lid point where the lid contour crosses it, across the eye
+    only. Returns ``target (m, 2)`` pixels, ``sigma (m,)`` and ``across (m, 2)``."""
     pupils, lids = points.targets(eyes)
     by_eye = dict(eyes)
     crop = {name: CROP_SIGMA * eye.crop.size / IRIS_SIZE for name, eye in eyes}
-    xy_p, jac_p = points.pupils.project(estimator)
-    xy_l, jac_l = points.lids.project(estimator)
     seen = [max(by_eye[n.split()[1]].visible, 1e-3) for n in points.pupils.names]
     sigma_p = np.array([crop[n.split()[1]] for n in points.pupils.names]) / np.sqrt(seen)
     sigma_l = np.array([crop[n.split()[1]] for n in points.lids.names])
-    across_l = points.lid_normals(eyes)
     return (
-        np.concatenate([xy_p, xy_l]),
-        np.concatenate([jac_p, jac_l]),
-        np.concatenate([pupils, lids]),
+        np.concatenate([pupils, lids]).reshape(-1, 2),
         np.concatenate([sigma_p, sigma_l]).reshape(-1),
-        np.concatenate([np.zeros((len(xy_p), 2)), across_l]),
+        np.concatenate([np.zeros((len(pupils), 2)), points.lid_normals(eyes)]).reshape(-1, 2),
     )
 
 

@@ -6,10 +6,10 @@
 header arrives), each estimate one packet (:class:`vtts.fap.coding.StreamEncoder`), flushed at
 once; :meth:`EstimateStream.end` writes the end marker. The frames decode to what ``vtts
 analyze -o OUT.fbs`` codes for the same estimates (the estimated FAPs rounded to integers, the
-head translation in ES units, quantizer 1) with the same base steps — a stream's are taken at its
-first estimate (``steps``), a file's at the sequence's median pose; the predictor pairs are fixed
-in advance (:func:`~vtts.fap.coding.paired_predictors`), as a stream cannot choose them from its
-frames.
+head translation in ES units, the same ``quantizer``) with the same base steps — a stream's are
+taken at its first estimate (``steps``), a file's at the sequence's median pose; the predictor
+pairs are fixed in advance (:func:`~vtts.fap.coding.paired_predictors`), as a stream cannot
+choose them from its frames.
 """
 
 from __future__ import annotations
@@ -54,6 +54,7 @@ class EstimateStream:
         fapu: Callable[[], Fapu | None],
         before_header: Callable[[], None] | None = None,
         steps: Callable[[FrameEstimate], Mapping[int | str, int]] | None = None,
+        quantizer: float = 1.0,
     ) -> None:
         self.sink = sink
         self.fps = float(fps)
@@ -63,6 +64,7 @@ class EstimateStream:
         self._fapu: Fapu | None = None
         self._before = before_header
         self._steps_of = steps
+        self.quantizer = float(quantizer)
         self.encoder: StreamEncoder | None = None
         self.framing_s = 0.0
         self.bytes_written = 0
@@ -88,6 +90,7 @@ class EstimateStream:
             constant_mask=True,
             predictors=paired_predictors(faps, steps),
             steps=steps,
+            quantizer=self.quantizer,
         )
         self._write(encoder.header())
         return encoder

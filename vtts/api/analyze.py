@@ -28,6 +28,11 @@ from vtts.errors import AnalysisError
 TEXTURES = ("mean", "anchor")
 #: The base steps of a coded ``.fbs``: measured on the face, or MPEG-4's.
 STEPS = ("face", "mpeg4")
+#: The coder's quantizer of ``vtts analyze``'s coded output (the steps are the base steps times
+#: this): at 12.5 Hz the paper's 17 parameters of the development clips came to 0.45–1.02
+#: kbit/s, 0.56 the median clip (the paper: 0.58), for 0.0–1.0 dB of Equation 18 (0.3 the
+#: median) against quantizer 1's 0.80–1.49 kbit/s (docs/analysis.md, "Measuring on people").
+QUANTIZER = 4.0
 
 
 def fitted_paths(out: Path) -> list[Path]:
@@ -99,7 +104,8 @@ class AnalyzeOptions:
     the fitted head (default ``OUT-model.wrl``; needed with ``stream_out``; refused with a
     given model: nothing is fitted); ``face``: which face to track, 1 = the largest; ``rate``:
     the coded ``.fbs``'s frame rate in Hz (0–1000; None: the analysis rate); ``steps``:
-    ``face`` or ``mpeg4`` base steps; ``faps``: what to estimate
+    ``face`` or ``mpeg4`` base steps; ``quantizer``: the coder's global factor of the steps
+    (:data:`QUANTIZER`); ``faps``: what to estimate
     (:func:`vtts.analysis.unknowns.parse_unknowns`; None: paper17); ``camera``:
     ``"FX,FY,X0,Y0"`` in pixels (with a given model); ``step``: analyze every N-th frame;
     ``track``: the fast tracking mode (False: accurate; None: tracking for stdin only);
@@ -119,6 +125,7 @@ class AnalyzeOptions:
     face: int | None = None
     rate: float | None = None
     steps: str = "face"
+    quantizer: float = QUANTIZER
     faps: str | None = None
     camera: str | None = None
     step: int = 1
@@ -161,6 +168,9 @@ class AnalyzeOptions:
         if self.fps is not None and not 0 < self.fps <= 1000:
             raise AnalysisError(f"--fps must be within 0–1000, got {self.fps:g}")
         check_choice(self.steps, "--steps", STEPS, AnalysisError)
+        if not (isinstance(self.quantizer, int | float) and 0 < self.quantizer <= 1000):
+            raise AnalysisError(f"--quantizer must be a number within 0–1000, got "
+                                f"{self.quantizer!r}")  # fmt: skip
         if self.texture is not None:
             check_choice(self.texture, "--texture", TEXTURES, AnalysisError)
         self.unknowns = parse_unknowns(self.faps) if self.faps is not None else None
@@ -387,6 +397,7 @@ def estimate(o: AnalyzeOptions, stdin: BinaryIO, stdout: BinaryIO) -> Analyzed:
                 unknowns=sent,
                 name=name,
                 fapu=lambda: head().fapu,
+                quantizer=o.quantizer,
                 before_header=place_fitted if auto else None,
                 steps=None
                 if o.steps == "mpeg4"
@@ -433,13 +444,13 @@ def estimate(o: AnalyzeOptions, stdin: BinaryIO, stdout: BinaryIO) -> Analyzed:
         if sink is not None:
             sink.end()
         elif o.coded:
-            tmp_out.write_bytes(encode(stream, rate=o.rate, steps=steps))
+            tmp_out.write_bytes(encode(stream, rate=o.rate, steps=steps, quantizer=o.quantizer))
         else:
             with warnings.catch_warnings():  # the summary says where the translation went
                 warnings.simplefilter("ignore", VttsWarning)
                 tmp_out.write_text(format_fap(stream), encoding="utf-8")
         if tmp_fbs is not None:
-            tmp_fbs.write_bytes(encode(stream, rate=o.rate, steps=steps))
+            tmp_fbs.write_bytes(encode(stream, rate=o.rate, steps=steps, quantizer=o.quantizer))
         if o.report:
             write_report(analysis, o.report)
             video = read_video(o.video, fps=o.fps)  # again: the frames were not kept
