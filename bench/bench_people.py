@@ -42,7 +42,10 @@ composite.
 Environment: ``VTTS_BENCH_FRAMES=N`` analyzes each clip's first N frames, ``VTTS_BENCH_CLIPS=a,b``
 only those clips (for a quick look: the figures are then not the benchmark's);
 ``VTTS_BENCH_ACCURATE_STEP=K`` analyzes every K-th frame in the accurate mode (default
-:data:`ACCURATE_STEP`).
+:data:`ACCURATE_STEP`); ``VTTS_BENCH_MODES=tracking`` (or ``accurate``) one mode only;
+``VTTS_BENCH_FAPS=LIST`` estimates ``--faps LIST`` instead of the paper's 17;
+``VTTS_BENCH_QUANTIZERS=1,2`` the quantizers measured beside the command's (the same estimates
+coded again: bit rate, Equation 18 and geometry medians).
 """
 
 from __future__ import annotations
@@ -56,6 +59,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from vtts.api.analyze import QUANTIZER  # the command's default
 
 BENCH = "people"
 ROOT = Path(__file__).resolve().parents[1]
@@ -79,8 +84,9 @@ SHEET_HEIGHT = 180
 #: The least height (pixels) of a worst-frame picture: smaller frames are enlarged.
 PICTURE_HEIGHT = 400
 
-#: The coder's quantizers measured beside the default (1): the bit rate and what it costs.
-QUANTIZERS = (2, 4)
+#: The coder's quantizers measured beside ``vtts analyze``'s (:data:`QUANTIZER`): the bit rate
+#: and what it costs.
+QUANTIZERS = (1, 2)
 
 TARGET_GEOMETRY_MEDIAN = 3.0
 TARGET_GEOMETRY_P95 = 8.0
@@ -228,7 +234,7 @@ def _clip(clip: str, mode: str, tracking: bool, step: int, limit: int | None,
         stream = tracked.analysis.stream(clip, fapu=model.fapu)
         steps = analysis_steps(tracked.analysis, model, (w, h))
         fbs = Path(tmp) / f"{clip}.fbs"
-        fbs.write_bytes(encode(stream, rate=RATE, steps=steps))
+        fbs.write_bytes(encode(stream, rate=RATE, steps=steps, quantizer=QUANTIZER))
         result.overall_fps = result.analyzed / (time.perf_counter() - t0)
         result.kbps = fbs.stat().st_size * 8 / (len(frames) / fps) / 1000
         decoded = decode(fbs.read_bytes(), file=str(fbs))
