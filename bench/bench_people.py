@@ -17,9 +17,10 @@ accurate mode (the default for a file; every second frame, ``--step 2``: see
   percentile over frames; frames whose composite shows no tracked face are **lost**; frames
   whose camera frame shows no face are left out and counted;
 * the re-initializations (restarts) and held frames of the analysis, the bit rate of the
-  ``.fbs`` at 12.5 Hz (``--steps face``, the arithmetic coder), the steady tracking speed and
-  the RGB whole-head face PSNR (:func:`vtts.analysis.quality.face_psnr_rgb` over the decoded
-  model's coverage: the figure of ``bench_real_video.py``) beside them.
+  ``.fbs`` at 12.5 Hz (``--steps face``, the arithmetic coder, ``vtts analyze``'s quantizer),
+  the steady tracking speed and the RGB whole-head face PSNR
+  (:func:`vtts.analysis.quality.face_psnr_rgb` over the decoded model's coverage: the figure
+  of ``bench_real_video.py``) beside them.
 
 The **steady speed** is the frames estimated after the anchor frame over the wall time they took
 (one estimate to the next, as they are handed on): choosing the anchor, fitting the head, the
