@@ -29,9 +29,7 @@ TEXTURES = ("mean", "anchor")
 #: The base steps of a coded ``.fbs``: measured on the face, or MPEG-4's.
 STEPS = ("face", "mpeg4")
 #: The coder's quantizer of ``vtts analyze``'s coded output (the steps are the base steps times
-#: this): at 12.5 Hz the paper's 17 parameters of the development clips came to 0.45–1.02
-#: kbit/s, 0.56 the median clip (the paper: 0.58), for 0.0–1.0 dB of Equation 18 (0.3 the
-#: median) against quantizer 1's 0.80–1.49 kbit/s (docs/analysis.md, "Measuring on people").
+#: this): the paper's rate at 12.5 Hz (docs/analysis.md, "Measuring on people").
 QUANTIZER = 4.0
 
 
