@@ -107,9 +107,10 @@ POLISH_PX = 0.02
 #: Between two frames, samples that moved this far (pixels) are rendered anew
 #: (:meth:`Tracker.between_frames`), …
 AHEAD_PX = 1.5
-#: … and this far after a frame observed on its landmarks: its jump and landmark rows hold the
-#: estimate where the samples' linear motion drifts (1.5 pixels there gave the same figures on
-#: the development clips at 0.6–0.8 times the speed: docs/analysis.md, "Measuring on people").
+#: … and this far after a frame observed on its landmarks in the tracking mode: its jump and
+#: landmark rows hold the estimate where the samples' linear motion drifts (1.5 pixels there gave
+#: the same figures on the development clips at 0.6–0.8 times the speed: docs/analysis.md,
+#: "Measuring on people").
 AHEAD_LANDMARKS_PX = 3.0
 
 #: Pixels of the camera frame kept around the face's box (motion within a frame is smaller).
@@ -245,14 +246,16 @@ class Tracker(Estimator):
     def _stages(self, frame: np.ndarray) -> tuple[_Samples, int]:
         """The :attr:`stages`' solves on the samples against the camera ``frame`` ``(H, W, 3)
         uint8``, rendering new samples where they moved too far; returns the samples last used
-        (also :attr:`_samples`) and the solves made. A frame with landmarks observed starts at
-        the last stage: its jump onto them does the coarse stage's work (on the development
-        clips the same figures, 1.2–1.4 times the speed at CIF and 512², docs/analysis.md)."""
+        (also :attr:`_samples`) and the solves made. In the tracking mode a frame with
+        landmarks observed starts at the last stage: its jump onto them does the coarse stage's
+        work (on the development clips the same figures, 1.2–1.7 times the speed; in the
+        accurate mode it cost Carphone and lp_d12 0.1–0.3 % of geometry, docs/analysis.md)."""
         samples = self._samples
         images: dict[float, np.ndarray] = {}  # the frame's window smoothed, by sigma
         solves = 0
         # a frame observed on its landmarks has jumped onto them (the coarse stage's work)
-        stages = self.stages if self._observed is None else self.stages[-1:]
+        quick = self._observed is not None and not self.finish
+        stages = self.stages[-1:] if quick else self.stages
         for stage in stages:
             for _ in range(stage.iterations):
                 # the k-th rendering within a frame waits for k times the shift of the first
@@ -283,7 +286,8 @@ class Tracker(Estimator):
         samples have moved :data:`AHEAD_PX` (:data:`AHEAD_LANDMARKS_PX` after a frame observed
         on its landmarks) since their rendering: the next frame would likely need it, and a
         live stream has the time between two frames to spare."""
-        ahead = AHEAD_PX if self._observed is None else AHEAD_LANDMARKS_PX
+        quick = self._observed is not None and not self.finish
+        ahead = AHEAD_LANDMARKS_PX if quick else AHEAD_PX
         if self._samples is not None and self._shift(self._samples) > ahead:
             try:
                 self._samples = self._sample(self.sample_step)
