@@ -78,7 +78,7 @@ def add_parser(sub) -> None:
         metavar="Q",
         help="the coder's quantizer of the coded .fbs: its steps are the base steps times Q "
         "(default 4: about the paper's 0.58 kbit/s at --rate 12.5; 1 spends about 1.7 times "
-        "the bits for 0.3 dB more)",
+        "the bits for 0.2 dB more)",
     )
     an.add_argument(
         "--faps",
