@@ -190,3 +190,17 @@ def test_the_working_size_estimates_the_same_head(tmp_path):
     for fa, fb in zip(a.frames, b.frames, strict=True):
         assert np.allclose(fa.translation, fb.translation, atol=0.02)
         assert np.abs(fa.params[47:50] - fb.params[47:50]).max() < 2500
+
+
+def test_bad_landmarks_to_follow_and_a_bad_working_scale_are_clear_errors(tmp_path):
+    from vtts.errors import AnalysisError, FitError
+
+    (frame,) = _frames(CARPHONE, 1)
+    with pytest.raises(FitError, match=r"landmarks to follow must be \(468, 2\) finite pixels"):
+        default_detector().follow(frame, np.zeros((10, 2)))
+    with pytest.raises(FitError, match="finite"):
+        default_detector().follow(frame, np.full((468, 2), np.nan))
+    for scale in (0, 1.5):
+        with pytest.raises(AnalysisError, match="working scale must be a whole factor"):
+            track([frame], fps=25.0, model_path=tmp_path / "m.wrl", scale=scale)
+    assert not list(tmp_path.iterdir())

@@ -170,8 +170,7 @@ class LandmarkSystem:
     def shift(self, change: np.ndarray) -> float:
         """How far (pixels) a ``change`` ``(K,)`` of the unknowns moves the points (linearly):
         the most any moves."""
-        step = (self.jacobian @ change).reshape(-1, 2)
-        return float(np.sqrt((step * step).sum(1).max(initial=0.0)))
+        return largest_move(self.jacobian, change)
 
     def error(self, values: np.ndarray) -> float:
         """The median distance (pixels) between the points and their landmarks."""
@@ -229,9 +228,14 @@ class Projection:
 
     def moved(self, values: np.ndarray) -> float:
         """How far (pixels) the unknowns' ``values`` move the points from the linearization."""
-        change = values - self.values0
-        step = (self.jacobian @ change).reshape(-1, 2)
-        return float(np.sqrt((step * step).sum(1).max(initial=0.0)))
+        return largest_move(self.jacobian, values - self.values0)
+
+
+def largest_move(jacobian: np.ndarray, change: np.ndarray) -> float:
+    """How far (pixels) the points whose image motion is ``jacobian`` ``(2n, K)`` move for a
+    ``change`` ``(K,)`` of the unknowns: the most any moves."""
+    step = (jacobian @ change).reshape(-1, 2)
+    return float(np.sqrt((step * step).sum(1).max(initial=0.0)))
 
 
 def project_points(estimator, points: LandmarkPoints, values: np.ndarray,

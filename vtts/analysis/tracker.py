@@ -57,7 +57,8 @@ from vtts.analysis.estimator import (  # noqa: F401  (LIT_REFINE_STEPS: the trac
     ROBUST_LIMIT,
     Estimator,
 )
-from vtts.analysis.result import TRANSLATION, FrameEstimate
+from vtts.analysis.landmark_term import unknown_values
+from vtts.analysis.result import FrameEstimate
 from vtts.analysis.solve import least_squares, smooth
 from vtts.analysis.unknowns import EYELIDS
 from vtts.errors import VttsError
@@ -429,10 +430,7 @@ class Tracker(Estimator):
 
     def _values(self) -> np.ndarray:
         """The unknowns' current values ``(K,)`` (FAP units, ES units of the translation)."""
-        return np.array([
-            self.translation[TRANSLATION.index(u)] if isinstance(u, str) else self.params[u - 1]
-            for u in self.unknowns
-        ])  # fmt: skip
+        return unknown_values(self)
 
     def _shift(self, s: _Samples) -> float:
         """How far (pixels) the samples have moved since their rendering: the largest."""
