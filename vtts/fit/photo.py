@@ -52,6 +52,7 @@ from vtts.fit.shape import (
     fit_shape,
     focal_length,
 )
+from vtts.fit.source import record_photo
 from vtts.fit.texture import (
     ATLAS_SIZE,
     EAR_TILES,
@@ -142,21 +143,27 @@ class FittedHead:
     frame: np.ndarray | None = None
 
     def write(self, path: str | Path) -> list[Path]:
-        """Write ``PATH.wrl`` (the scene), ``PATH.adt`` (its tables) and ``PATH-face.png`` (its
-        texture) — and ``PATH-frame.png`` for a head made for a video — beside each other, each
-        renamed into place only when all are written. Returns the paths."""
+        """Write ``PATH.wrl`` (the scene), ``PATH.adt`` (its tables), ``PATH-face.png`` (its
+        texture) and ``PATH-photo.png`` (the photo, :func:`~vtts.fit.source.source_photo`) — for a
+        head made for a video ``PATH-frame.png`` instead of the photo, which holds it — beside
+        each other, each renamed into place only when all are written. Returns the paths."""
         wrl = Path(path)
         if wrl.suffix.lower() != ".wrl":
             raise FitError(f"the output must be a .wrl file, got {str(path)!r}")
         adt = wrl.with_suffix(".adt")
         pngs = self._set_urls(wrl)
+        images = [self.texture, self.frame] if self.frame is not None else [self.texture]
+        if self.frame is None:
+            pngs.append(wrl.with_name(photo_name(wrl)))
+            images.append(self.photo)
+        record_photo(self.scene, pngs[-1].name, self.photo.shape[1], self.photo.shape[0])
         text = dumps(self.scene)
         paths = [wrl, adt, *pngs]
         with contextlib.ExitStack() as stack:
             tmp = [stack.enter_context(atomic_path(p)) for p in paths]
             tmp[0].write_text(text, encoding="utf-8")
             tmp[1].write_text(format_adt(self.tables), encoding="utf-8")
-            for image, target in zip((self.texture, self.frame), tmp[2:], strict=False):
+            for image, target in zip(images, tmp[2:], strict=True):
                 # zlib level 3: a tenth of a second, a few percent larger than the default 6
                 Image.fromarray(image).save(target, format="PNG", compress_level=3)
         return paths
@@ -165,7 +172,13 @@ class FittedHead:
         """The head as a :class:`~vtts.face.FaceModel` whose textures are written into
         ``folder``."""
         wrl = folder / f"{name}.wrl"
-        for image, png in zip((self.texture, self.frame), self._set_urls(wrl), strict=False):
+        pngs = self._set_urls(wrl)
+        images = [self.texture, self.frame] if self.frame is not None else [self.texture]
+        if self.frame is None:
+            pngs.append(wrl.with_name(photo_name(wrl)))
+            images.append(self.photo)
+        record_photo(self.scene, pngs[-1].name, self.photo.shape[1], self.photo.shape[0])
+        for image, png in zip(images, pngs, strict=True):
             Image.fromarray(image).save(png)
         return FaceModel(self.scene, self.tables, wrl)
 
@@ -239,6 +252,12 @@ def _drawn(head: FittedHead, names: tuple[str, ...]) -> dict[str, np.ndarray]:
 
 def texture_name(wrl: Path) -> str:
     return f"{wrl.stem}-face.png"
+
+
+def photo_name(wrl: Path) -> str:
+    """The file of the photo a head was fitted to, beside it (``adi fit``; a head made for a
+    video keeps its frame in :func:`frame_texture_name`)."""
+    return f"{wrl.stem}-photo.png"
 
 
 def frame_texture_name(wrl: Path) -> str:

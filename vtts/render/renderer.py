@@ -52,6 +52,9 @@ class FaceRenderer:
     (:mod:`vtts.render.lod`; :data:`DETAIL_PX` is what ``vtts say`` and ``vtts play`` use);
     None (the default): every triangle, as the model has them.
 
+    ``hidden``: DEF names of IndexedFaceSets that are posed but not drawn (their places show
+    what lies behind them; :meth:`world_points` still gives their vertices).
+
     ``triangle_sets`` lists every IndexedFaceSet drawn (of every model, in scene order) as
     ``(node, first, count)``: triangle ``i`` of ``vtts.vrml.triangulate(node)`` has number
     ``first + i`` in the triangle numbers :meth:`render` gives.
@@ -68,6 +71,7 @@ class FaceRenderer:
         layout: str = "row",
         supersample: int = 1,
         detail: float | None = None,
+        hidden: Sequence[str] = (),
     ) -> None:
         if isinstance(models, FaceModel):
             models = [models]
@@ -109,7 +113,7 @@ class FaceRenderer:
         # every IndexedFaceSet drawn, with the number of its first triangle (in model order)
         self.triangle_sets = self._builder.triangle_sets
         self._triangle_numbers = self._builder.triangle_numbers  # primitive -> its first
-        self.instances = [self._builder.add_model(m) for m in self.models]
+        self.instances = [self._builder.add_model(m, frozenset(hidden)) for m in self.models]
         self._lo, self._hi = self._builder.place(self.instances, layout)
         if viewpoint is not None:
             camera = self._viewpoint_camera(viewpoint)
@@ -341,6 +345,7 @@ class FaceRenderer:
             if root is not None:
                 self.scene.set_pose(inst.root, root)
             for am, positions, normals, vertex_data in meshes:
+                am.applied = positions
                 if normals is None:  # an unlit mesh (see AnimatedMesh.unlit)
                     if self._draws_unlit():
                         normals = am.template.normals
@@ -355,6 +360,27 @@ class FaceRenderer:
                 for pn in at.nodes:
                     self.scene.set_pose(pn, m)
                 at.applied = m
+
+    def world_points(self, name: str, index: int = 0) -> np.ndarray:
+        """The vertices ``(n, 3)`` of model ``index``'s IndexedFaceSet DEFed ``name`` in the
+        renderer's world, as the frame last put into the scene (:meth:`apply`) poses them: its
+        Transforms and root included, one row per vertex drawn (a Coordinate point used by
+        several corners with different texture coordinates is several rows; the order is the
+        same in every frame)."""
+        if not 0 <= index < len(self.instances):
+            raise RenderError(f"no model {index}: the renderer has {len(self.instances)}")
+        inst = self.instances[index]
+        for am in inst.meshes:
+            if am.name == name:
+                points = am.template.positions if am.applied is None else am.applied
+                node = am.node
+                break
+        else:
+            if name not in inst.still:
+                raise RenderError(f"{inst.model.name} draws no IndexedFaceSet DEFed {name}")
+            node, points = inst.still[name]
+        world = np.asarray(self.scene.get_pose(node), dtype=np.float64)
+        return np.asarray(points, np.float64) @ world[:3, :3].T + world[:3, 3]
 
     def _draws_unlit(self) -> bool:
         """Whether this scene's frames are drawn through the G-buffer, where unlit meshes need

@@ -67,6 +67,8 @@ class AnimatedMesh:
     drawn: tuple[np.ndarray, np.ndarray, sp.csr_matrix] | None = None
     # its progressive mesh, once a view has asked for it (read or made once)
     collapses: Collapses | None = None
+    # the vertex positions of the frame on the GPU (FaceRenderer.apply), None: the template's
+    applied: np.ndarray | None = None
 
     def normals(self, positions: np.ndarray) -> np.ndarray:
         """The vertex normals for ``positions`` (``(n, 3)`` or ``(T, n, 3)``, as
@@ -121,6 +123,9 @@ class ModelInstance:
     # the animated meshes' points in each pose of renderer.detail_poses (see lod_key), once
     # needed
     detail_points: dict | None = None
+    # the IndexedFaceSets the tables leave as they are: DEF name -> (pyrender node, vertex
+    # positions (n, 3) as drawn)
+    still: dict = field(default_factory=dict)
 
 
 class SceneBuilder:
@@ -137,13 +142,16 @@ class SceneBuilder:
         order_scene(self.scene)
         self._image_textures: dict[Path, object] = {}  # image file -> its pyrender texture
         self._materials: dict[tuple[int, bool], object] = {}
+        self._hidden: frozenset[str] = frozenset()
         self.triangle_sets: list[tuple[Node, int, int]] = []
         self.triangle_numbers: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
-    def add_model(self, model: FaceModel) -> ModelInstance:
+    def add_model(self, model: FaceModel, hidden: frozenset[str] = frozenset()) -> ModelInstance:
         """Add ``model``'s scene under a root node of its own (at the origin: see
-        :meth:`place`)."""
+        :meth:`place`); the IndexedFaceSets DEFed with a name in ``hidden`` are posed as the
+        others but not drawn."""
         pr = load_pyrender()
+        self._hidden = hidden
         root = pr.Node(matrix=np.eye(4))
         self.scene.add_node(root)
         inst = ModelInstance(model, root)
@@ -198,8 +206,11 @@ class SceneBuilder:
             first = last + count
             self.triangle_sets.append((geom, first, len(tm.faces)))
             mesh = self.mesh(tm, tm.positions, tm.normals, material, first)
+            mesh.is_visible = geom.name not in self._hidden
             node = self.scene.add(mesh, parent_node=parent)
             pts = tm.positions
+            if geom.name and geom.name not in animated:
+                inst.still[geom.name] = (node, tm.positions)
             if geom.name in animated:
                 inc = incidence(tm.faces, tm.positions.shape[0])
                 inst.meshes.append(
@@ -229,11 +240,11 @@ class SceneBuilder:
     def replace_mesh(self, am: AnimatedMesh, positions, normals) -> None:
         """Put an animated mesh into the scene anew: a node with these positions and normals
         and the triangles it draws (pyrender uploads it at the next frame)."""
+        visible = am.node.mesh.is_visible
         self.scene.remove_node(am.node)
-        am.node = self.scene.add(
-            self.mesh(am.template, positions, normals, am.material, am.first_triangle, am.faces),
-            parent_node=am.parent,
-        )
+        mesh = self.mesh(am.template, positions, normals, am.material, am.first_triangle, am.faces)
+        mesh.is_visible = visible
+        am.node = self.scene.add(mesh, parent_node=am.parent)
 
     def mesh(
         self,
