@@ -36,6 +36,8 @@ MORE_OUTPUTS = ("model_out",)
 INPUT_OPTIONS = ("stream", "video", "audio", "file", "phonemes", "input")
 #: The layouts of several heads: side by side, or side by side in a simple room.
 LAYOUTS = ("row", "room")
+#: The frame size (WIDTHxHEIGHT, pixels) when none is given.
+DEFAULT_SIZE = "352x288"
 #: The highest ``seed`` (numpy's generators take no negative seed).
 MAX_SEED = 2**63 - 1
 
@@ -176,15 +178,18 @@ class PoseRequest:
 class View:
     """How the heads are seen.
 
-    ``size``: ``"WIDTHxHEIGHT"`` in pixels; ``camera``: a pinhole camera ``"FX,FY,X0,Y0"`` of
-    Eisert–Girod Eq. 3 in pixels (None: frame the heads); ``viewpoint``: the Viewpoint DEFed so
-    in the first model's scene; ``background``: a color name, ``#rrggbb``, ``r,g,b`` in 0–1 or
-    ``transparent`` (None: the renderer's); ``layout``: ``row`` or ``room``; ``detail``: draw
-    fewer triangles where the surface moves by less than this many pixels (0: every triangle;
-    None: :data:`vtts.render.DETAIL_PX`).
+    ``size``: ``"WIDTHxHEIGHT"`` in pixels (None: :data:`DEFAULT_SIZE`, or with ``background``
+    ``photo`` the photo's); ``camera``: a pinhole camera ``"FX,FY,X0,Y0"`` of Eisert–Girod Eq. 3
+    in pixels (None: frame the heads); ``viewpoint``: the Viewpoint DEFed so in the first
+    model's scene; ``background``: a color name, ``#rrggbb``, ``r,g,b`` in 0–1,
+    ``transparent``, or ``photo`` — a fitted head drawn into the photo it was fitted to, seen
+    through its ``photo`` Viewpoint (:mod:`vtts.render.talking_photo`; ``photo`` below) — (None:
+    the renderer's); ``layout``: ``row`` or ``room``; ``detail``: draw fewer triangles where the
+    surface moves by less than this many pixels (0: every triangle; None:
+    :data:`vtts.render.DETAIL_PX`).
     """
 
-    size: str = "352x288"
+    size: str | None = None
     camera: str | None = None
     viewpoint: str | None = None
     background: str | None = None
@@ -199,13 +204,41 @@ class View:
         check_choice(self.layout, "--layout", LAYOUTS)
         if self.detail is not None and not 0 <= self.detail <= 100:  # NaN too
             raise RenderError(f"--detail is a distance in pixels from 0 to 100, got {self.detail}")
+        if self.talking_photo():
+            self._check_photo_view()
+
+    def talking_photo(self) -> bool:
+        """Whether the heads are drawn into their photo (``background`` ``photo``)."""
+        from vtts.render.color import is_photo
+
+        return is_photo(self.background)
+
+    def _check_photo_view(self) -> None:
+        """A photo is seen from its own camera, with one head in it."""
+        from vtts.render.talking_photo import PHOTO_VIEWPOINT
+
+        if self.camera:
+            raise RenderError(
+                "--background photo sees the head through its photo's camera: give no --camera "
+                f"(--viewpoint {PHOTO_VIEWPOINT} is the photo's)"
+            )
+        if self.viewpoint not in (None, PHOTO_VIEWPOINT):
+            raise RenderError(
+                f"--background photo draws the head into its photo, seen from where the photo "
+                f"was taken: --viewpoint {PHOTO_VIEWPOINT} (or none), not {self.viewpoint!r}"
+            )
+        if self.layout != "row":
+            raise RenderError("--background photo draws one head into its photo: no --layout room")
 
     def background_color(self, video: bool = False):
-        """The background as the renderer takes it (None: not given)."""
-        from vtts.render.color import TRANSPARENT, parse_background
+        """The background as the renderer takes it (None: not given; ``"photo"`` for a talking
+        photo)."""
+        from vtts.render.color import PHOTO, TRANSPARENT, parse_background
 
         if self.background is None:
             return None
+        if self.talking_photo():
+            return PHOTO
         background = parse_background(self.background)
         if background == TRANSPARENT and video:
             raise RenderError(
@@ -215,10 +248,11 @@ class View:
         return background
 
     def frame_size(self) -> tuple[int, int]:
-        """(width, height) in pixels, within what a renderer can draw."""
+        """(width, height) in pixels, within what a renderer can draw (:data:`DEFAULT_SIZE`
+        when not given)."""
         from vtts.render.renderer import check_size
 
-        return check_size(parse_size(self.size))
+        return check_size(parse_size(self.size or DEFAULT_SIZE))
 
     def pinhole(self):
         """The :class:`vtts.render.Camera` of ``camera``, or None."""
@@ -236,11 +270,23 @@ class View:
 
     def renderer(self, models, supersample: int = 1, video: bool = False):
         """A :class:`vtts.render.FaceRenderer` of ``models`` seen so, as a context manager
-        (kept between the jobs of ``vtts batch``: :func:`vtts.warm.renderer`)."""
+        (kept between the jobs of ``vtts batch``: :func:`vtts.warm.renderer`); a
+        :class:`~vtts.render.talking_photo.TalkingPhoto` for ``background`` ``photo``."""
         from vtts import warm
 
         if self.camera and self.viewpoint:
             raise RenderError("--camera and --viewpoint both choose the camera: give one of them")
+        if self.talking_photo():
+            from vtts.render.talking_photo import PHOTO_VIEWPOINT, TalkingPhoto
+
+            self._check_photo_view()
+            return TalkingPhoto(
+                models,
+                size=self.frame_size() if self.size else None,
+                viewpoint=self.viewpoint or PHOTO_VIEWPOINT,
+                supersample=supersample,
+                detail=self.detail_px(),
+            )
         camera = self.pinhole()
         background = self.background_color(video)
         return warm.renderer(

@@ -117,5 +117,10 @@ def write_web_folder(
         viewpoint=view.viewpoint,
         size=view.frame_size(),
         layout=view.layout,
-        background=parse_background(view.background) if view.background else None,
+        # a talking photo is drawn in the video; the web player draws the head in 3-D
+        background=(
+            parse_background(view.background)
+            if view.background and not view.talking_photo()
+            else None
+        ),
     )

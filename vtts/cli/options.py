@@ -115,7 +115,10 @@ def add_curves(p: argparse.ArgumentParser) -> None:
 
 
 def add_view(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--size", default="352x288", help="WIDTHxHEIGHT in pixels (default 352x288)")
+    p.add_argument(
+        "--size",
+        help="WIDTHxHEIGHT in pixels (default 352x288; with --background photo the photo's size)",
+    )
     p.add_argument(
         "--camera",
         metavar="FX,FY,X0,Y0",
@@ -130,7 +133,8 @@ def add_view(p: argparse.ArgumentParser) -> None:
         "--background",
         metavar="COLOR",
         help="a color name (black, white, gray, green, blue, ...), #rrggbb or r,g,b in 0-1; "
-        "or transparent: RGBA PNGs whose alpha is the heads' coverage",
+        "or transparent: RGBA PNGs whose alpha is the heads' coverage; or photo: a fitted head "
+        "drawn into the photo it was fitted to (a talking photo; --viewpoint photo)",
     )
     p.add_argument(
         "--layout",

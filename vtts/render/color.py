@@ -10,6 +10,9 @@ from vtts.errors import RenderError
 
 #: The background that leaves the heads on nothing (alpha 0 around them).
 TRANSPARENT = "transparent"
+#: The background of a talking photo: the photo a fitted head was fitted to, the head drawn into
+#: it (:mod:`vtts.render.talking_photo`; the commands' ``--background photo``).
+PHOTO = "photo"
 
 #: Color names → RGB (0–1). Green and blue are the chroma-key colors of video compositing.
 COLORS: dict[str, tuple[float, float, float]] = {
@@ -41,13 +44,22 @@ def parse_color(text: str) -> tuple[float, float, float]:
     return rgb
 
 
+def is_photo(text: str | None) -> bool:
+    """Whether a ``--background`` is :data:`PHOTO`."""
+    return isinstance(text, str) and text.strip().lower() == PHOTO
+
+
 def parse_background(text: str) -> tuple[float, float, float] | str:
-    """:data:`TRANSPARENT` for ``"transparent"``, else the RGB color of :func:`parse_color`."""
+    """:data:`TRANSPARENT` for ``"transparent"``, else the RGB color of :func:`parse_color`
+    (:data:`PHOTO` is the commands' to read: :func:`is_photo`)."""
     if text.strip().lower() == TRANSPARENT:
         return TRANSPARENT
     rgb = _rgb(text)
     if rgb is None:
-        raise RenderError(f"not a background: {text!r}; write {FORMS}; or {TRANSPARENT}")
+        raise RenderError(
+            f"not a background: {text!r}; write {FORMS}; or {TRANSPARENT}; or {PHOTO} (a fitted "
+            "head's own photo)"
+        )
     return rgb
 
 
