@@ -70,11 +70,34 @@ def akiyo(tmp_path_factory):
 
 def test_writes_scene_tables_and_texture(akiyo):
     _, _, _, files = akiyo
-    assert [p.name for p in files] == ["akiyo.wrl", "akiyo.adt", "akiyo-face.png"]
+    assert [p.name for p in files] == ["akiyo.wrl", "akiyo.adt", "akiyo-face.png",
+                                       "akiyo-photo.png"]  # fmt: skip
     assert all(p.stat().st_size > 0 for p in files)
     assert not list(files[0].parent.glob(".*part*")), "temporary files left behind"
     with Image.open(files[2]) as im:
         assert im.size == (1024, 1024)
+
+
+def test_records_its_photo_for_a_talking_photo(akiyo, tmp_path):
+    _, model, image, files = akiyo
+    from vtts.fit.source import source_photo
+    from vtts.render import probe_media
+
+    assert np.array_equal(source_photo(model), image)
+    # the README's line: the head talks inside its photo, at the photo's size
+    said = in_process.vtts("say", "Hi", "--model", files[0], "--viewpoint", "photo",
+                           "--background", "photo", "-o", tmp_path / "me.mp4")  # fmt: skip
+    assert said.returncode == 0, said.stderr
+    media = probe_media(tmp_path / "me.mp4")
+    assert (media.width, media.height) == (352, 288)
+    done = in_process.vtts("render", "--model", files[0], "--background", "photo", "--fap",
+                           "48=12000", "--viseme", "10", "-o", tmp_path / "nod.png")  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    nod = np.asarray(Image.open(tmp_path / "nod.png"))
+    assert nod.shape == image.shape
+    # the corners stay the photo's; the face and the hair around it moved
+    assert np.array_equal(nod[:40, :40], image[:40, :40])
+    assert np.abs(nod[60:200, 120:240].astype(int) - image[60:200, 120:240]).mean() > 5
 
 
 def test_keeps_the_generic_topology(akiyo):
