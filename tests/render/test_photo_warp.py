@@ -24,7 +24,7 @@ def scene():
     r = np.sqrt(rng.random(4000))
     rest = CENTRE + np.c_[45 * r * np.cos(t), 60 * r * np.sin(t)]
     depth = rng.random(4000)
-    return photo, rest, PhotoWarp(photo, rest, depth)
+    return photo, rest, PhotoWarp(photo, rest, depth, WarpOptions(reach=1.0, motion=3.0))
 
 
 def nod(points: np.ndarray, degrees: float) -> np.ndarray:
@@ -76,9 +76,12 @@ def test_pixels_near_the_head_move_with_it(scene):
     assert np.abs(field[distance > warp.last_reach]).max() == 0
 
 
+@pytest.mark.parametrize("default", [True, False], ids=["default", "wide"])
 @pytest.mark.parametrize("degrees", [-25.0, 10.0, 25.0])
-def test_a_nod_neither_tears_nor_folds(scene, degrees):
+def test_a_nod_neither_tears_nor_folds(scene, degrees, default):
     photo, rest, warp = scene
+    if default:  # the fade's defaults: steeper, so the fold rule has more to do
+        warp = PhotoWarp(photo, rest)
     moved = nod(rest, degrees)
     field = warp.field(moved)
     # fold-free: the forward map's Jacobian determinant is positive everywhere

@@ -46,12 +46,15 @@ class WarpOptions:
     """How the photo around the head follows it.
 
     ``reach``: how far beyond the head's outline (in head sizes: the square root of the area
-    its outline encloses) the motion fades out to nothing; ``cell``: the handles' spacing, in
+    its outline encloses) the motion fades out to nothing; ``motion``: and at least this many
+    times the largest displacement of a handle (a gentle slope keeps the warp fold-free);
+    ``cell``: the handles' spacing, in
     head sizes (one handle, the nearest to the camera, per cell of that size); ``grid``: the
     spacing of the warp's grid in pixels (0: a 24th of the photo's smaller side, at least 4);
     ``smoothing``: the thin-plate spline's smoothing (0: through every handle exactly)."""
 
-    reach: float = 1.0
+    reach: float = 0.25
+    motion: float = 1.5
     cell: float = 1 / 12
     grid: int = 0
     smoothing: float = 1e-3
@@ -59,6 +62,7 @@ class WarpOptions:
     def __post_init__(self) -> None:
         checks = (
             ("reach", self.reach, 0.05, 20.0),
+            ("motion", self.motion, 0.0, 20.0),
             ("cell", self.cell, 0.005, 1.0),
             ("grid", self.grid, 0, 512),
             ("smoothing", self.smoothing, 0.0, 10.0),
@@ -86,7 +90,7 @@ class PhotoWarp:
             raise RenderError(f"the handles must be (n, 2) finite pixels, got {rest.shape}")
         self.options = options or WarpOptions()
         self.photo = photo
-        self._samples = photo.astype(np.float32)
+        self._packed = packed(photo)
         h, w = photo.shape[:2]
         self.size = (w, h)
         inside = (rest[:, 0] >= 0) & (rest[:, 0] <= w) & (rest[:, 1] >= 0) & (rest[:, 1] <= h)
@@ -134,7 +138,7 @@ class PhotoWarp:
         # the motion, as the head's, within the head and as far as it reaches
         nodes = self.nodes.reshape(-1, 2)
         reach0 = self.options.reach * self.head_size
-        reach = max(reach0, 3.0 * float(np.abs(d).max()))
+        reach = max(reach0, self.options.motion * float(np.abs(d).max()))
         near = (
             self.distance.ravel() < reach * 1.5**WIDENINGS
             if self.distance is not None
@@ -198,46 +202,84 @@ class PhotoWarp:
         c0, c1 = max(cols.min() - 1, 0), min(cols.max() + 2, len(self.gx))
         return y, (int(r0), int(r1), int(c0), int(c1))
 
-    def __call__(self, moved: np.ndarray) -> np.ndarray:
+    def __call__(self, moved: np.ndarray, needed: np.ndarray | None = None) -> np.ndarray:
         """The photo warped for the points at ``moved`` ``(n, 2)``: ``(H, W, 3) uint8``. Within
         each cell of the grid the place a pixel takes the photo from is bilinear in the cell's
-        corners, and the photo is sampled there bilinearly."""
+        corners, and the photo is sampled there bilinearly. ``needed`` ``(H, W) bool``: only
+        these pixels are warped (the others keep the photo's: a caller that covers them with
+        something else saves the time)."""
         y, (r0, r1, c0, c1) = self.source(moved)
         out = self.photo.copy()
         if r1 - r0 < 2 or c1 - c0 < 2:
             return out
         w, h = self.size
-        g = self.step
         i0, i1 = int(self.gy[r0]), min(int(self.gy[r1 - 1]), h)
         j0, j1 = int(self.gx[c0]), min(int(self.gx[c1 - 1]), w)
-        # each pixel centre's place on the grid: its cell and where in it
-        u = (np.arange(j0, j1) + 0.5) / g
-        v = (np.arange(i0, i1) + 0.5) / g
-        cu = np.minimum(u.astype(np.intp), len(self.gx) - 2)
-        cv = np.minimum(v.astype(np.intp), len(self.gy) - 2)
-        tu, tv = (u - cu)[None, :, None], (v - cv)[:, None, None]
-        a, b = y[cv][:, cu], y[cv][:, cu + 1]
-        c, d = y[cv + 1][:, cu], y[cv + 1][:, cu + 1]
-        src = (a * (1 - tu) + b * tu) * (1 - tv) + (c * (1 - tu) + d * tu) * tv
-        out[i0:i1, j0:j1] = bilinear(self._samples, src)
+        # the grid's bilinear interpolation as two matrices: pixel rows × grid rows, columns ×
+        # grid columns (each pixel centre between its cell's nodes)
+        rows = _upsampling(np.arange(i0, i1), self.step, len(self.gy))
+        cols = _upsampling(np.arange(j0, j1), self.step, len(self.gx))
+        sx = rows @ y[..., 0] @ cols.T
+        sy = rows @ y[..., 1] @ cols.T
+        window = out[i0:i1, j0:j1]
+        if needed is None:
+            window[...] = sample(self._packed, (w, h), sx, sy)
+        else:
+            mask = np.asarray(needed, bool)[i0:i1, j0:j1]
+            window[mask] = sample(self._packed, (w, h), sx[mask], sy[mask])
         return out
 
 
-def bilinear(image: np.ndarray, at: np.ndarray) -> np.ndarray:
-    """``image`` ``(H, W, C)`` (uint8, or float32 0–255) sampled bilinearly at the pixel
-    coordinates ``at`` ``(..., 2)`` (x, y; pixel centres at +0.5; beyond the edge the edge's
-    pixels): ``(..., C) uint8``."""
+def _upsampling(pixels: np.ndarray, step: int, nodes: int) -> np.ndarray:
+    """``(len(pixels), nodes)``: the weights of the grid's nodes (every ``step`` pixels) that
+    interpolate linearly at the centres of ``pixels``."""
+    t = (pixels + 0.5) / step
+    k = np.minimum(t.astype(np.intp), nodes - 2)
+    f = t - k
+    m = np.zeros((len(pixels), nodes))
+    m[np.arange(len(pixels)), k] = 1.0 - f
+    m[np.arange(len(pixels)), k + 1] = f
+    return m
+
+
+def packed(image: np.ndarray) -> np.ndarray:
+    """``image`` ``(H, W, 3) uint8`` as ``(H·W,) uint32``, a pixel's bytes in one word (what
+    :func:`sample` gathers: one load per corner instead of three)."""
     h, w = image.shape[:2]
-    x = np.clip(at[..., 0] - 0.5, 0.0, w - 1.0)
-    y = np.clip(at[..., 1] - 0.5, 0.0, h - 1.0)
-    x0 = np.minimum(x.astype(np.intp), w - 2) if w > 1 else np.zeros(x.shape, np.intp)
-    y0 = np.minimum(y.astype(np.intp), h - 2) if h > 1 else np.zeros(y.shape, np.intp)
-    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
-    fx, fy = (x - x0)[..., None], (y - y0)[..., None]
-    img = image.astype(np.float32) if image.dtype != np.float32 else image
-    top = img[y0, x0] * (1 - fx) + img[y0, x1] * fx
-    bottom = img[y1, x0] * (1 - fx) + img[y1, x1] * fx
-    return np.clip(np.round(top * (1 - fy) + bottom * fy), 0, 255).astype(np.uint8)
+    rgba = np.zeros((h, w, 4), np.uint8)
+    rgba[..., :3] = image
+    return rgba.view(np.uint32).reshape(-1)
+
+
+def sample(pixels: np.ndarray, size: tuple[int, int], x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The image :func:`packed` as ``pixels`` (of ``size`` (W, H)) sampled bilinearly at the
+    pixel coordinates ``x``, ``y`` (any shape; pixel centres at +0.5; beyond the edge the edge's
+    pixels): ``(*x.shape, 3) uint8``."""
+    w, h = size
+    x = np.clip(np.asarray(x, np.float64) - 0.5, 0.0, w - 1.0)
+    y = np.clip(np.asarray(y, np.float64) - 0.5, 0.0, h - 1.0)
+    x0 = np.minimum(x.astype(np.intp), max(w - 2, 0))
+    y0 = np.minimum(y.astype(np.intp), max(h - 2, 0))
+    dx, dy = (1 if w > 1 else 0), (w if h > 1 else 0)
+    fx = (x - x0).astype(np.float32)[..., None]
+    fy = (y - y0).astype(np.float32)[..., None]
+    i = y0 * w + x0
+
+    def corner(at: np.ndarray) -> np.ndarray:
+        return pixels[at].view(np.uint8).reshape(*at.shape, 4)[..., :3].astype(np.float32)
+
+    a, b, c, d = corner(i), corner(i + dx), corner(i + dy), corner(i + dy + dx)
+    top = a + (b - a) * fx
+    value = top + (c + (d - c) * fx - top) * fy
+    return (value + 0.5).astype(np.uint8)
+
+
+def bilinear(image: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """``image`` ``(H, W, 3) uint8`` sampled bilinearly at the pixel coordinates ``at`` ``(...,
+    2)`` (x, y; pixel centres at +0.5; beyond the edge the edge's pixels): ``(..., 3) uint8``
+    (:func:`sample` of :func:`packed`)."""
+    h, w = image.shape[:2]
+    return sample(packed(np.asarray(image, np.uint8)), (w, h), at[..., 0], at[..., 1])
 
 
 def _handles(rest: np.ndarray, depth: np.ndarray | None, inside: np.ndarray,

@@ -34,10 +34,13 @@ from vtts.render.photo_warp import PhotoWarp, WarpOptions
 #: The parts the photo shows rather than the model: posed (their vertices drive the warp) but not
 #: drawn. A fitted head's hair cap is skin-tight, its ears generic and its neck the bundled one.
 PHOTO_SHOWN = ("HAIR", "NECK", "L_EAR", "R_EAR")
-#: The parts whose visible vertices are the warp's handles: the skull and the face (the jaw's
-#: motion stretches the throat below the chin). The neck is not among them: a head turns and
-#: nods on it, and the shoulders stay.
-HANDLES = ("FACE", "HAIR", "L_EAR", "R_EAR")
+#: The parts whose visible vertices are the warp's handles: the face (the jaw's motion stretches
+#: the throat below the chin; the spline's affine part carries the face's motion on to the hair
+#: and ears around it). The skull's parts are not among them: the tracked face is where a head's
+#: motion is known best, and the generic skull's top, turned about the generic neck, dragged the
+#: photo further than the person's hair moved (bench_reenact, docs/rendering.md). Nor is the
+#: neck: a head turns and nods on it, and the shoulders stay.
+HANDLES = ("FACE",)
 #: The Viewpoint of a fitted head's photo (``adi fit``'s).
 PHOTO_VIEWPOINT = "photo"
 
@@ -149,10 +152,10 @@ class TalkingPhoto:
     def compose(self, rgba: np.ndarray) -> np.ndarray:
         """The head as last posed, rendered as ``rgba`` ``(H, W, 4) uint8`` over nothing, drawn
         into the photo warped to its pose: ``(H, W, 3) uint8``."""
-        back = self.warp(self._projected())
         alpha = rgba[..., 3].astype(np.float32) / 255.0
         if self.feather > 0:
             alpha = np.minimum(alpha, gaussian_filter(alpha, self.feather))
+        back = self.warp(self._projected(), needed=alpha < 1)
         a = alpha[..., None]
         out = rgba[..., :3].astype(np.float32) * a + back.astype(np.float32) * (1 - a)
         return np.clip(np.round(out), 0, 255).astype(np.uint8)
