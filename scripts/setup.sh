@@ -42,8 +42,9 @@ deb_packages=(espeak-ng libespeak-ng1 libegl1 libegl-mesa0 libgl1 libgl1-mesa-dr
 # .glb/.gltf files with (tools/node/); festival and festvox-us-slt-hts: the second voice, `vtts
 # say --engine festival` (an HTS voice whose utterance structure gives its own phone and word
 # times), and test material for the forced aligner. A user who wants festival installs those two.
+# pocketsphinx-testdata: real read speech with transcripts (bench/bench_lipsync_audio.py).
 if ((bench)); then
-  deb_packages+=(chromium nodejs npm festival festvox-us-slt-hts)
+  deb_packages+=(chromium nodejs npm festival festvox-us-slt-hts pocketsphinx-testdata)
 fi
 if [ "$extras" = core ]; then
   requirement="."

@@ -11,7 +11,9 @@ import pytest
 
 ROOT = Path(__file__).parents[1]
 #: What only the tests and benchmarks use: Debian packages, and Python distributions.
-BENCH_DEBS = {"chromium", "nodejs", "npm", "festival", "festvox-us-slt-hts"}
+BENCH_DEBS = {
+    "chromium", "nodejs", "npm", "festival", "festvox-us-slt-hts", "pocketsphinx-testdata"
+}  # fmt: skip
 BENCH_PYTHON = {"ray", "pytest", "hypothesis", "pytest-xdist", "ruff", "build", "pyvrml97"}
 
 

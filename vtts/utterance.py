@@ -23,7 +23,7 @@ from vtts.speech.bookmarks import Bookmark, BookmarkedText, parse_bookmarks
 from vtts.speech.timings import TimedPhone, TimedWord, write_timings
 
 if TYPE_CHECKING:
-    from collections.abc import Sequence
+    from collections.abc import Callable, Sequence
 
     from vtts.align import AlignedWord
     from vtts.speech.tts import Word
@@ -63,6 +63,7 @@ def prepare_utterance(
     phonemes: str | Path | None = None,
     audio: str | Path | None = None,
     known: set[str] | None = None,
+    progress: Callable[[float, float], None] | None = None,
 ) -> Utterance:
     """Parse ``text`` and synthesize it with ``engine`` (:data:`ENGINES`: ``"espeak"``, the
     default, or ``"festival"``), or take the timings from ``phonemes`` (Amazon Polly speech
@@ -71,11 +72,16 @@ def prepare_utterance(
     text are aligned (:mod:`vtts.align`). ``voice`` is the engine's (espeak-ng's ``en-us`` or
     festival's ``cmu_us_slt_arctic_hts`` when None); ``rate`` in words per minute and
     ``pitch`` 0–99 as for espeak-ng. ``known``: the expressions the models have tables for
-    (for the unknown-name message)."""
+    (for the unknown-name message). ``audio`` with an empty ``text`` (and no ``phonemes``): the
+    phones are recognized from the recording (:mod:`vtts.speech.recognize`), no bookmarks;
+    ``progress(done_s, total_s)`` is then called as the recognition goes."""
     from vtts.speech.phonemes import read_phoneme_file
 
     if engine not in ENGINES:
         raise SpeechError(f"unknown speech engine {engine!r}; known: {', '.join(ENGINES)}")
+    if audio is not None and phonemes is None and not text.strip():
+        _only_recording(engine, voice, rate, pitch)
+        return recognized(Path(audio), progress=progress)
     bt = parse_bookmarks(text, known)
     if phonemes is not None:
         if audio is None:
@@ -134,6 +140,46 @@ def _aligned(bt: BookmarkedText, audio: Path, voice: str | None) -> Utterance:
         _end_of_word_before(bt, found.words, marks)
     _place_marks(utt, marks, fallback=False)
     return utt
+
+
+def _only_recording(engine: str, voice: str | None, rate: int | None, pitch: int | None) -> None:
+    """A recording without a transcript takes none of the options that shape or phonemize
+    speech."""
+    given = [
+        flag
+        for flag, value in (
+            ("--engine festival", engine != "espeak"),
+            ("--voice", voice is not None),
+            ("--rate", rate is not None),
+            ("--pitch", pitch is not None),
+        )
+        if value
+    ]
+    if given:
+        raise SpeechError(
+            f"{', '.join(given)} do not apply to a recording without its text: its phones are "
+            "recognized from the sound (US English); give the transcript with --text to align it "
+            "instead"
+        )
+
+
+def recognized(audio: Path, *, progress: Callable[[float, float], None] | None = None) -> Utterance:
+    """``--audio`` without a text: the phones recognized from the recording
+    (:func:`vtts.speech.recognize.recognize`; where none is, the energy's mouth shapes), no
+    words and no bookmarks."""
+    from vtts.speech.recognize import check_rate, recognize
+
+    try:
+        samples, sr = read_audio(audio)  # the file's own rate and length
+        check_rate(sr)
+        found = recognize(samples, sr, progress=progress)
+        samples, sr = mp4_samples(samples, sr)
+    except SpeechError as e:
+        if e.file is None:
+            e.file = str(audio)
+        raise
+    phones = [TimedPhone(p.start, p.end, p.viseme or 0, p.phoneme) for p in found.phones]
+    return Utterance(parse_bookmarks(""), samples, sr, phones, [], [])
 
 
 def _espeak(bt: BookmarkedText, voice: str | None, rate: int | None, pitch: int | None):

@@ -45,8 +45,9 @@ def add_parser(sub) -> None:
     )
     sy.add_argument(
         "--audio",
-        help="recorded speech of the text (WAV, FLAC, OGG, MP3, M4A …): the text is aligned to "
-        "it, or with --phonemes, the speech they describe",
+        help="recorded speech (WAV, FLAC, OGG, MP3, M4A …): the text is aligned to it; without "
+        "a text its phones are recognized from the sound (US English); with --phonemes, the "
+        "speech they describe",
     )
     sy.add_argument("--seed", type=seed_type, default=0, help="seed of the autonomous behaviour")
     sy.add_argument(
