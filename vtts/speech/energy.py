@@ -5,8 +5,8 @@ know, a sound it takes for silence) the face must still not freeze over it. Each
 classed by its loudness against the sound's loud frames and its noise floor, and by how much of
 its energy lies above :data:`HISS_HZ`:
 
-- not audible (within :data:`ABOVE_FLOOR_DB` of the floor, or :data:`RANGE_DB` below the loud
-  frames, or under :data:`SILENT_DBFS`): viseme 0;
+- not audible (within :data:`ABOVE_FLOOR_DB` of a quiet floor, or :data:`RANGE_DB` below the
+  loud frames, or under :data:`SILENT_DBFS`): viseme 0;
 - mostly high frequencies (a hiss: s, sh, f, a cymbal): viseme 7 (s z, the teeth together);
 - otherwise open by loudness: viseme 10 (A:, wide) within :data:`WIDE_DB` of the loud frames,
   11 (e, half) within :data:`HALF_DB`, else 12 (I, slightly).
@@ -29,8 +29,10 @@ FRAME_S = 0.010
 WINDOW_S = 0.025
 #: A frame is audible within this many dB of the loud frames (their 90th percentile) …
 RANGE_DB = 35.0
-#: … and this many dB above the noise floor (the quiet frames' 5th percentile) …
+#: … and this many dB above the noise floor (the quiet frames' 5th percentile), unless the
+#: floor itself is louder than LOUD_FLOOR_DBFS: then it is steady sound (music), not a room …
 ABOVE_FLOOR_DB = 8.0
+LOUD_FLOOR_DBFS = -35.0
 #: … and above this level, dB relative to a full-scale sine's power (digital silence and dither).
 SILENT_DBFS = -70.0
 #: Wide open within this many dB of the loud frames, half open within HALF_DB.
@@ -38,7 +40,7 @@ WIDE_DB = 8.0
 HALF_DB = 18.0
 #: A frame is a hiss when more than HISS_SHARE of its energy lies above HISS_HZ.
 HISS_HZ = 3500.0
-HISS_SHARE = 0.6
+HISS_SHARE = 0.5
 #: Frames per block when computing frame features (bounded memory for long files).
 _BLOCK_FRAMES = 6000
 
@@ -64,7 +66,8 @@ class Levels:
     @property
     def audible(self) -> float:
         """The level above which a frame is audible, dB."""
-        return max(self.loud - RANGE_DB, self.floor + ABOVE_FLOOR_DB, SILENT_DBFS)
+        floor = min(self.floor + ABOVE_FLOOR_DB, LOUD_FLOOR_DBFS)
+        return max(self.loud - RANGE_DB, floor, SILENT_DBFS)
 
 
 def energy_frames(samples: np.ndarray, rate: int) -> EnergyFrames:

@@ -70,13 +70,17 @@ class RecognizerOptions:
     a narrower beam lost most phones of real speech).
 
     ``language_weight``: weight of the phone language model (``-lw``); ``beam`` and
-    ``phone_beam``: the search's beams (``-beam``, ``-pbeam``); ``fill``: give audible frames
-    without a recognized phone visemes from the energy (False: they stay pauses, as the
+    ``phone_beam``: the search's beams (``-beam``, ``-pbeam``); ``dither``: add the decoder's
+    1-bit noise (``-dither``, with its fixed seed) before the features, so that digital silence
+    (a speech engine's pauses) does not skew them — on espeak-ng's speech the recognizer took
+    audible frames for silence half as often with it (docs/speech.md); ``fill``: give audible
+    frames without a recognized phone visemes from the energy (False: they stay pauses, as the
     recognizer said)."""
 
     language_weight: float = 0.8
     beam: float = 1e-20
     phone_beam: float = 1e-20
+    dither: bool = True
     fill: bool = True
 
     def __post_init__(self) -> None:
@@ -136,6 +140,7 @@ def make_decoder(options: RecognizerOptions):
         lw=options.language_weight,
         beam=options.beam,
         pbeam=options.phone_beam,
+        dither=options.dither,
         loglevel="FATAL",
         logfn=os.devnull,
     )
