@@ -8,7 +8,8 @@ sound, :data:`~vtts.animate.timeline.LEAD`), so it waits for the visemes up to t
 is the timeline's (:mod:`vtts.animate.timeline`): every run of one viseme is a phone with its
 Cohen–Massaro dominance, blended by share, and the lips close at each bilabial's centre — over the
 phones known so far (those of the last :data:`WINDOW_S`), so the coarticulation reaches back
-but not ahead of what has been heard.
+but not ahead of what has been heard. :class:`LiveHabits` adds the model's blinks, nods, head
+motion and gaze for a stream of unknown length.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from vtts.face.miap import N_PARAMS, VISEME_BASE
 from vtts.speech.energy import FRAME_S
 from vtts.speech.timings import TimedPhone
 
-__all__ = ["WINDOW_S", "VoiceTrack"]
+__all__ = ["WINDOW_S", "LiveHabits", "VoiceTrack"]
 
 #: Visemes older than this before a frame's time no longer shape it, s.
 WINDOW_S = 1.0
@@ -108,3 +109,44 @@ class VoiceTrack:
             drop = min(drop, self._vis.size)
             self._vis = self._vis[drop:]
             self._first += drop
+
+
+class LiveHabits:
+    """A model's autonomous behaviour (blinks, nods, head motion, gaze) for a stream of unknown
+    length: :func:`~vtts.animate.timeline.build_timeline` without speech, in blocks of
+    :attr:`BLOCK_S` seconds (block ``k`` seeded by ``seed`` and ``k``), each crossfaded into the
+    next over :attr:`FADE_S`, so the head never jumps. ``habits(i)`` is frame ``i``'s
+    ``(N_PARAMS,)`` float64 vector (its visemes at rest: a :class:`VoiceTrack`'s are added)."""
+
+    BLOCK_S = 60.0
+    FADE_S = 1.0
+
+    def __init__(self, model, fps: float = 30.0, seed: int = 0) -> None:
+        self.model = model
+        self.fps = float(fps)
+        self.seed = int(seed)
+        self._n = max(int(round(self.BLOCK_S * self.fps)), 1)
+        self._fade = max(int(round(self.FADE_S * self.fps)), 1)
+        self._blocks: dict[int, np.ndarray] = {}
+
+    def _block(self, k: int) -> np.ndarray:
+        if k not in self._blocks:
+            from vtts.animate.timeline import build_timeline
+
+            for old in [b for b in self._blocks if b < k - 1]:
+                del self._blocks[old]
+            duration = (self._n + self._fade) / self.fps
+            tl = build_timeline(self.model, [], [], duration, fps=self.fps,
+                                seed=(self.seed + k) % (1 << 63))  # fmt: skip
+            p = tl.params.copy()
+            p[:, VISEME_BASE : VISEME_BASE + 15] = 0.0  # the voice gives the mouth
+            self._blocks[k] = p
+        return self._blocks[k]
+
+    def __call__(self, i: int) -> np.ndarray:
+        k, j = divmod(int(i), self._n)
+        p = self._block(k)[j]
+        if k > 0 and j < self._fade:
+            a = (j + 0.5) / self._fade
+            p = a * p + (1 - a) * self._block(k - 1)[self._n + j]
+        return p

@@ -14,7 +14,15 @@ from typing import BinaryIO
 
 import numpy as np
 
-from vtts.api.options import Curves, Heads, View, check_number, check_web, video_or_gltf
+from vtts.api.options import (
+    Curves,
+    Heads,
+    View,
+    check_number,
+    check_seed,
+    check_web,
+    video_or_gltf,
+)
 from vtts.errors import RenderError
 
 #: The frame rate ``vtts play`` renders a file at unless ``fps`` says otherwise.
@@ -39,7 +47,8 @@ class PlayOptions(Heads, Curves, View):
 
     ``audio="-"`` with no ``stream`` (None): a voice on stdin instead, raw PCM, signed 16-bit
     little-endian mono at ``rate`` Hz (default :data:`VOICE_RATE`), which the face follows as it
-    arrives (:func:`play_voice`).
+    arrives (:func:`play_voice`), with the models' autonomous behaviour (``seed``, 0 to
+    2**63 - 1; ``no_autonomous``: none).
     """
 
     stream: str | None = None
@@ -49,6 +58,8 @@ class PlayOptions(Heads, Curves, View):
     audio: str | None = None
     fps: float | None = None
     rate: int | None = None
+    seed: int = 0
+    no_autonomous: bool = False
     progress: bool = False
     #: ``output`` when it is a video (or ``-``), and when it is a glTF
     video_file: str | None = field(init=False, default=None)
@@ -88,6 +99,7 @@ class PlayOptions(Heads, Curves, View):
                 f"--rate must be a whole number of Hz within 8000–192000, got {rate!r}"
             )
         self._check_live(voice=True)
+        check_seed(self.seed)
         check_number(DEFAULT_PLAY_FPS if self.fps is None else self.fps, "--fps", 0, 240)
 
     def _check_file(self) -> None:
@@ -258,7 +270,7 @@ def play_voice(o: PlayOptions, stdin: BinaryIO, stdout: BinaryIO, on_first_frame
     ignored with a warning."""
     import warnings
 
-    from vtts.animate.voice import VoiceTrack
+    from vtts.animate.voice import LiveHabits, VoiceTrack
     from vtts.api.outputs import after_first
     from vtts.errors import VttsWarning
     from vtts.render import PngSequenceWriter, VideoWriter, progress
@@ -273,7 +285,10 @@ def play_voice(o: PlayOptions, stdin: BinaryIO, stdout: BinaryIO, on_first_frame
     track = VoiceTrack(fps)
     chunk = max(int(rate * VOICE_CHUNK_S), 1) * 2
 
-    def params():
+    habits = [LiveHabits(m, fps, seed=o.seed) for m in models] if not o.no_autonomous else []
+
+    def voice_frames():
+        """The voice track's frames as the voice arrives."""
         carry = b""
         while True:
             data = stdin.read(chunk)
@@ -282,20 +297,22 @@ def play_voice(o: PlayOptions, stdin: BinaryIO, stdout: BinaryIO, on_first_frame
             data = carry + data
             whole = len(data) // 2 * 2
             carry = data[whole:]
-            pcm = np.frombuffer(data[:whole], dtype="<i2")
-            for p in track.add(live.feed(pcm)):
-                yield [p] * len(models)
+            yield from track.add(live.feed(np.frombuffer(data[:whole], dtype="<i2")))
         if carry:
             warnings.warn(
                 VttsWarning(
                     "the voice on stdin ended inside a sample (an odd number of bytes): "
                     "its last byte is ignored",
                     file="-",
-                ),  # fmt: skip
+                ),
                 stacklevel=2,
             )
-        for p in track.add(live.finish()) + track.finish():
-            yield [p] * len(models)
+        yield from track.add(live.finish())
+        yield from track.finish()
+
+    def params():
+        for i, p in enumerate(voice_frames()):
+            yield [p + h(i) for h in habits] if habits else [p] * len(models)
 
     out = stdout if raw else None
     n = 0

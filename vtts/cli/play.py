@@ -5,7 +5,14 @@ from __future__ import annotations
 import argparse
 import sys
 
-from vtts.cli.options import add_curves, add_detail, add_models, add_view, add_web
+from vtts.cli.options import (
+    add_curves,
+    add_detail,
+    add_models,
+    add_view,
+    add_web,
+    seed_type,
+)
 from vtts.messages import echo
 
 
@@ -27,6 +34,14 @@ def add_parser(sub) -> None:
         "--rate",
         type=int,
         help="sample rate of the voice on stdin (--audio -), Hz (default 16000)",
+    )
+    pl.add_argument(
+        "--seed", type=seed_type, default=0, help="seed of the autonomous behaviour (--audio -)"
+    )
+    pl.add_argument(
+        "--no-autonomous",
+        action="store_true",
+        help="no autonomous blinks, nods, head motion or gaze (--audio -)",
     )
     pl.add_argument(
         "--fps",
@@ -61,6 +76,8 @@ def cmd_play(args: argparse.Namespace) -> int:
         web=args.web,
         audio=args.audio,
         rate=args.rate,
+        seed=args.seed,
+        no_autonomous=args.no_autonomous,
         fps=args.fps,
         progress=not args.quiet,
         **curves_options(args),
