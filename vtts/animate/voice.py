@@ -72,8 +72,9 @@ class VoiceTrack:
             self.frames_out += 1
         return out
 
-    def _phones(self) -> list[TimedPhone]:
-        v = self._vis
+    def _phones(self, upto: float) -> list[TimedPhone]:
+        """The runs of the visemes kept, up to ``upto`` s, as phones."""
+        v = self._vis[: max(int(round(upto / FRAME_S)) - self._first, 0)]
         if v.size == 0:
             return []
         edges = np.concatenate([[0], np.flatnonzero(np.diff(v)) + 1, [v.size]])
@@ -86,7 +87,8 @@ class VoiceTrack:
     def _frame(self, t: float) -> np.ndarray:
         """The parameters of the frame at ``t`` s, as :func:`~vtts.animate.timeline.
         build_timeline` makes its visemes and bilabial closures."""
-        phones = self._phones()
+        # what was heard up to the frame's lead, however the visemes came in chunks
+        phones = self._phones(t + self.lead)
         at = np.array([t + self.lead])
         w = np.zeros((1, 15))
         w[:, 0] = 1e-2
