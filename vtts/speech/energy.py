@@ -30,8 +30,10 @@ WINDOW_S = 0.025
 #: A frame is audible within this many dB of the loud frames (their 90th percentile) …
 RANGE_DB = 35.0
 #: … and this many dB above the noise floor (the quiet frames' 5th percentile), unless the
-#: floor itself is louder than LOUD_FLOOR_DBFS: then it is steady sound (music), not a room …
+#: sound is steady — its loud frames within STEADY_DB of its floor — and louder than
+#: LOUD_FLOOR_DBFS: then the floor is the sound itself (music), not a room …
 ABOVE_FLOOR_DB = 8.0
+STEADY_DB = 15.0
 LOUD_FLOOR_DBFS = -35.0
 #: … and above this level, dB relative to a full-scale sine's power (digital silence and dither).
 SILENT_DBFS = -70.0
@@ -66,7 +68,8 @@ class Levels:
     @property
     def audible(self) -> float:
         """The level above which a frame is audible, dB."""
-        floor = min(self.floor + ABOVE_FLOOR_DB, LOUD_FLOOR_DBFS)
+        steady = self.loud - self.floor < STEADY_DB and self.floor > LOUD_FLOOR_DBFS
+        floor = SILENT_DBFS if steady else self.floor + ABOVE_FLOOR_DB
         return max(self.loud - RANGE_DB, floor, SILENT_DBFS)
 
 
