@@ -269,3 +269,15 @@ def test_play_follows_a_voice_on_stdin_that_stops_mid_sample(speech, tmp_path: P
 def test_play_voice_options(tmp_path: Path, args, message) -> None:
     r = vtts("play", *args, "--model", HEAD, cwd=tmp_path)
     assert r.returncode != 0 and message in r.stderr, r.stderr
+
+
+def test_pocketsphinx_is_not_imported_by_the_other_commands() -> None:
+    """The recognizer's start-up is paid only by a recognition."""
+    import subprocess
+    import sys
+
+    code = ("import sys, vtts.cli._main, vtts.api.say, vtts.api.play, vtts.utterance\n"
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in "
+            "('pocketsphinx', 'sounddevice') or m == 'vtts.speech.recognize'))")  # fmt: skip
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert r.stdout.strip() == "[]"
