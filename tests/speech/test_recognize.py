@@ -254,6 +254,11 @@ def test_play_follows_a_voice_on_stdin_that_stops_mid_sample(speech, tmp_path: P
     assert r.returncode == 0, r.stderr
     assert "ended inside a sample" in r.stderr
     assert len(list((tmp_path / "png").glob("*.png"))) == 15  # 0.5 s at 30 fps
+    for nothing in (b"", b"\x01"):
+        r = vtts("play", "--audio", "-", "--model", HEAD, "-o", tmp_path / "none.mp4",
+                 stdin=nothing)  # fmt: skip
+        assert r.returncode == 1 and "no voice came on stdin" in r.stderr, r.stderr
+        assert not (tmp_path / "none.mp4").exists()
 
 
 @pytest.mark.parametrize(

@@ -272,7 +272,7 @@ def play_voice(o: PlayOptions, stdin: BinaryIO, stdout: BinaryIO, on_first_frame
 
     from vtts.animate.voice import LiveHabits, VoiceTrack
     from vtts.api.outputs import after_first
-    from vtts.errors import VttsWarning
+    from vtts.errors import SpeechError, VttsWarning
     from vtts.render import PngSequenceWriter, VideoWriter, progress
     from vtts.speech.recognize import LiveRecognizer
     from vtts.warm import load_model
@@ -290,14 +290,21 @@ def play_voice(o: PlayOptions, stdin: BinaryIO, stdout: BinaryIO, on_first_frame
     def voice_frames():
         """The voice track's frames as the voice arrives."""
         carry = b""
+        total = 0
         while True:
             data = stdin.read(chunk)
             if not data:
                 break
+            total += len(data)
             data = carry + data
             whole = len(data) // 2 * 2
             carry = data[whole:]
             yield from track.add(live.feed(np.frombuffer(data[:whole], dtype="<i2")))
+        if total < 2:
+            raise SpeechError(
+                "no voice came on stdin: not one sample (raw PCM, s16le mono, was expected)",
+                file="-",
+            )
         if carry:
             warnings.warn(
                 VttsWarning(
