@@ -261,7 +261,9 @@ def recognize(
     :data:`PIECE_S` cut at quiet frames, one utterance each (each its own cepstral mean);
     ``progress(done_s, total_s)`` is called after each piece. Raises :class:`SpeechError` for a
     rate below :data:`MIN_RATE`; silence gives one pause."""
-    from vtts.speech.audio import resample
+    # in 30 s blocks: resample_poly works in float64, and 30 minutes at 48 kHz whole would
+    # take over a gigabyte
+    from vtts.align.features import resample
 
     options = options or RecognizerOptions()
     check_rate(rate)
