@@ -515,7 +515,7 @@ def _hold(estimator: Estimator, kept: tuple, last: FrameEstimate, index: int,
     the last two estimates would grow with the gap: :meth:`Estimator._extrapolate`)."""
     estimator.restore(kept)
     estimator.forget_motion()
-    return _copy(last, index, time)
+    return replace(_copy(last, index, time), held=True)
 
 
 def _run_away(estimator: Estimator) -> bool:
