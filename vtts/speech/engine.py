@@ -40,6 +40,7 @@ __all__ = [
     "Spoken",
     "VoiceInfo",
     "bookmark_positions",
+    "installed_voices",
     "end_of_word_before",
     "load_engine",
     "words_before",
@@ -192,3 +193,20 @@ def end_of_word_before(text: BookmarkedText, words: Sequence, times: list[float]
         if n and words[n - 1].end is not None:
             earlier = max(times[:k], default=0.0)
             times[k] = max(words[n - 1].end, earlier)
+
+
+def installed_voices(engines: Sequence[str] = tuple(ENGINES)) -> tuple[list[VoiceInfo], dict]:
+    """Every installed voice of ``engines`` (all by default), engine by engine; and for each
+    engine that cannot speak here, why (its extra or program missing)."""
+    found: list[VoiceInfo] = []
+    missing: dict[str, str] = {}
+    for name in engines:
+        try:
+            voices = load_engine(name).voices()
+        except SpeechError as e:
+            missing[name] = e.message
+            continue
+        if not voices:
+            missing[name] = "no voice installed (docs/speech.md says how to install one)"
+        found += voices
+    return found, missing

@@ -401,6 +401,8 @@ VOICES_DIR = Path("/usr/share/festival/voices")
 #: What is known of the voices setup installs without running festival: sample rate (Hz) and
 #: licence (Debian's copyright file of ``festvox-us-slt-hts``).
 KNOWN_VOICES = {DEFAULT_VOICE: (32000, "BSD-3-Clause AND EST-2000 (CMU ARCTIC SLT)")}
+#: festival's voice folders by language → language codes.
+_LANGUAGES = {"us": "en-us", "english": "en-us", "british": "en-gb", "spanish": "es"}
 
 
 class FestivalEngine:
@@ -435,7 +437,7 @@ class FestivalEngine:
             if not folder.is_dir() or not _VOICE_NAME.match(folder.name):
                 continue
             rate, licence = KNOWN_VOICES.get(folder.name, (None, "see its Debian package"))
-            language = "en-us" if folder.parent.name == "english" else folder.parent.name
+            language = _LANGUAGES.get(folder.parent.name, folder.parent.name)
             found.append(VoiceInfo(self.name, folder.name, language, rate, licence, (language,)))
         return found
 
