@@ -567,7 +567,7 @@ def _joined(pieces: list[Spoken], text, count) -> Spoken:
         words = _label_words(words, tokens, count) or [
             replace_text(w, _phones_in(phones, w)) for w in words
         ]
-    end = max((x.end for x in phones if x.viseme != 0), default=samples.shape[0] / sr)
+    end = max((x.end for x in phones if x.viseme != 0), default=0.0)
     n = len(text.bookmarks)
     times = []
     previous = 0.0
