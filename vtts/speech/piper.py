@@ -18,7 +18,7 @@ From symbols to phones (:func:`phones_of`):
   ``ʃ`` and ``d`` + ``ʒ`` are one phone (an affricate); a diphthong's two letters are two phones,
   the mouth moving from one to the other in the time the network gave each;
 - a stress mark (``ˈ`` ``ˌ``) is the start of the phone after it: the network gives it samples
-  (up to 80 ms) that belong to the onset of its syllable;
+  that belong to the onset of its syllable;
 - a length mark or diacritic (``ː``, ``ʰ``, ``̃`` …) lengthens the phone before it;
 - a space between two words is shared by the phones on both sides (half each): within a phrase
   it is no pause, and a viseme 0 there would shut the mouth between every two words; next to
@@ -323,7 +323,8 @@ def _loaded(model: Path, config: Path):
 
 
 def load_voice(voice: PiperVoiceFiles):
-    """The voice's ``piper.PiperVoice``, loaded once per process (1–1.7 s)."""
+    """The voice's ``piper.PiperVoice``, loaded once per process (loading takes seconds:
+    docs/speech.md)."""
     with _LOAD_LOCK:
         return _loaded(voice.model, voice.config)
 
@@ -426,11 +427,17 @@ class PiperEngine:
     default_voice = "en_US-joe-medium"
 
     def speak(self, text, *, voice=None, rate=None, pitch=None) -> Spoken:
+        """Every sentence of ``text`` in one clock, words labelled with the text's words (see
+        :func:`_joined`); ``pitch`` must be None."""
         pieces = list(self.sentences(text, voice=voice, rate=rate, pitch=pitch))
         pv = load_voice(find_voice(voice))
         return _joined(pieces, text, lambda token: _word_count(pv, token))
 
     def sentences(self, text, *, voice=None, rate=None, pitch=None) -> Iterator[Spoken]:
+        """Each sentence as it is synthesized, in its own clock from 0, its words labelled with
+        their phones and its bookmarks' times (a bookmark after the last word of the text comes
+        in :meth:`speak` only). Raises :class:`SpeechError` once the speech passes
+        :data:`vtts.limits.MAX_DURATION_S`."""
         rate, pitch = check_rate_pitch(rate, pitch)
         if pitch is not None:
             raise SpeechError("--pitch does not apply to Piper's voices (their pitch is learnt)")
@@ -446,11 +453,10 @@ class PiperEngine:
             if not s.symbols:
                 audio, counts, used = np.zeros(0, np.float32), [], []
                 raw: list = []
-                nwords = 0
             else:
                 audio, counts, used = _synthesize(pv, s.symbols, length_scale)
                 index = _symbol_index(s.symbols, used)
-                raw, nwords = phones_of(used, counts)
+                raw, _ = phones_of(used, counts)
                 raw = [(a, b, lab, vis, index[sym], w) for a, b, lab, vis, sym, w in raw]
             total += audio.shape[0] / sr
             if total > MAX_DURATION_S:
@@ -459,7 +465,7 @@ class PiperEngine:
                     "say less at once"
                 )
             phones = [Phone(a / sr, b / sr, lab, vis, lab) for a, b, lab, vis, _, _ in raw]
-            words = _words_of(raw, nwords, sr)
+            words = [replace_text(w, _phones_in(phones, w)) for w in _words_of(raw, sr)]
             marks = []
             for b, at in s.anchors if raw else ():  # in an empty piece: the end of the speech
                 starts = [p[0] for p in raw if p[5] >= 0 and p[4] >= at]
@@ -490,7 +496,8 @@ def _symbol_index(symbols: list[str], used: list[str]) -> list[int]:
     return index
 
 
-def _words_of(raw, nwords: int, sr: int) -> list[Word]:
+def _words_of(raw, sr: int) -> list[Word]:
+    """The words of one sentence's phones (see :func:`phones_of`), unlabelled, in s."""
     spans: dict[int, list[int]] = {}
     for a, b, _, _, _, w in raw:
         if w < 0:
