@@ -145,6 +145,20 @@ def test_text_the_voice_cannot_speak(voice, monkeypatch):
         prepare_utterance("One more. And another one.", engine="piper")
 
 
+def test_a_text_too_long_is_refused_after_a_few_sentences(voice, monkeypatch):
+    """The speech's length is projected over the whole text at the rate of its first sentences:
+    a text far past the limit is refused without synthesizing it all."""
+    spoken = []
+    synthesize = engine._synthesize
+    monkeypatch.setattr(engine, "_synthesize", lambda *a: spoken.append(1) or synthesize(*a))
+    monkeypatch.setattr(engine, "PROJECT_AFTER", 30)
+    monkeypatch.setattr(engine, "MAX_DURATION_S", 15.0)
+    text = "This sentence takes a while to say. " * 16  # about 30 s
+    with pytest.raises(SpeechError, match=r"would run about \d+ s, past 15 s"):
+        prepare_utterance(text, engine="piper")
+    assert len(spoken) <= 2  # not the 8 sentences it takes to pass 15 s
+
+
 def test_bad_voice_rate_and_pitch(voice):
     with pytest.raises(SpeechError, match="no Piper voice 'zz'; installed: en_US-joe-medium"):
         prepare_utterance("Hi", engine="piper", voice="zz")

@@ -420,6 +420,24 @@ def _synthesize(
     return audio, counts, ["^", *known, "$"]
 
 
+#: Symbols spoken before the speech's length is projected over the rest of the text.
+PROJECT_AFTER = 400
+
+
+def _check_projected(seconds: float, done: int, symbols: int) -> None:
+    """Refuse a text whose speech, projected at the rate of its first ``done`` of ``symbols``
+    symbols (``seconds`` of speech so far), would run past :data:`MAX_DURATION_S` by a quarter:
+    a long text is refused after a few sentences, not after an hour of speech."""
+    if done < PROJECT_AFTER or seconds <= 0:
+        return
+    projected = seconds * symbols / done
+    if projected > 1.25 * MAX_DURATION_S:
+        raise SpeechError(
+            f"the speech would run about {projected:.0f} s, past {MAX_DURATION_S:g} s "
+            "(vtts.limits.MAX_DURATION_S): say less at once"
+        )
+
+
 class PiperEngine:
     """Piper as a :class:`vtts.speech.engine.Engine`."""
 
@@ -448,8 +466,11 @@ class PiperEngine:
         positions = bookmark_positions(text)
         sentences = _sentences(pv, text.text, positions)
         v = Voice(files.name, files.language, (files.language,), "", files.name)
-        total = 0.0
+        total, done = 0.0, 0
+        symbols = sum(len(s.symbols) for s in sentences)
         for s in sentences:
+            _check_projected(total, done, symbols)
+            done += len(s.symbols)
             if not s.symbols:
                 audio, counts, used = np.zeros(0, np.float32), [], []
                 raw: list = []
