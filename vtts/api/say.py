@@ -23,12 +23,14 @@ from vtts.api.options import (
 )
 from vtts.errors import RenderError, VttsError
 from vtts.messages import echo
+from vtts.speech.engine import DEFAULT_ENGINE
+from vtts.speech.engine import ENGINES as SPEECH_ENGINES
 
 if TYPE_CHECKING:
     from concurrent.futures import Future
 
-#: The speech synthesizers: espeak-ng, or festival's HTS voice.
-ENGINES = ("espeak", "festival")
+#: The speech synthesizers (:mod:`vtts.speech.engine`): espeak-ng, festival's HTS voice, Piper.
+ENGINES = tuple(SPEECH_ENGINES)
 
 
 def merged_text(text: str, text_option: str | None, file: str | None) -> str:
@@ -47,13 +49,14 @@ class SayOptions(Heads, Curves, View):
     """What ``vtts say`` speaks and writes.
 
     ``text``: text with bookmarks (``"Hello <smile 2s> world <blink>"``); ``file``: read the
-    text from this UTF-8 file instead; ``engine``: ``espeak`` or ``festival``; ``voice``: its
-    voice (None: en-us, or cmu_us_slt_arctic_hts); ``rate``: words per minute; ``pitch``: 0–99;
-    ``phonemes``: timings from another engine (Polly speech marks or a ``start end phoneme``
-    table; with ``audio``); ``audio``: recorded speech of the text, which it is aligned to
-    (without a text, its phones are recognized from the sound: :mod:`vtts.speech.recognize`);
-    ``seed``: of the autonomous behaviour (blinks, nods, head motion, gaze), 0 to 2**63 - 1;
-    ``no_autonomous``: none of it; ``fps``: frame rate in Hz, within 0–240.
+    text from this UTF-8 file instead; ``engine``: ``espeak``, ``festival`` or ``piper`` (the
+    extra ``vtts[piper]``); ``voice``: its voice (None: the engine's default, ``vtts voices``);
+    ``rate``: words per minute; ``pitch``: 0–99; ``phonemes``: timings from another engine
+    (Polly speech marks or a ``start end phoneme`` table; with ``audio``); ``audio``: recorded
+    speech of the text, which it is aligned to (without a text, its phones are recognized from
+    the sound: :mod:`vtts.speech.recognize`); ``seed``: of the autonomous behaviour (blinks,
+    nods, head motion, gaze), 0 to 2**63 - 1; ``no_autonomous``: none of it; ``fps``: frame
+    rate in Hz, within 0–240.
 
     Outputs: ``output`` (an ``.mp4``, ``.m4v``, ``.mov``, ``.mkv`` or an animated
     ``.glb``/``.gltf``), ``png_dir`` (PNG frames), ``web`` (a web player's folder), ``fap_out``
@@ -65,7 +68,7 @@ class SayOptions(Heads, Curves, View):
 
     text: str = ""
     file: str | None = None
-    engine: str = "espeak"
+    engine: str = DEFAULT_ENGINE
     voice: str | None = None
     rate: int | None = None
     pitch: int | None = None

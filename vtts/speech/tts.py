@@ -543,3 +543,54 @@ def _marks(
         marks.append(Mark(name, t))
         previous = t
     return marks
+
+
+# ---- the engine (vtts.speech.engine) -------------------------------------------------------------
+
+#: espeak-ng's voices and program (Debian ``espeak-ng``).
+LICENCE = "GPL-3.0-or-later"
+#: The rate espeak-ng speaks at in synchronous mode, Hz.
+SAMPLE_RATE = 22050
+
+
+class EspeakEngine:
+    """espeak-ng as a :class:`vtts.speech.engine.Engine`: SSML with a ``<mark/>`` per bookmark
+    (named ``b0``, ``b1`` … in order), each bookmark at its mark's time."""
+
+    name = "espeak"
+    default_voice = "en-us"
+
+    def speak(self, text, *, voice=None, rate=None, pitch=None):
+        from vtts.speech.engine import Spoken, end_of_word_before
+
+        speech = synthesize(text.ssml(), voice=voice or self.default_voice, rate=rate, pitch=pitch)
+        times = [m.time for m in speech.marks]
+        if text.before_punctuation:
+            end_of_word_before(text, speech.words, times)
+        return Spoken(speech, times)
+
+    def sentences(self, text, *, voice=None, rate=None):
+        yield self.speak(text, voice=voice, rate=rate)
+
+    def voices(self):
+        from vtts.speech.engine import VoiceInfo
+
+        try:
+            found = voices()
+        except SpeechError:
+            return []
+        return [
+            VoiceInfo(
+                self.name,
+                v.language,
+                v.language,
+                SAMPLE_RATE,
+                LICENCE,
+                v.languages,
+                f"{v.name} ({v.identifier})",
+            )  # fmt: skip
+            for v in found
+        ]
+
+
+ENGINE = EspeakEngine()
