@@ -103,9 +103,11 @@ def test_music_moves_the_mouth() -> None:
 
 def test_clipped_and_nan_samples(speech, recognized) -> None:
     x, rate, _ = speech
+    x = x[: int(1.5 * rate)]  # "Bob bought a map of …"
     clipped = np.clip(x * 20, -1, 1)
     rec = recognize(clipped, rate)
-    assert np.mean(rec.visemes != 0) > 0.5 * np.mean(recognized.visemes != 0)
+    n = rec.visemes.size
+    assert np.mean(rec.visemes != 0) > 0.5 * np.mean(recognized.visemes[:n] != 0)
     holed = x.copy()
     holed[::50] = np.nan
     rec = recognize(holed, rate)
@@ -130,9 +132,8 @@ def test_options_are_checked() -> None:
 def test_long_audio_in_pieces_cut_at_quiet_frames_with_progress() -> None:
     db = np.zeros(9500)
     db[2800] = db[5700] = -90  # the quietest frames in each piece's last 5 s
-    cuts = _cuts(db, 3000, 500)
-    assert cuts == [2800, 5700, 8500 + int(np.argmin(db[8500:8700]))] or cuts[:2] == [2800, 5700]
-    assert all(b - a <= 3000 for a, b in zip([0, *cuts], [*cuts, 9500], strict=True))
+    # the third piece has no quieter frame: it is cut where its last 5 s begin
+    assert _cuts(db, 3000, 500) == [2800, 5700, 8200]
     seen = []
     recognize(np.zeros(65 * 8000, np.float32), 8000, progress=lambda d, t: seen.append((d, t)))
     assert len(seen) == 3 and seen[-1] == (65.0, 65.0)
@@ -254,11 +255,10 @@ def test_play_follows_a_voice_on_stdin_that_stops_mid_sample(speech, tmp_path: P
     assert r.returncode == 0, r.stderr
     assert "ended inside a sample" in r.stderr
     assert len(list((tmp_path / "png").glob("*.png"))) == 15  # 0.5 s at 30 fps
-    for nothing in (b"", b"\x01"):
-        r = vtts("play", "--audio", "-", "--model", HEAD, "-o", tmp_path / "none.mp4",
-                 stdin=nothing)  # fmt: skip
-        assert r.returncode == 1 and "no voice came on stdin" in r.stderr, r.stderr
-        assert not (tmp_path / "none.mp4").exists()
+    # half a sample and nothing more: no voice at all (an error, no empty video)
+    r = vtts("play", "--audio", "-", "--model", HEAD, "-o", tmp_path / "none.mp4", stdin=b"\x01")
+    assert r.returncode == 1 and "no voice came on stdin" in r.stderr, r.stderr
+    assert not (tmp_path / "none.mp4").exists()
 
 
 @pytest.mark.parametrize(

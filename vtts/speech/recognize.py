@@ -103,6 +103,8 @@ class Recognition:
     duration    the audio's length, s
     recognized  seconds of audible frames under a recognized phone
     filled      seconds of audible frames that took their viseme from the energy
+    visemes     ``(n,)`` int8, the viseme of each 10 ms frame (frame ``k`` spans ``[k, k + 1) *
+                FRAME_S`` s), what ``phones`` are made of
     """
 
     phones: list[Phone]
