@@ -143,7 +143,8 @@ class Client:
         socket closes and ``TimeoutError`` after ``timeout`` s (the client's default)."""
         if self._pending:
             return self._pending.pop(0)
-        msg = await asyncio.wait_for(self._ws.receive(), timeout or self.timeout)
+        async with asyncio.timeout(timeout or self.timeout):
+            msg = await self._ws.receive()
         if msg.type == aiohttp.WSMsgType.TEXT:
             return json.loads(msg.data)
         if msg.type == aiohttp.WSMsgType.BINARY:

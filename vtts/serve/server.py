@@ -21,6 +21,7 @@ import itertools
 import json
 import logging
 import math
+import socket
 import threading
 from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
@@ -36,6 +37,7 @@ from vtts.limits import (
     MAX_SERVE_SESSIONS,
     MAX_SERVE_TEXT_CHARS,
     SERVE_SEND_TIMEOUT_S,
+    SERVE_SOCKET_BUFFER_BYTES,
 )
 from vtts.serve import protocol
 from vtts.serve.clauses import ClauseCutter
@@ -81,9 +83,10 @@ class Session:
     """One client's session: its head and voice, the text not yet spoken and the utterance being
     spoken. The reader (:meth:`handle`) and the speaker (:meth:`_speak`) are two tasks."""
 
-    def __init__(self, server: Server, ws: web.WebSocketResponse, number: int) -> None:
+    def __init__(self, server: Server, ws: web.WebSocketResponse, number: int, transport=None):
         self.server = server
         self.ws = ws
+        self.transport = transport
         self.number = number
         self.head: ServedHead | None = None
         self.engine = server.options.engine
@@ -109,14 +112,17 @@ class Session:
             if self.ws.closed:
                 raise ConnectionResetError("the socket is closed")
             try:
-                if isinstance(data, dict):
-                    sending = self.ws.send_str(json.dumps(data, allow_nan=False))
-                else:
-                    sending = self.ws.send_bytes(data)
-                await asyncio.wait_for(sending, SERVE_SEND_TIMEOUT_S)
+                # asyncio.timeout, not wait_for: wait_for of Python 3.11 can swallow the
+                # cancellation of a stop that comes as the send completes
+                async with asyncio.timeout(self.server.send_timeout):
+                    if isinstance(data, dict):
+                        await self.ws.send_str(json.dumps(data, allow_nan=False))
+                    else:
+                        await self.ws.send_bytes(data)
             except TimeoutError:
-                await self.ws.close(code=WSCloseCode.POLICY_VIOLATION,
-                                    message=b"messages left unread too long")  # fmt: skip
+                # a close frame would wait behind the unread messages: the connection is cut
+                if self.transport is not None:
+                    self.transport.abort()
                 raise ConnectionResetError("the client does not read") from None
 
     async def error(self, code: str, message: str) -> None:
@@ -308,6 +314,7 @@ class Session:
                 continue
             seed = (self.seed + self.clauses_spoken) % 2**63
             self.clauses_spoken += 1
+            self.server.spoken_clauses_total += 1
             try:
                 spoken = await loop.run_in_executor(
                     self.server.pool, self.server.speak_clause, text, self.head, self.engine,
@@ -373,6 +380,10 @@ class Server:
         self.heads = heads
         self.options = options or ServerOptions()
         self.sessions: set[Session] = set()
+        #: :data:`~vtts.limits.SERVE_SEND_TIMEOUT_S` (tests shorten it)
+        self.send_timeout = SERVE_SEND_TIMEOUT_S
+        #: clauses synthesized since the server started, all sessions together
+        self.spoken_clauses_total = 0
         self.pool = ThreadPoolExecutor(max_workers=SYNTH_WORKERS, thread_name_prefix="vtts-speak")
         self._numbers = itertools.count(1)
 
@@ -418,6 +429,10 @@ class Server:
 
     async def session(self, request: web.Request) -> web.StreamResponse:
         ws = web.WebSocketResponse(max_msg_size=MAX_SERVE_MESSAGE_BYTES, compress=False)
+        sock = request.transport.get_extra_info("socket") if request.transport else None
+        if sock is not None:
+            with contextlib.suppress(OSError):
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SERVE_SOCKET_BUFFER_BYTES)
         await ws.prepare(request)
         if len(self.sessions) >= MAX_SERVE_SESSIONS:
             with contextlib.suppress(ConnectionError, RuntimeError):
@@ -428,7 +443,7 @@ class Server:
                 }))  # fmt: skip
             await ws.close(code=WSCloseCode.TRY_AGAIN_LATER, message=b"server full")
             return ws
-        session = Session(self, ws, next(self._numbers))
+        session = Session(self, ws, next(self._numbers), request.transport)
         self.sessions.add(session)
         try:
             await session.handle()
