@@ -17,12 +17,14 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import heapq
 import itertools
 import json
 import logging
 import math
 import socket
 import threading
+import time
 from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -304,6 +306,7 @@ class Session:
         loop = asyncio.get_running_loop()
         # utterance -> (samples so far, clauses so far, sample rate)
         clock: dict[int, tuple[int, int, int]] = {}
+        started: dict[int, float] = {}  # utterance -> when its first audio was sent
         while True:
             kind, utterance, text = await queue.get()
             samples, count, rate = clock.get(utterance, (0, 0, 0))
@@ -311,20 +314,31 @@ class Session:
                 await self.send({"type": "end", "utterance": utterance, "samples": samples,
                                  "duration": samples / rate if rate else 0.0})  # fmt: skip
                 clock.pop(utterance, None)
+                started.pop(utterance, None)
                 continue
             seed = (self.seed + self.clauses_spoken) % 2**63
             self.clauses_spoken += 1
             self.server.spoken_clauses_total += 1
+            # the clause is needed when the audio sent before it has played; a first clause now
+            began = started.get(utterance)
+            deadline = time.monotonic() if began is None else began + samples / rate
             try:
-                spoken = await loop.run_in_executor(
-                    self.server.pool, self.server.speak_clause, text, self.head, self.engine,
-                    self.voice, self.rate, self.pitch, seed,
+                await self.server.slots.acquire(deadline)
+                job = self.server.pool.submit(
+                    self.server.speak_clause, text, self.head, self.engine, self.voice,
+                    self.rate, self.pitch, seed,
                 )  # fmt: skip
+                # the slot is free when the synthesis ends, also when a stop stops waiting for it
+                job.add_done_callback(
+                    lambda _: loop.call_soon_threadsafe(self.server.slots.release)
+                )
+                spoken = await asyncio.wrap_future(job)
             except VttsError as e:
                 await self.error(_error_code(e), f"clause {text!r}: {e}")
                 continue
             finally:
                 self.queued_chars -= len(text)
+            started.setdefault(utterance, time.monotonic())
             await self._send_clause(utterance, count, text, samples, spoken)
             clock[utterance] = (samples + spoken.audio.shape[0], count + 1, spoken.rate)
 
@@ -371,6 +385,39 @@ def _error_code(e: VttsError) -> str:
     return "text"
 
 
+class DeadlineSlots:
+    """:data:`SYNTH_WORKERS` places to synthesize in, given to the waiting clause whose audio is
+    needed first (earliest deadline first): a new utterance's first clause goes before the later
+    clauses of utterances whose earlier audio is still playing. Used on the event loop only."""
+
+    def __init__(self, slots: int) -> None:
+        self.free = slots
+        self.waiting: list[tuple[float, int, asyncio.Future]] = []
+        self._order = itertools.count()
+
+    async def acquire(self, deadline: float) -> None:
+        """Wait for a place; the clause's ``deadline`` is a ``time.monotonic()`` time."""
+        if self.free > 0 and not self.waiting:
+            self.free -= 1
+            return
+        future = asyncio.get_running_loop().create_future()
+        heapq.heappush(self.waiting, (deadline, next(self._order), future))
+        try:
+            await future
+        except asyncio.CancelledError:
+            if future.done() and not future.cancelled():
+                self.release()  # given a place just as it was cancelled: pass it on
+            raise
+
+    def release(self) -> None:
+        while self.waiting:
+            _, _, future = heapq.heappop(self.waiting)
+            if not future.done():
+                future.set_result(None)
+                return
+        self.free += 1
+
+
 class Server:
     """The server of ``heads`` (name → :class:`ServedHead`, the first the default)."""
 
@@ -385,6 +432,7 @@ class Server:
         #: clauses synthesized since the server started, all sessions together
         self.spoken_clauses_total = 0
         self.pool = ThreadPoolExecutor(max_workers=SYNTH_WORKERS, thread_name_prefix="vtts-speak")
+        self.slots = DeadlineSlots(SYNTH_WORKERS)
         self._numbers = itertools.count(1)
 
     def speak_clause(self, text, head, engine, voice, rate, pitch, seed):
