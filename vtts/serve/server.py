@@ -301,6 +301,11 @@ class Session:
             await self._speak_queue(queue)
         except (ConnectionResetError, ConnectionError, RuntimeError):
             return  # the client went away: nothing left to tell it
+        except Exception as e:  # a bug: this session ends, the server goes on
+            log.exception("session %d failed while speaking", self.number)
+            await self.error("internal", f"the server failed in this session: {e!r}")
+            if self.transport is not None:
+                self.transport.close()
 
     async def _speak_queue(self, queue: asyncio.Queue) -> None:
         loop = asyncio.get_running_loop()
