@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from vtts.cli.options import seed_type
 from vtts.messages import echo
 
 
@@ -28,7 +29,9 @@ def add_parser(sub) -> None:
     )
     sv.add_argument("--voice", help="its voice (default: the engine's)")
     sv.add_argument("--fps", type=float, default=30.0, help="face frames per second (default 30)")
-    sv.add_argument("--seed", type=int, default=0, help="seed of the first session's behaviour")
+    sv.add_argument(
+        "--seed", type=seed_type, default=0, help="seed of the first session's behaviour"
+    )
     sv.set_defaults(func=cmd_serve)
 
 

@@ -41,7 +41,9 @@ export class Session {
     this.utterances = new Map(); // number → Utterance
     this.queueEnd = 0; // the AudioContext time where the last scheduled audio ends
     this.dropUpTo = 0; // media of utterances up to this number are dropped (stopped ones)
-    this.stopping = false;
+    // stops sent and not yet answered: until the answer, everything that comes belongs to what
+    // was stopped (the server answers a stop before it speaks any later text)
+    this.pendingStops = 0;
     this.opened = null;
     this.params = null;
     this.stats = { underruns: 0, underrunSeconds: 0 };
@@ -106,14 +108,14 @@ export class Session {
     this.ws.send(JSON.stringify(message));
   }
 
-  say(text) { this.context.resume(); this.stopping = false; this.send({ type: 'say', text }); }
-  append(text) { this.context.resume(); this.stopping = false; this.send({ type: 'append', text }); }
+  say(text) { this.context.resume(); this.send({ type: 'say', text }); }
+  append(text) { this.context.resume(); this.send({ type: 'append', text }); }
   flush() { this.send({ type: 'flush' }); }
 
   // Silence now: every scheduled source stops, the face goes back to rest, and the server drops
   // the rest of the text.
   stop() {
-    this.stopping = true;
+    this.pendingStops += 1;
     for (const u of this.utterances.values()) this.silence(u);
     this.utterances.clear();
     this.queueEnd = 0;
@@ -127,7 +129,7 @@ export class Session {
   }
 
   utterance(number) {
-    if (number <= this.dropUpTo || this.stopping) return null;
+    if (number <= this.dropUpTo || this.pendingStops > 0) return null;
     let u = this.utterances.get(number);
     if (!u) { u = new Utterance(number); this.utterances.set(number, u); }
     return u;
@@ -147,7 +149,7 @@ export class Session {
       if (u.t0 === null) { this.emit('end', { utterance: m.utterance, duration: 0 }); this.utterances.delete(u.number); }
     } else if (m.type === 'stopped') {
       this.dropUpTo = Math.max(this.dropUpTo, m.utterance);
-      this.stopping = false;
+      this.pendingStops = Math.max(0, this.pendingStops - 1);
       this.emit('stopped', m);
     } else if (m.type === 'error') {
       this.emit('error', m);
