@@ -145,6 +145,8 @@ def test_sessions_are_independent(server):
             "no model 'nobody' here; this server has cybatt",
         ),
         ({"type": "open", "version": 2}, "version", "protocol version 1, not 2"),
+        ({"type": "open", "model": [1]}, "malformed", "model must be a name (a string)"),
+        ({"type": "open", "rate": "fast"}, "malformed", "rate must be a whole number"),
         ({"type": "open", "engine": "x"}, "engine", "unknown speech engine 'x'"),
         ({"type": "open", "seed": -1}, "malformed", "seed must be a whole number"),
         ({"type": "say", "text": "hi"}, "not-open", "open a session before say"),

@@ -195,6 +195,8 @@ class Session:
             )
         heads = self.server.heads
         name = message.get("model") or next(iter(heads))
+        if not isinstance(name, str):
+            raise ClientError("malformed", f"model must be a name (a string), got {name!r}")
         if name not in heads:
             raise ClientError(
                 "model", f"no model {name!r} here; this server has {', '.join(heads)}"
