@@ -518,7 +518,10 @@ class Server:
                 await session.ws.close(code=WSCloseCode.GOING_AWAY, message=b"server shutdown")
 
     def close(self) -> None:
+        from vtts.speech.tts import keep_workers_ready
+
         self.pool.shutdown(wait=False, cancel_futures=True)
+        keep_workers_ready(0)
 
     @contextlib.contextmanager
     def running(self, host: str = "127.0.0.1", port: int = 0) -> Iterator[str]:
@@ -581,7 +584,11 @@ def load_heads(models: list[str], fps: float = 30.0) -> dict[str, ServedHead]:
 
 def warm_up(server: Server) -> None:
     """One clause spoken before the first session, so that its first sound waits for no
-    start-up (imports, the engine's first run)."""
+    start-up (imports, the engine's first run), and espeak-ng's workers kept started ahead of
+    their clauses (one per synthesis place)."""
+    from vtts.speech.tts import keep_workers_ready
+
+    keep_workers_ready(SYNTH_WORKERS)
     head = next(iter(server.heads.values()))
     server.speak_clause("Hello.", head, server.options.engine, server.options.voice, None, None, 0)
 
