@@ -328,3 +328,40 @@ def test_http_routes(server):
 def test_the_command_refuses_bad_options(args, words):
     result = vtts("serve", *args)
     assert result.returncode == 1 and words in result.stderr
+
+
+def test_random_control_messages_never_end_the_session(server):
+    """200 messages of random shapes (types, fields and values of every JSON kind): each is
+    answered with an error or taken; the session then opens and speaks as usual."""
+    _, url = server
+    rng = np.random.default_rng(42)
+    values = [None, True, -1, 0, 2**70, 1.5, float("1e308"), "", "x", "<", "<smile", [], [1], {},
+              {"a": 1}, "\x00", "é" * 3]  # fmt: skip
+    kinds = ["open", "say", "append", "flush", "stop", "nope", None, 7]
+    fields = ["type", "model", "version", "text", "seed", "rate", "pitch", "voice", "engine", "x"]
+
+    def message():
+        m = {"type": kinds[rng.integers(len(kinds))]}
+        for _ in range(rng.integers(0, 4)):
+            m[fields[rng.integers(len(fields))]] = values[rng.integers(len(values))]
+        return m
+
+    async def go():
+        async with Client(url) as c:
+            for _ in range(200):
+                m = message()
+                if m.get("type") == "open":
+                    m["model"] = "nobody"  # stays unopened: every later message is checked too
+                await c.send(m)
+            await c.send({"type": "open"})
+            while True:  # the answers to the random messages, then the session's
+                m = await c.receive()
+                if isinstance(m, dict) and m["type"] == "opened":
+                    break
+                assert isinstance(m, dict) and m["type"] == "error", m
+                assert m["code"] != "internal", m
+            await c.say("Still fine.")
+            return await c.utterance()
+
+    heard = run(go())
+    assert heard.ended == "end" and len(heard.audio) > 0

@@ -161,7 +161,7 @@ class Session:
         if not isinstance(message, dict):
             raise ClientError("malformed", "a control message must be a JSON object")
         kind = message.get("type")
-        if kind not in protocol.CLIENT_MESSAGES:
+        if not isinstance(kind, str) or kind not in protocol.CLIENT_MESSAGES:
             known = ", ".join(protocol.CLIENT_MESSAGES)
             raise ClientError("malformed", f"unknown message type {kind!r}; known: {known}")
         extra = set(message) - protocol.CLIENT_MESSAGES[kind] - {"type"}
