@@ -179,12 +179,14 @@ def test_bad_text_and_garbage(server):
             await c._ws.send_bytes(bytes(range(256)) * 4)
             await c._ws.send_str("{not json")
             await c.say("x" * (MAX_SERVE_TEXT_CHARS + 1))
-            errors = await c.errors(4)
+            await c.say(" <smile> ")
+            errors = await c.errors(5)
             await c.say("Still here.")
             return errors, await c.utterance()
 
     errors, heard = run(go())
-    assert [e["code"] for e in errors] == ["bookmark", "malformed", "malformed", "too-long"]
+    codes = [e["code"] for e in errors]
+    assert codes == ["bookmark", "malformed", "malformed", "too-long", "empty"]
     assert "column 7: unknown bookmark <frown>" in errors[0]["message"]
     assert "not binary (1024 bytes ignored)" in errors[1]["message"]
     assert "MAX_SERVE_TEXT_CHARS" in errors[3]["message"]

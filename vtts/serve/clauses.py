@@ -16,7 +16,7 @@ CLAUSE_MARKS = frozenset(".!?;:,")
 MAX_CLAUSE_WORDS = 20
 
 
-def _has_words(text: str) -> bool:
+def has_words(text: str) -> bool:
     """Whether ``text`` has something to say outside its bookmarks."""
     depth = False
     for ch in text:
@@ -69,7 +69,7 @@ class ClauseCutter:
                     self._in_word = False
                 before = p[i - 1] if i > start else ""
                 ends = before in CLAUSE_MARKS and (i < 2 or p[i - 2] != "\\")
-                if (ends or self._words >= self.max_words) and _has_words(p[start:i]):
+                if (ends or self._words >= self.max_words) and has_words(p[start:i]):
                     out.append(p[start:i].strip())
                     start = i + 1
                     self._words = 0
@@ -84,7 +84,7 @@ class ClauseCutter:
         """The text not yet cut, as the last clause (none when it has nothing to say)."""
         rest = self.pending.strip()
         self.clear()
-        return [rest] if _has_words(rest) else []
+        return [rest] if has_words(rest) else []
 
     def clear(self) -> None:
         """Forget the text not yet cut (after ``stop``)."""

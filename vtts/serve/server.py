@@ -42,7 +42,7 @@ from vtts.limits import (
     SERVE_SOCKET_BUFFER_BYTES,
 )
 from vtts.serve import protocol
-from vtts.serve.clauses import ClauseCutter
+from vtts.serve.clauses import ClauseCutter, has_words
 from vtts.serve.heads import ServedHead
 
 __all__ = ["PAGE_DIR", "Server", "ServerOptions", "run_server"]
@@ -177,6 +177,8 @@ class Session:
             if not isinstance(text, str):
                 raise ClientError("malformed", f"{kind} needs a text (a string)")
             if kind == "say":
+                if not has_words(self.cutter.pending + text):
+                    raise ClientError("empty", "nothing to say: the text has no words")
                 self.check_bookmarks(text)
             await self.add_text(text, final=kind == "say")
         elif kind == "flush":
