@@ -4,6 +4,7 @@
 //   import { Session } from '/vtts/client.js';
 //   const session = await Session.connect(location.origin, { model: 'cybatt' });
 //   session.on('audiostart', (e) => …); session.on('end', …); session.on('error', …);
+//   session.off(name, fn) removes a handler;
 //   session.say('Hello <smile> there.');  session.append('more '); session.flush();
 //   session.stop();
 //   session.frameAt()   // the face's parameter values now (Float32Array of N_PARAMS), or null
@@ -66,6 +67,13 @@ export class Session {
   on(name, fn) {
     if (!this.handlers.has(name)) this.handlers.set(name, []);
     this.handlers.get(name).push(fn);
+    return this;
+  }
+
+  off(name, fn) {
+    const list = this.handlers.get(name) || [];
+    const i = list.indexOf(fn);
+    if (i >= 0) list.splice(i, 1);
     return this;
   }
 

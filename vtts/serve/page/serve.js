@@ -8,7 +8,7 @@
 // bar=0 (no text box), seed=N.
 //
 // For scripts: document.title becomes "ready" once the head is drawn and the session open, and
-// window.vtts has say(text), append(text), flush(), stop(), on(name, fn) for 'audiostart',
+// window.vtts has say(text), append(text), flush(), stop(), on(name, fn) (and off) for 'audiostart',
 // 'end', 'error' (and client.js's other events), hold(values) (show a parameter vector,
 // N_PARAMS long, instead of the stream; null to follow it again), level(), sync(), session.
 
@@ -183,6 +183,7 @@ async function main() {
     flush: () => session.flush(),
     stop: () => session.stop(),
     on: (name, fn) => session.on(name, fn),
+    off: (name, fn) => session.off(name, fn),
     hold: (values) => { held = values === null ? null : Float32Array.from(values); dirty = true; },
     level: () => session.level(),
     sync: () => ({ ...sync }),
