@@ -16,12 +16,14 @@ message on its socket; nothing a client sends ends the server or another session
 from __future__ import annotations
 
 import asyncio
+import collections
 import contextlib
 import heapq
 import itertools
 import json
 import logging
 import math
+import os
 import socket
 import threading
 import time
@@ -55,9 +57,16 @@ PAGE_DIR = Path(__file__).parent / "page"
 PLAYER_DIR = Path(__file__).parents[1] / "export" / "player"
 #: Samples of one audio message (0.25 s at 22,050 Hz): the page schedules each as it comes.
 AUDIO_CHUNK = 5512
-#: Threads that synthesize clauses for all sessions (espeak-ng runs in a process of its own per
-#: clause, so two cores keep a few of them busy).
-SYNTH_WORKERS = 4
+#: Clauses of one session synthesized at once: the next one starts with the one before it.
+AHEAD_CLAUSES = 2
+#: Seconds of speech a character of text makes, about (espeak-ng's en-us at its default rate),
+#: to reckon when a clause started ahead will be needed.
+SECONDS_PER_CHAR = 0.065
+#: Clauses synthesized at once for all sessions: one per core this process may run on.
+#: espeak-ng's workers are started ahead and wait on nothing but the CPU, so more places would
+#: only share the cores and slow every clause (4 on this project's 2 cores kept 2 to 4 sessions
+#: real-time, 2 kept 16: docs/serve.md).
+SYNTH_WORKERS = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 2
 
 
 @dataclass(frozen=True)
@@ -312,44 +321,73 @@ class Session:
                 self.transport.close()
 
     async def _speak_queue(self, queue: asyncio.Queue) -> None:
-        loop = asyncio.get_running_loop()
         # utterance -> (samples so far, clauses so far, sample rate)
         clock: dict[int, tuple[int, int, int]] = {}
         started: dict[int, float] = {}  # utterance -> when its first audio was sent
-        while True:
-            kind, utterance, text = await queue.get()
-            samples, count, rate = clock.get(utterance, (0, 0, 0))
-            if kind == "end":
-                await self.send({"type": "end", "utterance": utterance, "samples": samples,
-                                 "duration": samples / rate if rate else 0.0})  # fmt: skip
-                clock.pop(utterance, None)
-                started.pop(utterance, None)
-                continue
-            seed = (self.seed + self.clauses_spoken) % 2**63
-            self.clauses_spoken += 1
-            self.server.spoken_clauses_total += 1
-            # the clause is needed when the audio sent before it has played; a first clause now
-            began = started.get(utterance)
-            deadline = time.monotonic() if began is None else began + samples / rate
-            try:
-                await self.server.slots.acquire(deadline)
-                job = self.server.pool.submit(
-                    self.server.speak_clause, text, self.head, self.engine, self.voice,
-                    self.rate, self.pitch, seed,
-                )  # fmt: skip
-                # the slot is free when the synthesis ends, also when a stop stops waiting for it
-                job.add_done_callback(
-                    lambda _: loop.call_soon_threadsafe(self.server.slots.release)
-                )
-                spoken = await asyncio.wrap_future(job)
-            except VttsError as e:
-                await self.error(_error_code(e), f"clause {text!r}: {e}")
-                continue
-            finally:
-                self.queued_chars -= len(text)
-            started.setdefault(utterance, time.monotonic())
-            await self._send_clause(utterance, count, text, samples, spoken)
-            clock[utterance] = (samples + spoken.audio.shape[0], count + 1, spoken.rate)
+        # the queue's next items, each clause's synthesis started: the next clause is spoken
+        # while the one before it is, so a short first clause is not followed by a gap
+        ahead: collections.deque = collections.deque()
+        try:
+            while True:
+                if not ahead:
+                    ahead.append(self._start(await queue.get(), clock, started, ahead))
+                while len(ahead) < AHEAD_CLAUSES and not queue.empty():
+                    ahead.append(self._start(queue.get_nowait(), clock, started, ahead))
+                (kind, utterance, text), job = ahead.popleft()
+                samples, count, rate = clock.get(utterance, (0, 0, 0))
+                if kind == "end":
+                    await self.send({"type": "end", "utterance": utterance, "samples": samples,
+                                     "duration": samples / rate if rate else 0.0})  # fmt: skip
+                    clock.pop(utterance, None)
+                    started.pop(utterance, None)
+                    continue
+                try:
+                    spoken = await job
+                except VttsError as e:
+                    await self.error(_error_code(e), f"clause {text!r}: {e}")
+                    continue
+                started.setdefault(utterance, time.monotonic())
+                await self._send_clause(utterance, count, text, samples, spoken)
+                clock[utterance] = (samples + spoken.audio.shape[0], count + 1, spoken.rate)
+        finally:
+            jobs = [job for _, job in ahead if job is not None]
+            for job in jobs:
+                job.cancel()
+            # their text leaves the count before a stop resets it
+            await asyncio.gather(*jobs, return_exceptions=True)
+
+    def _start(self, item: tuple, clock: dict, started: dict, ahead) -> tuple:
+        """``(item, the task synthesizing its clause)`` (None for an ``end``). The clause is
+        needed when the audio before it has played: that of the utterance sent so far, and the
+        clauses started ahead of it, reckoned at :data:`SECONDS_PER_CHAR`; a first clause now."""
+        kind, utterance, text = item
+        if kind != "clause":
+            return item, None
+        samples, _, rate = clock.get(utterance, (0, 0, 0))
+        began = started.get(utterance)
+        deadline = time.monotonic() if began is None else began + samples / rate
+        deadline += SECONDS_PER_CHAR * sum(
+            len(t) for (k, u, t), _ in ahead if k == "clause" and u == utterance
+        )
+        seed = (self.seed + self.clauses_spoken) % 2**63
+        self.clauses_spoken += 1
+        self.server.spoken_clauses_total += 1
+        return item, asyncio.create_task(self._synthesize(text, seed, deadline))
+
+    async def _synthesize(self, text: str, seed: int, deadline: float):
+        """One clause spoken in the server's pool, once a place is free for its deadline."""
+        loop = asyncio.get_running_loop()
+        try:
+            await self.server.slots.acquire(deadline)
+            job = self.server.pool.submit(
+                self.server.speak_clause, text, self.head, self.engine, self.voice,
+                self.rate, self.pitch, seed,
+            )  # fmt: skip
+            # the place is free when the synthesis ends, also when a stop stops waiting for it
+            job.add_done_callback(lambda _: loop.call_soon_threadsafe(self.server.slots.release))
+            return await asyncio.wrap_future(job)
+        finally:
+            self.queued_chars -= len(text)
 
     async def _send_clause(
         self, utterance: int, clause: int, text: str, first: int, spoken
