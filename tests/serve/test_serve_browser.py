@@ -46,7 +46,11 @@ SAY = """(text) => new Promise((resolve) => {
   const t0 = performance.now(); const seen = {};
   const session = vtts.session;
   session.handlers.clear();
-  vtts.on('audiostart', (e) => { seen.audiostart = e.at - t0; });
+  vtts.on('audiostart', (e) => {
+    seen.audiostart = e.at - t0;
+    const u = session.utterances.get(e.utterance);  // the face's first frame came before it
+    seen.face = u !== undefined && u.faces.length > 0 && u.faces[0].start === 0;
+  });
   vtts.on('end', (e) => { seen.end = e.at - t0; seen.sync = vtts.sync(); resolve(seen); });
   vtts.on('error', (e) => resolve({ error: e }));
   vtts.say(text);
@@ -59,6 +63,7 @@ def test_a_say_is_heard_with_the_face_on_the_audio_clock(page):
     seen = browser.evaluate(f"({SAY})({json.dumps('Hello there, how are you today?')})")
     assert "error" not in seen, seen
     assert 0 < seen["audiostart"] < 1000  # ms; the benchmark measures it (bench_serve.py)
+    assert seen["face"]
     assert seen["end"] - seen["audiostart"] > 1500  # the whole utterance, about 2 s
     sync = seen["sync"]
     assert sync["frames"] > 5  # drawn frames: a loaded machine draws a few a second
