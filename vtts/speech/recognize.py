@@ -265,7 +265,7 @@ def recognize(
     rate below :data:`MIN_RATE`; silence gives one pause."""
     # in 30 s blocks: resample_poly works in float64, and 30 minutes at 48 kHz whole would
     # take over a gigabyte
-    from vtts.align.features import resample
+    from vtts.speech.audio import resample_in_blocks as resample
 
     options = options or RecognizerOptions()
     check_rate(rate)
