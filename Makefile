@@ -1,6 +1,11 @@
 # The README's commands. Every target sets up first (Debian packages + .venv), so each works on a
 # fresh Debian machine with Python 3.11: the demo what it needs (espeak-ng, Mesa, the core
 # package), the others the test bench besides (scripts/setup.sh says what that is).
+# PIPER=1 (`make demo PIPER=1`, `make setup PIPER=1`) also installs the Piper engine, the optional
+# extra vtts[piper] (GPL-3.0; `make test` and `make bench` install it anyway, for their tests)
+ifeq ($(PIPER),1)
+export VTTS_EXTRAS := piper
+endif
 VENV := .venv
 PY := $(VENV)/bin/python
 VTTS := $(VENV)/bin/vtts

@@ -1,7 +1,7 @@
 """Lip sync: does the mouth lead the sound (issue 45, item 7)?
 
-For bilabial-rich texts, each engine (espeak-ng; festival's HTS voice where it is installed) and
-each way vtts shows speech, the cross-correlation of how open the mouth is with the speech's RMS
+For bilabial-rich texts, each engine (espeak-ng; festival's HTS voice and Piper where installed)
+and each way vtts shows speech, the cross-correlation of how open the mouth is with the speech's RMS
 per 30 Hz frame (over each frame's display interval), and the lag of its peak in frames
 (:mod:`vtts.animate.lipsync`): positive when the mouth comes after the sound, negative when it
 leads. Target: 0 or −1 (the lips and jaw move before the sound they shape).
@@ -161,7 +161,10 @@ def _timeline_rows(engine: str, case: str, text: str) -> list[dict]:
 def run() -> list[dict]:
     import soundfile
 
+    from vtts.speech.engine import installed_voices
+
     engines = ["espeak"] + (["festival"] if shutil.which("festival") else [])
+    engines += ["piper"] if installed_voices(["piper"])[0] else []
     rows: list[dict] = []
     with tempfile.TemporaryDirectory(prefix="vtts-bench-lipsync-") as tmp:
         out = Path(tmp)

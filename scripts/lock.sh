@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Writes constraints.txt, the lock that scripts/setup.sh installs from: an exact pin (==) for every
-# Python package of vtts[test,bench], the transitive ones and pip itself included, as pip resolves
+# Python package of vtts[test,bench,piper], the transitive ones and pip itself included, as pip resolves
 # pyproject.toml today in a fresh virtual environment. Run it (`make lock`) after changing the
 # dependencies in pyproject.toml, or to move to newer releases on purpose; then run `make test` and
 # commit constraints.txt with the change. The pins are for CPython 3.11 on Linux x86_64 (the wheels
@@ -15,10 +15,10 @@ tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
 "$python" -m venv "$tmp/venv"
 pip=("$tmp/venv/bin/python" -m pip)
-echo "lock: resolving vtts[test,bench] from pyproject.toml in a fresh venv"
+echo "lock: resolving vtts[test,bench,piper] from pyproject.toml in a fresh venv"
 "${pip[@]}" install -q --upgrade pip
 # editable: no wheel of the bundled models is built just to be thrown away
-"${pip[@]}" install -q -e ".[test,bench]"
+"${pip[@]}" install -q -e ".[test,bench,piper]"
 info="$("$tmp/venv/bin/python" -c 'import platform, sys
 print(f"CPython {platform.python_version()} on {sys.platform} {platform.machine()}")')"
 {

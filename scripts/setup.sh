@@ -11,6 +11,11 @@
 # demo`) needs only the core package, espeak-ng and Mesa; the test extras (`test`, `bench`) bring
 # the test bench besides (Chromium, festival and its voice, node and the glTF-Validator, Ray …).
 #
+# The Piper engine (`vtts say --engine piper`) is the extra `piper`: GPL-3.0, unlike vtts (MIT), so
+# never part of the default install. VTTS_EXTRAS (a comma-separated list; `make demo PIPER=1` and
+# `make setup PIPER=1` set it to piper) adds extras to any target's; the test bench brings it
+# besides, as it brings festival, because the tests and benchmarks speak with every engine.
+#
 # usage: scripts/setup.sh [--dry-run] [EXTRAS]     (EXTRAS defaults to "test"; e.g. "test,bench")
 #        --dry-run prints what it would install (Debian packages, the pip requirement, the node
 #        tools) and changes nothing.
@@ -27,11 +32,23 @@ if ! [[ "$extras" =~ ^[a-z]+(,[a-z]+)*$ ]]; then
   echo "setup: EXTRAS is a comma-separated list of extras, or core; got '$extras'" >&2
   exit 2
 fi
+more="${VTTS_EXTRAS:-}"
+if [ -n "$more" ]; then
+  if ! [[ "$more" =~ ^[a-z]+(,[a-z]+)*$ ]]; then
+    echo "setup: VTTS_EXTRAS is a comma-separated list of extras; got '$more'" >&2
+    exit 2
+  fi
+  if [ "$extras" = core ]; then extras="$more"; else extras="$extras,$more"; fi
+fi
 # the test bench: what the tests and the benchmarks need beyond what vtts itself needs
 bench=0
 case ",$extras," in
 *,test,* | *,bench,*) bench=1 ;;
 esac
+# the test bench speaks with every engine: Piper's extra too
+if ((bench)) && [[ ",$extras," != *,piper,* ]]; then
+  extras="$extras,piper"
+fi
 
 # espeak-ng: speech with phoneme and mark events. Offscreen rendering with Mesa's software EGL
 # (llvmpipe): libegl1 + libegl-mesa0 (the EGL vendor), libgl1 (PyOpenGL loads libGL.so.1 for
@@ -42,8 +59,9 @@ deb_packages=(espeak-ng libespeak-ng1 libegl1 libegl-mesa0 libgl1 libgl1-mesa-dr
 # .glb/.gltf files with (tools/node/); festival and festvox-us-slt-hts: the second voice, `vtts
 # say --engine festival` (an HTS voice whose utterance structure gives its own phone and word
 # times), and test material for the forced aligner. A user who wants festival installs those two.
+# pocketsphinx-testdata: real read speech with transcripts (bench/bench_lipsync_audio.py).
 if ((bench)); then
-  deb_packages+=(chromium nodejs npm festival festvox-us-slt-hts)
+  deb_packages+=(chromium nodejs npm festival festvox-us-slt-hts pocketsphinx-testdata)
 fi
 if [ "$extras" = core ]; then
   requirement="."

@@ -46,7 +46,7 @@ SAMPLE = ROOT / "samples" / "candide3.wrl"
         (
             lambda: vtts.SayOptions(text="Hi.", model="cybatt", output="a.mp4", engine="sam"),
             RenderError,
-            "--engine must be one of espeak, festival, got 'sam'",
+            "--engine must be one of espeak, festival, piper, got 'sam'",
         ),
         (
             lambda: vtts.SayOptions(text="Hi.", output="a.mp4"),

@@ -59,6 +59,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("vtts.warm",),
     ("vtts.api",),
     ("vtts.batch",),
+    ("vtts.serve",),  # vtts serve: speech and faces streamed over WebSockets
     ("vtts",),  # the package's front door: __version__, load_model
     ("vtts.cli", "adt_tools"),
 )

@@ -11,8 +11,9 @@ import pytest
 from packaging.requirements import Requirement
 
 ROOT = Path(__file__).parents[1]
-#: The extras scripts/setup.sh installs (`make test`: test; `make bench`: test,bench).
-EXTRAS = ("test", "bench")
+#: The extras scripts/setup.sh installs (`make test`: test and piper; `make bench`: test,bench
+#: and piper).
+EXTRAS = ("test", "bench", "piper")
 
 
 def normalized(name: str) -> str:

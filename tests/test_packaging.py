@@ -49,8 +49,12 @@ def test_wheel_contains_grammars_models_and_both_packages(wheel):
     assert "vtts/data/arkit_recipes.tsv" in names
     assert "vtts/_data/models/src/candide3.wfm" in names
     # the web player (vtts say/play --web) and the three.js it ships, with three's licence
-    for name in ("player.js", "index.html", "vendor/three.module.min.js", "vendor/LICENSE"):
+    for name in ("player.js", "head.js", "index.html", "vendor/three.module.min.js",
+                 "vendor/LICENSE"):  # fmt: skip
         assert f"vtts/export/player/{name}" in names, name
+    # vtts serve's page and its JavaScript client
+    for name in ("index.html", "serve.js", "client.js"):
+        assert f"vtts/serve/page/{name}" in names, name
     assert "adt_tools/__init__.py" in names
     entry_points = next(n for n in names if n.endswith("entry_points.txt"))
     text = zipfile.ZipFile(wheel).read(entry_points).decode()

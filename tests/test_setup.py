@@ -11,15 +11,25 @@ import pytest
 
 ROOT = Path(__file__).parents[1]
 #: What only the tests and benchmarks use: Debian packages, and Python distributions.
-BENCH_DEBS = {"chromium", "nodejs", "npm", "festival", "festvox-us-slt-hts"}
+BENCH_DEBS = {
+    "chromium", "nodejs", "npm", "festival", "festvox-us-slt-hts", "pocketsphinx-testdata"
+}  # fmt: skip
 BENCH_PYTHON = {"ray", "pytest", "hypothesis", "pytest-xdist", "ruff", "build", "pyvrml97"}
 
 
 def dry_run(extras: str) -> dict[str, str]:
     """What ``scripts/setup.sh --dry-run EXTRAS`` says it would install, by line."""
+    return dry_run_env(extras, {})
+
+
+def dry_run_env(extras: str, env: dict[str, str]) -> dict[str, str]:
+    """:func:`dry_run` with ``env`` added to the environment (VTTS_EXTRAS removed otherwise)."""
+    import os
+
+    base = {k: v for k, v in os.environ.items() if k != "VTTS_EXTRAS"}
     r = subprocess.run(
         ["bash", str(ROOT / "scripts/setup.sh"), "--dry-run", extras],
-        capture_output=True, text=True, timeout=60, check=True,
+        capture_output=True, text=True, timeout=60, check=True, env={**base, **env},
     )  # fmt: skip
     return dict(line.split(": ", 1) for line in r.stdout.splitlines())
 
@@ -62,8 +72,22 @@ def test_the_tests_set_up_the_whole_bench(target):
     assert "test" in extras.split(",")
     plan = dry_run(extras)
     assert BENCH_DEBS <= set(plan["debian"].split())
-    assert plan["python"] == f"-e .[{extras}]"
+    # the test bench speaks with every engine: Piper's extra (GPL-3.0, never in the demo) too
+    assert plan["python"] == f"-e .[{extras},piper]"
     assert plan["node"] == "tools/node"
+
+
+def test_piper_is_a_switch_for_the_demo():
+    """``make demo PIPER=1``: the core package with the piper extra, and no test bench."""
+    r = subprocess.run(
+        ["make", "-n", "demo", "PIPER=1"], cwd=ROOT, capture_output=True, text=True, timeout=60,
+        check=True,
+    )  # fmt: skip
+    assert "scripts/setup.sh core" in r.stdout
+    plan = dry_run_env("core", {"VTTS_EXTRAS": "piper"})
+    assert plan["python"] == "-e .[piper]"
+    assert not set(plan["debian"].split()) & BENCH_DEBS
+    assert dry_run("core")["python"] == "-e ."
 
 
 def test_setup_refuses_odd_extras():

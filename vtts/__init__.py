@@ -38,6 +38,6 @@ __all__ = ["VttsError", "VttsWarning", "__version__", "load_model", *(
     # the names vtts.api exports, written out so that tools see them without importing it
     "AnalyzeOptions", "Analyzed", "Bundled", "Checked", "DecodeOptions", "EncodeOptions",
     "Encoded", "Info", "PlayOptions", "Played", "PoseOptions", "RenderOptions", "Said",
-    "SayOptions", "Still", "analyze", "check", "check_file", "decode", "encode", "info",
-    "models", "play", "pose", "read_stream", "render_still", "say", "voices",
+    "SayOptions", "Spoken", "Still", "analyze", "check", "check_file", "decode", "encode",
+    "info", "models", "play", "pose", "read_stream", "render_still", "say", "speak", "voices",
 )]  # fmt: skip

@@ -148,3 +148,8 @@ class CodingError(FapError):
 class FitError(VttsError):
     """Fitting a head to a photograph failed, or its input (image, landmarks) is invalid, such as
     an image that is not an ``(H, W, 3) uint8`` RGB array."""
+
+
+class ServeError(VttsError):
+    """``vtts serve`` cannot start (a port in use, a model it cannot load), or a client's message
+    is not one the protocol allows (the error message on its socket says which)."""

@@ -132,3 +132,23 @@ def check_image_size(
             f"pixels on a side and {MAX_IMAGE_PIXELS} in all",
             file=file,
         )
+
+
+# ---- vtts serve ----------------------------------------------------------------------------------
+
+#: The largest WebSocket message a client may send ``vtts serve`` (a longer one closes its
+#: socket with code 1009, naming this limit): a text of a thousand sentences.
+MAX_SERVE_MESSAGE_BYTES = 1 << 20
+#: The most characters of text one session may have waiting to be spoken (about 25 minutes of
+#: speech): more is refused with an error message, and the session goes on.
+MAX_SERVE_TEXT_CHARS = 20_000
+#: The most sessions (open WebSockets) of one server at once; the next socket is told the server
+#: is full and closed (code 1013, try again later).
+MAX_SERVE_SESSIONS = 200
+#: The kernel's send buffer of a session's socket (Linux doubles it), bytes: what a client that
+#: does not read can leave waiting in the kernel (besides aiohttp's 64 KiB), 5 s of speech and
+#: face; the kernel's own tuning would let it grow to megabytes.
+SERVE_SOCKET_BUFFER_BYTES = 128 << 10
+#: How long a client may leave the server's messages unread (its socket's buffers full) before
+#: its session is closed, s: a client that never reads holds no more than those buffers.
+SERVE_SEND_TIMEOUT_S = 20.0

@@ -1,15 +1,15 @@
 """From bookmarked text to an utterance: audio, timed visemes and bookmark times.
 
-``prepare_utterance`` runs the bookmark parser, then a speech engine (espeak-ng, with its own
-phoneme, word and mark events, or festival, with its utterance structure, both in the audio's
-clock) or another engine's timings (``--phonemes FILE`` with its audio), and returns what the
-timeline needs. It knows nothing about models or rendering; it sits above `vtts.speech` and
-`vtts.align` (a recording with its transcript is aligned), which both import nothing of it.
+``prepare_utterance`` runs the bookmark parser, then a speech engine (:mod:`vtts.speech.engine`:
+espeak-ng, with its own phoneme, word and mark events, festival, with its utterance structure, or
+Piper, with its phoneme alignments, all in the audio's clock) or another engine's timings
+(``--phonemes FILE`` with its audio), and returns what the timeline needs. It knows nothing
+about models or rendering; it sits above `vtts.speech` and `vtts.align` (a recording with its
+transcript is aligned), which both import nothing of it.
 """
 
 from __future__ import annotations
 
-import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -20,13 +20,11 @@ import numpy as np
 from vtts.errors import SpeechError, VttsWarning
 from vtts.speech.audio import mp4_samples, read_audio, read_for_mp4
 from vtts.speech.bookmarks import Bookmark, BookmarkedText, parse_bookmarks
+from vtts.speech.engine import end_of_word_before, load_engine, words_before
 from vtts.speech.timings import TimedPhone, TimedWord, write_timings
 
 if TYPE_CHECKING:
-    from collections.abc import Sequence
-
-    from vtts.align import AlignedWord
-    from vtts.speech.tts import Word
+    from collections.abc import Callable
 
 
 @dataclass
@@ -63,19 +61,24 @@ def prepare_utterance(
     phonemes: str | Path | None = None,
     audio: str | Path | None = None,
     known: set[str] | None = None,
+    progress: Callable[[float, float], None] | None = None,
 ) -> Utterance:
-    """Parse ``text`` and synthesize it with ``engine`` (:data:`ENGINES`: ``"espeak"``, the
-    default, or ``"festival"``), or take the timings from ``phonemes`` (Amazon Polly speech
-    marks, a ``start end phoneme`` table or ``--timings-out`` table) with the audio file
-    ``audio``; ``audio`` alone is a recording of the text, to which espeak-ng's phones of the
-    text are aligned (:mod:`vtts.align`). ``voice`` is the engine's (espeak-ng's ``en-us`` or
-    festival's ``cmu_us_slt_arctic_hts`` when None); ``rate`` in words per minute and
+    """Parse ``text`` and synthesize it with ``engine`` (:data:`vtts.speech.engine.ENGINES`:
+    ``"espeak"``, the default, ``"festival"`` or ``"piper"``), or take the timings from
+    ``phonemes`` (Amazon Polly speech marks, a ``start end phoneme`` table or ``--timings-out``
+    table) with the audio file ``audio``; ``audio`` alone is a recording of the text, to which
+    espeak-ng's phones of the text are aligned (:mod:`vtts.align`). ``voice`` is the engine's
+    (its ``default_voice`` when None); ``rate`` in words per minute and
     ``pitch`` 0–99 as for espeak-ng. ``known``: the expressions the models have tables for
-    (for the unknown-name message)."""
+    (for the unknown-name message). ``audio`` with an empty ``text`` (and no ``phonemes``): the
+    phones are recognized from the recording (:mod:`vtts.speech.recognize`), no bookmarks;
+    ``progress(done_s, total_s)`` is then called as the recognition goes."""
     from vtts.speech.phonemes import read_phoneme_file
 
-    if engine not in ENGINES:
-        raise SpeechError(f"unknown speech engine {engine!r}; known: {', '.join(ENGINES)}")
+    if audio is not None and phonemes is None and not text.strip():
+        _only_recording(engine, voice, rate, pitch)
+        return recognized(Path(audio), progress=progress)
+    found_engine = load_engine(engine)
     bt = parse_bookmarks(text, known)
     if phonemes is not None:
         if audio is None:
@@ -99,7 +102,9 @@ def prepare_utterance(
                 "--rate and --pitch shape synthesized speech; a recording (--audio) keeps its own"
             )
         return _aligned(bt, Path(audio), voice)
-    speech, marks = ENGINES[engine](bt, voice, rate, pitch)
+    spoken = found_engine.speak(bt, voice=voice, rate=rate, pitch=pitch)
+    speech = spoken.speech
+    marks = [(f"b{k}", t) for k, t in enumerate(spoken.bookmarks)]
     phones = [TimedPhone(p.start, p.end, p.viseme, p.phoneme) for p in speech.phonemes]
     words = [TimedWord(w.start, w.end, w.text) for w in speech.words if w.end is not None]
     utt = Utterance(bt, np.asarray(speech.audio), int(speech.rate), phones, bt.bookmarks, words)
@@ -129,62 +134,51 @@ def _aligned(bt: BookmarkedText, audio: Path, voice: str | None) -> Utterance:
     phones = [TimedPhone(p.start, p.end, p.viseme or 0, p.phoneme) for p in found.phones]
     words = [TimedWord(w.start, w.end, w.text) for w in found.words]
     utt = Utterance(bt, samples, sr, phones, bt.bookmarks, words)
-    marks = [(m.name, m.time) for m in found.marks]
+    times = [m.time for m in found.marks]
     if bt.before_punctuation:  # as for espeak-ng's own speech: at the end of the word before
-        _end_of_word_before(bt, found.words, marks)
-    _place_marks(utt, marks, fallback=False)
+        end_of_word_before(bt, found.words, times)
+    _place_marks(utt, [(f"b{k}", t) for k, t in enumerate(times)], fallback=False)
     return utt
 
 
-def _espeak(bt: BookmarkedText, voice: str | None, rate: int | None, pitch: int | None):
-    """espeak-ng: SSML with a ``<mark name="bK"/>`` per bookmark, its mark events."""
-    from vtts.speech.tts import synthesize
-
-    speech = synthesize(bt.ssml(), voice=voice or "en-us", rate=rate, pitch=pitch)
-    marks = [(m.name, m.time) for m in speech.marks]
-    if bt.before_punctuation:
-        _end_of_word_before(bt, speech.words, marks)
-    return speech, marks
-
-
-def _festival(bt: BookmarkedText, voice: str | None, rate: int | None, pitch: int | None):
-    """festival: the plain text and each bookmark's position in it (marks at word starts)."""
-    from vtts.speech import festival
-
-    positions = []
-    at = 0
-    for piece in bt.pieces:
-        if isinstance(piece, str):
-            at += len(piece)
-        else:
-            positions.append(at)
-    speech = festival.synthesize(
-        bt.text, marks=positions, voice=voice or festival.DEFAULT_VOICE, rate=rate, pitch=pitch
-    )
-    return speech, [(f"b{m.name}", m.time) for m in speech.marks]
+def _only_recording(engine: str, voice: str | None, rate: int | None, pitch: int | None) -> None:
+    """A recording without a transcript takes none of the options that shape or phonemize
+    speech."""
+    given = [
+        flag
+        for flag, value in (
+            (f"--engine {engine}", engine != "espeak"),
+            ("--voice", voice is not None),
+            ("--rate", rate is not None),
+            ("--pitch", pitch is not None),
+        )
+        if value
+    ]
+    if given:
+        raise SpeechError(
+            f"{', '.join(given)} do not apply to a recording without its text: its phones are "
+            "recognized from the sound (US English); give the transcript with --text to align it "
+            "instead"
+        )
 
 
-def _end_of_word_before(
-    bt: BookmarkedText, words: Sequence[Word | AlignedWord], marks: list[tuple[str, float]]
-) -> None:
-    """Bookmarks written before punctuation (spoken after it, see
-    :mod:`vtts.speech.bookmarks`) at the end of the word before them, where espeak-ng reports a
-    mark written before punctuation, rather than at the next word's start. The word is found by
-    its rank among the text's words (espeak-ng's word positions can fall into the word before
-    after a full stop), so only where espeak-ng's words are the text's, one for one."""
-    before, count = _words_before(bt)
-    if count != len(words):
-        return
-    for k in sorted(bt.before_punctuation):
-        n = before[k]
-        if n and words[n - 1].end is not None:
-            earlier = max((t for _, t in marks[:k]), default=0.0)
-            marks[k] = (marks[k][0], max(words[n - 1].end, earlier))
+def recognized(audio: Path, *, progress: Callable[[float, float], None] | None = None) -> Utterance:
+    """``--audio`` without a text: the phones recognized from the recording
+    (:func:`vtts.speech.recognize.recognize`; where none is, the energy's mouth shapes), no
+    words and no bookmarks."""
+    from vtts.speech.recognize import check_rate, recognize
 
-
-#: Speech engines by name: each takes the bookmarked text, voice, rate and pitch and returns a
-#: :class:`vtts.speech.tts.Speech` and the bookmarks' times as ``("bK", s)`` pairs.
-ENGINES = {"espeak": _espeak, "festival": _festival}
+    try:
+        samples, sr = read_audio(audio)  # the file's own rate and length
+        check_rate(sr)
+        found = recognize(samples, sr, progress=progress)
+        samples, sr = mp4_samples(samples, sr)
+    except SpeechError as e:
+        if e.file is None:
+            e.file = str(audio)
+        raise
+    phones = [TimedPhone(p.start, p.end, p.viseme or 0, p.phoneme) for p in found.phones]
+    return Utterance(parse_bookmarks(""), samples, sr, phones, [], [])
 
 
 def write_utterance_timings(path: str | Path, utt: Utterance) -> None:
@@ -233,28 +227,13 @@ def _place_marks(utt: Utterance, marks: list[tuple[str, float]], *, fallback: bo
             k += 1
 
 
-_TEXT_WORD = re.compile(r"\S*\w\S*")
-
-
-def _words_before(bt: BookmarkedText) -> tuple[list[int], int]:
-    """For each bookmark, how many words of the text come before it; and the text's words."""
-    before: list[int] = []
-    count = 0
-    for piece in bt.pieces:
-        if isinstance(piece, str):
-            count += len(_TEXT_WORD.findall(piece))
-        else:
-            before.append(count)
-    return before, count
-
-
 def _place_at_words(utt: Utterance) -> bool:
     """Bookmarks without a time at the start of the word after them, when the file's words
     (Polly's word marks, a ``--timings-out`` table) are the text's, one for one: the end of the
     last word for a bookmark after every word. False, and nothing placed, when they are not."""
     if not utt.words:
         return False
-    before, count = _words_before(utt.text)
+    before, count = words_before(utt.text)
     if count != len(utt.words):
         return False
     words = sorted(utt.words, key=lambda w: w.start)

@@ -20,7 +20,9 @@ from vtts.analysis.landmark_term import (
 from vtts.analysis.track import scaled_face, shrink, track, working_scale
 from vtts.analysis.tracker import Tracker
 from vtts.analysis.video import read_video
+from vtts.animate.fapstream import hold
 from vtts.face import load_model
+from vtts.fap.coding import decode, encode
 from vtts.fit.landmarks import default_detector, detect_faces
 
 DATA = Path(__file__).parents[1] / "data"
@@ -176,6 +178,14 @@ def test_a_frame_where_the_landmarks_lose_the_face_holds_the_head(with_a_gap):
     assert np.array_equal(frames[2].params, frames[1].params)
     assert np.isnan(frames[2].psnr) and np.isnan(frames[2].landmark_px)
     assert np.isfinite(frames[3].psnr)  # found again in the next frame
+    assert [fe.held for fe in frames] == [False, False, True, False]
+    # the coded stream says so: the frame sets no FAP, and a decoder holds the last values
+    stream = with_a_gap.analysis.stream()
+    assert not stream.mask[2].any() and stream.mask[[0, 1, 3]][:, 2:].any(axis=1).all()
+    decoded = decode(encode(stream))
+    assert not decoded.mask[2].any()
+    held = hold(decoded)[0]
+    assert np.array_equal(held[2], held[1])
 
 
 @pytest.mark.usefixtures("shared_fit")

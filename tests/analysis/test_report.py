@@ -52,6 +52,7 @@ def make_analysis(
                 face_pixels=5000 + i,
                 iterations=7 + i,
                 landmark_px=float("nan") if i == 1 else 0.5 + i / 7,
+                held=i == 1,
             )
         )
     return Analysis(frames, unknowns, fps / 2, Camera(300, 300, 32, 24), "head")
@@ -88,6 +89,7 @@ def test_csv_columns_follow_the_unknowns():
         "face_pixels",
         "iterations",
         "landmark_px",
+        "held",
         "fap48",
         "tx",
         "tz",
@@ -115,6 +117,7 @@ def test_csv_values_read_back_exactly(report):
         assert np.isnan(float(row["landmark_px"])) == np.isnan(fe.landmark_px)
         if not np.isnan(fe.landmark_px):
             assert float(row["landmark_px"]) == fe.landmark_px
+        assert row["held"] == ("1" if fe.held else "0")
         for k in (48, 3, 12):
             assert float(row[f"fap{k}"]) == fe.params[k - 1]
         assert float(row["tx"]) == fe.translation[0]

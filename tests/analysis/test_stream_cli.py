@@ -4,6 +4,7 @@ Ctrl-C)."""
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import os
 import signal
@@ -355,7 +356,7 @@ def test_a_batch_job_does_not_play_stdin(tmp_path):
 @pytest.mark.parametrize("model", ["cybatt", str(HEAD)])  # with FAPUs, and without (no ES)
 def test_estimate_stream_sends_what_a_whole_fbs_codes(model):
     """EstimateStream's packets decode to the stream ``vtts analyze -o OUT.fbs`` codes from the
-    same estimates; the head goes in place before the header."""
+    same estimates, a held frame setting no FAP; the head goes in place before the header."""
     from vtts.analysis.result import Analysis, FrameEstimate
     from vtts.analysis.streaming import EstimateStream
     from vtts.face import load_model
@@ -369,6 +370,8 @@ def test_estimate_stream_sends_what_a_whole_fbs_codes(model):
         params = np.zeros(100)
         params[[u - 1 for u in unknowns if isinstance(u, int)]] = rng.normal(0, 200, 14)
         estimates.append(FrameEstimate(i, i / 25, params, translation=rng.normal(0, 3, 3)))
+    # frame 3 held (the landmarks lost the face): its packet sets no FAP
+    estimates[3] = dataclasses.replace(estimates[2], index=3, time=3 / 25, held=True)
     sink = io.BytesIO()
     order = []
     out = EstimateStream(sink, fps=25.0, unknowns=unknowns, name="clip", fapu=lambda: fapu,
@@ -380,6 +383,7 @@ def test_estimate_stream_sends_what_a_whole_fbs_codes(model):
     whole = Analysis(estimates, unknowns, 25.0, Camera(1, 1, 0, 0)).stream("clip", fapu=fapu)
     got, want = decode(sink.getvalue()), decode(encode(whole))
     assert np.array_equal(got.values, want.values) and np.array_equal(got.mask, want.mask)
+    assert not got.mask[3].any() and got.mask[[0, 1, 2, 4]][:, [47, 2]].all()
     assert (got.translation is None) == (fapu is None) == (want.translation is None)
     assert fapu is None or np.array_equal(got.translation, want.translation)
     assert out.frames == 5 and out.framing_s / 5 < 0.05

@@ -17,8 +17,9 @@ from pathlib import Path
 
 from ..in_process import vtts
 
-#: The options of every job, and of the single command each is compared with.
-OPTIONS = ["--model", "cybatt", "--size", "160x120"]
+#: The options of every job, and of the single command each is compared with (10 frames a
+#: second: the jobs' frames are what the tests pay for).
+OPTIONS = ["--model", "cybatt", "--size", "160x120", "--fps", "10"]
 
 
 def say_jobs(folder: Path, texts: list[str]) -> tuple[Path, Path]:
@@ -27,7 +28,14 @@ def say_jobs(folder: Path, texts: list[str]) -> tuple[Path, Path]:
     jobs, out = folder / "jobs.jsonl", folder / "out"
     out.mkdir()
     lines = [
-        {"id": f"q{i}", "say": t, "model": ["cybatt"], "size": "160x120", "output": f"q{i}.mp4"}
+        {
+            "id": f"q{i}",
+            "say": t,
+            "model": ["cybatt"],
+            "size": "160x120",
+            "fps": 10,
+            "output": f"q{i}.mp4",
+        }
         for i, t in enumerate(texts)
     ]
     jobs.write_text("".join(json.dumps(x) + "\n" for x in lines))

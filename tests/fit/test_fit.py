@@ -78,6 +78,28 @@ def test_writes_scene_tables_and_texture(akiyo):
         assert im.size == (1024, 1024)
 
 
+def test_the_written_model_is_the_one_its_files_load(akiyo):
+    """``FittedHead.written_model`` (what tracking a video estimates with) is what loading the
+    written files gives: the same scene, tables, textures and deformation."""
+    from vtts.face.adt import format_adt
+    from vtts.face.miap import N_PARAMS
+    from vtts.vrml.writer import dumps
+
+    head, loaded, _, files = akiyo
+    model = head.written_model(files[0])
+    assert model.path == loaded.path and model.scene.path == loaded.scene.path
+    assert dumps(model.scene) == dumps(loaded.scene)
+    assert format_adt(model.tables) == format_adt(loaded.tables)
+    fap = np.zeros(N_PARAMS)
+    fap[[2, 4, 18, 47]] = [300.0, -120.0, 80.0, 15000.0]  # jaw, lips, a lid, a turn
+    a, b = model.engine.deform(fap), loaded.engine.deform(fap)
+    assert a.points.keys() == b.points.keys()
+    assert all(np.array_equal(a.points[k], b.points[k]) for k in a.points)
+    assert a.transforms.keys() == b.transforms.keys()
+    assert all(np.array_equal(a.transforms[k][f], b.transforms[k][f])
+               for k in a.transforms for f in a.transforms[k])  # fmt: skip
+
+
 def test_records_its_photo_for_a_talking_photo(akiyo, tmp_path):
     _, model, image, files = akiyo
     from vtts.fit.source import source_photo

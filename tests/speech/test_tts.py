@@ -200,3 +200,21 @@ def test_non_english_voice_gets_ipa_and_visemes():
     assert [p.ipa for p in spoken[:5]] == ["b", "ɔ̃", "ʒ", "u", "ʁ"]
     assert [p.viseme for p in spoken[:5]] == [1, 13, 6, 14, 5]
     assert synthesize("Hello", voice="en-us").phonemes[1].ipa is None
+
+
+def test_workers_started_ahead_speak_as_fresh_ones():
+    """keep_workers_ready: a worker waits for its request; what it speaks is what a worker
+    started at the request speaks, to the sample; 0 ends the waiting ones."""
+    plain = synthesize("Hello there, again.")
+    tts.keep_workers_ready(1)
+    try:
+        (waiting,) = tts._SPARES.ready
+        assert waiting.poll() is None  # started, waiting for a request
+        ahead = synthesize("Hello there, again.")
+        assert waiting.returncode == 0  # it spoke and ended
+        assert len(tts._SPARES.ready) == 1 and tts._SPARES.ready[0] is not waiting
+    finally:
+        tts.keep_workers_ready(0)
+    assert tts._SPARES.ready == []
+    np.testing.assert_array_equal(ahead.audio, plain.audio)
+    assert [p.start for p in ahead.phonemes] == [p.start for p in plain.phonemes]

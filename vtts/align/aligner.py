@@ -42,9 +42,9 @@ from vtts.align.features import (
     cepstra,
     log_mel,
     median_f0,
-    resample,
 )
 from vtts.errors import SpeechError
+from vtts.speech.audio import resample_in_blocks as resample
 from vtts.speech.phonemes import PAUSES, Mark, Phone
 
 #: Frame step of the warping, s.

@@ -1,8 +1,9 @@
 """Spectral features for alignment: log-mel cepstra (MFCC) with deltas, cepstral mean normalized.
 
 Why these, and why by hand over SciPy rather than librosa: the features are a few lines of
-NumPy over ``scipy.signal.resample_poly`` and ``scipy.fft`` (librosa would bring numba, llvmlite
-and scikit-learn, and a second of JIT start-up, for a mel filter bank and a DCT).
+NumPy over ``scipy.fft`` (librosa would bring numba, llvmlite and scikit-learn, and a second of
+JIT start-up, for a mel filter bank and a DCT); the audio is resampled by
+``scipy.signal.resample_poly`` (``vtts.speech.audio.resample_in_blocks``).
 
 - Both signals are analysed at one rate, :data:`ANALYSIS_RATE` (or the recording's, when it is
   lower: a telephone recording has nothing above 4 kHz, so the reference must not either).
@@ -16,11 +17,9 @@ and scikit-learn, and a second of JIT start-up, for a mel filter bank and a DCT)
 from __future__ import annotations
 
 from functools import cache
-from math import gcd
 
 import numpy as np
 from scipy.fft import dct, rfft
-from scipy.signal import resample_poly
 
 #: Rate the features are computed at, Hz (a recording below it is analysed at its own rate).
 ANALYSIS_RATE = 16000
@@ -31,27 +30,6 @@ FLOOR_DB = 60.0
 N_MELS = 26
 N_CEPS = 13
 WINDOW_S = 0.025
-
-
-def resample(samples: np.ndarray, rate: int, target: int) -> np.ndarray:
-    """``(n,)`` samples at ``rate`` Hz → float32 at ``target`` Hz (polyphase, anti-aliased)."""
-    x = np.asarray(samples, dtype=np.float32)
-    if rate == target:
-        return x
-    g = gcd(int(rate), int(target))
-    # in blocks of about 30 s: resample_poly works in float64 (10 minutes would take 100 MB)
-    up, down = target // g, rate // g
-    block = down * (30 * rate // down)
-    if len(x) <= 2 * block:
-        return resample_poly(x, up, down).astype(np.float32)
-    pad = down * (rate // (10 * down) + 1)  # 0.1 s of context on each side hides the block edges
-    out = []
-    for a in range(0, len(x), block):
-        lo, hi = max(a - pad, 0), min(a + block + pad, len(x))
-        y = resample_poly(x[lo:hi], up, down)
-        skip = (a - lo) * up // down
-        out.append(y[skip : skip + min(block, len(x) - a) * up // down].astype(np.float32))
-    return np.concatenate(out)
 
 
 @cache

@@ -7,7 +7,8 @@
     (face-area PSNR, ``inf`` when the rendered model matches the frame exactly), ``face_pixels``,
     ``iterations``, ``landmark_px`` (the median distance in pixels between the frame's face
     mesh landmarks and where the estimate puts their points; ``nan`` where none were
-    observed), then one column per unknown in the analysis' order — ``fapK`` in the FAP's
+    observed), ``held`` (1 where the frame had no estimate of its own and the last good one
+    stands in, else 0), then one column per unknown in the analysis' order — ``fapK`` in the FAP's
     unit (FAPU, AU for rotations), ``tx``/``ty``/``tz`` in model units — and the photometric
     correction ``gain_r/g/b``, ``offset_r/g/b`` (camera ≈ gain · synthetic + offset, 0–255).
 ``psnr.png``
@@ -64,7 +65,7 @@ _CHANNELS = "rgb"
 
 def csv_columns(analysis: Analysis) -> list[str]:
     """The header of ``frames.csv``."""
-    cols = ["frame", "time", "psnr_db", "face_pixels", "iterations", "landmark_px"]
+    cols = ["frame", "time", "psnr_db", "face_pixels", "iterations", "landmark_px", "held"]
     cols += [f"fap{u}" if isinstance(u, int) else u for u in analysis.unknowns]
     cols += [f"gain_{c}" for c in _CHANNELS] + [f"offset_{c}" for c in _CHANNELS]
     return cols
@@ -83,6 +84,7 @@ def format_csv(analysis: Analysis) -> str:
     for fe in analysis.frames:
         row = [str(fe.index), _number(fe.time), _number(fe.psnr)]
         row += [str(int(fe.face_pixels)), str(int(fe.iterations)), _number(fe.landmark_px)]
+        row.append("1" if fe.held else "0")
         for u in analysis.unknowns:
             if isinstance(u, int):
                 row.append(_number(fe.params[u - 1]))

@@ -30,6 +30,9 @@ class FrameEstimate:
     iterations   linear solves made for this frame, over all pyramid levels
     landmark_px  median distance (pixels) between the face mesh's landmarks of the frame and
                  where the estimate puts their points; NaN when none were observed
+    held         no estimate of its own: the landmarks lost the face or the estimate failed, and
+                 the last good estimate stands in (its coded frame sets no FAP: a decoder holds
+                 the last values)
     """
 
     index: int
@@ -42,6 +45,7 @@ class FrameEstimate:
     face_pixels: int = 0
     iterations: int = 0
     landmark_px: float = float("nan")
+    held: bool = False
 
 
 @dataclass
@@ -74,13 +78,17 @@ class Analysis:
 
     def stream(self, name: str = "vtts analyze", fapu: Fapu | None = None) -> FapStream:
         """The estimates as a FAP stream at :attr:`fps`: the estimated FAPs rounded to integers,
-        every frame setting each of them. With the model's ``fapu``, the estimated head
-        translation rides along (:attr:`FapStream.translation`, in ES units; axes not estimated
-        stay 0); without it, or when none was estimated, the stream has none."""
+        every frame setting each of them except the frames :attr:`~FrameEstimate.held`, which
+        set none (MPEG-4's hold: a decoder keeps the last values, and the stream says that the
+        frame was not estimated). With the model's ``fapu``, the estimated head translation
+        rides along (:attr:`FapStream.translation`, in ES units; axes not estimated stay 0);
+        without it, or when none was estimated, the stream has none."""
         n = len(self.frames)
         values = np.zeros((n, N_FAPS))
         mask = np.zeros((n, N_FAPS), dtype=bool)
         for i, fe in enumerate(self.frames):
+            if fe.held:
+                continue
             for f in self.faps:
                 values[i, f - 1] = np.round(fe.params[f - 1])
                 mask[i, f - 1] = True

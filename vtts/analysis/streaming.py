@@ -87,7 +87,9 @@ class EstimateStream:
             # without FAPUs the translation has no ES units to go in (as Analysis.stream)
             translation=self._fapu is not None and any(u in TRANSLATION for u in self.unknowns),
             name=self.name,
-            constant_mask=True,
+            # a frame held (no estimate of its own) sets no FAP (Analysis.stream): the mask may
+            # change; its flag per frame costs the arithmetic coder next to nothing
+            constant_mask=False,
             predictors=paired_predictors(faps, steps),
             steps=steps,
             quantizer=self.quantizer,

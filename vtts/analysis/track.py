@@ -388,7 +388,6 @@ def _start(result: Tracked, frame, chosen, face, model, model_path, camera, unkn
     scale = result.scale
     h, w = frame.shape[0] // scale, frame.shape[1] // scale
     if model is None:
-        from vtts.face import load_model
         from vtts.fit import fit_photo, with_frame
         from vtts.fit.photo import VIDEO_PARTS
 
@@ -398,7 +397,7 @@ def _start(result: Tracked, frame, chosen, face, model, model_path, camera, unkn
         except FitError as e:
             raise AnalysisError(f"cannot fit a head to the first face: {e.message}") from None
         result.fitted = head.write(model_path)
-        result.model = load_model(str(result.fitted[0]))
+        result.model = head.written_model(result.fitted[0])
         options = {"ignore": FITTED_IGNORED, **options}
         return Tracker(result.model, size=(w, h), model_camera=head.shape.camera.scaled(scale),
                        unknowns=unknowns, **options)  # fmt: skip
@@ -516,7 +515,7 @@ def _hold(estimator: Estimator, kept: tuple, last: FrameEstimate, index: int,
     the last two estimates would grow with the gap: :meth:`Estimator._extrapolate`)."""
     estimator.restore(kept)
     estimator.forget_motion()
-    return _copy(last, index, time)
+    return replace(_copy(last, index, time), held=True)
 
 
 def _run_away(estimator: Estimator) -> bool:

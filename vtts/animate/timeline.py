@@ -38,9 +38,10 @@ MOUTH_FAPS = (3, 4, 5, 8, 9, 10, 11, 16, 17, 51, 52, 55, 56, 57, 58)
 #: How far the mouth is put ahead of the phone times, s, by the engine that timed them (see
 #: :func:`speech_lead`). The lips and jaw move before the sound they shape; espeak-ng's phones
 #: start at the sound they name (a stop at its release, its silent closure in the phone before),
-#: festival's HTS segments somewhat before their sound, so the same anticipation needs less lead.
+#: festival's HTS segments somewhat before their sound, so the same anticipation needs less lead;
+#: Piper's alignments give a stop's closure to the phone before it, as espeak-ng does.
 #: ``docs/speech.md`` gives the measurement (``make bench``, lipsync) that set them.
-LEADS = {"espeak": 0.04, "festival": 0.0}
+LEADS = {"espeak": 0.04, "festival": 0.0, "piper": 0.05}
 #: The lead of phones from elsewhere (``--phonemes``, a recording aligned with espeak-ng's phones).
 LEAD = LEADS["espeak"]
 #: Ramp time of a ``<fap …>`` bookmark's values, s.

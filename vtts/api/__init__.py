@@ -13,6 +13,8 @@ of options checked when it is made and returning what it wrote or found.
 - :func:`~vtts.api.check.check` (files) → a :class:`~vtts.api.check.Checked` each;
   :func:`~vtts.api.info.info` (a file) → :class:`~vtts.api.info.Info`;
   :func:`~vtts.api.models.models` → a :class:`~vtts.api.models.Bundled` each
+- :func:`~vtts.api.speak.speak` (one clause, a model) → :class:`~vtts.api.speak.Spoken`, in
+  memory: what ``vtts serve`` streams
 
 Option pieces shared by several commands (the heads, the view, a pose, curves) are in
 :mod:`vtts.api.options`; :func:`vtts.api.reporting.run_reported` tells a failure as the command
@@ -55,6 +57,8 @@ EXPORTS: dict[str, str] = {
     "models": "vtts.api.models",
     "Bundled": "vtts.api.models",
     "voices": "vtts.speech.tts",
+    "speak": "vtts.api.speak",
+    "Spoken": "vtts.api.speak",
 }
 
 

@@ -389,18 +389,20 @@ def model_files(name: str) -> list[Path]:
 def check_not_stdout(options) -> None:
     """``-`` given to an option that writes a file or a folder is refused: it would make one
     named ``-`` where the user meant stdout. stdout is written by ``vtts play - -o -`` (raw
-    frames of a stream from stdin; :class:`~vtts.api.play.PlayOptions` checks the rest) and
-    ``vtts analyze --stream``, nowhere else."""
+    frames of a stream from stdin; :class:`~vtts.api.play.PlayOptions` checks the rest), ``vtts
+    play --audio - -o -`` (of a voice from stdin) and ``vtts analyze --stream``, nowhere else."""
     for key in (*OUTPUT_OPTIONS, *MORE_OUTPUTS, *OUTPUT_FOLDERS):
         if getattr(options, key, None) != "-":
             continue
-        if key == "output" and getattr(options, "stream", None) == "-":
+        live = getattr(options, "stream", None) == "-" or getattr(options, "audio", None) == "-"
+        if key == "output" and live and hasattr(options, "stream"):
             continue
         flag = "-o" if key == "output" else "--" + key.replace("_", "-")
         what = "a folder" if key in OUTPUT_FOLDERS else "a file"
         raise VttsError(
             f"{flag} -: this option writes {what}, and '-' would be one named '-' (stdout is "
-            "for vtts play - -o - and vtts analyze --stream): give a name, ./- for one named '-'"
+            "for vtts play - -o -, vtts play --audio - -o - and vtts analyze --stream): give a "
+            "name, ./- for one named '-'"
         )
 
 

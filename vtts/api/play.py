@@ -14,11 +14,23 @@ from typing import BinaryIO
 
 import numpy as np
 
-from vtts.api.options import Curves, Heads, View, check_number, check_web, video_or_gltf
+from vtts.api.options import (
+    Curves,
+    Heads,
+    View,
+    check_number,
+    check_seed,
+    check_web,
+    video_or_gltf,
+)
 from vtts.errors import RenderError
 
 #: The frame rate ``vtts play`` renders a file at unless ``fps`` says otherwise.
 DEFAULT_PLAY_FPS = 30.0
+#: The rate of a voice on stdin (``--audio -``) unless ``rate`` says otherwise, Hz.
+VOICE_RATE = 16000
+#: A voice on stdin is read in chunks of this long at most, s (each is recognized at once).
+VOICE_CHUNK_S = 0.02
 
 
 @dataclass(kw_only=True)
@@ -32,14 +44,22 @@ class PlayOptions(Heads, Curves, View):
     player (WAV, FLAC, OGG, MP3, M4A …); ``fps``: the output frame rate in Hz (None: 30, and a
     stream from stdin plays at its own); ``progress``: a progress bar on stderr. The heads, the
     view and the curves: :mod:`vtts.api.options`.
+
+    ``audio="-"`` with no ``stream`` (None): a voice on stdin instead, raw PCM, signed 16-bit
+    little-endian mono at ``rate`` Hz (default :data:`VOICE_RATE`), which the face follows as it
+    arrives (:func:`play_voice`), with the models' autonomous behaviour (``seed``, 0 to
+    2**63 - 1; ``no_autonomous``: none).
     """
 
-    stream: str
+    stream: str | None = None
     output: str | None = None
     png_dir: str | None = None
     web: str | None = None
     audio: str | None = None
     fps: float | None = None
+    rate: int | None = None
+    seed: int = 0
+    no_autonomous: bool = False
     progress: bool = False
     #: ``output`` when it is a video (or ``-``), and when it is a glTF
     video_file: str | None = field(init=False, default=None)
@@ -51,11 +71,36 @@ class PlayOptions(Heads, Curves, View):
             self.video_file, self.gltf_file = video_or_gltf(self.output)
         else:
             self.video_file, self.gltf_file = "-", None
-        if self.stream == "-":
+        if self.audio == "-" or self.rate is not None:
+            self._check_voice()
+        elif self.stream is None:
+            raise RenderError(
+                "give the stream to play (a .fap or .fbs file, or - for stdin), or --audio - "
+                "for a voice on stdin"
+            )
+        elif self.stream == "-":
             self._check_live()
         else:
             self._check_file()
         self.require_model()
+
+    def _check_voice(self) -> None:
+        """The rules of a voice on stdin (``--audio -``)."""
+        if self.audio != "-":
+            raise RenderError("--rate is the rate of a voice on stdin: give --audio - with it")
+        if self.stream is not None:
+            raise RenderError(
+                f"--audio - plays a voice from stdin, not a FAP stream: give no stream "
+                f"({self.stream!r})"
+            )
+        rate = VOICE_RATE if self.rate is None else self.rate
+        if isinstance(rate, bool) or not isinstance(rate, int) or not 8000 <= rate <= 192000:
+            raise RenderError(
+                f"--rate must be a whole number of Hz within 8000–192000, got {rate!r}"
+            )
+        self._check_live(voice=True)
+        check_seed(self.seed)
+        check_number(DEFAULT_PLAY_FPS if self.fps is None else self.fps, "--fps", 0, 240)
 
     def _check_file(self) -> None:
         """The rules of a stream file."""
@@ -73,12 +118,14 @@ class PlayOptions(Heads, Curves, View):
         check_web(self.web)
         self.check_curves()
 
-    def _check_live(self) -> None:
-        """The rules of a stream from stdin: frames as they arrive, to a video, stdout or PNGs."""
+    def _check_live(self, voice: bool = False) -> None:
+        """The rules of a stream from stdin (``voice``: a voice, ``--audio -``): frames as they
+        arrive, to a video, stdout or PNGs."""
+        what = "a voice from stdin (vtts play --audio -)" if voice else "a stream from stdin "
         unsupported = [
             flag
             for flag, value in (
-                ("--audio", self.audio),
+                ("--audio", self.audio if not voice else None),
                 ("--web", self.web),
                 ("--gltf", self.gltf_file),
                 ("--curves-out", self.curves_out),
@@ -87,9 +134,9 @@ class PlayOptions(Heads, Curves, View):
         ]
         if unsupported:
             raise RenderError(
-                f"{', '.join(unsupported)} need the whole stream: a stream from stdin "
-                "(vtts play -) renders to -o OUT.mp4, -o - (raw rgb24 frames on stdout) or "
-                "--png-dir"
+                f"{', '.join(unsupported)} need the whole stream: {what}"
+                f"{'(vtts play -) ' if not voice else ' '}renders to -o OUT.mp4, -o - (raw rgb24 "
+                "frames on stdout) or --png-dir"
             )
         if not (self.video_file or self.png_dir):
             raise RenderError(
@@ -128,6 +175,10 @@ def play(
 
     check_io(options)
     with url_roots_set(options.url_root):
+        if options.audio == "-":
+            stdin = PipeReader(sys.stdin.buffer) if stdin is None else stdin
+            stdout = sys.stdout.buffer if stdout is None else stdout
+            return play_voice(options, stdin, stdout, on_first_frame)
         if options.stream == "-":
             # the process's stdin is read so that a signal ends the wait for a packet
             stdin = PipeReader(sys.stdin.buffer) if stdin is None else stdin
@@ -199,6 +250,89 @@ def play_live(o: PlayOptions, stdin: BinaryIO, stdout: BinaryIO, on_first_frame=
         params = (p for p, _ in a)
         roots = (r for _, r in b) if moves else None
         for frame in after_first(renderer.frames(params, roots, batch=1), on_first_frame):
+            if out is not None:
+                out.write(np.ascontiguousarray(frame[..., :3]).tobytes())
+                out.flush()
+            for sink in sinks:
+                sink.write(frame)
+            bar.advance()
+            n += 1
+    written = [str(p) for p in (o.video_file if not raw else "stdout", o.png_dir) if p]
+    return Played(written, n, fps)
+
+
+def play_voice(o: PlayOptions, stdin: BinaryIO, stdout: BinaryIO, on_first_frame=None) -> Played:
+    """Render a face that follows a voice on ``stdin`` (raw PCM, s16le mono at ``o.rate`` Hz)
+    as it arrives: each chunk is recognized (:class:`~vtts.speech.recognize.LiveRecognizer`),
+    the visemes become frames (:class:`~vtts.animate.voice.VoiceTrack`) rendered at once into
+    an MP4 (renamed into place at the end), raw rgb24 frames on ``stdout`` (``-o -``, flushed
+    per frame) and/or PNGs. The stream may end anywhere: a last odd byte (half a sample) is
+    ignored with a warning."""
+    import warnings
+
+    from vtts.animate.voice import LiveHabits, VoiceTrack
+    from vtts.api.outputs import after_first
+    from vtts.errors import SpeechError, VttsWarning
+    from vtts.render import PngSequenceWriter, VideoWriter, progress
+    from vtts.speech.recognize import LiveRecognizer
+    from vtts.warm import load_model
+
+    rate = VOICE_RATE if o.rate is None else o.rate
+    fps = DEFAULT_PLAY_FPS if o.fps is None else o.fps
+    raw = o.video_file == "-"
+    models = [load_model(m) for m in o.model]
+    live = LiveRecognizer(rate)
+    track = VoiceTrack(fps)
+    chunk = max(int(rate * VOICE_CHUNK_S), 1) * 2
+
+    habits = [LiveHabits(m, fps, seed=o.seed) for m in models] if not o.no_autonomous else []
+
+    def voice_frames():
+        """The voice track's frames as the voice arrives."""
+        carry = b""
+        total = 0
+        while True:
+            data = stdin.read(chunk)
+            if not data:
+                break
+            total += len(data)
+            data = carry + data
+            whole = len(data) // 2 * 2
+            carry = data[whole:]
+            yield from track.add(live.feed(np.frombuffer(data[:whole], dtype="<i2")))
+        if total < 2:
+            raise SpeechError(
+                "no voice came on stdin: not one sample (raw PCM, s16le mono, was expected)",
+                file="-",
+            )
+        if carry:
+            warnings.warn(
+                VttsWarning(
+                    "the voice on stdin ended inside a sample (an odd number of bytes): "
+                    "its last byte is ignored",
+                    file="-",
+                ),
+                stacklevel=2,
+            )
+        yield from track.add(live.finish())
+        yield from track.finish()
+
+    def params():
+        for i, p in enumerate(voice_frames()):
+            yield [p + h(i) for h in habits] if habits else [p] * len(models)
+
+    out = stdout if raw else None
+    n = 0
+    with contextlib.ExitStack() as stack:
+        renderer = stack.enter_context(o.renderer(models, video=bool(o.video_file)))
+        sinks = []
+        if o.video_file and not raw:
+            sinks.append(stack.enter_context(VideoWriter(o.video_file, fps, renderer.size)))
+        if o.png_dir:
+            sinks.append(stack.enter_context(PngSequenceWriter(o.png_dir)))
+        bar = stack.enter_context(progress(None, "following the voice on stdin",
+                                           not o.progress or raw))  # fmt: skip
+        for frame in after_first(renderer.frames(params(), batch=1), on_first_frame):
             if out is not None:
                 out.write(np.ascontiguousarray(frame[..., :3]).tobytes())
                 out.flush()

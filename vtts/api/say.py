@@ -23,12 +23,14 @@ from vtts.api.options import (
 )
 from vtts.errors import RenderError, VttsError
 from vtts.messages import echo
+from vtts.speech.engine import DEFAULT_ENGINE
+from vtts.speech.engine import ENGINES as SPEECH_ENGINES
 
 if TYPE_CHECKING:
     from concurrent.futures import Future
 
-#: The speech synthesizers: espeak-ng, or festival's HTS voice.
-ENGINES = ("espeak", "festival")
+#: The speech synthesizers (:mod:`vtts.speech.engine`): espeak-ng, festival's HTS voice, Piper.
+ENGINES = tuple(SPEECH_ENGINES)
 
 
 def merged_text(text: str, text_option: str | None, file: str | None) -> str:
@@ -47,12 +49,14 @@ class SayOptions(Heads, Curves, View):
     """What ``vtts say`` speaks and writes.
 
     ``text``: text with bookmarks (``"Hello <smile 2s> world <blink>"``); ``file``: read the
-    text from this UTF-8 file instead; ``engine``: ``espeak`` or ``festival``; ``voice``: its
-    voice (None: en-us, or cmu_us_slt_arctic_hts); ``rate``: words per minute; ``pitch``: 0–99;
-    ``phonemes``: timings from another engine (Polly speech marks or a ``start end phoneme``
-    table; with ``audio``); ``audio``: recorded speech of the text, which it is aligned to;
-    ``seed``: of the autonomous behaviour (blinks, nods, head motion, gaze), 0 to 2**63 - 1;
-    ``no_autonomous``: none of it; ``fps``: frame rate in Hz, within 0–240.
+    text from this UTF-8 file instead; ``engine``: ``espeak``, ``festival`` or ``piper`` (the
+    extra ``vtts[piper]``); ``voice``: its voice (None: the engine's default, ``vtts voices``);
+    ``rate``: words per minute; ``pitch``: 0–99; ``phonemes``: timings from another engine
+    (Polly speech marks or a ``start end phoneme`` table; with ``audio``); ``audio``: recorded
+    speech of the text, which it is aligned to (without a text, its phones are recognized from
+    the sound: :mod:`vtts.speech.recognize`); ``seed``: of the autonomous behaviour (blinks,
+    nods, head motion, gaze), 0 to 2**63 - 1; ``no_autonomous``: none of it; ``fps``: frame
+    rate in Hz, within 0–240.
 
     Outputs: ``output`` (an ``.mp4``, ``.m4v``, ``.mov``, ``.mkv`` or an animated
     ``.glb``/``.gltf``), ``png_dir`` (PNG frames), ``web`` (a web player's folder), ``fap_out``
@@ -64,7 +68,7 @@ class SayOptions(Heads, Curves, View):
 
     text: str = ""
     file: str | None = None
-    engine: str = "espeak"
+    engine: str = DEFAULT_ENGINE
     voice: str | None = None
     rate: int | None = None
     pitch: int | None = None
@@ -137,8 +141,9 @@ def say(options: SayOptions, *, on_first_frame: Callable[[], None] | None = None
         except (OSError, UnicodeDecodeError) as e:
             reason = getattr(e, "strerror", None) or "not UTF-8 text"
             raise VttsError(f"cannot read the text: {reason}", file=o.file) from None
-    if not text or not text.strip():
-        raise RenderError("nothing to say: give the text, or --file FILE")
+    if (not text or not text.strip()) and (o.audio is None or o.phonemes is not None):
+        # (a recording alone is enough: its phones are recognized from the sound)
+        raise RenderError("nothing to say: give the text, or --file FILE (or --audio REC)")
     with url_roots_set(o.url_root):
         models = [load_model(m) for m in o.model]
         known = {x.name for m in models for x in m.tables.adts if x.kind == "expression"}
@@ -166,16 +171,18 @@ def speak_and_set_up(o: SayOptions, text: str, models: list, known: set[str]):
     from vtts.utterance import prepare_utterance
 
     def speak():
-        utt = prepare_utterance(
-            text,
-            known=known,
-            engine=o.engine,
-            voice=o.voice,
-            rate=o.rate,
-            pitch=o.pitch,
-            phonemes=o.phonemes,
-            audio=o.audio,
-        )
+        with recognition_bar(o.progress) as tick:
+            utt = prepare_utterance(
+                text,
+                known=known,
+                engine=o.engine,
+                voice=o.voice,
+                rate=o.rate,
+                pitch=o.pitch,
+                phonemes=o.phonemes,
+                audio=o.audio,
+                progress=tick,
+            )
         # the MP4's sound is encoded now, on a core the renderer's set-up leaves idle
         track = SpeechTrack((utt.audio, utt.rate)) if o.video_file else None
         try:
@@ -224,6 +231,28 @@ def speak_and_set_up(o: SayOptions, text: str, models: list, known: set[str]):
     finally:
         pool.shutdown(wait=False, cancel_futures=True)
     return utt, timelines, renderer, track
+
+
+@contextlib.contextmanager
+def recognition_bar(show: bool):
+    """A callback ``tick(done_s, total_s)`` that draws a progress bar of the seconds of audio
+    recognized (:func:`vtts.utterance.recognized`), made at its first call; none unless
+    ``show``."""
+    import math
+
+    from vtts.render import progress
+
+    with contextlib.ExitStack() as stack:
+        bars = []
+
+        def tick(done: float, total: float) -> None:
+            if not bars:
+                seconds = max(int(math.ceil(total)), 1)
+                bars.append(stack.enter_context(progress(seconds, "recognizing speech", not show)))
+            bar = bars[0]
+            bar.advance(max(int(done) - bar.completed, 0))
+
+        yield tick
 
 
 def _close_track(speaking: Future) -> None:

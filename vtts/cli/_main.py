@@ -31,6 +31,7 @@ def build_parser() -> argparse.ArgumentParser:
         pose,
         render,
         say,
+        serve,
         voices,
     )
 
@@ -52,6 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
         say.add_parser,
         analyze.add_parser,
         batch.add_parser,
+        serve.add_parser,
         voices.add_parser,
         coding.add_parser,
     ):

@@ -6,6 +6,7 @@ import argparse
 
 from vtts.cli.options import add_curves, add_detail, add_models, add_view, add_web, seed_type
 from vtts.messages import echo
+from vtts.speech.engine import DEFAULT_ENGINE, ENGINES
 
 
 def add_parser(sub) -> None:
@@ -26,15 +27,15 @@ def add_parser(sub) -> None:
     add_models(sy)
     sy.add_argument(
         "--engine",
-        choices=("espeak", "festival"),
-        default="espeak",
-        help="speech synthesizer: espeak-ng (default) or festival's HTS voice "
-        "(Debian festival, festvox-us-slt-hts)",
+        choices=tuple(ENGINES),
+        default=DEFAULT_ENGINE,
+        help="speech synthesizer: espeak-ng (default), festival's HTS voice (Debian festival, "
+        "festvox-us-slt-hts) or a Piper neural voice (the optional extra vtts[piper])",
     )
     sy.add_argument(
         "--voice",
-        help="espeak-ng voice (default en-us; see vtts voices), or with --engine festival a "
-        "festival voice (default cmu_us_slt_arctic_hts)",
+        help="the engine's voice (vtts voices lists them): espeak-ng's default en-us, "
+        "festival's cmu_us_slt_arctic_hts, Piper's first installed (en_US-joe-medium, or joe)",
     )
     sy.add_argument("--rate", type=int, help="speaking rate in words per minute")
     sy.add_argument("--pitch", type=int, help="pitch 0-99")
@@ -45,8 +46,9 @@ def add_parser(sub) -> None:
     )
     sy.add_argument(
         "--audio",
-        help="recorded speech of the text (WAV, FLAC, OGG, MP3, M4A …): the text is aligned to "
-        "it, or with --phonemes, the speech they describe",
+        help="recorded speech (WAV, FLAC, OGG, MP3, M4A …): the text is aligned to it; without "
+        "a text its phones are recognized from the sound (US English); with --phonemes, the "
+        "speech they describe",
     )
     sy.add_argument("--seed", type=seed_type, default=0, help="seed of the autonomous behaviour")
     sy.add_argument(

@@ -5,7 +5,7 @@
     DIR/index.html     the page (the player's settings inside it, as JSON)
     DIR/talk.glb       the heads and their animation (:func:`vtts.export.gltf.write_gltf`)
     DIR/speech.m4a     the audio as AAC, when there is audio
-    DIR/player.js      the player
+    DIR/player.js      the player (and head.js, the scene it shares with ``vtts serve``'s page)
     DIR/vendor/        three.js, its GLTFLoader and OrbitControls, and three's LICENSE
 
 The player and three.js are package data (``vtts/export/player/``; ``scripts/vendor_three.sh``
@@ -48,7 +48,7 @@ AUDIO_NAME = "speech.m4a"
 #: The mark of a folder written by :func:`write_web` (a line of its ``index.html``).
 MARK = '<meta name="generator" content="vtts web player">'
 #: What a web folder holds at its top: a folder holding anything else is not replaced.
-FOLDER_ENTRIES = frozenset({"index.html", "player.js", "vendor", GLB_NAME, AUDIO_NAME})
+FOLDER_ENTRIES = frozenset({"index.html", "player.js", "head.js", "vendor", GLB_NAME, AUDIO_NAME})
 #: The list of the files :func:`write_web` wrote (POSIX paths, one a line): on the next write,
 #: anything else found in the folder is the user's.
 FILES_NAME = ".vtts-files"
@@ -195,7 +195,8 @@ def write_web(
         )  # fmt: skip
         if audio is not None:
             encode_aac(audio, tmp / AUDIO_NAME)
-        shutil.copy2(PLAYER_DIR / "player.js", tmp / "player.js")
+        for script in ("player.js", "head.js"):
+            shutil.copy2(PLAYER_DIR / script, tmp / script)
         shutil.copytree(PLAYER_DIR / "vendor", tmp / "vendor")
         from vtts.export.gltf import unique_names
 

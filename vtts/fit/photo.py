@@ -168,6 +168,14 @@ class FittedHead:
                 Image.fromarray(image).save(target, format="PNG", compress_level=3)
         return paths
 
+    def written_model(self, path: str | Path) -> FaceModel:
+        """The head as :func:`~vtts.face.load_model` reads it back from ``path`` once
+        :meth:`write` has written it there — the same scene and tables, since the files hold
+        their numbers exactly — without reading the files again."""
+        model = FaceModel(self.scene, self.tables, Path(path))
+        model.scene.path = Path(path)  # its textures beside it
+        return model
+
     def model(self, folder: Path, name: str = "fitted") -> FaceModel:
         """The head as a :class:`~vtts.face.FaceModel` whose textures are written into
         ``folder``."""

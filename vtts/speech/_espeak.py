@@ -25,7 +25,6 @@ Events are ``[type, text_position, length, sample, payload]`` with payload the p
 from __future__ import annotations
 
 import ctypes
-import ctypes.util
 import json
 import sys
 
@@ -97,15 +96,8 @@ class Failure(Exception):
 
 
 def load_library(override: str | None = None) -> ctypes.CDLL:
-    if override:
-        names = [override]
-    else:
-        names = [LIBRARY]
-        found = ctypes.util.find_library("espeak-ng")
-        if found and found not in names:
-            names.append(found)
     errors = []
-    for name in names:
+    for name in _library_names(override):
         try:
             lib = ctypes.CDLL(name)
         except OSError as e:
@@ -114,6 +106,21 @@ def load_library(override: str | None = None) -> ctypes.CDLL:
         _declare(lib)
         return lib
     raise Failure("missing", "; ".join(errors) or f"{LIBRARY} not found")
+
+
+def _library_names(override: str | None):
+    """The names to load: ``override``, else :data:`LIBRARY`, then what ``find_library`` finds —
+    looked for only when ``LIBRARY`` does not load: ``ctypes.util`` imports ``subprocess`` and
+    ``shutil`` and ``find_library`` runs ``ldconfig``, most of a worker's start-up."""
+    if override:
+        yield override
+        return
+    yield LIBRARY
+    import ctypes.util
+
+    found = ctypes.util.find_library("espeak-ng")
+    if found and found != LIBRARY:
+        yield found
 
 
 def _declare(lib: ctypes.CDLL) -> None:

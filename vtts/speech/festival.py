@@ -392,3 +392,54 @@ def _marks(positions: list[int], words: list[Word], speech_end: float) -> list[M
         marks.append(Mark(str(k), t))
         previous = t
     return marks
+
+
+# ---- the engine (vtts.speech.engine) -------------------------------------------------------------
+
+#: Where Debian's festival keeps its voices (``voices/LANGUAGE/NAME``).
+VOICES_DIR = Path("/usr/share/festival/voices")
+#: What is known of the voices setup installs without running festival: sample rate (Hz) and
+#: licence (Debian's copyright file of ``festvox-us-slt-hts``).
+KNOWN_VOICES = {DEFAULT_VOICE: (32000, "BSD-3-Clause AND EST-2000 (CMU ARCTIC SLT)")}
+#: festival's voice folders by language → language codes.
+_LANGUAGES = {"us": "en-us", "english": "en-us", "british": "en-gb", "spanish": "es"}
+
+
+class FestivalEngine:
+    """festival as a :class:`vtts.speech.engine.Engine`: the plain text, each bookmark at the
+    start of the first word spoken at or after its place."""
+
+    name = "festival"
+    default_voice = DEFAULT_VOICE
+
+    def speak(self, text, *, voice=None, rate=None, pitch=None):
+        from vtts.speech.engine import Spoken, bookmark_positions
+
+        speech = synthesize(
+            text.text,
+            marks=bookmark_positions(text),
+            voice=voice or self.default_voice,
+            rate=rate,
+            pitch=pitch,
+        )
+        return Spoken(speech, [m.time for m in speech.marks])
+
+    def sentences(self, text, *, voice=None, rate=None):
+        yield self.speak(text, voice=voice, rate=rate)
+
+    def voices(self):
+        from vtts.speech.engine import VoiceInfo
+
+        if shutil.which("festival") is None or not VOICES_DIR.is_dir():
+            return []
+        found = []
+        for folder in sorted(VOICES_DIR.glob("*/*")):
+            if not folder.is_dir() or not _VOICE_NAME.match(folder.name):
+                continue
+            rate, licence = KNOWN_VOICES.get(folder.name, (None, "see its Debian package"))
+            language = _LANGUAGES.get(folder.parent.name, folder.parent.name)
+            found.append(VoiceInfo(self.name, folder.name, language, rate, licence, (language,)))
+        return found
+
+
+ENGINE = FestivalEngine()

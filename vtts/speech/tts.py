@@ -30,12 +30,15 @@ Facts measured with espeak-ng 1.51 (Debian ``espeak-ng``) that shape this module
 
 from __future__ import annotations
 
+import atexit
+import contextlib
 import json
 import os
 import re
 import string
 import subprocess
 import sys
+import threading
 import xml.parsers.expat
 from dataclasses import dataclass, field, replace
 from functools import cache
@@ -46,7 +49,10 @@ import numpy as np
 from vtts.errors import SpeechError
 from vtts.speech.phonemes import PAUSES, Mark, Phone, viseme_of
 
-__all__ = ["Mark", "Phone", "Speech", "Voice", "Word", "escape", "synthesize", "voices"]
+__all__ = [
+    "Mark", "Phone", "Speech", "Voice", "Word", "escape", "keep_workers_ready", "synthesize",
+    "voices",
+]  # fmt: skip
 
 _WORKER = Path(__file__).with_name("_espeak.py")
 #: Environment variable naming another espeak-ng shared library to load.
@@ -165,22 +171,85 @@ def _unescape(text: str) -> str:
 # ---- running espeak-ng -----------------------------------------------------------------------
 
 
+class _Spares:
+    """espeak-ng workers started ahead of their request (:func:`keep_workers_ready`)."""
+
+    def __init__(self) -> None:
+        self.count = 0
+        self.ready: list[subprocess.Popen] = []
+        self.lock = threading.Lock()
+
+    def take(self) -> subprocess.Popen:
+        """A started worker: a spare if one is ready, else a new one."""
+        with self.lock:
+            proc = self.ready.pop() if self.ready else None
+        if proc is not None and proc.poll() is None:
+            return proc
+        return _start_worker()
+
+    def refill(self) -> None:
+        with self.lock:
+            missing = self.count - len(self.ready)
+        started = [_start_worker() for _ in range(max(missing, 0))]
+        with self.lock:
+            self.ready += started
+
+    def drain(self) -> None:
+        with self.lock:
+            idle, self.ready = self.ready, []
+        for proc in idle:  # a worker whose request never comes reads the end of its input
+            with contextlib.suppress(OSError, subprocess.TimeoutExpired):
+                proc.communicate(timeout=5)
+
+
+_SPARES = _Spares()
+atexit.register(_SPARES.drain)
+
+
+def keep_workers_ready(count: int) -> None:
+    """Keep ``count`` espeak-ng workers started and waiting, each for one request, so that a
+    synthesis does not wait for its worker's start-up (the interpreter and its imports: most of
+    a short clause's time). For servers (``vtts serve``); 0, the default, starts each worker at
+    its request and stops the waiting ones. Each worker still synthesizes once, so the same text
+    still gives the same audio."""
+    _SPARES.count = max(int(count), 0)
+    if _SPARES.count == 0:
+        _SPARES.drain()
+    else:
+        _SPARES.refill()
+
+
+def _start_worker() -> subprocess.Popen:
+    try:
+        return subprocess.Popen(
+            [sys.executable, "-I", "-S", str(_WORKER)],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+        )
+    except OSError as e:
+        raise SpeechError(f"cannot start the espeak-ng worker: {e}") from None
+
+
 def _run_worker(request: dict, timeout: float) -> tuple[dict, bytes]:
     library = os.environ.get(LIBRARY_ENV)
     if library:
         request = {**request, "library": library}
+    proc = _SPARES.take()
     try:
-        proc = subprocess.run(
-            [sys.executable, "-I", "-S", str(_WORKER)],
-            input=json.dumps(request).encode("utf-8"),
-            capture_output=True,
-            timeout=timeout,
-            check=False,
-        )
+        stdout, stderr = proc.communicate(json.dumps(request).encode("utf-8"), timeout=timeout)
     except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.communicate()
         raise SpeechError(f"espeak-ng did not finish within {timeout:.0f} s") from None
-    except OSError as e:
-        raise SpeechError(f"cannot start the espeak-ng worker: {e}") from None
+    except BaseException:
+        proc.kill()
+        proc.communicate()
+        raise
+    finally:
+        if _SPARES.count:
+            _SPARES.refill()
+    proc = subprocess.CompletedProcess(proc.args, proc.returncode, stdout, stderr)
     head, newline, payload = proc.stdout.partition(b"\n")
     try:
         header = json.loads(head) if newline else None
@@ -543,3 +612,54 @@ def _marks(
         marks.append(Mark(name, t))
         previous = t
     return marks
+
+
+# ---- the engine (vtts.speech.engine) -------------------------------------------------------------
+
+#: espeak-ng's voices and program (Debian ``espeak-ng``).
+LICENCE = "GPL-3.0-or-later"
+#: The rate espeak-ng speaks at in synchronous mode, Hz.
+SAMPLE_RATE = 22050
+
+
+class EspeakEngine:
+    """espeak-ng as a :class:`vtts.speech.engine.Engine`: SSML with a ``<mark/>`` per bookmark
+    (named ``b0``, ``b1`` … in order), each bookmark at its mark's time."""
+
+    name = "espeak"
+    default_voice = "en-us"
+
+    def speak(self, text, *, voice=None, rate=None, pitch=None):
+        from vtts.speech.engine import Spoken, end_of_word_before
+
+        speech = synthesize(text.ssml(), voice=voice or self.default_voice, rate=rate, pitch=pitch)
+        times = [m.time for m in speech.marks]
+        if text.before_punctuation:
+            end_of_word_before(text, speech.words, times)
+        return Spoken(speech, times)
+
+    def sentences(self, text, *, voice=None, rate=None):
+        yield self.speak(text, voice=voice, rate=rate)
+
+    def voices(self):
+        from vtts.speech.engine import VoiceInfo
+
+        try:
+            found = voices()
+        except SpeechError:
+            return []
+        return [
+            VoiceInfo(
+                self.name,
+                v.language,
+                v.language,
+                SAMPLE_RATE,
+                LICENCE,
+                v.languages,
+                f"{v.name} ({v.identifier})",
+            )  # fmt: skip
+            for v in found
+        ]
+
+
+ENGINE = EspeakEngine()

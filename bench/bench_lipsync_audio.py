@@ -1,0 +1,424 @@
+"""Lip-sync from the voice alone (issue 43): visemes recognized from audio without its text,
+against the truth of speech whose phone times are known.
+
+Three paths, each giving a viseme (silence or one of the 14 MPEG-4 visemes) per 10 ms frame:
+
+(a) **recognized**: ``vtts.speech.recognize.recognize`` (PocketSphinx allphone; the energy where
+    no phone is recognized in audible sound) — ``vtts say --audio REC``;
+(b) **aligned**: the transcript aligned to the audio (``vtts.align.align``) — ``vtts say --audio
+    REC --text T``, the upper bound;
+(c) **energy only**: ``vtts.speech.energy.energy_visemes`` alone — what cheap lip-sync does.
+
+Truth: festival's HTS voice (its utterance's segment times; also faster, and in white noise at
+20 dB SNR) and espeak-ng's own phone events with several voices; the visemes of each engine's
+phones (``vtts/data/phoneme_visemes.tsv``). Real read speech: Debian's ``pocketsphinx-testdata``
+(five LibriVox sentences and five card names, 16 kHz), whose truth is PocketSphinx's own forced
+alignment of the transcript at phone level — the same acoustic model as (a), which favours it:
+those rows are labelled so.
+
+Figures: **agreement**, the share of 10 ms frames whose viseme is the truth's (all frames, and
+the frames where the truth speaks); **bilabial closures**: of the truth's p, b, m, the share whose
+centre has a bilabial of the path within one 30 Hz frame (1/30 s); **speed**: recognition's wall
+and CPU time as a fraction of the audio's duration (60 s of festival's speech in one file);
+**live latency**: :class:`~vtts.speech.recognize.LiveRecognizer` fed 20 ms chunks in real time
+(simulated: each chunk arrives when its last sample would, is processed once it has arrived and
+the one before is done, the measured wall time of each ``feed``); a frame's latency is from its
+last sample's arrival to the ``feed`` that gives its viseme; p50, p95 and the share of real time
+the processing took. **End to end**: ``vtts play --audio - -o -`` (cybatt, 176×144) in its own
+process, fed 30 s of the voice at the pace of real time; a frame's latency is from the writing
+of the sound of its time to its arrival on stdout (the recognizer, the voice track's 40 ms lead
+and the rendering together).
+
+Sentences: :data:`TUNING` and :data:`HELD_OUT`, written and committed before any tuning; the held
+out ones (and the real speech's :data:`REAL_HELD_OUT`) are kept out of every tuning run and
+reported apart. ``VTTS_BENCH_QUICK=1``: two sentences and two voices.
+Targets (issue 43): (a) within 15 points of (b) and far above (c); bilabials >= 85 %; speed <=
+0.1 of the duration; live latency p95 <= 150 ms.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import time
+from pathlib import Path
+from xml.sax.saxutils import escape
+
+import numpy as np
+
+BENCH = "lipsync_audio"
+TUNING = [
+    "My mother bought a basket of apples at the market on Monday.",
+    "The big brown bear ambled past the empty cabin.",
+    "Please remember to bring a warm sweater to the lake.",
+    "Fifteen players waited patiently for the bus to the stadium.",
+    "We watched the ships move slowly through the harbor at sunset.",
+    "Bob put the maps and the compass back in the pocket of his bag.",
+    "Her favorite movie is about a robot who learns to paint.",
+    "Jump over the puddle, then wipe your boots on the mat.",
+]
+HELD_OUT = [
+    "Maybe the baby would sleep better with the lamp turned off.",
+    "A thousand birds flew above the village before the storm.",
+    "Put the plums and the bread in the blue paper bag.",
+    "Amelia plays the trumpet in the school band every Tuesday.",
+    "The map shows a path between the mountains and the beach.",
+    "Somebody left a bottle of milk by the window all morning.",
+    "Bring your problems to the meeting, and we will fix them.",
+    "The submarine emerged from the deep water without a sound.",
+]
+#: (name, engine, voice, rate, pitch, SNR in dB of added white noise or None)
+VOICES = [
+    ("festival HTS", "festival", None, None, None, None),
+    ("festival HTS fast", "festival", None, 210, None, None),
+    ("festival HTS in noise (SNR 20 dB)", "festival", None, None, None, 20),
+    ("espeak en-us", "espeak", "en-us", None, None, None),
+    ("espeak en-us+f3 140 wpm p70", "espeak", "en-us+f3", 140, 70, None),
+    ("espeak en-gb 160 wpm p40", "espeak", "en-gb", 160, 40, None),
+]
+#: pocketsphinx-testdata's real speech: (folder, file id) kept for tuning and held out
+REAL_DIR = Path("/usr/share/pocketsphinx/test/data")
+REAL_TUNING = [
+    ("librivox", "sense_and_sensibility_01_austen_64kb-0870"),
+    ("librivox", "sense_and_sensibility_01_austen_64kb-0890"),
+    ("librivox", "sense_and_sensibility_01_austen_64kb-0930"),
+    ("cards", "001"),
+    ("cards", "002"),
+]
+REAL_HELD_OUT = [
+    ("librivox", "sense_and_sensibility_01_austen_64kb-0880"),
+    ("librivox", "sense_and_sensibility_01_austen_64kb-0920"),
+    ("cards", "003"),
+    ("cards", "004"),
+    ("cards", "005"),
+]
+FRAME = 0.010
+FPS = 30.0
+QUICK = bool(os.environ.get("VTTS_BENCH_QUICK"))
+
+
+def _speak(engine: str, text: str, voice, rate, pitch):
+    if engine == "festival":
+        from vtts.speech import festival
+
+        return festival.synthesize(text, rate=rate, pitch=pitch)
+    from vtts.speech.tts import synthesize
+
+    return synthesize(escape(text), voice=voice, rate=rate, pitch=pitch)
+
+
+def frames_of(phones, n: int) -> np.ndarray:
+    """``(n,)`` int8 viseme per 10 ms frame of phones (``start``, ``end`` s, ``viseme``): the
+    phone covering the frame's middle."""
+    out = np.zeros(n, np.int8)
+    mids = (np.arange(n) + 0.5) * FRAME
+    for p in phones:
+        a, b = np.searchsorted(mids, [p.start, p.end])
+        out[a:b] = p.viseme or 0
+    return out
+
+
+def _bilabials(truth_phones, path_phones) -> tuple[int, int]:
+    """(found, total) truth bilabials with a path bilabial's centre within 1/30 s of theirs."""
+    centres = np.array([0.5 * (p.start + p.end) for p in path_phones if p.viseme == 1])
+    found = total = 0
+    for p in truth_phones:
+        if p.viseme != 1:
+            continue
+        total += 1
+        c = 0.5 * (p.start + p.end)
+        found += bool(centres.size and np.min(np.abs(centres - c)) <= 1.0 / FPS + 1e-9)
+    return found, total
+
+
+def _phones_of(vis: np.ndarray):
+    """Runs of a per-frame viseme array as phones (for the energy path's bilabials: none)."""
+    from vtts.speech.phonemes import Phone
+
+    edges = np.concatenate([[0], np.flatnonzero(np.diff(vis)) + 1, [vis.size]])
+    runs = zip(edges[:-1], edges[1:], strict=True)
+    return [Phone(a * FRAME, b * FRAME, "", int(vis[a])) for a, b in runs]
+
+
+class Tally:
+    """Frames agreeing, frames, speech frames agreeing, speech frames, bilabials found/total."""
+
+    def __init__(self) -> None:
+        self.same = self.n = self.speech_same = self.speech = self.bil = self.bil_total = 0
+
+    def add(self, truth: np.ndarray, got: np.ndarray, bil: tuple[int, int]) -> None:
+        n = min(truth.size, got.size)
+        t, g = truth[:n], got[:n]
+        self.same += int(np.sum(t == g))
+        self.n += n
+        self.speech_same += int(np.sum((t == g) & (t != 0)))
+        self.speech += int(np.sum(t != 0))
+        self.bil += bil[0]
+        self.bil_total += bil[1]
+
+
+def _paths(samples: np.ndarray, rate: int, ssml: str | None, truth_phones) -> dict:
+    """The three paths' (frames, phones) for one recording."""
+    from vtts.align import align
+    from vtts.speech.audio import resample
+    from vtts.speech.energy import energy_frames, energy_visemes
+    from vtts.speech.recognize import recognize
+
+    n = int(np.ceil(len(samples) / rate / FRAME))
+    rec = recognize(samples, rate)
+    out = {"recognized": (frames_of(rec.phones, n), rec.phones)}
+    if ssml is not None:
+        al = align(samples, rate, ssml)
+        out["aligned"] = (frames_of(al.phones, n), al.phones)
+    ev = energy_visemes(energy_frames(resample(samples, rate, 16000), 16000))[:n]
+    out["energy only"] = (ev, _phones_of(ev))
+    return out
+
+
+def _synthetic(texts: list[str], voice: tuple, tallies: dict) -> None:
+    _, engine, name, rate, pitch, snr = voice
+    rng = np.random.default_rng(0)
+    for text in texts:
+        speech = _speak(engine, text, name, rate, pitch)
+        samples = speech.audio.astype(np.float32) / np.float32(32768)
+        if snr is not None:
+            power = np.mean(samples[np.abs(samples) > 0.01] ** 2)
+            sigma = np.sqrt(power / 10 ** (snr / 10))
+            samples = samples + rng.normal(0, sigma, len(samples)).astype(np.float32)
+        truth_phones = list(speech.phonemes)
+        n = int(np.ceil(len(samples) / speech.rate / FRAME))
+        truth = frames_of(truth_phones, n)
+        for path, (got, phones) in _paths(
+            samples, int(speech.rate), f"<speak>{escape(text)}</speak>", truth_phones
+        ).items():
+            tallies.setdefault(path, Tally()).add(truth, got, _bilabials(truth_phones, phones))
+
+
+def _transcripts() -> dict[tuple[str, str], str]:
+    out = {}
+    for folder, name in (("librivox", "transcription"), ("cards", "cards.transcription")):
+        for line in (REAL_DIR / folder / name).read_text().splitlines():
+            m = re.match(r"\s*<s>(.*)</s>\s*\((\S+)\)", line)
+            if m:
+                out[(folder, m[2])] = " ".join(m[1].split())
+    return out
+
+
+def _forced(samples_i16: np.ndarray, text: str):
+    """PocketSphinx's phone-level forced alignment of ``text`` (the truth of the real speech)."""
+    from pocketsphinx import Decoder, get_model_path
+
+    from vtts.speech.phonemes import Phone
+    from vtts.speech.recognize import phone_viseme
+
+    root = os.path.join(get_model_path(), "en-us")
+    d = Decoder(hmm=os.path.join(root, "en-us"), dict=os.path.join(root, "cmudict-en-us.dict"),
+                lm=None, loglevel="FATAL", logfn=os.devnull)  # fmt: skip
+    d.set_align_text(text)
+    for _ in range(2):  # the words, then (set_alignment) the phones
+        d.start_utt()
+        d.process_raw(samples_i16.tobytes(), full_utt=True)
+        d.end_utt()
+        if _ == 0:
+            d.set_alignment()
+    phones = []
+    for w in d.get_alignment():
+        for p in w:
+            start, end = p.start * FRAME, (p.start + p.duration) * FRAME
+            phones.append(Phone(start, end, p.name, phone_viseme(p.name)))
+    return phones
+
+
+def _real(items, tallies: dict) -> None:
+    import soundfile as sf
+
+    texts = _transcripts()
+    for folder, name in items:
+        x, rate = sf.read(str(REAL_DIR / folder / f"{name}.wav"), dtype="int16")
+        text = texts[(folder, name)]
+        truth_phones = _forced(x, text)
+        samples = x.astype(np.float32) / np.float32(32768)
+        n = int(np.ceil(len(samples) / rate / FRAME))
+        truth = frames_of(truth_phones, n)
+        for path, (got, phones) in _paths(
+            samples, rate, f"<speak>{escape(text)}</speak>", truth_phones
+        ).items():
+            tallies.setdefault(path, Tally()).add(truth, got, _bilabials(truth_phones, phones))
+
+
+def _speed_audio(seconds: float) -> tuple[np.ndarray, int]:
+    """About ``seconds`` of festival's speech of the tuning sentences, repeated."""
+    from vtts.speech import festival
+
+    sp = festival.synthesize(" ".join(TUNING[:4]))
+    x = sp.audio.astype(np.float32) / np.float32(32768)
+    reps = int(np.ceil(seconds * sp.rate / len(x)))
+    return np.tile(x, reps)[: int(seconds * sp.rate)], int(sp.rate)
+
+
+def _speed(x: np.ndarray, rate: int) -> tuple[float, float]:
+    from vtts.speech.recognize import recognize
+
+    w, c = time.perf_counter(), time.process_time()
+    recognize(x, rate)
+    d = len(x) / rate
+    return (time.perf_counter() - w) / d, (time.process_time() - c) / d
+
+
+def live_latency(x: np.ndarray, rate: int, chunk_s: float = 0.02) -> dict:
+    """Latency of :class:`LiveRecognizer` fed ``chunk_s`` chunks in simulated real time (see
+    the module docstring): ``p50``, ``p95`` (s) and ``load`` (processing / duration)."""
+    from vtts.speech.recognize import LiveRecognizer
+
+    pcm = np.round(np.clip(x, -1, 1) * 32767).astype(np.int16)
+    live = LiveRecognizer(rate)
+    step = int(round(chunk_s * rate))
+    clock = 0.0  # when the processing of the previous chunk ended, in the stream's time
+    busy = 0.0
+    lat: list[float] = []
+    for a in range(0, len(pcm), step):
+        arrived = min(a + step, len(pcm)) / rate
+        start = max(arrived, clock)
+        t = time.perf_counter()
+        out = live.feed(pcm[a : a + step])
+        spent = time.perf_counter() - t
+        busy += spent
+        clock = start + spent
+        first = live.frames_out - out.size
+        ends = (np.arange(first, live.frames_out) + 1) * FRAME
+        lat += (clock - np.minimum(ends, arrived)).tolist()
+    e = np.asarray(lat)
+    return {"p50": float(np.median(e)), "p95": float(np.percentile(e, 95)),
+            "load": busy / (len(pcm) / rate)}  # fmt: skip
+
+
+def live_end_to_end(x: np.ndarray, rate: int, size: str = "176x144") -> dict:
+    """``vtts play --audio - --model cybatt -o -`` fed ``x`` in 20 ms chunks at the pace of
+    real time (a thread writes each chunk when its last sample would exist): each frame's
+    latency is from when the sound of its time (frame ``i`` at ``i / 30`` s) was written to when
+    the frame arrived on stdout — the recognizer, the voice track's lead and the rendering
+    together. ``p50``, ``p95`` and ``late`` (the last frame's, s)."""
+    import subprocess
+    import sys
+    import threading
+
+    w, h = (int(v) for v in size.split("x"))
+    pcm = np.round(np.clip(x, -1, 1) * 32767).astype("<i2")
+    exe = [sys.executable, "-c", "from vtts.cli import run; run()"]
+    cmd = [*exe, "play", "--audio", "-", "--rate", str(rate), "--model", "cybatt",
+           "--size", size, "--quiet", "-o", "-"]  # fmt: skip
+    proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+    step = rate // 50
+    # wait for the process to start (imports, the model, the renderer) before the voice begins
+    time.sleep(4.0)
+    start = time.perf_counter()
+
+    def feed() -> None:
+        for a in range(0, len(pcm), step):
+            due = start + min(a + step, len(pcm)) / rate
+            time.sleep(max(due - time.perf_counter(), 0))
+            proc.stdin.write(pcm[a : a + step].tobytes())
+            proc.stdin.flush()
+        proc.stdin.close()
+
+    t = threading.Thread(target=feed, daemon=True)
+    t.start()
+    frame = w * h * 3
+    arrived = []
+    while chunk := proc.stdout.read(frame):
+        if len(chunk) < frame:
+            break
+        arrived.append(time.perf_counter() - start)
+    proc.wait()
+    t.join()
+    lat = np.array(arrived) - np.arange(len(arrived)) / 30.0
+    live_end_to_end.last = lat
+    return {"p50": float(np.median(lat)), "p95": float(np.percentile(lat, 95)),
+            "late": float(lat[-1]), "frames": len(arrived)}  # fmt: skip
+
+
+def _row(case: str, value, unit: str, target: str = "", ok=None) -> dict:
+    return {"benchmark": BENCH, "case": case, "value": value, "unit": unit, "target": target,
+            "ok": ok}  # fmt: skip
+
+
+def _agreement_rows(label: str, tallies: dict) -> list[dict]:
+    rows = []
+    b = tallies.get("aligned")
+    for path in ("recognized", "aligned", "energy only"):
+        t = tallies.get(path)
+        if t is None:
+            continue
+        pct = 100.0 * t.same / max(t.n, 1)
+        target, ok = "", None
+        if path == "recognized" and b is not None:
+            gap = 100.0 * b.same / max(b.n, 1) - pct
+            target, ok = "within 15 of aligned", gap <= 15
+        rows.append(_row(f"{label}: {path}: agreement, all frames ({t.n})", pct, "%", target, ok))
+        sp = 100.0 * t.speech_same / max(t.speech, 1)
+        rows.append(_row(f"{label}: {path}: agreement, speech frames ({t.speech})", sp, "%"))
+        if path != "energy only":
+            bil = 100.0 * t.bil / max(t.bil_total, 1)
+            tgt, ok = ("≥ 85", bil >= 85) if path == "recognized" else ("", None)
+            rows.append(
+                _row(
+                    f"{label}: {path}: bilabials within 1/30 s (of {t.bil_total})",
+                    bil,
+                    "%",
+                    tgt,
+                    ok,
+                )  # fmt: skip
+            )
+    return rows
+
+
+def run() -> list[dict]:
+    rows: list[dict] = []
+    voices = VOICES[:1] + VOICES[3:4] if QUICK else VOICES
+    for label, texts in (("tuning", TUNING), ("held out", HELD_OUT)):
+        texts = texts[:2] if QUICK else texts
+        every: dict = {}
+        for voice in voices:
+            tallies: dict = {}
+            _synthetic(texts, voice, tallies)
+            rows += _agreement_rows(f"{label}, {voice[0]}", tallies)
+            for path, t in tallies.items():
+                acc = every.setdefault(path, Tally())
+                for k in vars(t):
+                    setattr(acc, k, getattr(acc, k) + getattr(t, k))
+        rows += _agreement_rows(f"{label}, all synthetic voices", every)
+    if REAL_DIR.is_dir():
+        for label, items in (("tuning", REAL_TUNING), ("held out", REAL_HELD_OUT)):
+            tallies = {}
+            _real(items[:2] if QUICK else items, tallies)
+            rows += _agreement_rows(
+                f"{label}, real speech (truth: pocketsphinx's forced alignment)", tallies
+            )
+    else:
+        rows.append(_row("real speech: pocketsphinx-testdata not installed", None, ""))
+    x, rate = _speed_audio(20.0 if QUICK else 60.0)
+    wall, cpu = _speed(x, rate)
+    d = len(x) / rate
+    rows.append(_row(f"speed: recognize {d:.0f} s of speech, wall", wall, "× duration", "≤ 0.1",
+                     wall <= 0.1))  # fmt: skip
+    rows.append(_row(f"speed: recognize {d:.0f} s of speech, CPU", cpu, "× duration"))
+    lat = live_latency(x, rate)
+    rows.append(_row("live: latency p50 (20 ms chunks)", 1000 * lat["p50"], "ms"))
+    rows.append(_row("live: latency p95 (20 ms chunks)", 1000 * lat["p95"], "ms", "≤ 150",
+                     lat["p95"] <= 0.150))  # fmt: skip
+    rows.append(_row("live: processing / real time", lat["load"], "×", "< 1", lat["load"] < 1))
+    e2e = live_end_to_end(x[: int((10.0 if QUICK else 30.0) * rate)], rate)
+    rows.append(_row(f"live, vtts play --audio - -o - ({e2e['frames']} frames): frame latency p50",
+                     1000 * e2e["p50"], "ms"))  # fmt: skip
+    rows.append(_row("live, vtts play --audio - -o -: frame latency p95", 1000 * e2e["p95"],
+                     "ms"))  # fmt: skip
+    return rows
+
+
+if __name__ == "__main__":
+    for r in run():
+        v = r["value"]
+        print(
+            f"{r['case']:<95} {v if not isinstance(v, float) else round(v, 3)!s:>8} {r['unit']}"
+            f"  {r['target']}  {'' if r['ok'] is None else ('ok' if r['ok'] else 'MISSED')}"
+        )

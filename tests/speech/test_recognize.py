@@ -1,0 +1,288 @@
+"""Lip-sync from the voice alone (issue 43): phones recognized by PocketSphinx, the energy's mouth
+shapes where none is, the live recognizer and ``vtts say --audio REC`` without a text, with bad
+input of every kind (silence, noise, music, clipping, rates, channels, NaN, a 2-hour file)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import soundfile as sf
+
+from vtts.errors import SpeechError
+from vtts.speech.energy import FRAME_S, energy_frames, energy_visemes
+from vtts.speech.recognize import (
+    LiveRecognizer,
+    RecognizerOptions,
+    StreamResampler,
+    _cuts,
+    recognize,
+)
+
+from ..in_process import vtts
+
+HEAD = Path(__file__).parents[1] / "data" / "models" / "head.wrl"
+TEXT = "Bob bought a map of Boston, and my mother made some plum jam."
+
+
+@pytest.fixture(scope="module")
+def speech():
+    """festival's speech of :data:`TEXT` (its HTS voice: a recognizer is no judge of espeak-ng's
+    speech, see docs/speech.md): ``(samples float32, rate, phones)``."""
+    from vtts.speech.festival import synthesize
+
+    sp = synthesize(TEXT)
+    return sp.audio.astype(np.float32) / 32768, int(sp.rate), list(sp.phonemes)
+
+
+@pytest.fixture(scope="module")
+def recognized(speech):
+    x, rate, _ = speech
+    return recognize(x, rate)
+
+
+def _truth(phones, n: int) -> np.ndarray:
+    out = np.zeros(n, np.int8)
+    mids = (np.arange(n) + 0.5) * FRAME_S
+    for p in phones:
+        a, b = np.searchsorted(mids, [p.start, p.end])
+        out[a:b] = p.viseme
+    return out
+
+
+def _tones(rate: int = 16000) -> np.ndarray:
+    """Two seconds of music: notes of a scale with attacks and decays, chords of harmonics."""
+    t = np.arange(int(0.25 * rate)) / rate
+    notes = []
+    for f in (262, 294, 330, 349, 392, 440, 494, 523):
+        env = np.exp(-4 * t) * np.minimum(t / 0.01, 1)
+        notes.append(env * sum(np.sin(2 * np.pi * f * k * t) / k for k in (1, 2, 3)))
+    return (0.3 * np.concatenate(notes)).astype(np.float32)
+
+
+def test_phones_cover_the_audio_and_agree_with_the_truth_better_than_energy(speech, recognized):
+    x, rate, phones = speech
+    rec = recognized
+    assert rec.phones[0].start == 0 and rec.phones[-1].end == pytest.approx(len(x) / rate)
+    for a, b in zip(rec.phones, rec.phones[1:], strict=False):
+        assert a.end == pytest.approx(b.start) and a.start < a.end
+    assert all(0 <= p.viseme <= 14 for p in rec.phones)
+    n = rec.visemes.size
+    truth = _truth(phones, n)
+    energy = energy_visemes(energy_frames(x, rate))[:n]
+    speaking = truth != 0
+    mine = float(np.mean(rec.visemes[speaking] == truth[speaking]))
+    assert mine > 0.3 and mine > float(np.mean(energy[speaking] == truth[speaking])) + 0.15
+    # most of the audible speech is recognized, not filled in from the energy
+    assert rec.recognized > 3 * rec.filled
+    assert any(p.viseme == 1 for p in rec.phones)  # lips closed somewhere in "Bob … map …"
+
+
+def test_silence_is_one_pause_and_noise_no_speech() -> None:
+    rate = 16000
+    rec = recognize(np.zeros(rate, np.float32), rate)
+    assert [(p.phoneme, p.viseme) for p in rec.phones] == [("SIL", 0)]
+    rng = np.random.default_rng(0)
+    quiet = rng.normal(0, 0.003, rate).astype(np.float32)  # a room's hiss: a still face
+    assert all(p.viseme == 0 for p in recognize(quiet, rate).phones)
+    loud = rng.normal(0, 0.1, rate).astype(np.float32)  # loud hiss: at most the teeth together
+    assert {p.viseme for p in recognize(loud, rate).phones} <= {0, 7}
+
+
+def test_music_moves_the_mouth() -> None:
+    """Never a frozen face over audible sound: where nothing is recognized, the energy."""
+    x = _tones()
+    rec = recognize(x, 16000)
+    fr = energy_frames(x, 16000)
+    audible = fr.db > fr.db.max() - 30
+    assert np.mean(rec.visemes[audible[: rec.visemes.size]] != 0) > 0.8
+    off = recognize(x, 16000, RecognizerOptions(fill=False))
+    assert off.filled == 0 and rec.filled >= off.filled
+
+
+def test_clipped_and_nan_samples(speech, recognized) -> None:
+    x, rate, _ = speech
+    x = x[: int(1.5 * rate)]  # "Bob bought a map of …"
+    clipped = np.clip(x * 20, -1, 1)
+    rec = recognize(clipped, rate)
+    n = rec.visemes.size
+    assert np.mean(rec.visemes != 0) > 0.5 * np.mean(recognized.visemes[:n] != 0)
+    holed = x.copy()
+    holed[::50] = np.nan
+    rec = recognize(holed, rate)
+    assert all(np.isfinite([p.start for p in rec.phones]))
+
+
+@pytest.mark.parametrize("rate", [1, 7999])
+def test_rates_below_8_khz_are_refused(rate: int) -> None:
+    with pytest.raises(SpeechError, match=f"sampled at {rate} Hz; recognizing speech needs"):
+        recognize(np.zeros(100, np.float32), rate)
+    with pytest.raises(SpeechError, match="at least 8000"):
+        LiveRecognizer(rate)
+
+
+def test_options_are_checked() -> None:
+    with pytest.raises(SpeechError, match="beam must be in"):
+        RecognizerOptions(beam=2.0)
+    with pytest.raises(SpeechError, match="language_weight"):
+        RecognizerOptions(language_weight=0)
+
+
+def test_long_audio_in_pieces_cut_at_quiet_frames_with_progress() -> None:
+    db = np.zeros(9500)
+    db[2800] = db[5700] = -90  # the quietest frames in each piece's last 5 s
+    # the third piece has no quieter frame: it is cut where its last 5 s begin
+    assert _cuts(db, 3000, 500) == [2800, 5700, 8200]
+    seen = []
+    recognize(np.zeros(65 * 8000, np.float32), 8000, progress=lambda d, t: seen.append((d, t)))
+    assert len(seen) == 3 and seen[-1] == (65.0, 65.0)
+    assert [d for d, _ in seen] == sorted(d for d, _ in seen)
+
+
+def test_stream_resampler_has_no_seams() -> None:
+    x = np.random.default_rng(1).normal(0, 0.1, 44100).astype(np.float32)
+    whole = StreamResampler(44100, 16000)(x)
+    r = StreamResampler(44100, 16000)
+    cuts = [0, 1, 2, 441, 1000, 1001, 30000, 44100]
+    parts = np.concatenate([r(x[a:b]) for a, b in zip(cuts, cuts[1:], strict=False)])
+    assert parts.size == whole.size and np.allclose(parts, whole, atol=1e-6)
+    assert abs(whole.size - 16000) <= 1
+
+
+def test_live_gives_every_frame_once_and_follows_the_file(speech, recognized) -> None:
+    x, rate, phones = speech
+    pcm = np.round(x * 32767).astype(np.int16)
+    live = LiveRecognizer(rate)
+    step = rate // 50
+    out = [live.feed(pcm[a : a + step]) for a in range(0, len(pcm), step)]
+    # (a chunk of nothing and one of a single sample are fine)
+    out += [live.feed(pcm[:0]), live.feed(pcm[:1]), live.finish()]
+    vis = np.concatenate(out)
+    n = int(np.ceil((len(pcm) + 1) / rate / FRAME_S))
+    assert abs(vis.size - n) <= 1 and live.frames_out == vis.size
+    truth = _truth(phones, vis.size)
+    assert np.mean(vis == truth) > 0.3
+    assert np.mean((vis != 0) == (truth != 0)) > 0.8  # the mouth moves where the voice speaks
+
+
+# ---- vtts say --audio REC, vtts play --audio - --------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def wav(speech, tmp_path_factory) -> Path:
+    x, rate, _ = speech
+    path = tmp_path_factory.mktemp("rec") / "rec.wav"
+    sf.write(path, x, rate)
+    return path
+
+
+def test_say_without_text_writes_the_recognized_timings(wav: Path, tmp_path: Path) -> None:
+    tsv = tmp_path / "t.tsv"
+    r = vtts("say", "--audio", wav, "--model", HEAD, "--timings-out", tsv, "--fap-out",
+             tmp_path / "f.fap", "--quiet")  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    rows = [ln.split("\t") for ln in tsv.read_text().splitlines()[1:]]
+    assert rows and all(row[0] == "phone" for row in rows)  # phones, no words
+    assert {"B", "M"} & {row[3] for row in rows}
+    # the table reads back as a phoneme file, visemes as written
+    r = vtts("say", "x", "--phonemes", tsv, "--audio", wav, "--model", HEAD, "--timings-out",
+             tmp_path / "again.tsv", "--quiet")  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "again.tsv").read_text().count("\tphone") == 0
+    assert [r[4] for r in rows] == [
+        ln.split("\t")[4] for ln in (tmp_path / "again.tsv").read_text().splitlines()[1:]
+    ]
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--voice", "de"], "--voice do not apply to a recording without its text"),
+        (["--rate", "120"], "--rate do not apply"),
+        (["--engine", "festival"], "--engine festival do not apply"),
+    ],
+)
+def test_say_without_text_refuses_what_shapes_speech(wav, tmp_path, args, message) -> None:
+    r = vtts("say", "--audio", wav, "--model", HEAD, "--timings-out", tmp_path / "t.tsv", *args)
+    assert r.returncode == 1 and message in r.stderr and "Traceback" not in r.stderr
+    assert not (tmp_path / "t.tsv").exists()
+
+
+def _bad(tmp_path: Path, name: str, data: np.ndarray, rate: int, **kw) -> Path:
+    path = tmp_path / name
+    sf.write(path, data, rate, **kw)
+    return path
+
+
+@pytest.mark.parametrize("case", ["1 Hz", "384 kHz", "2 hours"])
+def test_say_without_text_bad_recordings_are_clear_errors(tmp_path: Path, case: str) -> None:
+    if case == "1 Hz":
+        path, message = _bad(tmp_path, "a.wav", np.zeros(10, np.float32), 1), "sampled at 1 Hz"
+    elif case == "384 kHz":
+        path, message = _bad(tmp_path, "a.wav", np.zeros(100, np.float32), 384000), "384000 Hz"
+    else:  # two hours of silence (a FLAC of 500 Hz: small, quick to write)
+        path = tmp_path / "long.flac"
+        with sf.SoundFile(path, "w", 500, 1, format="FLAC") as f:
+            for _ in range(120):
+                f.write(np.zeros(500 * 60, np.int16))
+        message = "lasts 7200 s, more than the limit"
+    r = vtts("say", "--audio", path, "--model", HEAD, "--timings-out", tmp_path / "t.tsv")
+    assert r.returncode == 1 and message in r.stderr and str(path) in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr and not (tmp_path / "t.tsv").exists()
+
+
+def test_say_without_text_six_channels_nan_and_music(speech, tmp_path: Path) -> None:
+    x, rate, _ = speech
+    six = np.stack([x, -x, x, 0 * x, x, x], axis=1)
+    six[::100, 2] = np.nan
+    path = _bad(tmp_path, "six.wav", six, rate, subtype="FLOAT")
+    tsv = tmp_path / "t.tsv"
+    r = vtts("say", "--audio", path, "--model", HEAD, "--timings-out", tsv, "--quiet")
+    assert r.returncode == 0, r.stderr
+    assert tsv.read_text().count("\t1\n") >= 1  # a bilabial
+    music = _bad(tmp_path, "m.wav", _tones(), 16000)
+    r = vtts("say", "--audio", music, "--model", HEAD, "--timings-out", tsv, "--quiet")
+    assert r.returncode == 0, r.stderr
+    assert "~" in tsv.read_text() or "\t10\n" in tsv.read_text()
+
+
+def test_play_follows_a_voice_on_stdin_that_stops_mid_sample(speech, tmp_path: Path) -> None:
+    x, rate, _ = speech
+    part = np.round(x[: rate // 2] * 32767).astype("<i2").tobytes() + b"\x07"  # half a sample
+    r = vtts("play", "--audio", "-", "--rate", str(rate), "--model", HEAD, "--size", "64x48",
+             "--png-dir", tmp_path / "png", "--quiet", stdin=part)  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert "ended inside a sample" in r.stderr
+    assert len(list((tmp_path / "png").glob("*.png"))) == 15  # 0.5 s at 30 fps
+    # half a sample and nothing more: no voice at all (an error, no empty video)
+    r = vtts("play", "--audio", "-", "--model", HEAD, "-o", tmp_path / "none.mp4", stdin=b"\x01")
+    assert r.returncode == 1 and "no voice came on stdin" in r.stderr, r.stderr
+    assert not (tmp_path / "none.mp4").exists()
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["x.fap", "--audio", "-"], "give no stream"),
+        (["--rate", "16000", "-o", "o.mp4"], "give --audio - with it"),
+        (["--audio", "-", "--rate", "4000", "-o", "o.mp4"], "within 8000–192000"),
+        (["--audio", "-", "--web", "w", "-o", "o.mp4"], "--web need the whole stream"),
+        (["-o", "o.mp4"], "give the stream to play"),
+    ],
+)
+def test_play_voice_options(tmp_path: Path, args, message) -> None:
+    r = vtts("play", *args, "--model", HEAD, cwd=tmp_path)
+    assert r.returncode != 0 and message in r.stderr, r.stderr
+
+
+def test_pocketsphinx_is_not_imported_by_the_other_commands() -> None:
+    """The recognizer's start-up is paid only by a recognition."""
+    import subprocess
+    import sys
+
+    code = ("import sys, vtts.cli._main, vtts.api.say, vtts.api.play, vtts.utterance\n"
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in "
+            "('pocketsphinx', 'sounddevice') or m == 'vtts.speech.recognize'))")  # fmt: skip
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert r.stdout.strip() == "[]"

@@ -1,0 +1,489 @@
+"""Phones recognized from the voice alone: lip-sync for audio without a transcript.
+
+PocketSphinx (``pocketsphinx`` 5.1.1, BSD; its wheel carries the US-English acoustic model and
+``en-us-phone.lm.bin``, a phone language model) decodes the audio in *allphone* mode, Rhubarb Lip
+Sync's settings (:class:`RecognizerOptions`): a phone loop weighted by the phone model, with
+context-independent phones and wide beams, which gives ARPAbet phones on 10 ms frames. Each phone
+gets its MPEG-4 viseme from the ``arpabet`` rows of ``vtts/data/phoneme_visemes.tsv`` — the
+same :class:`~vtts.speech.phonemes.Phone` list every other timing source makes, so the model's
+coarticulation follows as for any other speech.
+
+Audible sound the recognizer gives no phone for (it decodes music, noise and unknown languages
+as silence or fillers) takes its mouth shapes from the voice's energy and spectrum
+(:mod:`vtts.speech.energy`): never a frozen face over audible sound. A recognized phone lying
+wholly in inaudible frames is a pause (viseme 0).
+
+:func:`recognize` decodes a whole recording in pieces of at most :data:`PIECE_S` cut at quiet
+frames (bounded memory; a ``progress`` callback after each); :class:`LiveRecognizer` takes
+chunks of PCM as they arrive and gives each 10 ms frame's viseme as soon as the decoder has one
+(what ``vtts play --audio -`` uses, and what a server can feed).
+
+``pocketsphinx`` is imported when a decoder is made, not before: other commands do not pay for
+it.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from vtts.errors import SpeechError
+from vtts.speech.energy import (
+    FRAME_S,
+    EnergyFrames,
+    Levels,
+    energy_frames,
+    energy_visemes,
+    levels,
+)
+from vtts.speech.phonemes import Phone, viseme_of
+
+__all__ = [
+    "DECODER_RATE",
+    "LiveRecognizer",
+    "Recognition",
+    "RecognizerOptions",
+    "recognize",
+    "segments_to_phones",
+]
+
+#: The acoustic model's rate, Hz: audio is resampled to it.
+DECODER_RATE = 16000
+#: Lowest rate a recording may have, Hz: below it there is too little of speech's spectrum.
+MIN_RATE = 8000
+#: Longest piece decoded as one utterance, s (the decoder's memory grows with an utterance).
+PIECE_S = 30.0
+#: A piece is cut at the quietest frame of its last CUT_WINDOW_S.
+CUT_WINDOW_S = 5.0
+#: Names the decoder gives to what is not a phone.
+NOT_PHONES = frozenset({"SIL", "<sil>", "<s>", "</s>", "(NULL)", "+SPN+", "+NSN+", "[NOISE]"})
+#: Names of the phones filled in from the energy (:mod:`vtts.speech.energy`), by viseme.
+ENERGY_NAMES = {0: "SIL", 7: "~hiss", 10: "~wide", 11: "~half", 12: "~slight"}
+
+
+@dataclass(frozen=True)
+class RecognizerOptions:
+    """PocketSphinx's allphone search (Rhubarb Lip Sync's settings, which the issue measured:
+    a narrower beam lost most phones of real speech).
+
+    ``language_weight``: weight of the phone language model (``-lw``); ``beam`` and
+    ``phone_beam``: the search's beams (``-beam``, ``-pbeam``); ``dither``: add the decoder's
+    1-bit noise (``-dither``, with its fixed seed) before the features, so that digital silence
+    (a speech engine's pauses) does not skew them — on espeak-ng's speech the recognizer took
+    audible frames for silence half as often with it (docs/speech.md); ``fill``: give audible
+    frames without a recognized phone visemes from the energy (False: they stay pauses, as the
+    recognizer said)."""
+
+    language_weight: float = 0.8
+    beam: float = 1e-20
+    phone_beam: float = 1e-20
+    dither: bool = True
+    fill: bool = True
+
+    def __post_init__(self) -> None:
+        if not (0.0 < self.language_weight <= 100.0):
+            raise SpeechError(f"language_weight must be in (0, 100], got {self.language_weight}")
+        for name in ("beam", "phone_beam"):
+            v = getattr(self, name)
+            if not (0.0 < v < 1.0):
+                raise SpeechError(f"{name} must be in (0, 1), got {v}")
+
+
+@dataclass
+class Recognition:
+    """What :func:`recognize` found.
+
+    phones      the phones in the audio's clock (s), covering it from 0 to ``duration`` without
+                gaps, pauses included (viseme 0); ``phoneme`` is the decoder's ARPAbet name, or
+                an energy name (``~wide``, ``~half``, ``~slight``, ``~hiss``) where the energy
+                filled in
+    duration    the audio's length, s
+    recognized  seconds of audible frames under a recognized phone
+    filled      seconds of audible frames that took their viseme from the energy
+    visemes     ``(n,)`` int8, the viseme of each 10 ms frame (frame ``k`` spans ``[k, k + 1) *
+                FRAME_S`` s), what ``phones`` are made of
+    """
+
+    phones: list[Phone]
+    duration: float
+    recognized: float = 0.0
+    filled: float = 0.0
+    visemes: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int8), repr=False)
+
+
+def model_paths() -> tuple[str, str]:
+    """The acoustic model's folder and the phone language model inside the ``pocketsphinx``
+    wheel; :class:`SpeechError` saying what to install when it is missing."""
+    try:
+        import pocketsphinx
+    except ImportError:
+        raise SpeechError(
+            "recognizing speech needs the pocketsphinx package: pip install pocketsphinx==5.1.1"
+        ) from None
+    root = os.path.join(pocketsphinx.get_model_path(), "en-us")
+    hmm, phone_lm = os.path.join(root, "en-us"), os.path.join(root, "en-us-phone.lm.bin")
+    if not (os.path.isdir(hmm) and os.path.isfile(phone_lm)):
+        raise SpeechError(f"the pocketsphinx wheel lacks its en-us model ({root})")
+    return hmm, phone_lm
+
+
+def make_decoder(options: RecognizerOptions):
+    """A ``pocketsphinx.Decoder`` in allphone mode with ``options``, its log silenced."""
+    from pocketsphinx import Decoder
+
+    hmm, phone_lm = model_paths()
+    return Decoder(
+        hmm=hmm,
+        allphone=phone_lm,
+        allphone_ci=True,
+        lw=options.language_weight,
+        beam=options.beam,
+        pbeam=options.phone_beam,
+        dither=options.dither,
+        loglevel="FATAL",
+        logfn=os.devnull,
+    )
+
+
+def segments_to_phones(
+    names: list[str], first: np.ndarray, last: np.ndarray, n_frames: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per-frame phone index and viseme from the decoder's segments (``names`` with their
+    ``first`` and ``last`` frames, inclusive): ``(n_frames,)`` int32 index into ``names`` (-1
+    where none) and ``(n_frames,)`` int8 viseme (0 for what is not a phone)."""
+    index = np.full(n_frames, -1, np.int32)
+    vis = np.zeros(n_frames, np.int8)
+    for k, (name, a, b) in enumerate(zip(names, first, last, strict=True)):
+        a, b = max(int(a), 0), min(int(b) + 1, n_frames)
+        if b <= a:
+            continue
+        index[a:b] = k
+        vis[a:b] = phone_viseme(name)
+    return index, vis
+
+
+def phone_viseme(name: str) -> int:
+    """The viseme of a decoder's phone name (0 for silence and fillers)."""
+    if name in NOT_PHONES or name.startswith("+") or name.startswith("["):
+        return 0
+    try:
+        return viseme_of(name, alphabet="arpabet")
+    except SpeechError:
+        return 0
+
+
+def merge_energy(
+    vis: np.ndarray, index: np.ndarray, frames: EnergyFrames, lv: Levels, fill: bool = True
+) -> tuple[np.ndarray, np.ndarray]:
+    """The recognized visemes ``vis`` ``(n,)`` with the energy's where audible frames have no
+    phone (``fill``), and recognized phones lying wholly in inaudible frames made pauses.
+    Returns ``(visemes, filled)``: ``(n,)`` int8, and ``(n,)`` bool, the frames filled."""
+    audible = frames.db > lv.audible
+    out = vis.copy()
+    # a phone in inaudible frames only is a pause (a closure inside a word is audible around it)
+    if index.size:
+        valid = index >= 0
+        heard = np.zeros(int(index.max()) + 2, bool)
+        np.logical_or.at(heard, index[valid & audible], True)
+        out[valid & ~heard[np.where(valid, index, -1)]] = 0
+    filled = np.zeros(vis.shape, bool)
+    if fill:
+        by_energy = energy_visemes(frames, lv)
+        filled = audible & (out == 0) & (by_energy != 0)
+        out[filled] = by_energy[filled]
+    return out, filled
+
+
+def frames_to_phones(
+    vis: np.ndarray, index: np.ndarray, names: list[str], filled: np.ndarray, duration: float
+) -> list[Phone]:
+    """Phones from per-frame visemes: a run of frames with one phone index and viseme is one
+    phone (frame ``k`` spans ``[k, k + 1) * FRAME_S``), named by the decoder or by the energy;
+    the last phone ends at ``duration``."""
+    n = vis.size
+    if n == 0:
+        return [Phone(0.0, duration, "SIL", 0)]
+    key = np.where(filled, -2, index).astype(np.int64) * 16 + vis
+    edges = np.concatenate([[0], np.flatnonzero(np.diff(key)) + 1, [n]])
+    phones = []
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        v = int(vis[a])
+        if filled[a]:
+            name = ENERGY_NAMES.get(v, "~")
+        elif v == 0:
+            name = "SIL"
+        else:
+            name = names[index[a]]
+        start = a * FRAME_S
+        end = duration if b == n else b * FRAME_S
+        phones.append(Phone(start, max(end, start), name, v))
+    # neighbouring pauses are one
+    merged: list[Phone] = []
+    for p in phones:
+        if merged and p.viseme == 0 and merged[-1].viseme == 0:
+            merged[-1] = Phone(merged[-1].start, p.end, "SIL", 0)
+        else:
+            merged.append(p)
+    return merged
+
+
+def _cuts(db: np.ndarray, piece: int, window: int) -> list[int]:
+    """Frame indices where the audio is cut into pieces of at most ``piece`` frames: the
+    quietest frame of the last ``window`` frames of each."""
+    cuts, at, n = [], 0, db.size
+    while n - at > piece:
+        lo = at + piece - window
+        at = lo + int(np.argmin(db[lo : at + piece]))
+        cuts.append(at)
+    return cuts
+
+
+def check_rate(rate: int) -> None:
+    """A recording's rate must be at least :data:`MIN_RATE`."""
+    if isinstance(rate, bool) or not isinstance(rate, int | np.integer) or rate < MIN_RATE:
+        raise SpeechError(
+            f"the audio is sampled at {rate} Hz; recognizing speech needs at least {MIN_RATE} Hz"
+        )
+
+
+def recognize(
+    samples: np.ndarray,
+    rate: int,
+    options: RecognizerOptions | None = None,
+    *,
+    progress: Callable[[float, float], None] | None = None,
+) -> Recognition:
+    """The phones of ``(n,)`` float ``samples`` in [-1, 1] at ``rate`` Hz (at least
+    :data:`MIN_RATE`), recognized by PocketSphinx (see the module docstring).
+
+    The audio is resampled to :data:`DECODER_RATE` and decoded in pieces of at most
+    :data:`PIECE_S` cut at quiet frames, one utterance each (each its own cepstral mean);
+    ``progress(done_s, total_s)`` is called after each piece. Raises :class:`SpeechError` for a
+    rate below :data:`MIN_RATE`; silence gives one pause."""
+    # in 30 s blocks: resample_poly works in float64, and 30 minutes at 48 kHz whole would
+    # take over a gigabyte
+    from vtts.speech.audio import resample_in_blocks as resample
+
+    options = options or RecognizerOptions()
+    check_rate(rate)
+    x = np.nan_to_num(np.asarray(samples, dtype=np.float32), nan=0.0)
+    duration = len(x) / rate
+    x = resample(np.clip(x, -1.0, 1.0), int(rate), DECODER_RATE)
+    frames = energy_frames(x, DECODER_RATE)
+    n = frames.db.size
+    lv = levels(frames.db)
+    hop = int(DECODER_RATE * FRAME_S)
+    cuts = _cuts(frames.db, int(PIECE_S / FRAME_S), int(CUT_WINDOW_S / FRAME_S))
+    bounds = list(zip([0, *cuts], [*cuts, n], strict=True))
+    names: list[str] = []
+    first: list[int] = []
+    last: list[int] = []
+    decoder = make_decoder(options) if np.any(frames.db > lv.audible) else None
+    for a, b in bounds:
+        if decoder is not None:
+            pcm = np.round(x[a * hop : b * hop] * 32767.0).astype(np.int16)
+            decoder.start_utt()
+            decoder.process_raw(pcm.tobytes(), no_search=False, full_utt=True)
+            decoder.end_utt()
+            for s in decoder.seg() or ():
+                names.append(s.word)
+                first.append(a + s.start_frame)
+                last.append(a + s.end_frame)
+        if progress is not None:
+            progress(min(b * FRAME_S, duration), duration)
+    index, vis = segments_to_phones(names, np.array(first), np.array(last), n)
+    vis, filled = merge_energy(vis, index, frames, lv, options.fill)
+    phones = frames_to_phones(vis, index, names, filled, duration)
+    audible = frames.db > lv.audible
+    return Recognition(
+        phones,
+        duration,
+        recognized=float(np.sum(audible & (vis != 0) & ~filled) * FRAME_S),
+        filled=float(np.sum(filled) * FRAME_S),
+        visemes=vis,
+    )
+
+
+class LiveRecognizer:
+    """Visemes of audio that arrives in chunks, as soon as the decoder has them.
+
+    ``rate``: of the PCM fed, Hz (at least :data:`MIN_RATE`). :meth:`feed` takes the next
+    ``(n,)`` int16 (or float in [-1, 1]) samples and returns the visemes, ``(k,)`` int8, of the
+    10 ms frames newly decided (frame ``j`` of the stream spans ``[j, j + 1) * FRAME_S`` s;
+    :attr:`frames_out` counts those given so far); :meth:`finish` returns the rest. A frame's
+    viseme is the decoder's partial hypothesis at the time (it may revise it later: what was
+    shown stays shown). Loudness is judged against running levels (the loud frames' level
+    decays by :data:`LOUD_DECAY_DB` a second; the floor rises slowly towards quieter sound).
+    The decoder's utterance is restarted at a pause after :data:`RESTART_S` (or at
+    :data:`PIECE_S` at the latest), so memory stays bounded however long the stream."""
+
+    #: The running loud level falls by this many dB per second of quieter sound.
+    LOUD_DECAY_DB = 1.0
+    #: The running floor rises by this many dB per second of louder sound.
+    FLOOR_RISE_DB = 2.0
+    #: Restart the decoder's utterance at a pause of PAUSE_FRAMES after this long, s.
+    RESTART_S = 10.0
+    PAUSE_FRAMES = 30
+
+    def __init__(self, rate: int, options: RecognizerOptions | None = None) -> None:
+        check_rate(rate)
+        self.rate = int(rate)
+        self.options = options or RecognizerOptions()
+        self._decoder = make_decoder(self.options)
+        self._resampler = StreamResampler(self.rate, DECODER_RATE)
+        self._pending = np.zeros(0, np.float32)  # samples at 16 kHz not yet in a whole frame
+        self._history = np.zeros(0, np.float32)  # the last window's worth, for frame energies
+        self._db: list[float] = []  # this utterance's frames' dB and hiss
+        self._hiss: list[float] = []
+        self._loud: float | None = None
+        self._floor: float | None = None
+        self._utt_start = 0  # stream frame where the decoder's utterance began
+        self._in_utt = 0  # frames fed to this utterance
+        self._quiet_run = 0
+        self.frames_out = 0
+        self._decoder.start_utt()
+
+    # -- public -------------------------------------------------------------------------------
+
+    def feed(self, samples: np.ndarray) -> np.ndarray:
+        """The next samples (``(n,)`` int16, or float32 in [-1, 1], mono at :attr:`rate`) →
+        ``(k,)`` int8 visemes of the frames newly decided."""
+        x = np.asarray(samples)
+        if x.dtype == np.int16:
+            x = x.astype(np.float32) / 32768.0
+        x = np.clip(np.nan_to_num(x.astype(np.float32, copy=False), nan=0.0), -1.0, 1.0)
+        y = self._resampler(x)
+        self._pending = np.concatenate([self._pending, y])
+        hop = int(DECODER_RATE * FRAME_S)
+        whole = (self._pending.size // hop) * hop
+        if whole == 0:
+            return np.zeros(0, np.int8)
+        block, self._pending = self._pending[:whole], self._pending[whole:]
+        self._measure(block)
+        pcm = np.round(block * 32767.0).astype(np.int16)
+        self._decoder.process_raw(pcm.tobytes(), no_search=False, full_utt=False)
+        self._in_utt += whole // hop
+        out = self._decided(final=False)
+        if self._in_utt * FRAME_S >= PIECE_S or (
+            self._in_utt * FRAME_S >= self.RESTART_S and self._quiet_run >= self.PAUSE_FRAMES
+        ):
+            out = np.concatenate([out, self._restart()])
+        return out
+
+    def finish(self) -> np.ndarray:
+        """The visemes of the frames not yet given (the stream ended; a partial frame counts
+        as a whole one, padded with silence)."""
+        hop = int(DECODER_RATE * FRAME_S)
+        out = np.zeros(0, np.int8)
+        if self._pending.size:
+            pad = np.zeros(hop - self._pending.size % hop, np.float32)
+            self._pending = np.concatenate([self._pending, pad])
+            out = self.feed(np.zeros(0, np.float32))
+        self._decoder.end_utt()
+        out = np.concatenate([out, self._decided(final=True)])
+        self._decoder.start_utt()  # ready again (a finished recognizer may be fed more)
+        self._utt_start += self._in_utt
+        self._in_utt = 0
+        self._db, self._hiss = [], []
+        return out
+
+    # -- inside -------------------------------------------------------------------------------
+
+    def _measure(self, block: np.ndarray) -> None:
+        """Frame energies of ``block`` (whole frames at 16 kHz) with the running levels."""
+        hop = int(DECODER_RATE * FRAME_S)
+        # two frames before the block give its first frames' windows their left context
+        ctx = np.concatenate([self._history, block])
+        fr = energy_frames(ctx, DECODER_RATE)
+        lo = self._history.size // hop
+        db, hiss = fr.db[lo:], fr.hiss[lo:]
+        self._history = ctx[-2 * hop :]
+        for d, h in zip(db.tolist(), hiss.tolist(), strict=True):
+            self._update_levels(d)
+            self._db.append(d)
+            self._hiss.append(h)
+            lv = Levels(self._loud, self._floor)
+            self._quiet_run = 0 if d > lv.audible else self._quiet_run + 1
+
+    def _update_levels(self, d: float) -> None:
+        if self._loud is None:
+            self._loud = self._floor = d
+            return
+        self._loud = max(d, self._loud - self.LOUD_DECAY_DB * FRAME_S)
+        self._floor = min(d, self._floor + self.FLOOR_RISE_DB * FRAME_S)
+
+    def _decided(self, *, final: bool) -> np.ndarray:
+        """Visemes of this utterance's frames from :attr:`frames_out` up to the decoder's last
+        segment (all frames fed when ``final``)."""
+        names, first, last = [], [], []
+        for s in self._decoder.seg() or ():  # None before the first hypothesis
+            names.append(s.word)
+            first.append(s.start_frame)
+            last.append(s.end_frame)
+        done = self.frames_out - self._utt_start
+        upto = self._in_utt if final else min(max(last, default=-1) + 1, self._in_utt)
+        if upto <= done:
+            return np.zeros(0, np.int8)
+        index, vis = segments_to_phones(names, np.array(first), np.array(last), upto)
+        frames = EnergyFrames(
+            np.asarray(self._db[:upto], np.float32), np.asarray(self._hiss[:upto], np.float32)
+        )
+        lv = Levels(float(self._loud), float(self._floor))
+        # only the new frames: a phone's audibility is judged on what has been heard of it
+        vis, _ = merge_energy(vis[done:], index[done:], _tail(frames, done), lv, self.options.fill)
+        self.frames_out += upto - done
+        return vis
+
+    def _restart(self) -> np.ndarray:
+        self._decoder.end_utt()
+        out = self._decided(final=True)
+        self._utt_start += self._in_utt
+        self._in_utt = 0
+        self._db, self._hiss = [], []
+        self._decoder.start_utt()
+        return out
+
+
+def _tail(frames: EnergyFrames, start: int) -> EnergyFrames:
+    return EnergyFrames(frames.db[start:], frames.hiss[start:])
+
+
+class StreamResampler:
+    """Resampling of a stream in chunks, its state kept between them: an 8th-order Butterworth
+    low-pass below the lower Nyquist frequency (when going down), then linear interpolation at
+    the new rate's instants. Chunk boundaries leave no seam."""
+
+    def __init__(self, rate: int, to: int) -> None:
+        from scipy.signal import butter, sosfilt_zi
+
+        self.rate, self.to = int(rate), int(to)
+        self._sos = None
+        if self.to < self.rate:
+            self._sos = butter(8, 0.45 * self.to, fs=self.rate, output="sos")
+            self._zi = sosfilt_zi(self._sos) * 0.0
+        self._t = 0.0  # the next output instant, in input samples from the carried sample
+        self._carry: np.ndarray | None = None  # the last input sample (filtered)
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        if self.rate == self.to:
+            return np.asarray(x, np.float32)
+        from scipy.signal import sosfilt
+
+        x = np.asarray(x, np.float64)
+        if self._sos is not None and x.size:
+            x, self._zi = sosfilt(self._sos, x, zi=self._zi)
+        if self._carry is not None:
+            x = np.concatenate([self._carry, x])
+        if x.size < 2:
+            self._carry = x
+            return np.zeros(0, np.float32)
+        step = self.rate / self.to
+        pos = np.arange(self._t, x.size - 1, step)
+        out = np.interp(pos, np.arange(x.size), x).astype(np.float32)
+        nxt = (pos[-1] + step) if pos.size else self._t
+        self._carry = x[-1:]
+        self._t = nxt - (x.size - 1)
+        return out
