@@ -102,7 +102,7 @@ def test_the_written_model_is_the_one_its_files_load(akiyo):
 
 def test_records_its_photo_for_a_talking_photo(akiyo, tmp_path):
     _, model, image, files = akiyo
-    from vtts.fit.source import source_photo
+    from vtts.face.source_photo import source_photo
     from vtts.render import probe_media
 
     assert np.array_equal(source_photo(model), image)

@@ -69,7 +69,7 @@ def test_the_head_made_for_the_video_gives_its_frame_back(akiyo, tmp_path):
     assert before < 32.0, before
     assert after > 40.0, (before, after)
     text = paths[0].read_text()
-    # the frame's Appearances, and the record of the photo (vtts.fit.source: the frame is it)
+    # the frame's Appearances, and the record of the photo (vtts.face.source_photo: the frame is it)
     assert text.count('"video-frame.png"') == len(FRAME_APPEARANCES) + 1
     assert '"video-face.png"' in text  # the mouth's inside keeps the atlas
     model = load_model(str(paths[0]))

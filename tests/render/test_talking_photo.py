@@ -1,6 +1,6 @@
 """Talking photos (:mod:`vtts.render.talking_photo`, ``--background photo``) on a head whose
 "photo" is a rendering of itself: the bundled cybatt, given a ``photo`` Viewpoint and a photo
-record (:mod:`vtts.fit.source`) in memory, so that no fit is needed. A fitted head's talking
+record (:mod:`vtts.face.source_photo`) in memory, so that no fit is needed. A fitted head's talking
 photo is tested with the fit (``tests/fit/test_fit.py``)."""
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from PIL import Image
 import vtts
 from vtts.errors import RenderError
 from vtts.face import FaceModel
-from vtts.fit.source import photo_record, record_photo, source_photo
+from vtts.face.source_photo import photo_record, record_photo, source_photo
 from vtts.render import FaceRenderer
 from vtts.render.camera import viewpoint_fields
 from vtts.render.talking_photo import PHOTO_SHOWN, TalkingPhoto, TalkingPhotoOptions

@@ -25,6 +25,7 @@ from vtts.errors import FitError, VttsWarning
 from vtts.face import FaceModel
 from vtts.face.adt import AnimationTables, format_adt
 from vtts.face.atlas import EAR_TILE
+from vtts.face.source_photo import record_photo
 from vtts.fit.frame import FRAME_APPEARANCES, frame_texture, project_frame
 from vtts.fit.generic import GenericHead, generic_head, landmark_map
 from vtts.fit.head import (
@@ -52,7 +53,6 @@ from vtts.fit.shape import (
     fit_shape,
     focal_length,
 )
-from vtts.fit.source import record_photo
 from vtts.fit.texture import (
     ATLAS_SIZE,
     EAR_TILES,
@@ -144,9 +144,9 @@ class FittedHead:
 
     def write(self, path: str | Path) -> list[Path]:
         """Write ``PATH.wrl`` (the scene), ``PATH.adt`` (its tables), ``PATH-face.png`` (its
-        texture) and ``PATH-photo.png`` (the photo, :func:`~vtts.fit.source.source_photo`) — for a
-        head made for a video ``PATH-frame.png`` instead of the photo, which holds it — beside
-        each other, each renamed into place only when all are written. Returns the paths."""
+        texture) and ``PATH-photo.png`` (the photo: :mod:`vtts.face.source_photo`) — for a head
+        made for a video ``PATH-frame.png`` instead of the photo, which holds it — beside each
+        other, each renamed into place only when all are written. Returns the paths."""
         wrl = Path(path)
         if wrl.suffix.lower() != ".wrl":
             raise FitError(f"the output must be a .wrl file, got {str(path)!r}")

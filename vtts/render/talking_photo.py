@@ -71,7 +71,7 @@ class TalkingPhotoOptions:
 
 class TalkingPhoto:
     """``model`` (a fitted head) drawn into ``photo`` (``(H, W, 3) uint8``; None: the photo the
-    model records, :func:`vtts.fit.source.source_photo`) at the model's ``viewpoint``.
+    model records, :func:`vtts.face.source_photo.source_photo`) at the model's ``viewpoint``.
 
     ``size`` (W, H): the frames' size (None: the photo's; another size must keep the photo's
     shape, and the photo is resampled to it); ``supersample`` and ``detail`` as
@@ -100,7 +100,7 @@ class TalkingPhoto:
             model = model[0]
         self.options = options or TalkingPhotoOptions()
         if photo is None:
-            from vtts.fit.source import source_photo
+            from vtts.face.source_photo import source_photo
 
             photo = source_photo(model)
         photo = _fit_photo(np.asarray(photo), size)
