@@ -42,11 +42,16 @@ SKIN_PARTS = ("FACE", "HAIR", "NECK")
 #: Parts with a tile of their own that the photo paints where it sees them (over the generic
 #: tile): the eyeballs (each with its own tile, see :func:`split_eye_tiles`), teeth and tongue.
 TILE_PARTS = ("L_EYEBALL", "R_EYEBALL", "UPPER_TEETH", "LOWER_TEETH", "TONGUE")
-#: The parts the photo paints (the neck is filled: below the chin photos show collars and
-#: shadow more often than neck).
-PHOTO_PARTS = ("FACE", "HAIR", *TILE_PARTS)
+#: The ears, each painted in a tile of its own (:func:`split_ear_tiles`) where the photo paints
+#: them.
+EAR_PARTS = ("L_EAR", "R_EAR")
+#: The parts a portrait paints: the skin, the hair, the neck (ended at the collar first,
+#: :mod:`vtts.fit.neck`), the eyes and the ears (an ear under hair takes the hair). Teeth,
+#: tongue and the mouth's inside are the model's own: a photo's open mouth is no texture for a
+#: mouth that the model opens and closes.
+PHOTO_PARTS = ("FACE", "HAIR", "NECK", "L_EYEBALL", "R_EYEBALL", *EAR_PARTS)
 #: Every textured part the painter rasterizes.
-PAINTED_PARTS = PHOTO_PARTS
+PAINTED_PARTS = ("FACE", "HAIR", "NECK", *TILE_PARTS)
 #: The fitted head's own eye tiles: the generic eye tile's upper half, split in two (the photo
 #: shows each eye's iris where that eye looks).
 EYE_TILES = {"L_EYEBALL": (0.0, 0.125, 0.125, 0.25), "R_EYEBALL": (0.125, 0.125, 0.25, 0.25)}
@@ -75,6 +80,7 @@ class SkinTexels:
     normals     ``(N, 3)`` unit normals there
     photo       ``(N,)`` bool: the texel may take the photo's colour (its part is in
                 :data:`PHOTO_PARTS`)
+    skin        ``(N,)`` bool: the texel is of a skin part (:data:`SKIN_PARTS`)
     """
 
     rows: np.ndarray
@@ -82,6 +88,7 @@ class SkinTexels:
     points: np.ndarray
     normals: np.ndarray
     photo: np.ndarray
+    skin: np.ndarray
 
 
 def skin_texels(
@@ -90,7 +97,7 @@ def skin_texels(
     """Rasterize the painted ``parts`` (IndexedFaceSet nodes by DEF name, already fitted) in
     texture space: texel centres inside a triangle's texture coordinates; those of
     ``photo_parts`` are the photo's to paint."""
-    rows, cols, pts, nrm, photo = [], [], [], [], []
+    rows, cols, pts, nrm, photo, skin = [], [], [], [], [], []
     for name in parts:
         tm = triangulate(parts[name])
         uv = tm.texcoords
@@ -133,7 +140,8 @@ def skin_texels(
         pts.append(p)
         nrm.append(n)
         photo.append(np.full(len(p), name in photo_parts))
-    return SkinTexels(*(np.concatenate(a) for a in (rows, cols, pts, nrm, photo)))
+        skin.append(np.full(len(p), name in SKIN_PARTS))
+    return SkinTexels(*(np.concatenate(a) for a in (rows, cols, pts, nrm, photo, skin)))
 
 
 def depth_map(numbers: np.ndarray, sets, camera: Camera, world: np.ndarray) -> np.ndarray:
@@ -316,11 +324,17 @@ def project_skin(
     depth: np.ndarray,
     gain: np.ndarray,
     offset: np.ndarray,
+    trust: np.ndarray | None = None,
+    skin_trust: np.ndarray | None = None,
 ) -> Projection:
     """Which skin texels a photo of ``size`` (W, H) taken by ``camera`` (in the model's frame)
     sees: in the picture, facing the camera, and what the pixel shows (``depth``: the distance
     of what each pixel shows, :func:`depth_map`). ``gain`` and ``offset`` ``(H, W, 3)`` are the
-    renderer's shading at the photo's view (see the module docstring)."""
+    renderer's shading at the photo's view (see the module docstring). ``trust (H, W)`` (0–1,
+    optional) weighs what each pixel may give the texture: the person's probability, so that
+    the background never becomes hair or neck; ``skin_trust (H, W)`` the same for the skin
+    parts' texels alone: 0 on the photo's open mouth and eyes
+    (:func:`vtts.fit.expression.skin_trust`)."""
     w, h = size
     if not texels.photo.all():
         texels = _select(texels, texels.photo)
@@ -336,6 +350,11 @@ def project_skin(
     taps = Taps.at((h, w), xy[idx])
     a = taps(gain)
     weight = np.where(a.min(axis=1) > 0.02, grazing_weight(cosine[idx]), 0.0)
+    if trust is not None:
+        weight = weight * taps(trust[..., None])[:, 0]
+    if skin_trust is not None:
+        on_skin = texels.skin[idx]
+        weight = np.where(on_skin, weight * taps(skin_trust[..., None])[:, 0], weight)
     keep = weight > 0
     idx, a, taps = idx[keep], a[keep], taps.select(keep)
     return Projection(texels, idx, xy[idx], weight[keep], a, taps(offset), taps)
