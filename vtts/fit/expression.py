@@ -51,7 +51,7 @@ PROBE = 100.0
 ONE_WAY = 0.02
 #: How far (pixels, as a share of the eye distance) beyond the photo's inner lip and eye
 #: contours the skin takes nothing from the photo.
-MARGIN = 0.03
+MARGIN = 0.01
 
 
 @dataclass

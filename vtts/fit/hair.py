@@ -46,8 +46,9 @@ SMOOTH = math.radians(8.0)
 SIDE, DOWN = math.radians(80.0), math.radians(110.0)
 #: Model units (the face is about 1.2 wide) over which the scale fades in from the face's border.
 SEAM = 0.25
-#: Share of an ear's projected points that must lie on the photo's person for it to be kept.
-EAR_SHOWN = 0.5
+#: Share of an ear's projected points that must lie on the photo's person for it to be kept: an
+#: ear drawn partly over the background is one the photo does not show where the head puts it.
+EAR_SHOWN = 0.85
 #: Pixels the shell's silhouette stays inside the photo's person.
 INSET_PX = 2.0
 #: Probability from which a pixel counts as the person.

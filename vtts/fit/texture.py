@@ -63,6 +63,12 @@ TILE_REACH = 6.0
 #: A texel's weight grows from 0 to 1 as the cosine between its normal and the view grows
 #: between these.
 GRAZING = (0.2, 0.5)
+#: The parts whose outline the photo paints up to the edge: the hair shell and the ears only
+#: approximate what the photo shows there, and what it shows at their silhouette is the hair's
+#: or the ear's own edge, seen nearly edge-on; the grazing weight falls off only at
+#: :data:`RIM_GRAZING`.
+RIM_PARTS = ("HAIR", "L_EAR", "R_EAR")
+RIM_GRAZING = (0.02, 0.1)
 #: How far behind the surface the photo's pixel shows may be for the texel to be seen (model
 #: units; the face is about 1.2 wide).
 DEPTH_TOLERANCE = 0.01
@@ -81,6 +87,8 @@ class SkinTexels:
     photo       ``(N,)`` bool: the texel may take the photo's colour (its part is in
                 :data:`PHOTO_PARTS`)
     skin        ``(N,)`` bool: the texel is of a skin part (:data:`SKIN_PARTS`)
+    rim         ``(N,)`` bool: the texel is of a part whose outline the photo paints up to its
+                edge (:data:`RIM_PARTS`)
     """
 
     rows: np.ndarray
@@ -89,6 +97,7 @@ class SkinTexels:
     normals: np.ndarray
     photo: np.ndarray
     skin: np.ndarray
+    rim: np.ndarray
 
 
 def skin_texels(
@@ -97,7 +106,7 @@ def skin_texels(
     """Rasterize the painted ``parts`` (IndexedFaceSet nodes by DEF name, already fitted) in
     texture space: texel centres inside a triangle's texture coordinates; those of
     ``photo_parts`` are the photo's to paint."""
-    rows, cols, pts, nrm, photo, skin = [], [], [], [], [], []
+    rows, cols, pts, nrm, photo, skin, rim = [], [], [], [], [], [], []
     for name in parts:
         tm = triangulate(parts[name])
         uv = tm.texcoords
@@ -141,7 +150,8 @@ def skin_texels(
         nrm.append(n)
         photo.append(np.full(len(p), name in photo_parts))
         skin.append(np.full(len(p), name in SKIN_PARTS))
-    return SkinTexels(*(np.concatenate(a) for a in (rows, cols, pts, nrm, photo, skin)))
+        rim.append(np.full(len(p), name in RIM_PARTS))
+    return SkinTexels(*(np.concatenate(a) for a in (rows, cols, pts, nrm, photo, skin, rim)))
 
 
 def depth_map(numbers: np.ndarray, sets, camera: Camera, world: np.ndarray) -> np.ndarray:
@@ -289,8 +299,8 @@ def _upsample2(a: np.ndarray, axis: int) -> np.ndarray:
     return np.moveaxis(out, 0, axis)
 
 
-def grazing_weight(cosine: np.ndarray) -> np.ndarray:
-    lo, hi = GRAZING
+def grazing_weight(cosine: np.ndarray, grazing: tuple[float, float] = GRAZING) -> np.ndarray:
+    lo, hi = grazing
     t = np.clip((cosine - lo) / (hi - lo), 0, 1)
     return t * t * (3 - 2 * t)
 
@@ -349,7 +359,9 @@ def project_skin(
     idx = np.flatnonzero(seen)
     taps = Taps.at((h, w), xy[idx])
     a = taps(gain)
-    weight = np.where(a.min(axis=1) > 0.02, grazing_weight(cosine[idx]), 0.0)
+    cos = cosine[idx]
+    graze = np.where(texels.rim[idx], grazing_weight(cos, RIM_GRAZING), grazing_weight(cos))
+    weight = np.where(a.min(axis=1) > 0.02, graze, 0.0)
     if trust is not None:
         weight = weight * taps(trust[..., None])[:, 0]
     if skin_trust is not None:
