@@ -38,10 +38,16 @@ def small(image: np.ndarray, box: tuple[int, int, int, int], side: int = SIDE) -
     return np.asarray(im)
 
 
+#: Rows of background above the astronaut's hair (her photo cuts it close).
+ABOVE = 64
+
+
 @pytest.fixture(scope="module")
 def astronaut() -> np.ndarray:
-    """The astronaut's head and shoulders, 160² (a smiling face with teeth showing)."""
-    return small(photo("astronaut.png"), (96, 0, 352, 256))
+    """The astronaut's head and shoulders, 160 wide, with :data:`ABOVE` rows of background
+    (the top row repeated) above: a smiling face with teeth showing."""
+    head = small(photo("astronaut.png"), (96, 0, 352, 256))
+    return np.pad(head, ((ABOVE, 0), (0, 0), (0, 0)), mode="edge")
 
 
 @pytest.fixture(scope="module")
@@ -57,13 +63,13 @@ def fitted(astronaut):
 def test_the_person_is_segmented(astronaut):
     p = person_probability(astronaut)
     assert p.shape == astronaut.shape[:2] and p.dtype == np.float32
-    assert p[60:100, 70:90].mean() > 0.9  # the face
-    assert p[:20, :15].mean() < 0.2  # the flag behind her
+    assert p[ABOVE + 60 : ABOVE + 100, 70:90].mean() > 0.9  # the face
+    assert p[ABOVE : ABOVE + 20, :15].mean() < 0.2  # the flag behind her
 
 
 def test_skin_takes_nothing_from_the_open_mouth_or_the_eyes(astronaut):
     face = detect_faces(astronaut)[0]
-    trust = skin_trust((SIDE, SIDE), face.landmarks)
+    trust = skin_trust(astronaut.shape[1::-1], face.landmarks)
     inner = face.landmarks[list(LIPS_INNER), :2].mean(axis=0)
     eye = face.landmarks[[33, 133], :2].mean(axis=0)
     cheek = face.landmarks[205, :2]
@@ -101,7 +107,8 @@ def test_the_hair_shell_grows_to_the_silhouette_and_keeps_the_seam(fitted):
     # a person twice as large as the head all round: the skull grows to the bound above
     h, w = fitted.photo.shape[:2]
     big = np.ones((h, w), np.float32)
-    shell = fit_hair_shell(scene, cam, big)
+    with pytest.warns(Warning, match="hat"):  # the person reaches the frame's top
+        shell = fit_hair_shell(scene, cam, big)
     hair = np.asarray(scene.node("HAIR").expand()["coord"].expand()["point"])
     assert shell.scale.max() == pytest.approx(SCALE_RANGE[1], rel=0.05)
     assert hair[:, 1].max() > hair0[:, 1].max() + 0.2  # taller
@@ -250,9 +257,28 @@ CASES = {"no hair": no_hair, "bald": bald, "beard": beard, "glasses": glasses, "
          "turned 45°": turned, "two faces": two_faces}  # fmt: skip
 
 
+#: Cases run through the ``adi fit`` command (the others through the library, which the
+#: command wraps: the same outcome without writing 7 MB of model).
+CLI_CASES = ("drawing", "two faces", "turned 45°")
+#: Cases that show a face plainly: they must give a head.
+MUST_FIT = ("beard", "glasses", "child", "bald", "no hair")
+
+
 @pytest.mark.parametrize("case", list(CASES))
 def test_every_kind_of_photo_gives_a_head_or_a_clear_error(case, astronaut, tmp_path):
     image = CASES[case](astronaut)
+    if case not in CLI_CASES:
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                head = fit_photo(image)
+        except FitError as e:
+            assert case not in MUST_FIT, e
+            assert str(e)
+            return
+        assert np.isfinite(head.shape.residual).all() and head.texture.dtype == np.uint8
+        assert head.hair is not None
+        return
     path = tmp_path / "photo.png"
     Image.fromarray(image).save(path)
     done = in_process.adi("fit", str(path), "-o", str(tmp_path / "me.wrl"))
@@ -261,25 +287,27 @@ def test_every_kind_of_photo_gives_a_head_or_a_clear_error(case, astronaut, tmp_
         assert (tmp_path / "me.wrl").is_file() and (tmp_path / "me-face.png").is_file()
     else:
         assert done.returncode == 1 and "error:" in done.stderr, done.stderr
-        assert "photo.png" in done.stderr or "photo" in done.stderr
+        assert "photo.png" in done.stderr
         assert not (tmp_path / "me.wrl").exists()
-    if case in ("beard", "glasses", "child", "bald", "no hair"):
-        assert done.returncode == 0, done.stderr  # a face is plain to see: a head
 
 
-def test_a_tall_hat_is_left_out_with_a_warning(astronaut):
-    """A top hat twice the skull's height: the hair shell stops at its bound, and says so."""
-    lm = _landmarks(astronaut) + [0, SIDE]
-    canvas = np.full((2 * SIDE, SIDE, 3), 200, np.uint8)
-    canvas[SIDE:] = astronaut
-    im = Image.fromarray(canvas)
-    draw = ImageDraw.Draw(im)
-    x0, x1, top = lm[:, 0].min(), lm[:, 0].max(), lm[10, 1]
-    draw.rectangle([x0 + 5, 10, x1 - 5, top - 4], fill=(30, 30, 90))
-    draw.rectangle([x0 - 12, top - 14, x1 + 12, top - 4], fill=(30, 30, 90))
+def test_a_tall_hat_is_left_out_with_a_warning(fitted):
+    """Something on the head far taller than hair (a top hat: the person's silhouette reaches
+    twice the skull's height above it): the shell stops at its bound, and says so. (The
+    segmentation model takes a drawn hat for background, so the silhouette is given here.)"""
+    scene = copy.deepcopy(fitted.scene)
+    h, w = fitted.photo.shape[:2]
+    c = fitted.shape.camera.project(np.array([[0.0, 0.2, -0.9]]))[0]
+    person = np.zeros((h, w), np.float32)
+    yy, xx = np.mgrid[0:h, 0:w]
+    person[np.hypot(xx - c[0], yy - c[1]) < 0.45 * w] = 1  # the head and hair
+    person[:, int(c[0] - 0.2 * w) : int(c[0] + 0.2 * w)][: int(c[1])] = 1  # the hat, to the top
     with pytest.warns(Warning, match="hat"):
-        try:
-            head = fit_photo(np.asarray(im))
-        except FitError:
-            pytest.fail("a hat is no reason to refuse the photo")
-    assert head.hair.capped
+        shell = fit_hair_shell(scene, fitted.shape.camera, person)
+    assert shell.capped
+    plain = fit_hair_shell(copy.deepcopy(fitted.scene), fitted.shape.camera, fitted_person(fitted))
+    assert not plain.capped
+
+
+def fitted_person(head) -> np.ndarray:
+    return person_probability(head.photo)
