@@ -49,8 +49,9 @@ SEAM = 0.25
 #: Share of an ear's projected points that must lie on the photo's person for it to be kept: an
 #: ear drawn partly over the background is one the photo does not show where the head puts it.
 EAR_SHOWN = 0.85
-#: Pixels the shell's silhouette stays inside the photo's person.
-INSET_PX = 2.0
+#: How far the shell's silhouette stays inside the photo's person: a share of its radius, at
+#: least some pixels (hair's edge is ragged and the renderer's edge pixels mix in the background).
+INSET_SHARE, INSET_PX = 0.02, 2.0
 #: Probability from which a pixel counts as the person.
 PERSON = 0.5
 
@@ -126,8 +127,9 @@ def fit_hair_shell(scene: Scene, camera: Camera, person: np.ndarray) -> HairShel
     model_r = ndimage.maximum_filter1d(model_r, 3, mode="wrap")
     model_r = np.maximum(model_r, 1.0)
     photo_r = silhouette_radius(mask, c, 0.5 * model_r, SCALE_RANGE[1] * 1.2 * model_r)
-    # inside the edge: the renderer's edge pixels mix in the background the photo shows there
-    photo_r = np.maximum(photo_r - INSET_PX, 1.0)
+    # inside the edge: the renderer's edge pixels mix in the background the photo shows there,
+    # and the smooth shell cannot follow a ragged outline
+    photo_r = np.maximum(photo_r - np.maximum(INSET_SHARE * photo_r, INSET_PX), 1.0)
     raw = photo_r / model_r
     capped = False
     phi = (np.arange(BINS) + 0.5) / BINS * 2 * math.pi - math.pi
