@@ -80,6 +80,7 @@ from vtts.fit.texture import (
 from vtts.limits import MAX_PHOTO_PIXELS
 from vtts.render.camera import viewpoint_fields
 from vtts.resources import models_dir
+from vtts.threads import one_blas_thread
 from vtts.vrml import Scene, dumps, parse
 
 #: The Viewpoint that holds the photo's camera.
@@ -372,6 +373,7 @@ def _warn_exif(path: Path, what: str) -> None:
     warnings.warn(VttsWarning(f"EXIF: {what}", file=str(path)), stacklevel=3)
 
 
+@one_blas_thread()  # small dense solves: BLAS threads only spin against the renderer's
 def fit_photo(
     image: np.ndarray,
     *,
