@@ -26,7 +26,7 @@ from vtts.errors import FitError, VttsWarning
 from vtts.face import FaceModel
 from vtts.face.adt import AnimationTables, format_adt
 from vtts.face.atlas import EAR_TILE
-from vtts.fit.expression import expression_basis, skin_trust
+from vtts.fit.expression import expression_basis, for_photo, skin_trust
 from vtts.fit.frame import FRAME_APPEARANCES, frame_texture, project_frame
 from vtts.fit.generic import GenericHead, generic_head, landmark_map
 from vtts.fit.hair import HairShell, fit_hair_shell
@@ -422,7 +422,7 @@ def fit_photo(
     t = time.perf_counter()
     focal = focal_length((w, h), focal_35mm)
     lmap = landmark_map()
-    basis = _expression_basis(personality) if portrait else None
+    basis = for_photo(_expression_basis(personality), chosen.landmarks) if portrait else None
     shape = fit_shape(g, lmap, chosen.landmarks, (w, h), focal, expression=basis)
     timings["shape"] = time.perf_counter() - t
     t = time.perf_counter()
