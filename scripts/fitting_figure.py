@@ -1,6 +1,7 @@
-"""The before/after picture of docs/fitting.md: each test photo, the head ``adi fit`` makes of it
-rendered at ``--viewpoint photo``, turned 30° each way, and speaking (viseme 10, "A:") while
-smiling.
+"""The contact sheet of docs/fitting.md: each development photo, the head ``adi fit`` makes of
+it rendered at ``--viewpoint photo`` in the photo's expression over grey (everything the model
+draws), the neutral head turned 30° each way, with joy, and speaking viseme 10 ("A:").
+The set-aside photos (:data:`SET_ASIDE`) are never drawn.
 
 usage: .venv/bin/python scripts/fitting_figure.py [OUT.png]   (default docs/fitting.png)
 """
@@ -21,8 +22,11 @@ from vtts.fit import fit_photo, load_photo
 from vtts.render import FaceRenderer
 
 ROOT = Path(__file__).resolve().parents[1]
-PHOTOS = ("akiyo_frame0", "astronaut")
-CELL = 240
+#: The development photos (tests/data/photos); lp_s9 and lp_s12 are set aside.
+PHOTOS = ("akiyo_frame0.png", "astronaut.png", "lp_s1.jpg", "lp_s2.jpg", "lp_s42.jpg", "lp_s7.jpg")
+SET_ASIDE = ("lp_s9.jpg", "lp_s12.jpg")
+CELL = 200
+GREY = 128
 
 
 def cell(image: np.ndarray) -> Image.Image:
@@ -40,15 +44,18 @@ def crop_to_face(image: np.ndarray, box, margin: float = 0.45) -> np.ndarray:
 
 
 def row(name: str, folder: Path) -> list[Image.Image]:
-    image, focal = load_photo(ROOT / "tests" / "data" / "photos" / f"{name}.png")
+    image, focal = load_photo(ROOT / "tests" / "data" / "photos" / name)
+    stem = Path(name).stem
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        head = fit_photo(image, focal_35mm=focal, name=name)
-    head.write(folder / f"{name}.wrl")
-    model = vtts.load_model(folder / f"{name}.wrl")
+        head = fit_photo(image, focal_35mm=focal, name=stem)
+    image = head.photo  # at the working size
+    head.write(folder / f"{stem}.wrl")
+    model = vtts.load_model(folder / f"{stem}.wrl")
     h, w = image.shape[:2]
-    with FaceRenderer(model, size=(w, h), viewpoint="photo", background=image) as r:
-        over = r.render(model.params())
+    grey = np.full_like(image, GREY)
+    with FaceRenderer(model, size=(w, h), viewpoint="photo", background=grey) as r:
+        over = r.render(model.params(head.expression))
     box = head.face.box
     cells = [cell(crop_to_face(image, box)), cell(crop_to_face(over, box))]
     au = math.radians(30) / 1e-5
@@ -56,7 +63,8 @@ def row(name: str, folder: Path) -> list[Image.Image]:
         for params in (
             model.params({49: -au}),
             model.params({49: au}),
-            model.params(visemes={10: 1.0}, expressions={"joy": 1.0}),
+            model.params({49: au / 2}, expressions={"joy": 1.0}),
+            model.params({49: -au / 2}, visemes={10: 1.0}),
         ):
             cells.append(cell(r.render(params)))
     return cells

@@ -43,6 +43,7 @@ def test_wheel_contains_grammars_models_and_both_packages(wheel):
     assert "vtts/data/landmarks/face_detection_short_range.tflite" in names
     assert "vtts/data/landmarks/face_landmark.tflite" in names
     assert "vtts/data/landmarks/iris_landmark.tflite" in names
+    assert "vtts/data/landmarks/selfie_segmentation.tflite" in names
     # adi fit: where the landmarks lie on FACE, and Candide-3 for the subdivision matrix
     assert "vtts/data/fit/face_landmarks.tsv" in names
     # the ARKit recipe table (avatars in, curves out)

@@ -143,14 +143,15 @@ def test_face_is_the_subdivision_of_its_control_points(akiyo):
     assert refined_face().S.shape[0] == len(face)
 
 
-def test_a_photo_head_keeps_the_shared_generic_ear(akiyo):
-    """A head fitted to a photo (PHOTO_PARTS) leaves the ears' generic tile as it is; a head
-    made for a video gives each ear its own (test_frame)."""
+def test_a_photo_head_paints_each_ear_in_its_own_tile(akiyo):
+    """A portrait paints its ears from the photo (an ear under hair takes the hair): each ear
+    gets a tile of its own (half the generic ear tile), as a head made for a video does."""
     head, _, _, _ = akiyo
-    left = np.asarray(head.scene.node("L_EAR").expand()["texCoord"].expand()["point"])
-    right = np.asarray(head.scene.node("R_EAR").expand()["texCoord"].expand()["point"])
-    assert left[:, 1].min() < EAR_TILES["L_EAR"][1]  # the whole generic tile, not a half
-    assert np.allclose(np.sort(left[:, 0]).mean(), np.sort(right[:, 0]).mean(), atol=0.1)
+    for name in ("L_EAR", "R_EAR"):
+        uv = np.asarray(head.scene.node(name).expand()["texCoord"].expand()["point"])
+        u0, v0, u1, v1 = EAR_TILES[name]
+        assert uv[:, 0].min() >= u0 - 1e-6 and uv[:, 0].max() <= u1 + 1e-6, name
+        assert uv[:, 1].min() >= v0 - 1e-6 and uv[:, 1].max() <= v1 + 1e-6, name
 
 
 def test_the_model_passes_check_and_show(akiyo):

@@ -27,7 +27,7 @@ AKIYO = Path(__file__).parents[1] / "data" / "video" / "akiyo_cif.mp4"
 def akiyo():
     """Akiyo's first frame and a head fitted to it as for a video (not yet made for it)."""
     frame = next(itertools.islice(read_video(AKIYO).frames(), 0, None))
-    return frame, fit_photo(frame, photo_parts=VIDEO_PARTS)
+    return frame, fit_photo(frame, photo_parts=VIDEO_PARTS, portrait=False)
 
 
 def _render(paths, frame) -> np.ndarray:
@@ -122,7 +122,9 @@ def carphone(fits):
 
     frame = next(iter(read_video(CARPHONE).frames()))
     with fits.sharing():
-        head = vtts.fit.fit_photo(frame, face=1, detector=None, photo_parts=VIDEO_PARTS)
+        head = vtts.fit.fit_photo(
+            frame, face=1, detector=None, photo_parts=VIDEO_PARTS, portrait=False
+        )
     return frame, head
 
 
@@ -148,7 +150,7 @@ def test_a_video_head_ends_its_neck_at_the_collar(carphone, tmp_path):
     from vtts.fit.neck import collar_row
     from vtts.fit.photo import _drawn
 
-    drawn = _drawn(head, ("NECK", "FACE"))
+    drawn = _drawn(head.scene, head.tables, frame.shape[:2], ("NECK", "FACE"))
     assert drawn["NECK"].any()
     assert collar_row(frame, drawn["NECK"], drawn["FACE"]) is None
 

@@ -392,7 +392,9 @@ def _start(result: Tracked, frame, chosen, face, model, model_path, camera, unkn
         from vtts.fit.photo import VIDEO_PARTS
 
         try:
-            head = fit_photo(frame, face=face or 1, detector=detector, photo_parts=VIDEO_PARTS)
+            head = fit_photo(
+                frame, face=face or 1, detector=detector, photo_parts=VIDEO_PARTS, portrait=False
+            )
             head = with_frame(head)
         except FitError as e:
             raise AnalysisError(f"cannot fit a head to the first face: {e.message}") from None

@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 import contextlib
+import functools
 import tempfile
 import time
 from dataclasses import dataclass, field
@@ -26,8 +27,10 @@ from vtts.face import FaceModel
 from vtts.face.adt import AnimationTables, format_adt
 from vtts.face.atlas import EAR_TILE
 from vtts.face.source_photo import record_photo
+from vtts.fit.expression import expression_basis, for_photo, skin_trust
 from vtts.fit.frame import FRAME_APPEARANCES, frame_texture, project_frame
 from vtts.fit.generic import GenericHead, generic_head, landmark_map
+from vtts.fit.hair import HairShell, fit_hair_shell
 from vtts.fit.head import (
     fitted_fapu,
     fitted_geometry,
@@ -45,6 +48,7 @@ from vtts.fit.landmarks import (
     detect_faces,
 )
 from vtts.fit.neck import NECK, collar_row, cut_neck, free_neck
+from vtts.fit.segment import person_probability
 from vtts.fit.shape import (
     DEFAULT_FOCAL_35MM,
     MAX_FOCAL_35MM,
@@ -60,6 +64,7 @@ from vtts.fit.texture import (
     PAINTED_PARTS,
     PHOTO_PARTS,
     PROBE_GREY,
+    TILE_PARTS,
     SkinPainter,
     depth_map,
     iris_colour,
@@ -76,6 +81,7 @@ from vtts.fit.texture import (
 from vtts.limits import MAX_PHOTO_PIXELS
 from vtts.render.camera import viewpoint_fields
 from vtts.resources import models_dir
+from vtts.threads import one_blas_thread
 from vtts.vrml import Scene, dumps, parse
 
 #: The Viewpoint that holds the photo's camera.
@@ -94,10 +100,9 @@ WORK_SIZE = 1024
 #: its own): what lies there in the frame — an ear, or the hair that hides it — is what the next
 #: frames show there too, while a portrait's head turns later and the generic ears serve better.
 EARS = ("L_EAR", "R_EAR")
-#: The parts a video's first frame paints (``vtts analyze --model auto``): the photo's, the
-#: neck, which a portrait may show as collar or shadow but a video will show again as it is,
-#: and the ears.
-VIDEO_PARTS = (*PHOTO_PARTS, "NECK", *EARS)
+#: The parts a video's first frame paints (``vtts analyze --model auto``): a portrait's, and
+#: the teeth and tongue, which the next frames show again as the first did.
+VIDEO_PARTS = (*PHOTO_PARTS, *(n for n in TILE_PARTS if n not in PHOTO_PARTS))
 #: Whether a head made for a video (:func:`with_frame`) gets a neck that follows the head's
 #: rotation only near the skull (:mod:`vtts.fit.neck`), as the person's does. Off: its gain on
 #: the real sequences is no larger than the difference between two runs, since the head
@@ -128,6 +133,10 @@ class FittedHead:
     timings    seconds per step
     frame      ``(H_tex, W_tex, 3) uint8`` the photo as the texture of what it shows, for a
                head made for a video (see :func:`with_frame`), else None
+    expression ``{FAP number: value}`` the photo's expression in the head's own FAPU units
+               (:mod:`vtts.fit.expression`): ``model.params(head.expression)`` at the
+               ``photo`` Viewpoint gives the photo back; empty for a head made for a video
+    hair       the :class:`~vtts.fit.hair.HairShell` (None for a head made for a video)
     """
 
     scene: Scene
@@ -141,6 +150,8 @@ class FittedHead:
     personality: str
     timings: dict[str, float] = field(default_factory=dict)
     frame: np.ndarray | None = None
+    expression: dict[int, float] = field(default_factory=dict)
+    hair: HairShell | None = None
 
     def write(self, path: str | Path) -> list[Path]:
         """Write ``PATH.wrl`` (the scene), ``PATH.adt`` (its tables), ``PATH-face.png`` (its
@@ -213,10 +224,7 @@ def with_frame(head: FittedHead, neck: bool | None = None) -> FittedHead:
     (:func:`vtts.fit.neck.free_neck`)."""
     h, w = head.photo.shape[:2]
     if CUT_NECK and NECK in head.scene.defs:
-        drawn = _drawn(head, (NECK, "FACE"))
-        row = collar_row(head.photo, drawn[NECK], drawn["FACE"])
-        if row is not None:
-            cut_neck(head.scene, head.shape.camera, row)
+        _cut_at_collar(head.scene, head.tables, head.shape, head.photo)
     project_frame(head.scene, head.shape.camera, (w, h))
     if FREE_NECK if neck is None else neck:
         free_neck(head.scene, head.tables)
@@ -224,23 +232,35 @@ def with_frame(head: FittedHead, neck: bool | None = None) -> FittedHead:
     return head
 
 
-def _drawn(head: FittedHead, names: tuple[str, ...]) -> dict[str, np.ndarray]:
-    """``{name: (H, W) bool}``: where each IndexedFaceSet of ``names`` shows in ``head`` drawn at
-    its photo's view (the renderer's triangle numbers)."""
+def _cut_at_collar(scene: Scene, tables, shape: ShapeFit, photo: np.ndarray,
+                   expression: dict[int, float] | None = None) -> None:  # fmt: skip
+    """End the neck of ``scene`` where ``photo`` stops showing skin under the chin
+    (:func:`vtts.fit.neck.collar_row`), the head posed in ``expression`` as in the photo."""
+    drawn = _drawn(scene, tables, photo.shape[:2], (NECK, "FACE"), expression)
+    row = collar_row(photo, drawn[NECK], drawn["FACE"])
+    if row is not None:
+        cut_neck(scene, shape.camera, row)
+
+
+def _drawn(scene: Scene, tables, size: tuple[int, int], names: tuple[str, ...],
+           expression: dict[int, float] | None = None) -> dict[str, np.ndarray]:  # fmt: skip
+    """``{name: (H, W) bool}``: where each IndexedFaceSet of ``names`` shows in the head of
+    ``scene`` drawn at its photo's view, ``size`` (H, W), in ``expression`` (the renderer's
+    triangle numbers)."""
     from vtts.render import FaceRenderer
 
-    h, w = head.photo.shape[:2]
-    nodes = {n: head.scene.node(n).expand() for n in names}
+    h, w = size
+    nodes = {n: scene.node(n).expand() for n in names}
     with tempfile.TemporaryDirectory(prefix="vtts-fit-") as tmp:
         folder = Path(tmp)
         Image.new("RGB", (4, 4), (128, 128, 128)).save(folder / "grey.png")
-        model = FaceModel(head.scene, head.tables, folder / "probe.wrl")
-        textures = head.scene.find("ImageTexture")
+        model = FaceModel(scene, tables, folder / "probe.wrl")
+        textures = scene.find("ImageTexture")
         urls = [node.fields.get("url") for node in textures]
         set_texture_url(model.scene, "grey.png")
         try:
             with FaceRenderer(model, size=(w, h), viewpoint=PHOTO_VIEWPOINT) as r:
-                _, numbers = r.render(model.params(), triangles=True)
+                _, numbers = r.render(model.params(expression), triangles=True)
                 sets = r.triangle_sets
         finally:
             for node, url in zip(textures, urls, strict=True):
@@ -380,6 +400,7 @@ def _warn_exif(path: Path, what: str) -> None:
     warnings.warn(VttsWarning(f"EXIF: {what}", file=str(path)), stacklevel=3)
 
 
+@one_blas_thread()  # small dense solves: BLAS threads only spin against the renderer's
 def fit_photo(
     image: np.ndarray,
     *,
@@ -389,6 +410,7 @@ def fit_photo(
     name: str = "fitted",
     detector: LandmarkDetector | None = None,
     photo_parts: tuple[str, ...] = PHOTO_PARTS,
+    portrait: bool = True,
 ) -> FittedHead:
     """Fit the generic head of ``personality`` to the face in ``image (H, W, 3) uint8`` RGB.
 
@@ -396,7 +418,11 @@ def fit_photo(
     warning); ``focal_35mm`` is the lens as a 35 mm-equivalent focal length (mm; default
     :data:`~vtts.fit.shape.DEFAULT_FOCAL_35MM`); ``photo_parts`` the parts the photo paints
     where it sees them (:data:`~vtts.fit.texture.PHOTO_PARTS`; ``vtts analyze`` adds the neck,
-    :data:`VIDEO_PARTS`, since the video shows what the photo showed there). Raises
+    :data:`VIDEO_PARTS`, since the video shows what the photo showed there). A ``portrait``
+    head (the default) is neutral whatever the photo's expression (:mod:`vtts.fit.expression`),
+    its hair a shell grown to the photo's silhouette (:mod:`vtts.fit.hair`), its neck ended at
+    the collar, and nothing of the photo's background painted on it; ``portrait=False`` fits
+    the shape alone, as ``vtts analyze --model auto`` does for a video's first frame. Raises
     :class:`~vtts.errors.FitError` when no face is found."""
     t0 = time.perf_counter()
     timings: dict[str, float] = {}
@@ -422,7 +448,9 @@ def fit_photo(
     g = generic_head(personality)
     t = time.perf_counter()
     focal = focal_length((w, h), focal_35mm)
-    shape = fit_shape(g, landmark_map(), chosen.landmarks, (w, h), focal)
+    lmap = landmark_map()
+    basis = for_photo(_expression_basis(personality), chosen.landmarks) if portrait else None
+    shape = fit_shape(g, lmap, chosen.landmarks, (w, h), focal, expression=basis)
     timings["shape"] = time.perf_counter() - t
     t = time.perf_counter()
     geometry = fitted_geometry(g, shape.control)
@@ -431,13 +459,89 @@ def fit_photo(
     title = f"{name}: fitted to a photo (adi fit, personality {personality})"
     scene = fitted_scene(g.model, geometry, f"{name}-face.png", title)
     add_viewpoint(scene, shape)
+    expression = fitted_expression(shape.expression, g.model.fapu, fapu)
+    set_photo_expression(scene, expression)
     timings["head"] = time.perf_counter() - t
+    hair, trust, skin = None, None, None
+    if portrait:
+        t = time.perf_counter()
+        trust = person_probability(image)
+        hair = fit_hair_shell(scene, shape.camera, trust)
+        if CUT_NECK and NECK in scene.defs and NECK in photo_parts:
+            _cut_at_collar(scene, tables, shape, image, expression)
+        skin = skin_trust((w, h), chosen.landmarks)
+        timings["hair"] = time.perf_counter() - t
     t = time.perf_counter()
-    atlas, seen = _texture(g, scene, tables, shape, image, chosen, photo_parts)
+    atlas, seen = _texture(g, scene, tables, shape, image, chosen, photo_parts, expression,
+                           trust, skin)  # fmt: skip
     timings["texture"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t0
     return FittedHead(scene, tables, atlas, shape, chosen, image, len(faces), seen, personality,
-                      timings)  # fmt: skip
+                      timings, expression=expression, hair=hair)  # fmt: skip
+
+
+#: How the first WorldInfo's info line that holds the photo's expression begins.
+PHOTO_EXPRESSION = "photo expression (FAP values at the photo Viewpoint):"
+
+
+def set_photo_expression(scene: Scene, expression: dict[int, float]) -> None:
+    """Record ``expression`` ``{FAP: value}`` (the photo's, in the head's FAPU units) in the
+    first WorldInfo's info of ``scene``, as ``photo expression (…): 3 284 12 40`` (FAP and value
+    pairs; none for a neutral photo), so that a written head keeps how to give its photo back
+    (:func:`photo_expression`)."""
+    infos = scene.find("WorldInfo")
+    if not infos:
+        return
+    info = [line for line in infos[0].fields.get("info", []) or []
+            if not str(line).startswith(PHOTO_EXPRESSION)]  # fmt: skip
+    pairs = " ".join(f"{k} {v:g}" for k, v in sorted(expression.items()))
+    infos[0].fields["info"] = [*info, f"{PHOTO_EXPRESSION} {pairs}".rstrip()]
+
+
+def photo_expression(scene: Scene) -> dict[int, float]:
+    """``{FAP: value}`` the photo's expression recorded in ``scene`` by
+    :func:`set_photo_expression` (empty where none is): ``model.params(photo_expression(
+    model.scene))`` at the ``photo`` Viewpoint draws the photo's face."""
+    for node in scene.find("WorldInfo")[:1]:
+        for line in node.fields.get("info", []) or []:
+            line = str(line)
+            if line.startswith(PHOTO_EXPRESSION):
+                words = line[len(PHOTO_EXPRESSION) :].split()
+                try:
+                    pairs = [(int(a), float(b)) for a, b in zip(words[::2], words[1::2],
+                                                                 strict=True)]  # fmt: skip
+                except ValueError:
+                    return {}
+                return {k: v for k, v in pairs if 1 <= k <= 68}
+    return {}
+
+
+@functools.lru_cache(maxsize=4)
+def _expression_basis(personality: str):
+    """The expression basis of a bundled head (:func:`vtts.fit.expression.expression_basis`)."""
+    g = generic_head(personality)
+    return expression_basis(g.model, landmark_map().matrix(len(g.face)))
+
+
+def fitted_expression(expression: dict[int, float], fapu0, fapu) -> dict[int, float]:
+    """The photo's expression ``{FAP: value}`` in the generic head's FAPU units (``fapu0``)
+    turned into the fitted head's (``fapu``): the same displacement, since the tables scale by
+    the ratio of the two (:func:`vtts.fit.head.transfer_tables`). Values are rounded to whole
+    units and zeros dropped."""
+    from vtts.fap import fap
+
+    out = {}
+    for number, value in expression.items():
+        unit = fap(number).fapu
+        ratio = (
+            1.0
+            if unit in (None, "AU")
+            else getattr(fapu, unit.lower()) / getattr(fapu0, unit.lower())
+        )
+        v = round(value / ratio)
+        if v:
+            out[number] = float(v)
+    return out
 
 
 def add_viewpoint(scene: Scene, shape: ShapeFit) -> None:
@@ -464,13 +568,18 @@ def add_viewpoint(scene: Scene, shape: ShapeFit) -> None:
 
 
 def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.ndarray,
-             face: Face, photo_parts: tuple[str, ...] = PHOTO_PARTS):  # fmt: skip
+             face: Face, photo_parts: tuple[str, ...] = PHOTO_PARTS,
+             expression: dict[int, float] | None = None, trust: np.ndarray | None = None,
+             skin: np.ndarray | None = None):  # fmt: skip
     """The atlas: the generic tiles (upscaled; one eye tile per eye, in the photo's eye
-    colours; the ear in its skin colour), painted from the photo where it sees the head."""
+    colours; the ear in its skin colour), painted from the photo where it sees the head —
+    the head posed in the photo's ``expression``; ``trust`` and ``skin`` ``(H, W)`` weigh
+    the photo's pixels for every part and for the skin (:func:`~vtts.fit.texture.project_skin`)."""
     from vtts.render import FaceRenderer
 
     with Image.open(models_dir() / f"{g.model.name}-face.png") as im:
-        generic_atlas = upscale(im, ATLAS_SIZE)
+        size = atlas_size(image)
+        generic_atlas = upscale(im, size)
     split_eye_tiles(generic_atlas, scene)
     ears = [n for n in EARS if n in photo_parts]
     if ears:
@@ -482,6 +591,10 @@ def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.nd
     with tempfile.TemporaryDirectory(prefix="vtts-fit-") as tmp:
         folder = Path(tmp)
         model = FaceModel(scene, tables, folder / "probe.wrl")
+        if expression:
+            # painted as the photo shows the face; the texture coordinates are the neutral's
+            model = FaceModel(model.posed_scene(model.deform(expression)), tables,
+                              folder / "probe.wrl")  # fmt: skip
         for label, value in (("grey", PROBE_GREY), ("black", 0.0)):
             png = folder / f"{label}.png"
             Image.new("RGB", (16, 16), (round(value * 255),) * 3).save(png)
@@ -505,9 +618,9 @@ def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.nd
                 tint_eye(generic_atlas, np.mean(irises, axis=0), tile)
         names = [*PAINTED_PARTS, *(n for n in photo_parts if n not in PAINTED_PARTS)]
         parts = {n: model.scene.node(n).expand() for n in names if n in model.scene.defs}
-        texels = skin_texels(parts, ATLAS_SIZE, photo_parts)
-        painter = SkinPainter(project_skin(texels, shape.camera, (w, h), depth, gain, offset),
-                              ATLAS_SIZE)  # fmt: skip
+        texels = skin_texels(parts, size, photo_parts)
+        painter = SkinPainter(project_skin(texels, shape.camera, (w, h), depth, gain, offset,
+                                           trust, skin), size)  # fmt: skip
         target = photo
         for k in range(TEXTURE_PASSES):
             if k == 0 and ears:
@@ -537,9 +650,20 @@ def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.nd
     return (np.clip(atlas, 0, 1) * 255 + 0.5).astype(np.uint8), seen
 
 
+#: Photos up to this size (pixels, the longer side) get an atlas of half :data:`ATLAS_SIZE`:
+#: their face covers fewer pixels than that atlas has texels for it, and the texture's time
+#: goes with its texels.
+SMALL_PHOTO = 256
+
+
+def atlas_size(image: np.ndarray) -> int:
+    """Texels (square) of the atlas for a photo ``image (H, W, 3)``."""
+    return ATLAS_SIZE // 2 if max(image.shape[:2]) <= SMALL_PHOTO else ATLAS_SIZE
+
+
 def _skin_ratio(atlas: np.ndarray, generic_atlas: np.ndarray) -> np.ndarray:
     """``(3,)``: the painted skin chart's mean colour over the generic one's, per channel."""
-    rows = slice(0, int(ATLAS_SIZE * 0.75))
+    rows = slice(0, int(atlas.shape[0] * 0.75))
     return atlas[rows].reshape(-1, 3).mean(axis=0) / np.maximum(
         generic_atlas[rows].reshape(-1, 3).mean(axis=0), 1e-6
     )

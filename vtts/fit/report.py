@@ -37,16 +37,18 @@ def psnr(a: np.ndarray, b: np.ndarray) -> float:
     return math.inf if mse == 0 else 10 * math.log10(255.0**2 / mse)
 
 
-def photo_view(model: FaceModel, photo: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """The model rendered at its ``photo`` Viewpoint over ``photo (H, W, 3) uint8``, and the
-    masks ``(H, W) bool`` of the pixels its skin (``FACE``), its face (:data:`FACE_PARTS`) and
-    the whole head show."""
+def photo_view(model: FaceModel, photo: np.ndarray, faps: dict[int, float] | None = None
+               ) -> tuple[np.ndarray, dict[str, np.ndarray]]:  # fmt: skip
+    """The model rendered at its ``photo`` Viewpoint over ``photo (H, W, 3) uint8``, in the
+    photo's expression ``faps`` (:attr:`~vtts.fit.photo.FittedHead.expression`), and the masks
+    ``(H, W) bool`` of the pixels its skin (``FACE``), its face (:data:`FACE_PARTS`) and the
+    whole head (everything it draws) show."""
     from vtts.fit.photo import PHOTO_VIEWPOINT
     from vtts.render import FaceRenderer
 
     h, w = photo.shape[:2]
     with FaceRenderer(model, size=(w, h), viewpoint=PHOTO_VIEWPOINT) as r:
-        image, numbers = r.render(model.params(), triangles=True)
+        image, numbers = r.render(model.params(faps), triangles=True)
         sets = r.triangle_sets
     image = np.where((numbers >= 0)[..., None], image[..., :3], photo)
     masks = {"skin": np.zeros((h, w), bool), "face": np.zeros((h, w), bool), "head": numbers >= 0}
@@ -69,7 +71,7 @@ def figures(model: FaceModel, head, photo: np.ndarray) -> dict:
         - head.face.landmarks[[263, 362], :2].mean(axis=0)
     )
     err = shape.residual
-    image, masks = photo_view(model, photo)
+    image, masks = photo_view(model, photo, head.expression)
     out = {
         "faces_found": head.faces,
         "landmarks_fitted": int(shape.used.sum()),
@@ -87,6 +89,7 @@ def figures(model: FaceModel, head, photo: np.ndarray) -> dict:
         "psnr_db": {k: psnr(image[m], photo[m]) for k, m in masks.items() if m.any()},
         "pixels": {k: int(m.sum()) for k, m in masks.items()},
         "head_yaw_degrees": math.degrees(shape.yaw),
+        "photo_expression_faps": {str(k): v for k, v in head.expression.items()},
         "focal_px": shape.focal,
         "skin_seen_by_photo": head.seen,
         "seconds": head.timings,
@@ -118,7 +121,7 @@ def write_report(folder: str | Path, model: FaceModel, head, photo: np.ndarray,
     for x, y in projected * scale:
         draw.ellipse([x - r, y - r, x + r, y + r], fill=(230, 40, 40))
     _save(im, folder / LANDMARKS)
-    image, _ = photo_view(model, photo)
+    image, _ = photo_view(model, photo, head.expression)
     both = Image.new("RGB", (photo.shape[1] * 2, photo.shape[0]))
     both.paste(Image.fromarray(photo), (0, 0))
     both.paste(Image.fromarray(image), (photo.shape[1], 0))

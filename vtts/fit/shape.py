@@ -22,11 +22,13 @@ soft-L1 loss, solved as iteratively reweighted least squares (:func:`levenberg_m
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from vtts.errors import FitError
+from vtts.fit.expression import ONE_WAY as ONE_WAY_FACTOR
+from vtts.fit.expression import ExpressionBasis
 from vtts.fit.generic import GenericHead, LandmarkMap
 from vtts.fit.landmarks import EYE_CORNERS as LANDMARK_EYE_CORNERS
 from vtts.render.camera import Camera
@@ -88,6 +90,8 @@ class ShapeFit:
     size        the photo's (W, H)
     residual    ``(n,)`` reprojection error of each mapped landmark (pixels)
     used        ``(n,)`` bool: the landmarks the last stage weighed
+    expression  ``{FAP number: value}`` the photo's expression (the generic head's FAPU
+                units; empty when none was fitted): ``control`` is the neutral face without it
     """
 
     control: np.ndarray
@@ -98,6 +102,7 @@ class ShapeFit:
     size: tuple[int, int]
     residual: np.ndarray
     used: np.ndarray
+    expression: dict[int, float] = field(default_factory=dict)
 
     @property
     def camera(self) -> Camera:
@@ -144,6 +149,7 @@ def fit_shape(
     focal: float,
     *,
     refine: bool = True,
+    expression: ExpressionBasis | None = None,
 ) -> ShapeFit:
     """Fit ``head`` to detected ``landmarks`` ``(468, 2+)`` (pixels) of a photo of ``size``.
 
@@ -151,7 +157,9 @@ def fit_shape(
     stops after the shape units (no per-control-point refinement). Landmarks are weighed by how
     steadily they were mapped (:attr:`LandmarkMap.spread`) and through a robust loss, so a few
     that the detector puts elsewhere on this face than on the bundled heads do not pull the
-    shape."""
+    shape. With ``expression`` (:func:`vtts.fit.expression.expression_basis`) the photo's
+    expression is fitted along with the shape units and the refinement, and kept apart from the
+    neutral shape (:attr:`ShapeFit.expression`)."""
     w, h = size
     cx, cy = w / 2, h / 2
     M = np.asarray((lmap.matrix(head.S.shape[0]) @ head.S).todense())  # (n, c)
@@ -174,6 +182,7 @@ def fit_shape(
     smooth = np.kron(lap, np.eye(3)) / SIGMA_LAPLACE
     small = np.diag(np.tile([1 / SIGMA_XY, 1 / SIGMA_XY, 1 / SIGMA_Z], n_c))
     prior_delta = np.vstack([small, smooth, sym])
+    e = 0 if expression is None else len(expression.faps)
 
     # initial pose: facing the camera, at the distance that gives the photo's eye distance
     model_pts = M @ c0
@@ -188,15 +197,24 @@ def fit_shape(
 
     def split(x: np.ndarray, stage: int):
         alpha = x[6 : 6 + k] if stage >= 2 else np.zeros(k)
-        delta = x[6 + k :] if stage >= 3 else np.zeros(3 * n_c)
-        return x[:3], x[3:6], alpha, delta
+        f = x[6 + k : 6 + k + e] if stage >= 2 else np.zeros(e)
+        delta = x[6 + k + e :] if stage >= 3 else np.zeros(3 * n_c)
+        return x[:3], x[3:6], alpha, f, delta
 
-    def landmark_terms(rotvec, t, alpha, delta, wts):
+    def expression_prior(f):
+        """The expression values' prior residuals ``(e,)`` and their slopes."""
+        scale = np.where(expression.one_way & (f < 0), ONE_WAY_FACTOR, 1.0) * expression.sigma
+        return f / scale, 1.0 / scale
+
+    def landmark_terms(rotvec, t, alpha, f, delta, wts):
         """Weighted reprojection residuals ``(2n,)`` and their derivatives by the model
         points' camera coordinates ``(n, 2, 3)``."""
         rot = rotvec_matrix(rotvec)
         c = (c0.ravel() + units @ alpha + delta).reshape(n_c, 3)
-        p = (M @ c) @ rot.T + t
+        pts = M @ c
+        if e:
+            pts = pts + expression.displacement(f)
+        p = pts @ rot.T + t
         z = -p[:, 2]
         uv = np.stack([cx + focal * p[:, 0] / z, cy - focal * p[:, 1] / z], axis=1)
         s = np.sqrt(wts) / sigma_px
@@ -209,27 +227,31 @@ def fit_shape(
         return r, d * s[:, None, None], rot, p
 
     def residuals(x, stage, wts):
-        rotvec, t, alpha, delta = split(x, stage)
-        r, _, _, _ = landmark_terms(rotvec, t, alpha, delta, wts)
+        rotvec, t, alpha, f, delta = split(x, stage)
+        r, _, _, _ = landmark_terms(rotvec, t, alpha, f, delta, wts)
         out = [r]
         if stage >= 2:
             out.append(alpha / sigma_alpha)
+            if e:
+                out.append(expression_prior(f)[0])
         if stage >= 3:
             out.append(prior_delta @ delta)
         return np.concatenate(out)
 
     def jacobian(x, stage, wts):
-        rotvec, t, alpha, delta = split(x, stage)
-        r, d, rot, p = landmark_terms(rotvec, t, alpha, delta, wts)
+        rotvec, t, alpha, f, delta = split(x, stage)
+        r, d, rot, p = landmark_terms(rotvec, t, alpha, f, delta, wts)
         n = len(p)
-        cols = 6 + (k if stage >= 2 else 0) + (3 * n_c if stage >= 3 else 0)
-        rows = 2 * n + (k if stage >= 2 else 0) + (prior_delta.shape[0] if stage >= 3 else 0)
+        ke = (k + e) if stage >= 2 else 0
+        cols = 6 + ke + (3 * n_c if stage >= 3 else 0)
+        rows = 2 * n + ke + (prior_delta.shape[0] if stage >= 3 else 0)
         jac = np.zeros((rows, cols))
         # rotation: numerically (three columns); translation: d(uv)/dp
         for a in range(3):
             step = np.zeros(3)
             step[a] = 1e-6
-            jac[: 2 * n, a] = (landmark_terms(rotvec + step, t, alpha, delta, wts)[0] - r) / 1e-6
+            moved = landmark_terms(rotvec + step, t, alpha, f, delta, wts)[0]
+            jac[: 2 * n, a] = (moved - r) / 1e-6
         jac[: 2 * n, 3:6] = d.reshape(2 * n, 3)
         if stage >= 2:
             # d(uv_j)/d(c_m) = M[j, m] · d_j @ R  →  (2n, 3c)
@@ -237,9 +259,14 @@ def fit_shape(
             dc = np.einsum("jm,jab->jamb", M, dr).reshape(2 * n, 3 * n_c)
             jac[: 2 * n, 6 : 6 + k] = dc @ units
             jac[2 * n : 2 * n + k, 6 : 6 + k] = np.diag(1 / sigma_alpha)
+            if e:
+                # d(uv_j)/d(f_i) = d_j @ R @ slope_i,j
+                de = np.einsum("jab,ijb->jai", dr, expression.slopes(f)).reshape(2 * n, e)
+                jac[: 2 * n, 6 + k : 6 + k + e] = de
+                jac[2 * n + k : 2 * n + k + e, 6 + k : 6 + k + e] = np.diag(expression_prior(f)[1])
             if stage >= 3:
-                jac[: 2 * n, 6 + k :] = dc
-                jac[2 * n + k :, 6 + k :] = prior_delta
+                jac[: 2 * n, 6 + k + e :] = dc
+                jac[2 * n + k + e :, 6 + k + e :] = prior_delta
         return jac
 
     def solve(x, stage, wts):
@@ -250,17 +277,19 @@ def fit_shape(
     # stage 1: the pose alone, on the inner landmarks
     x = solve(np.r_[np.zeros(3), t0], 1, np.where(oval, 0.0, trust))
     # stage 2: pose and shape units, the outline too (its far side dropped on a turned head)
-    x = solve(np.r_[x, np.zeros(k)], 2, _weights(trust, oval, target, x[:3]))
+    x = solve(np.r_[x, np.zeros(k + e)], 2, _weights(trust, oval, target, x[:3]))
     stage = 2
     wts = _weights(trust, oval, target, x[:3])
     if refine:
         x = solve(np.r_[x, np.zeros(3 * n_c)], 3, wts)
         stage = 3
-    rotvec, t, alpha, delta = split(x, stage)
+    rotvec, t, alpha, f, delta = split(x, stage)
     c = (c0.ravel() + units @ alpha + delta).reshape(n_c, 3)
     rot = rotvec_matrix(rotvec)
-    err = np.linalg.norm(project(M @ c, rot, t, focal, cx, cy) - target, axis=1)
-    return ShapeFit(c, alpha, rot, t, focal, (w, h), err, wts > 0)
+    pts = M @ c + (expression.displacement(f) if e else 0.0)
+    err = np.linalg.norm(project(pts, rot, t, focal, cx, cy) - target, axis=1)
+    faps = {} if not e else {int(n): float(v) for n, v in zip(expression.faps, f, strict=True)}
+    return ShapeFit(c, alpha, rot, t, focal, (w, h), err, wts > 0, faps)
 
 
 def levenberg_marquardt(

@@ -42,11 +42,16 @@ SKIN_PARTS = ("FACE", "HAIR", "NECK")
 #: Parts with a tile of their own that the photo paints where it sees them (over the generic
 #: tile): the eyeballs (each with its own tile, see :func:`split_eye_tiles`), teeth and tongue.
 TILE_PARTS = ("L_EYEBALL", "R_EYEBALL", "UPPER_TEETH", "LOWER_TEETH", "TONGUE")
-#: The parts the photo paints (the neck is filled: below the chin photos show collars and
-#: shadow more often than neck).
-PHOTO_PARTS = ("FACE", "HAIR", *TILE_PARTS)
+#: The ears, each painted in a tile of its own (:func:`split_ear_tiles`) where the photo paints
+#: them.
+EAR_PARTS = ("L_EAR", "R_EAR")
+#: The parts a portrait paints: the skin, the hair, the neck (ended at the collar first,
+#: :mod:`vtts.fit.neck`), the eyes and the ears (an ear under hair takes the hair). Teeth,
+#: tongue and the mouth's inside are the model's own: a photo's open mouth is no texture for a
+#: mouth that the model opens and closes.
+PHOTO_PARTS = ("FACE", "HAIR", "NECK", "L_EYEBALL", "R_EYEBALL", *EAR_PARTS)
 #: Every textured part the painter rasterizes.
-PAINTED_PARTS = PHOTO_PARTS
+PAINTED_PARTS = ("FACE", "HAIR", "NECK", *TILE_PARTS)
 #: The fitted head's own eye tiles: the generic eye tile's upper half, split in two (the photo
 #: shows each eye's iris where that eye looks).
 EYE_TILES = {"L_EYEBALL": (0.0, 0.125, 0.125, 0.25), "R_EYEBALL": (0.125, 0.125, 0.25, 0.25)}
@@ -58,6 +63,12 @@ TILE_REACH = 6.0
 #: A texel's weight grows from 0 to 1 as the cosine between its normal and the view grows
 #: between these.
 GRAZING = (0.2, 0.5)
+#: The parts whose outline the photo paints up to the edge: the hair shell and the ears only
+#: approximate what the photo shows there, and what it shows at their silhouette is the hair's
+#: or the ear's own edge, seen nearly edge-on; the grazing weight falls off only at
+#: :data:`RIM_GRAZING`.
+RIM_PARTS = ("HAIR", "L_EAR", "R_EAR")
+RIM_GRAZING = (0.02, 0.1)
 #: How far behind the surface the photo's pixel shows may be for the texel to be seen (model
 #: units; the face is about 1.2 wide).
 DEPTH_TOLERANCE = 0.01
@@ -75,6 +86,9 @@ class SkinTexels:
     normals     ``(N, 3)`` unit normals there
     photo       ``(N,)`` bool: the texel may take the photo's colour (its part is in
                 :data:`PHOTO_PARTS`)
+    skin        ``(N,)`` bool: the texel is of a skin part (:data:`SKIN_PARTS`)
+    rim         ``(N,)`` bool: the texel is of a part whose outline the photo paints up to its
+                edge (:data:`RIM_PARTS`)
     """
 
     rows: np.ndarray
@@ -82,6 +96,8 @@ class SkinTexels:
     points: np.ndarray
     normals: np.ndarray
     photo: np.ndarray
+    skin: np.ndarray
+    rim: np.ndarray
 
 
 def skin_texels(
@@ -90,7 +106,7 @@ def skin_texels(
     """Rasterize the painted ``parts`` (IndexedFaceSet nodes by DEF name, already fitted) in
     texture space: texel centres inside a triangle's texture coordinates; those of
     ``photo_parts`` are the photo's to paint."""
-    rows, cols, pts, nrm, photo = [], [], [], [], []
+    rows, cols, pts, nrm, photo, skin, rim = [], [], [], [], [], [], []
     for name in parts:
         tm = triangulate(parts[name])
         uv = tm.texcoords
@@ -133,7 +149,9 @@ def skin_texels(
         pts.append(p)
         nrm.append(n)
         photo.append(np.full(len(p), name in photo_parts))
-    return SkinTexels(*(np.concatenate(a) for a in (rows, cols, pts, nrm, photo)))
+        skin.append(np.full(len(p), name in SKIN_PARTS))
+        rim.append(np.full(len(p), name in RIM_PARTS))
+    return SkinTexels(*(np.concatenate(a) for a in (rows, cols, pts, nrm, photo, skin, rim)))
 
 
 def depth_map(numbers: np.ndarray, sets, camera: Camera, world: np.ndarray) -> np.ndarray:
@@ -281,8 +299,8 @@ def _upsample2(a: np.ndarray, axis: int) -> np.ndarray:
     return np.moveaxis(out, 0, axis)
 
 
-def grazing_weight(cosine: np.ndarray) -> np.ndarray:
-    lo, hi = GRAZING
+def grazing_weight(cosine: np.ndarray, grazing: tuple[float, float] = GRAZING) -> np.ndarray:
+    lo, hi = grazing
     t = np.clip((cosine - lo) / (hi - lo), 0, 1)
     return t * t * (3 - 2 * t)
 
@@ -316,11 +334,17 @@ def project_skin(
     depth: np.ndarray,
     gain: np.ndarray,
     offset: np.ndarray,
+    trust: np.ndarray | None = None,
+    skin_trust: np.ndarray | None = None,
 ) -> Projection:
     """Which skin texels a photo of ``size`` (W, H) taken by ``camera`` (in the model's frame)
     sees: in the picture, facing the camera, and what the pixel shows (``depth``: the distance
     of what each pixel shows, :func:`depth_map`). ``gain`` and ``offset`` ``(H, W, 3)`` are the
-    renderer's shading at the photo's view (see the module docstring)."""
+    renderer's shading at the photo's view (see the module docstring). ``trust (H, W)`` (0–1,
+    optional) weighs what each pixel may give the texture: the person's probability, so that
+    the background never becomes hair or neck; ``skin_trust (H, W)`` the same for the skin
+    parts' texels alone: 0 on the photo's open mouth and eyes
+    (:func:`vtts.fit.expression.skin_trust`)."""
     w, h = size
     if not texels.photo.all():
         texels = _select(texels, texels.photo)
@@ -335,7 +359,14 @@ def project_skin(
     idx = np.flatnonzero(seen)
     taps = Taps.at((h, w), xy[idx])
     a = taps(gain)
-    weight = np.where(a.min(axis=1) > 0.02, grazing_weight(cosine[idx]), 0.0)
+    cos = cosine[idx]
+    graze = np.where(texels.rim[idx], grazing_weight(cos, RIM_GRAZING), grazing_weight(cos))
+    weight = np.where(a.min(axis=1) > 0.02, graze, 0.0)
+    if trust is not None:
+        weight = weight * taps(trust[..., None])[:, 0]
+    if skin_trust is not None:
+        on_skin = texels.skin[idx]
+        weight = np.where(on_skin, weight * taps(skin_trust[..., None])[:, 0], weight)
     keep = weight > 0
     idx, a, taps = idx[keep], a[keep], taps.select(keep)
     return Projection(texels, idx, xy[idx], weight[keep], a, taps(offset), taps)

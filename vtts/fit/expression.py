@@ -1,0 +1,131 @@
+"""The photo's expression, fitted apart from the face's shape: a neutral head from an
+expressive photo.
+
+A photo of a smiling, talking or frowning face is not a neutral face. Fitted as shape alone,
+its open jaw, stretched lips and raised brows become the head's neutral (a head that smiles
+under every viseme). Here the landmarks see the shape *and* a handful of FAPs — the jaw, the
+lips, the lip corners, the brows and the upper lids (:data:`EXPRESSION_FAPS`) — whose
+displacements the generic head's own tables give (:func:`expression_basis`): the shape fit
+(:func:`vtts.fit.shape.fit_shape`) solves for both, and the head keeps the shape without the
+FAPs as its neutral. The texture is painted with the head posed in the photo's expression
+(:func:`vtts.fit.photo.fit_photo`), so that the photo's lips land on the lips, closed in the
+neutral head; the photo's open mouth and its eyes are kept off the skin
+(:func:`skin_trust`): the mouth's inside is the model's (teeth, tongue, cavity), and the
+lids take the skin around them, not the eye.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from PIL import Image, ImageDraw
+
+from vtts.face import FaceModel
+from vtts.fap import fap
+from vtts.fit.landmarks import LEFT_EYE, LIPS_INNER, RIGHT_EYE
+
+#: The FAPs a photo's expression is fitted with, and each one's prior width (in its FAPU
+#: units): the jaw, the lips' middles and corners, the upper lids and the brows.
+EXPRESSION_FAPS = {
+    3: 600.0,  # open_jaw
+    4: 150.0,  # lower_t_midlip
+    5: 150.0,  # raise_b_midlip
+    6: 150.0,  # stretch_l_cornerlip
+    7: 150.0,  # stretch_r_cornerlip
+    12: 200.0,  # raise_l_cornerlip
+    13: 200.0,  # raise_r_cornerlip
+    19: 300.0,  # close_t_l_eyelid
+    20: 300.0,  # close_t_r_eyelid
+    31: 150.0,  # raise_l_i_eyebrow
+    32: 150.0,  # raise_r_i_eyebrow
+    33: 150.0,  # raise_l_m_eyebrow
+    34: 150.0,  # raise_r_m_eyebrow
+    35: 150.0,  # raise_l_o_eyebrow
+    36: 150.0,  # raise_r_o_eyebrow
+}
+#: The value at which each table's slope is read (FAPU units): within its first interval.
+PROBE = 100.0
+#: How much tighter a unidirectional FAP's prior is below zero (a jaw does not close beyond
+#: shut).
+ONE_WAY = 0.02
+#: The inner lips' gap (a share of the eye distance) from which the jaw's prior is its full
+#: width (:data:`EXPRESSION_FAPS`), and the least share of that width it keeps on a shut mouth.
+OPEN_GAP, SHUT_JAW = 0.15, 0.05
+#: How far (pixels, as a share of the eye distance) beyond the photo's inner lip and eye
+#: contours the skin takes nothing from the photo.
+MARGIN = 0.01
+
+
+@dataclass
+class ExpressionBasis:
+    """How the expression FAPs move the landmarks' points.
+
+    faps      ``(e,)`` FAP numbers
+    up, down  ``(e, n, 3)`` displacement of each landmark point per FAP unit, for positive and
+              negative values (model units per FAPU unit)
+    sigma     ``(e,)`` prior widths (FAPU units)
+    one_way   ``(e,)`` bool: unidirectional FAPs (negative values held near zero)
+    """
+
+    faps: np.ndarray
+    up: np.ndarray
+    down: np.ndarray
+    sigma: np.ndarray
+    one_way: np.ndarray
+
+    def displacement(self, values: np.ndarray) -> np.ndarray:
+        """``(n, 3)`` landmark points' displacement for FAP ``values (e,)``."""
+        slope = np.where((values >= 0)[:, None, None], self.up, self.down)
+        return np.einsum("e,enk->nk", values, slope)
+
+    def slopes(self, values: np.ndarray) -> np.ndarray:
+        """``(e, n, 3)`` the derivative of :meth:`displacement` by each value."""
+        return np.where((values >= 0)[:, None, None], self.up, self.down)
+
+
+def expression_basis(model: FaceModel, landmark_matrix, faps=EXPRESSION_FAPS) -> ExpressionBasis:
+    """The :class:`ExpressionBasis` of ``model``'s tables (its ``FACE``), through
+    ``landmark_matrix`` (sparse ``(n, p)``: the landmarks' points from ``FACE``'s ``p``)."""
+    numbers = [k for k in faps if any(m.kind == "fap" and m.number == k for m in model.miaps)]
+    neutral = model.neutral_points("FACE")
+    up, down = [], []
+    for k in numbers:
+        for sign, out in ((1.0, up), (-1.0, down)):
+            moved = model.engine.points(model.params({k: sign * PROBE})).get("FACE", neutral)
+            out.append(np.asarray(landmark_matrix @ (moved - neutral)) / (sign * PROBE))
+    one_way = np.array([not fap(k).bidirectional for k in numbers], bool)
+    return ExpressionBasis(np.array(numbers, int), np.array(up), np.array(down),
+                           np.array([faps[k] for k in numbers]), one_way)  # fmt: skip
+
+
+def for_photo(basis: ExpressionBasis, landmarks: np.ndarray) -> ExpressionBasis:
+    """``basis`` with the jaw's prior (open_jaw, FAP 3) narrowed to what the photo's lips show:
+    the gap between the inner lips' middles (landmarks 13, 14 of ``landmarks (468, ≥2)``,
+    pixels) over :data:`OPEN_GAP` of the eye distance, at least :data:`SHUT_JAW`. Opening the
+    jaw also lengthens the chin, which the shape can as well: on a shut mouth, and on a turned
+    face whose chin the landmarks place less surely, a loose jaw took up what was the face's
+    length (a neutral head fitted at 20° of yaw opened it by 200–450 units)."""
+    pts = np.asarray(landmarks, np.float64)[:, :2]
+    eyes = float(np.linalg.norm(pts[[33, 133]].mean(axis=0) - pts[[263, 362]].mean(axis=0)))
+    gap = float(np.linalg.norm(pts[13] - pts[14])) / max(eyes, 1e-9)
+    share = float(np.clip(gap / OPEN_GAP, SHUT_JAW, 1.0))
+    sigma = np.where(basis.faps == 3, basis.sigma * share, basis.sigma)
+    return replace(basis, sigma=sigma)
+
+
+def skin_trust(size: tuple[int, int], landmarks: np.ndarray) -> np.ndarray:
+    """``(H, W) float32`` for a photo of ``size`` (W, H): 0 inside the inner lip contour (an
+    open mouth) and the two eyes' contours, grown by :data:`MARGIN` of the eye distance, 1
+    elsewhere: what the skin may take from the photo (``landmarks (468, ≥2)`` pixels)."""
+    w, h = size
+    pts = np.asarray(landmarks, np.float64)[:, :2]
+    eyes = float(np.linalg.norm(pts[[33, 133]].mean(axis=0) - pts[[263, 362]].mean(axis=0)))
+    grow = max(1, round(MARGIN * eyes))
+    im = Image.new("L", (w, h), 255)
+    draw = ImageDraw.Draw(im)
+    for contour in (LIPS_INNER, RIGHT_EYE, LEFT_EYE):
+        poly = [tuple(p) for p in pts[list(contour)] - 0.5]
+        draw.polygon(poly, fill=0, outline=0, width=grow)
+        draw.line([*poly, poly[0]], fill=0, width=2 * grow + 1)
+    return np.asarray(im, np.float32) / 255.0
