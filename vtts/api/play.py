@@ -249,16 +249,26 @@ def play_live(o: PlayOptions, stdin: BinaryIO, stdout: BinaryIO, on_first_frame=
         a, b = itertools.tee(items())
         params = (p for p, _ in a)
         roots = (r for _, r in b) if moves else None
-        for frame in after_first(renderer.frames(params, roots, batch=1), on_first_frame):
-            if out is not None:
-                out.write(np.ascontiguousarray(frame[..., :3]).tobytes())
-                out.flush()
-            for sink in sinks:
-                sink.write(frame)
-            bar.advance()
-            n += 1
+        n += _deliver(after_first(renderer.frames(params, roots, batch=1), on_first_frame),
+                      out, sinks, bar)  # fmt: skip
     written = [str(p) for p in (o.video_file if not raw else "stdout", o.png_dir) if p]
     return Played(written, n, fps)
+
+
+def _deliver(frames, out: BinaryIO | None, sinks: list, bar) -> int:
+    """Each of ``frames`` (``(H, W, 4) uint8``) as soon as it is rendered: its RGB bytes to
+    ``out`` (flushed), then to each of ``sinks``; the progress ``bar`` advanced. Returns how
+    many there were."""
+    n = 0
+    for frame in frames:
+        if out is not None:
+            out.write(np.ascontiguousarray(frame[..., :3]).tobytes())
+            out.flush()
+        for sink in sinks:
+            sink.write(frame)
+        bar.advance()
+        n += 1
+    return n
 
 
 def play_voice(o: PlayOptions, stdin: BinaryIO, stdout: BinaryIO, on_first_frame=None) -> Played:
@@ -332,14 +342,8 @@ def play_voice(o: PlayOptions, stdin: BinaryIO, stdout: BinaryIO, on_first_frame
             sinks.append(stack.enter_context(PngSequenceWriter(o.png_dir)))
         bar = stack.enter_context(progress(None, "following the voice on stdin",
                                            not o.progress or raw))  # fmt: skip
-        for frame in after_first(renderer.frames(params(), batch=1), on_first_frame):
-            if out is not None:
-                out.write(np.ascontiguousarray(frame[..., :3]).tobytes())
-                out.flush()
-            for sink in sinks:
-                sink.write(frame)
-            bar.advance()
-            n += 1
+        n += _deliver(after_first(renderer.frames(params(), batch=1), on_first_frame), out, sinks,
+                      bar)  # fmt: skip
     written = [str(p) for p in (o.video_file if not raw else "stdout", o.png_dir) if p]
     return Played(written, n, fps)
 

@@ -162,12 +162,7 @@ class FittedHead:
         if wrl.suffix.lower() != ".wrl":
             raise FitError(f"the output must be a .wrl file, got {str(path)!r}")
         adt = wrl.with_suffix(".adt")
-        pngs = self._set_urls(wrl)
-        images = [self.texture, self.frame] if self.frame is not None else [self.texture]
-        if self.frame is None:
-            pngs.append(wrl.with_name(photo_name(wrl)))
-            images.append(self.photo)
-        record_photo(self.scene, pngs[-1].name, self.photo.shape[1], self.photo.shape[0])
+        images, pngs = self._images(wrl)
         text = dumps(self.scene)
         paths = [wrl, adt, *pngs]
         with contextlib.ExitStack() as stack:
@@ -191,15 +186,22 @@ class FittedHead:
         """The head as a :class:`~vtts.face.FaceModel` whose textures are written into
         ``folder``."""
         wrl = folder / f"{name}.wrl"
+        images, pngs = self._images(wrl)
+        for image, png in zip(images, pngs, strict=True):
+            Image.fromarray(image).save(png)
+        return FaceModel(self.scene, self.tables, wrl)
+
+    def _images(self, wrl: Path) -> tuple[list[np.ndarray], list[Path]]:
+        """The images written beside ``wrl`` and their files, the scene's urls pointed at them:
+        the atlas, then the frame's texture for a head made for a video (which holds the photo),
+        else the photo (recorded: :mod:`vtts.face.source_photo`)."""
         pngs = self._set_urls(wrl)
         images = [self.texture, self.frame] if self.frame is not None else [self.texture]
         if self.frame is None:
             pngs.append(wrl.with_name(photo_name(wrl)))
             images.append(self.photo)
         record_photo(self.scene, pngs[-1].name, self.photo.shape[1], self.photo.shape[0])
-        for image, png in zip(images, pngs, strict=True):
-            Image.fromarray(image).save(png)
-        return FaceModel(self.scene, self.tables, wrl)
+        return images, pngs
 
     def _set_urls(self, wrl: Path) -> list[Path]:
         """Point the scene's textures at their files beside ``wrl``; returns the files: the
