@@ -17,7 +17,9 @@ Debian's headless Chromium (WebGL on llvmpipe), the machine's two cores shared b
   each chunk at its place on the utterance's clock): for each N, the audio underruns (a chunk that
   came after its time) and the p95 of the N first sounds. N pages in Chromium would measure the
   software rasterizer drawing N heads, not the server. The largest N without underruns is
-  reported (target ≥ 8).
+  reported (target ≥ 8);
+- **first audio per engine** (issue 44): a server warmed up with each installed engine, a Python
+  client saying one sentence :data:`ENGINE_RUNS` times: p50 and p95 to its first audio chunk.
 """
 
 from __future__ import annotations
@@ -288,6 +290,53 @@ def sustained_rows(url: str) -> list[dict]:
     return rows
 
 
+#: Sentences each engine's server speaks for its first audio (:func:`engine_rows`).
+ENGINE_RUNS = 12
+
+
+async def _first_audio(url: str, runs: int) -> list[float]:
+    """Seconds from each ``say`` of one sentence to its first audio chunk at a Python client."""
+    from vtts.serve import Client
+    from vtts.serve.protocol import AudioChunk
+
+    firsts = []
+    async with Client(url) as c:
+        await c.open(model="cybatt", seed=7)
+        for i in range(runs):
+            start, first = time.perf_counter(), None
+            await c.say(SENTENCES[i % len(SENTENCES)])
+            while True:
+                m = await c.receive()
+                if first is None and isinstance(m, AudioChunk):
+                    first = time.perf_counter() - start
+                if isinstance(m, dict) and m.get("type") in ("end", "error"):
+                    break
+            firsts.append(first if first is not None else float("nan"))
+    return firsts
+
+
+def engine_rows() -> list[dict]:
+    """First audio of a sentence in ``vtts serve`` per installed engine (issue 44): a server
+    warmed up with that engine, a Python client (no page: the engine's share alone)."""
+    from vtts.serve.server import Server, ServerOptions, load_heads, warm_up
+    from vtts.speech.engine import installed_voices
+
+    voices, _ = installed_voices()
+    engines = list(dict.fromkeys(v.engine for v in voices))
+    rows = []
+    for engine in engines:
+        server = Server(load_heads(["cybatt"]), ServerOptions(engine=engine))
+        warm_up(server)
+        with server.running() as url:
+            firsts = np.array(asyncio.run(_first_audio(url, ENGINE_RUNS))) * 1000
+        load = os.getloadavg()[0]
+        case = f"{engine}, one sentence, {ENGINE_RUNS} runs, Python client, load {load:.1f}"
+        for q in (50, 95):
+            value = round(float(np.percentile(firsts, q)))
+            rows.append(_row(f"first audio p{q}, {engine}", case, value, "ms"))
+    return rows
+
+
 def run() -> list[dict]:
     from vtts.serve.server import Server, load_heads, warm_up
 
@@ -296,7 +345,7 @@ def run() -> list[dict]:
     with server.running() as url:
         rows = page_figures(server, url)
         rows += sustained_rows(url)
-    return rows
+    return rows + engine_rows()
 
 
 if __name__ == "__main__":
