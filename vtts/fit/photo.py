@@ -631,7 +631,11 @@ def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.nd
                 skin, _ = painter.paint(generic_atlas.copy(), target, tiles=False)
                 for name in ears:
                     tint_tile(generic_atlas, EAR_TILES[name], _skin_ratio(skin, generic_atlas))
-            atlas, seen = painter.paint(generic_atlas.copy(), target)
+                # the first pass's skin chart is that one (the same target): its tiles alone
+                skin[painter.r1 :] = generic_atlas[painter.r1 :]
+                atlas, seen = painter.paint(skin, target, skin=False)
+            else:
+                atlas, seen = painter.paint(generic_atlas.copy(), target)
             if k == TEXTURE_PASSES - 1:
                 break
             # render what the texture gives and aim the next pass at what it missed: the

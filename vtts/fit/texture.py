@@ -417,10 +417,18 @@ class SkinPainter:
             self.tile_fill = PullPush(trust)
 
     def paint(
-        self, atlas: np.ndarray, target: np.ndarray, *, fill: bool = True, tiles: bool = True
+        self,
+        atlas: np.ndarray,
+        target: np.ndarray,
+        *,
+        fill: bool = True,
+        tiles: bool = True,
+        skin: bool = True,
     ) -> tuple[np.ndarray, float]:
         """:func:`paint_skin` of ``target`` into ``atlas``; without ``tiles`` the skin chart
-        alone (the eye, teeth and tongue tiles keep the atlas's colours)."""
+        alone (the eye, teeth and tongue tiles keep the atlas's colours), without ``skin`` the
+        tiles alone (the skin chart keeps the atlas's: one painted before from the same
+        target)."""
         size, r1 = self.size, self.r1
         if self.taps is None:
             self.taps = Taps.at(target.shape[:2], self.proj.xy)
@@ -435,6 +443,8 @@ class SkinPainter:
             paint[self.tile_at] = colour[self.tile]
             filled = self.tile_fill.fill(paint)
             atlas[band] = self.near * filled + self.far * atlas[band]
+        if not skin:
+            return atlas, self.seen
         colour = colour[~self.tile]
         if not fill:
             atlas[self.skin_at] = colour
