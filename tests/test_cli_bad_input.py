@@ -47,6 +47,12 @@ CASES = [
       "--png-dir", "{tmp}/frames"], "an MP4 (H.264) has no alpha channel"),
     (["say", "Hi", "--model", HEAD, "--background", "transparent", "-o", "{tmp}/x.mp4"],
      "an MP4 (H.264) has no alpha channel"),
+    (["render", "--model", HEAD, "--background", "photo", "-o", "{tmp}/x.png"],
+     "records none"),
+    (["serve", "--port", "99999"], "--port must be within 0 to 65535, got 99999"),
+    (["serve", "--model", "{tmp}/none.wrl", "--port", "0"], "no model"),
+    (["serve", "--engine", "bogus", "--port", "0"], "--engine must be one of espeak"),
+    (["serve", "--fps", "0", "--port", "0"], "--fps must be within"),
 ]  # fmt: skip
 #: The first case of each command.
 FIRST = [case for i, case in enumerate(CASES) if case[0][0] not in {a[0] for a, _ in CASES[:i]}]
