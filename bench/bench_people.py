@@ -138,9 +138,8 @@ class Measured:
 
 
 def run() -> list[dict]:
-    out = _out_folder()
-    limit = int(os.environ.get("VTTS_BENCH_FRAMES", "0")) or None
-    chosen = [c.strip() for c in os.environ.get("VTTS_BENCH_CLIPS", "").split(",") if c.strip()]
+    out = out_folder()
+    limit, chosen = chosen_clips()
     accurate_step = int(os.environ.get("VTTS_BENCH_ACCURATE_STEP", str(ACCURATE_STEP)))
     modes = [m.strip() for m in os.environ.get("VTTS_BENCH_MODES", "").split(",") if m.strip()]
     unknowns = _unknowns(os.environ.get("VTTS_BENCH_FAPS", ""))
@@ -178,13 +177,23 @@ def _unknowns(text: str):
     return parse_unknowns(text) if text.strip() else None
 
 
-def _out_folder() -> Path:
+def out_folder(prefix: str = "vtts-bench-people-") -> Path:
+    """Where a people benchmark writes its pictures: ``VTTS_BENCH_OUT``, else a new temporary
+    folder named from ``prefix``."""
     named = os.environ.get("VTTS_BENCH_OUT")
     if named:
         out = Path(named)
         out.mkdir(parents=True, exist_ok=True)
         return out
-    return Path(tempfile.mkdtemp(prefix="vtts-bench-people-"))
+    return Path(tempfile.mkdtemp(prefix=prefix))
+
+
+def chosen_clips() -> tuple[int | None, list[str]]:
+    """``VTTS_BENCH_FRAMES`` (None: every frame) and the clips ``VTTS_BENCH_CLIPS`` names
+    (empty: all)."""
+    limit = int(os.environ.get("VTTS_BENCH_FRAMES", "0")) or None
+    chosen = [c.strip() for c in os.environ.get("VTTS_BENCH_CLIPS", "").split(",") if c.strip()]
+    return limit, chosen
 
 
 def _row(case: str, value, unit: str, target: str = "", ok=None) -> dict:

@@ -34,7 +34,6 @@ those clips (a quick look: the figures are then not the benchmark's).
 from __future__ import annotations
 
 import math
-import os
 import sys
 import tempfile
 import time
@@ -85,9 +84,10 @@ class Clip:
 
 
 def run() -> list[dict]:
-    out = _out_folder()
-    limit = int(os.environ.get("VTTS_BENCH_FRAMES", "0")) or None
-    chosen = [c.strip() for c in os.environ.get("VTTS_BENCH_CLIPS", "").split(",") if c.strip()]
+    from bench_people import chosen_clips, out_folder  # noqa: I001  (bench/ is on the path)
+
+    out = out_folder("vtts-bench-reenact-")
+    limit, chosen = chosen_clips()
     unknown = sorted(set(chosen) - set(DEVELOPMENT) - set(SET_ASIDE))
     if unknown:
         raise ValueError(f"VTTS_BENCH_CLIPS names no clip of {VIDEOS}: {unknown}")
@@ -104,15 +104,6 @@ def run() -> list[dict]:
         if done:
             rows += _summary_rows(part, done)
     return rows
-
-
-def _out_folder() -> Path:
-    named = os.environ.get("VTTS_BENCH_OUT")
-    if named:
-        out = Path(named)
-        out.mkdir(parents=True, exist_ok=True)
-        return out
-    return Path(tempfile.mkdtemp(prefix="vtts-bench-reenact-"))
 
 
 def _row(case: str, value, unit: str, target: str = "", ok=None) -> dict:
