@@ -19,12 +19,15 @@ Debian's headless Chromium (WebGL on llvmpipe), the machine's two cores shared b
   software rasterizer drawing N heads, not the server. The largest N without underruns is
   reported (target ≥ 8);
 - **first audio per engine** (issue 44): a server warmed up with each installed engine, a Python
-  client saying one sentence :data:`ENGINE_RUNS` times: p50 and p95 to its first audio chunk.
+  client saying one sentence :data:`ENGINE_RUNS` times: p50 and p95 to its first audio chunk;
+- **Ray Serve** (:func:`ray_rows`): ``vtts serve --replicas 2`` on a local Ray, 8 sessions at once
+  through Ray's proxy, then one replica killed while they speak.
 """
 
 from __future__ import annotations
 
 import asyncio
+import collections
 import json
 import os
 import time
@@ -337,6 +340,141 @@ def engine_rows() -> list[dict]:
     return rows
 
 
+#: Ray Serve (:func:`ray_rows`): replicas, and sessions speaking at once through its proxy.
+RAY_REPLICAS = 2
+RAY_SESSIONS = 8
+
+
+async def _spoken_through(url: str, text: str, kill=None) -> list[dict]:
+    """:data:`RAY_SESSIONS` sessions at once, each saying ``text``; ``kill(servers)`` is called
+    once every session has its first audio. Per session: its replica, first sound (s), how it
+    ended (``end`` or the client's error) and its audio underruns (scheduled as the page does)."""
+    from vtts.errors import ServeError
+    from vtts.serve import Client
+    from vtts.serve.protocol import AudioChunk
+
+    heard_first = asyncio.Event()
+    firsts: list[float] = []
+
+    async def one() -> dict:
+        async with Client(url, timeout=120) as c:
+            opened = await c.open()
+            t0 = time.monotonic()
+            await c.say(text)
+            start, underruns, first = None, 0, None
+            try:
+                while True:
+                    m = await c.receive()
+                    now = time.monotonic()
+                    if isinstance(m, dict) and m.get("type") == "end":
+                        return {"server": opened["server"], "first": first, "ended": "end",
+                                "underruns": underruns}  # fmt: skip
+                    if isinstance(m, AudioChunk):
+                        if start is None:
+                            start = now + LEAD
+                            first = start - t0
+                            firsts.append(first)
+                            if len(firsts) == RAY_SESSIONS:
+                                heard_first.set()
+                        due = start + m.first / 22050
+                        if now > due - 0.005:
+                            underruns += 1
+                            start += now + 0.005 - due
+            except ServeError as e:
+                return {"server": opened["server"], "first": first, "ended": str(e),
+                        "underruns": underruns}  # fmt: skip
+
+    tasks = [asyncio.create_task(one()) for _ in range(RAY_SESSIONS)]
+    if kill is not None:
+        await asyncio.wait_for(heard_first.wait(), 120)
+        kill()
+    return await asyncio.gather(*tasks)
+
+
+def ray_rows() -> list[dict]:
+    """``vtts serve --replicas 2`` (:func:`vtts.serve.ray_serve.run_on_ray`, a local Ray of this
+    machine): start-up, :data:`RAY_SESSIONS` sessions at once through Ray's proxy (spread,
+    first sound, underruns), then the same with one replica killed (SIGKILL) once all of them
+    speak: its sessions end with the client's error, the others' speech ends whole, and a new
+    session is served."""
+    import signal
+    import socket
+    import threading
+
+    from vtts.serve import Client
+    from vtts.serve.ray_serve import run_on_ray
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    url = f"http://127.0.0.1:{port}"
+    done, up = threading.Event(), threading.Event()
+    t0 = time.monotonic()
+    thread = threading.Thread(
+        target=run_on_ray, args=(["cybatt"],),
+        kwargs=dict(replicas=RAY_REPLICAS, port=port, announce=lambda _: up.set(), wait=done.wait),
+    )  # fmt: skip
+    thread.start()
+    rows = []
+    try:
+        if not up.wait(300):
+            raise RuntimeError("Ray Serve did not start within 300 s")
+        case = f"local Ray, {RAY_REPLICAS} replicas of cybatt, each warmed up"
+        rows.append(_row("Ray Serve start-up", case, round(time.monotonic() - t0, 1), "s"))
+        results = asyncio.run(_spoken_through(url, DEMO))
+        spread = sorted(collections.Counter(r["server"] for r in results).values())
+        under = sum(r["underruns"] for r in results)
+        firsts = [r["first"] for r in results]
+        case = (f"{RAY_SESSIONS} sessions at once through the proxy, the demo each; sessions per "
+                f"replica {spread}; underruns {under}")  # fmt: skip
+        for q in (50, 95):
+            value = round(float(np.percentile(firsts, q)) * 1000)
+            rows.append(_row(f"Ray Serve first sound p{q}", case, value, "ms"))
+        ok = all(r["ended"] == "end" for r in results) and under == 0
+        rows.append(_row("Ray Serve sessions real-time", case, sum(r["ended"] == "end" and
+                         r["underruns"] == 0 for r in results), "sessions",
+                         f"== {RAY_SESSIONS}", ok))  # fmt: skip
+
+        victim: list[str] = []
+
+        def kill() -> None:
+            servers = sorted({r for r in (x["server"] for x in results)})
+            victim.append(servers[0])
+            os.kill(int(servers[0].rsplit(":", 1)[1]), signal.SIGKILL)
+
+        killed = asyncio.run(_spoken_through(url, DEMO, kill))
+        own = [r for r in killed if r["server"] == victim[0]]
+        others = [r for r in killed if r["server"] != victim[0]]
+        own_errors = sum(r["ended"] != "end" for r in own)
+        others_whole = sum(r["ended"] == "end" for r in others)
+        case = (f"one of {RAY_REPLICAS} replicas killed (SIGKILL) while {RAY_SESSIONS} sessions "
+                f"spoke: its {len(own)} sessions ended with the client's error "
+                f"({own[0]['ended'] if own else '-'}); the others' underruns "
+                f"{sum(r['underruns'] for r in others)}")  # fmt: skip
+        rows.append(_row("Ray Serve: the killed replica's sessions ended with an error", case,
+                         own_errors, "sessions", f"== {len(own)}",
+                         own_errors == len(own)))  # fmt: skip
+        rows.append(_row("Ray Serve: the other replica's sessions spoke to the end", case,
+                         others_whole, "sessions", f"== {len(others)}",
+                         others_whole == len(others) > 0))  # fmt: skip
+
+        async def new_session() -> str:
+            async with Client(url, timeout=120) as c:
+                opened = await c.open()
+                await c.say("Hi.")
+                return (await c.utterance()).ended + (" " + opened["server"])
+
+        t1 = time.monotonic()
+        served = asyncio.run(new_session())
+        case = f"a new session after the kill: {served}"
+        rows.append(_row("Ray Serve: a new session after the kill, served in", case,
+                         round(time.monotonic() - t1, 2), "s"))  # fmt: skip
+    finally:
+        done.set()
+        thread.join(120)
+    return rows
+
+
 def run() -> list[dict]:
     from vtts.serve.server import Server, load_heads, warm_up
 
@@ -345,7 +483,7 @@ def run() -> list[dict]:
     with server.running() as url:
         rows = page_figures(server, url)
         rows += sustained_rows(url)
-    return rows + engine_rows()
+    return rows + engine_rows() + ray_rows()
 
 
 if __name__ == "__main__":

@@ -53,6 +53,12 @@ CASES = [
     (["serve", "--model", "{tmp}/none.wrl", "--port", "0"], "no model"),
     (["serve", "--engine", "bogus", "--port", "0"], "--engine must be one of espeak"),
     (["serve", "--fps", "0", "--port", "0"], "--fps must be within"),
+    (["serve", "--replicas", "0", "--port", "8080"], "--replicas must be within 0–256, got 0"),
+    (["serve", "--ray-address", "127.0.0.1:1"], "--ray-address goes with --replicas N"),
+    (["serve", "--replicas", "2", "--model", "{tmp}/none.wrl"], "no model"),
+    (["serve", "--replicas", "2", "--ray-address", "nowhere"],
+     "--ray-address is HOST:PORT, ray://HOST:PORT or auto, got 'nowhere'"),
+    (["serve", "--replicas", "2", "--port", "0"], "--port must be within 1 to 65535 on Ray Serve"),
 ]  # fmt: skip
 #: The first case of each command.
 FIRST = [case for i, case in enumerate(CASES) if case[0][0] not in {a[0] for a, _ in CASES[:i]}]

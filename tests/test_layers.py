@@ -58,6 +58,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("vtts.export",),
     ("vtts.warm",),
     ("vtts.api",),
+    ("vtts.cluster",),  # Ray started or joined, for batch and serve
     ("vtts.batch",),
     ("vtts.serve",),  # vtts serve: speech and faces streamed over WebSockets
     ("vtts",),  # the package's front door: __version__, load_model

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import collections
 import contextlib
-import logging
 import os
 import shutil
 import sys
@@ -30,6 +29,7 @@ from vtts.batch.jobs import Job, JobError, JobsFile, as_jobs, read_jobs
 from vtts.batch.manifest import Manifest, read_failures, write_failures
 from vtts.batch.pool import Died, LocalPool, default_workers
 from vtts.batch.worker import JobResult, JobRunner
+from vtts.cluster import import_ray, start_ray
 from vtts.errors import VttsError
 from vtts.messages import printable
 
@@ -37,8 +37,6 @@ from vtts.messages import printable
 RETRIES = 2
 #: The most workers one batch starts.
 MAX_WORKERS = 256
-#: How long ``--address`` has to answer, in seconds: Ray's own connection retries for minutes.
-CONNECT_TIMEOUT_S = 10.0
 
 
 class BatchError(VttsError):
@@ -195,78 +193,13 @@ def _run(
     return report
 
 
-def _ray():
-    """Ray, imported quietly (no usage statistics sent, no dashboard)."""
-    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
-    try:
-        import ray
-    except ImportError:
-        raise BatchError(
-            "vtts batch needs Ray: install vtts with its 'batch' extra (pip install 'vtts[batch]')"
-        ) from None
-    return ray
-
-
 def _start(ray, workers: int | None, address: str | None, temp_dir: str) -> int:
     """Start a local Ray instance of ``workers`` CPUs, or join the cluster at ``address``;
     returns how many workers to make."""
-    import signal
-    import threading
-
-    options = dict(
-        include_dashboard=False,
-        logging_level=logging.ERROR,
-        log_to_driver=False,
-        configure_logging=True,
-    )
-    if address:
-        _check_reachable(address)
-    # ray.init makes SIGTERM exit at once (with Ray's stack dumps, without "interrupted"):
-    # the command's own handlers are put back, so that a signal ends the batch as Ctrl-C does
-    kept = {}
-    if threading.current_thread() is threading.main_thread():
-        kept = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
-    try:
-        if address:
-            ray.init(address=address, **options)
-        else:
-            # on the loopback interface only, with its sockets and logs in a folder of this
-            # batch (not the /tmp/ray that another user's Ray may own)
-            local = workers or os.cpu_count() or 1
-            ray.init(num_cpus=local, _node_ip_address="127.0.0.1", _temp_dir=temp_dir, **options)
-    except Exception as e:
-        where = f"the Ray cluster at {address}" if address else "a local Ray instance"
-        raise BatchError(f"cannot start {where}: {e}") from None
-    finally:
-        for sig, handler in kept.items():
-            if handler is not None:
-                signal.signal(sig, handler)
+    start_ray(ray, cpus=workers, address=address, temp_dir=temp_dir, error=BatchError)
     if workers:
         return workers
     return max(1, int(ray.cluster_resources().get("CPU", 1)))
-
-
-def _check_reachable(address: str) -> None:
-    """Fail at once, naming ``address``, when nothing answers there within
-    :data:`CONNECT_TIMEOUT_S`: Ray retries such an address for minutes, deaf to Ctrl-C, and
-    its warning names another address."""
-    import socket
-
-    if address == "auto":  # Ray finds the cluster itself (RAY_ADDRESS, or the local one)
-        return
-    host, sep, port = address.removeprefix("ray://").rpartition(":")
-    host = host.strip("[]")  # an IPv6 address: [::1]:6379
-    if not (sep and host and port.isdigit() and 0 < int(port) < 65536):
-        raise BatchError(f"--address is HOST:PORT, ray://HOST:PORT or auto, got {address!r}")
-    try:
-        socket.create_connection((host, int(port)), timeout=CONNECT_TIMEOUT_S).close()
-    except OSError as e:
-        reason = (
-            f"no answer within {CONNECT_TIMEOUT_S:g} s"
-            if isinstance(e, TimeoutError)
-            else (e.strerror or str(e)).lower()
-        )
-        raise BatchError(f"cannot reach the Ray cluster at {address}: {reason}") from None
 
 
 def _run_on_ray(
@@ -279,7 +212,10 @@ def _run_on_ray(
     retries: int,
     bar,
 ) -> None:
-    ray = _ray()
+    ray = import_ray(
+        BatchError,
+        "vtts batch needs Ray: install vtts with its 'batch' extra (pip install 'vtts[batch]')",
+    )
     t0 = time.perf_counter()
     # short: Ray's Unix sockets live in it (a socket path has at most 107 characters)
     temp_dir = tempfile.mkdtemp(prefix="vtts-ray-", dir="/tmp" if os.path.isdir("/tmp") else None)

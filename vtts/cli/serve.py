@@ -32,6 +32,16 @@ def add_parser(sub) -> None:
     sv.add_argument(
         "--seed", type=seed_type, default=0, help="seed of the first session's behaviour"
     )
+    sv.add_argument(
+        "--replicas",
+        type=int,
+        metavar="N",
+        help="serve on Ray Serve: N servers (replicas) behind Ray's HTTP proxy, on a Ray started "
+        "here or joined at --ray-address (needs the extra vtts[rayserve]; docs/serve.md)",
+    )
+    sv.add_argument(
+        "--ray-address", metavar="ADDR", help="with --replicas: the Ray cluster to join"
+    )
     sv.set_defaults(func=cmd_serve)
 
 
@@ -39,15 +49,29 @@ def cmd_serve(args: argparse.Namespace) -> int:
     """Serve until interrupted (Ctrl-C, SIGTERM)."""
     from vtts.api.options import check_choice, check_number, check_seed
     from vtts.api.say import ENGINES
+    from vtts.errors import ServeError
     from vtts.serve.server import ServerOptions, run_server
 
     check_choice(args.engine, "--engine", ENGINES)
     check_number(args.fps, "--fps", 0, 240)
     check_seed(args.seed)
     options = ServerOptions(engine=args.engine, voice=args.voice, fps=args.fps, seed=args.seed)
+    if args.ray_address is not None and args.replicas is None:
+        raise ServeError("--ray-address goes with --replicas N (serving on Ray Serve)")
     try:
-        run_server(args.model or ["cybatt"], host=args.host, port=args.port, options=options,
-                   announce=echo)  # fmt: skip
+        if args.replicas is not None:
+            check_number(args.replicas, "--replicas", 0, 256, ServeError)
+            from vtts.serve.server import load_heads
+
+            load_heads(args.model or ["cybatt"], args.fps)  # a bad model: an error here, at once
+            from vtts.serve.ray_serve import run_on_ray
+
+            run_on_ray(args.model or ["cybatt"], replicas=args.replicas, host=args.host,
+                       port=args.port, options=options, address=args.ray_address,
+                       announce=echo)  # fmt: skip
+        else:
+            run_server(args.model or ["cybatt"], host=args.host, port=args.port, options=options,
+                       announce=echo)  # fmt: skip
     except KeyboardInterrupt:
         echo("vtts serve: stopped")
     return 0

@@ -102,8 +102,14 @@ class Client:
     # ---- sending ------------------------------------------------------------------------------
 
     async def send(self, message: dict) -> None:
-        """Send one control message as it is."""
-        await self._ws.send_str(json.dumps(message))
+        """Send one control message as it is. Raises :class:`~vtts.errors.ServeError` when the
+        session's socket is closed (the server ended it, or went away)."""
+        try:
+            await self._ws.send_str(json.dumps(message))
+        except (aiohttp.ClientError, ConnectionError) as e:
+            code = self._ws.close_code
+            said = f" (code {code})" if code else ""
+            raise ServeError(f"the session is closed{said}: {e}") from None
 
     async def open(self, model: str | None = None, **fields) -> dict:
         """Open the session with ``model`` (the server's first when None) and ``fields``

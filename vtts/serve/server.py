@@ -242,6 +242,7 @@ class Session:
                 "type": "opened",
                 "version": protocol.VERSION,
                 "session": self.number,
+                "server": self.server.name,
                 "model": name,
                 "glb": f"/heads/{name}.glb",
                 "fps": self.server.options.fps,
@@ -481,6 +482,9 @@ class Server:
         self.pool = ThreadPoolExecutor(max_workers=SYNTH_WORKERS, thread_name_prefix="vtts-speak")
         self.slots = DeadlineSlots(SYNTH_WORKERS)
         self._numbers = itertools.count(1)
+        #: which server process a session reached (``HOST:PID``, the ``opened`` message's
+        #: ``server``): behind a proxy of several servers (Ray Serve's) a session stays on one
+        self.name = f"{socket.gethostname()}:{os.getpid()}"
 
     def speak_clause(self, text, head, engine, voice, rate, pitch, seed):
         """One clause spoken (in a worker thread): :func:`vtts.api.speak.speak`."""
@@ -502,16 +506,19 @@ class Server:
         app.on_shutdown.append(self._close_sessions)
         return app
 
-    async def page(self, request: web.Request) -> web.Response:
+    def page_html(self) -> str:
+        """The page, its configuration (protocol version, heads, fps) written in."""
         from string import Template
 
         from vtts.export.web import script_json
 
         config = {"version": protocol.VERSION, "heads": list(self.heads), "fps": self.options.fps}
-        text = Template((PAGE_DIR / "index.html").read_text(encoding="utf-8")).substitute(
+        return Template((PAGE_DIR / "index.html").read_text(encoding="utf-8")).substitute(
             config=script_json(config)
         )
-        return web.Response(text=text, content_type="text/html")
+
+    async def page(self, request: web.Request) -> web.Response:
+        return web.Response(text=self.page_html(), content_type="text/html")
 
     async def head_list(self, request: web.Request) -> web.Response:
         return web.json_response({"heads": list(self.heads)})
@@ -529,6 +536,15 @@ class Server:
             with contextlib.suppress(OSError):
                 sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SERVE_SOCKET_BUFFER_BYTES)
         await ws.prepare(request)
+        await self.serve_socket(ws, request.transport)
+        return ws
+
+    async def serve_socket(self, ws, transport=None) -> None:
+        """One session on the open WebSocket ``ws`` until it closes: aiohttp's
+        ``WebSocketResponse``, or another socket with its face (``closed``, ``close_code``,
+        ``send_str``, ``send_bytes``, ``close(code=, message=)``, and its messages by ``async
+        for``: :class:`vtts.serve.asgi.AsgiSocket`). ``transport`` (aiohttp's) is cut when the
+        client does not read."""
         if len(self.sessions) >= MAX_SERVE_SESSIONS:
             with contextlib.suppress(ConnectionError, RuntimeError):
                 await ws.send_str(json.dumps({
@@ -537,8 +553,8 @@ class Server:
                                "(vtts.limits.MAX_SERVE_SESSIONS): try again later",
                 }))  # fmt: skip
             await ws.close(code=WSCloseCode.TRY_AGAIN_LATER, message=b"server full")
-            return ws
-        session = Session(self, ws, next(self._numbers), request.transport)
+            return
+        session = Session(self, ws, next(self._numbers), transport)
         self.sessions.add(session)
         try:
             await session.handle()
@@ -550,7 +566,6 @@ class Server:
             if not ws.closed:
                 code = ws.close_code
                 await ws.close(code=WSCloseCode.MESSAGE_TOO_BIG if code == 1009 else WSCloseCode.OK)
-        return ws
 
     async def _close_sessions(self, app: web.Application) -> None:
         for session in list(self.sessions):
