@@ -20,6 +20,8 @@ Debian's headless Chromium (WebGL on llvmpipe), the machine's two cores shared b
   reported (target ≥ 8);
 - **first audio per engine** (issue 44): a server warmed up with each installed engine, a Python
   client saying one sentence :data:`ENGINE_RUNS` times: p50 and p95 to its first audio chunk;
+- **voice to face** (issue 43, :func:`listen_rows`): a session's voice sent in real time, its face
+  frames back: p50 and p95 latency, alone and next to speaking sessions (target p95 ≤ 150 ms);
 - **Ray Serve** (:func:`ray_rows`): ``vtts serve --replicas 2`` on a local Ray, 8 sessions at once
   through Ray's proxy, then one replica killed while they speak.
 """
@@ -340,6 +342,92 @@ def engine_rows() -> list[dict]:
     return rows
 
 
+#: Voices a listening session hears (:func:`listen_rows`), each sent in real time.
+LISTEN_TEXTS = [
+    "Maybe baby, bob my mom's pop music by the beach.",
+    "The birch canoe slid on the smooth planks.",
+    "Please pass me the blue box before the bus comes.",
+]
+#: Say sessions speaking meanwhile, in the loaded case.
+LISTEN_LOAD = 4
+
+
+async def _listened(url: str, audio: np.ndarray, rate: int) -> list[float]:
+    """One ``listen`` of ``audio`` sent in 20 ms pieces at its own pace: for each face frame, the
+    seconds from the piece holding the sample its mouth shows (frame time + the lead) being sent
+    to the frame arriving."""
+    from vtts.animate.timeline import LEAD as MOUTH_LEAD
+    from vtts.serve import Client
+    from vtts.serve.protocol import FaceFrames
+
+    async with Client(url, timeout=60) as c:
+        await c.open()
+        await c.listen(rate)
+        piece = int(rate * 0.02)
+        sent: list[tuple[int, float]] = []
+        t0 = time.monotonic()
+
+        async def sender() -> None:
+            for k in range(0, len(audio), piece):
+                await asyncio.sleep(max(0.0, t0 + k / rate - time.monotonic()))
+                sent.append((k + piece, time.monotonic()))
+                await c.send_audio(audio[k : k + piece])
+            await c.flush()
+
+        task = asyncio.create_task(sender())
+        latencies = []
+        while True:
+            m = await c.receive()
+            now = time.monotonic()
+            if isinstance(m, dict) and m.get("type") == "end":
+                break
+            if isinstance(m, FaceFrames):
+                for t in m.times():
+                    s = int((t + MOUTH_LEAD) * rate)
+                    when = next((w for end, w in sent if end >= s), None)
+                    if when is not None:
+                        latencies.append(now - when)
+        await task
+    return latencies
+
+
+def listen_rows(server, url: str) -> list[dict]:
+    """Issue 43's live latency in ``vtts serve``: a session's voice (espeak-ng's, sent in real
+    time in 20 ms pieces) to its face frames at the client, p50/p95 over every frame of
+    :data:`LISTEN_TEXTS`, alone and with :data:`LISTEN_LOAD` say sessions speaking meanwhile.
+    The server's first ``listen`` (which starts the recognizer) is a warm-up, not counted."""
+    from vtts.api.speak import speak
+
+    model = next(iter(server.heads.values())).model
+    voices = [speak(t, model, seed=0) for t in LISTEN_TEXTS]
+    asyncio.run(_listened(url, voices[0].audio[:4410], voices[0].rate))  # warm-up
+
+    async def loaded() -> list[float]:
+        talk = [asyncio.create_task(_session(url, DEMO)) for _ in range(LISTEN_LOAD)]
+        await asyncio.sleep(0.5)
+        out = []
+        for v in voices:
+            out += await _listened(url, v.audio, v.rate)
+        await asyncio.gather(*talk)
+        return out
+
+    async def alone() -> list[float]:
+        out = []
+        for v in voices:
+            out += await _listened(url, v.audio, v.rate)
+        return out
+
+    rows = []
+    for case, run_case in (("alone", alone), (f"{LISTEN_LOAD} say sessions speaking", loaded)):
+        lat = np.array(asyncio.run(run_case())) * 1000
+        for q, target in ((50, None), (95, 150)):
+            value = round(float(np.percentile(lat, q)))
+            rows.append(_row(f"voice to face p{q} (listen)", f"{case}; {len(lat)} frames", value,
+                             "ms", f"<= {target}" if target else "",
+                             None if target is None else value <= target))  # fmt: skip
+    return rows
+
+
 #: Ray Serve (:func:`ray_rows`): replicas, and sessions speaking at once through its proxy.
 RAY_REPLICAS = 2
 RAY_SESSIONS = 8
@@ -483,6 +571,7 @@ def run() -> list[dict]:
     with server.running() as url:
         rows = page_figures(server, url)
         rows += sustained_rows(url)
+        rows += listen_rows(server, url)
     return rows + engine_rows() + ray_rows()
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import base64
+import itertools
 import json
 import os
 import socket
@@ -367,3 +368,74 @@ def test_random_control_messages_never_end_the_session(server):
 
     heard = run(go())
     assert heard.ended == "end" and len(heard.audio) > 0
+
+
+def test_a_voice_sent_in_pieces_comes_back_with_its_face(server):
+    """``listen``: a voice (espeak-ng's, 22,050 Hz) sent in pieces of odd sizes (one ending
+    inside a sample) comes back whole, with a face frame per 1/30 s that opens the mouth while
+    it speaks and closes it for the m of "mom"; meanwhile text is refused; a stop ends it."""
+    from vtts.animate.lipsync import lip_gaps
+    from vtts.api.speak import speak
+    from vtts.face import load_model
+
+    model = load_model("cybatt")
+    spoken = speak("Mom, may I go out and play?", model, seed=0)
+    pcm = spoken.audio.astype("<i2").tobytes()
+
+    async def go():
+        async with Client(url) as c:
+            opened = await c.open()
+            await c.listen(spoken.rate)
+            cuts = [0, 1, 4411, 9000, 20001, *range(30000, len(pcm), 8821), len(pcm)]
+            for a, b in itertools.pairwise(cuts):
+                await c.send_audio(pcm[a:b])
+            await c.flush()
+            heard = await c.utterance()
+            await c.listen(16000)
+            await c.send_audio(np.zeros(1600, np.int16))
+            await c.say("Hello.")
+            busy = (await c.errors())[0]
+            await c.stop()
+            stopped = await c.utterance()
+            await c.say("Fine.")
+            return opened, busy, heard, stopped, await c.utterance()
+
+    _, url = server
+    opened, busy, heard, stopped, after = run(go())
+    assert busy["code"] == "busy" and "listening" in busy["message"]
+    assert heard.ended == "end" and heard.rate == spoken.rate and heard.clauses == []
+    assert np.array_equal(heard.audio, spoken.audio)
+    duration = len(spoken.audio) / spoken.rate
+    assert np.allclose(heard.times, np.arange(len(heard.times)) / 30.0)
+    assert abs(len(heard.times) - duration * 30) <= 2
+    params = np.zeros((len(heard.values), 90))
+    params[:, opened["params"]] = heard.values
+    gap = lip_gaps(model, params)
+    assert gap.max() > 0.3 * abs(gap).max() and (gap > 0.3 * gap.max()).mean() > 0.25
+    first_m = int(spoken.words[0][0] * 30)  # the m of "Mom": lips shut within 2 frames
+    assert gap[max(first_m - 2, 0) : first_m + 3].min() < 0.1 * gap.max()
+    assert stopped.ended == "stopped" and after.ended == "end" and len(after.audio) > 0
+
+
+@pytest.mark.parametrize(
+    "message, words",
+    [
+        ({"type": "listen"}, "listen needs a rate"),
+        ({"type": "listen", "rate": 1}, "8000–192000 Hz, got 1"),
+        ({"type": "listen", "rate": 16000.5}, "got 16000.5"),
+        ({"type": "listen", "rate": 16000, "autonomous": "yes"}, "autonomous must be"),
+    ],
+)
+def test_a_bad_listen_is_an_error(server, message, words):
+    async def go():
+        async with Client(url) as c:
+            await c.open()
+            await c.send(message)
+            error = (await c.errors())[0]
+            await c.send_audio(np.zeros(100, np.int16))  # not listening: binary is an error
+            return error, (await c.errors())[0]
+
+    _, url = server
+    error, binary = run(go())
+    assert error["code"] == "malformed" and words in error["message"], error
+    assert binary["code"] == "malformed" and "binary" in binary["message"]

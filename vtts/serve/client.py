@@ -32,7 +32,7 @@ class Heard:
     audio      ``(n,)`` int16, every clause's samples in order, at ``rate`` Hz
     times      ``(F,)`` float64: each face frame's time on the audio's clock, s
     values     ``(F, K)`` float32: the session's parameters (``opened["params"]``) per frame
-    clauses    the ``clause`` messages, in order
+    clauses    the ``clause`` messages, in order (none for a voice the client sent)
     errors     the ``error`` messages that came meanwhile
     ended      ``"end"``, or ``"stopped"`` when a ``stop`` cut it short
     first_audio_at  ``time.monotonic()`` when its first audio arrived (None: none did)
@@ -138,6 +138,20 @@ class Client:
         """Speak what was appended and not yet spoken, and end the utterance."""
         await self.send({"type": "flush"})
 
+    async def listen(self, rate: int, *, autonomous: bool = True) -> None:
+        """Start an utterance of this client's voice at ``rate`` Hz: send its PCM with
+        :meth:`send_audio` as it comes, then :meth:`flush` (or :meth:`stop`). The server sends
+        back the face as the voice is recognized, and the voice with it (for a player's clock)."""
+        await self.send({"type": "listen", "rate": rate, "autonomous": autonomous})
+
+    async def send_audio(self, samples: np.ndarray | bytes) -> None:
+        """The next piece of the voice: ``(n,)`` int16 mono samples (or their s16le bytes)."""
+        data = samples if isinstance(samples, bytes) else np.asarray(samples, "<i2").tobytes()
+        try:
+            await self._ws.send_bytes(data)
+        except (aiohttp.ClientError, ConnectionError) as e:
+            raise ServeError(f"the session is closed: {e}") from None
+
     async def stop(self) -> None:
         """Stop speaking: the rest of the utterance is dropped."""
         await self.send({"type": "stop"})
@@ -179,12 +193,14 @@ class Client:
                     errors.append(m)
                     continue
                 number = m.get("utterance")
-                if heard is None and kind in ("clause", "end", "stopped"):
+                if heard is None and kind in ("clause", "listening", "end", "stopped"):
                     heard = Heard(number)
                 if heard is None or number != heard.number:
                     continue
                 if kind == "clause":
                     heard.clauses.append(m)
+                    heard.rate = m["rate"]
+                elif kind == "listening":
                     heard.rate = m["rate"]
                 elif kind in ("end", "stopped"):
                     heard.ended = kind

@@ -37,7 +37,10 @@ CLIENT_MESSAGES: dict[str, frozenset[str]] = {
     "append": frozenset({"text"}),
     "flush": frozenset(),
     "stop": frozenset(),
+    "listen": frozenset({"rate", "autonomous"}),
 }
+#: Sample rates a ``listen`` takes, Hz.
+LISTEN_RATES = (8000, 192000)
 
 
 @dataclass(frozen=True)

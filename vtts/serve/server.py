@@ -113,6 +113,7 @@ class Session:
         self.speaker: asyncio.Task | None = None
         self.send_lock = asyncio.Lock()
         self.clauses_spoken = 0
+        self.listener = None  # a Listener while the client's voice is the utterance
 
     # ---- sending ------------------------------------------------------------------------------
 
@@ -151,6 +152,8 @@ class Session:
                         await self.control(msg.data)
                     except ClientError as e:
                         await self.error(e.code, e.message)
+                elif msg.type == WSMsgType.BINARY and self.listener is not None:
+                    await self.hear(msg.data)
                 elif msg.type == WSMsgType.BINARY:
                     await self.error(
                         "malformed",
@@ -181,6 +184,16 @@ class Session:
             return
         if self.head is None:
             raise ClientError("not-open", f"open a session before {kind}")
+        if self.listener is not None and kind in ("say", "append", "listen"):
+            raise ClientError(
+                "busy", f"the session is listening: flush (or stop) its voice before {kind}"
+            )
+        if kind == "listen":
+            await self.listen(message)
+            return
+        if self.listener is not None:  # flush ends the voice, stop drops it
+            await (self.end_listening() if kind == "flush" else self.stop())
+            return
         if kind in ("say", "append"):
             text = message.get("text")
             if not isinstance(text, str):
@@ -290,9 +303,59 @@ class Session:
             self.queue.put_nowait(("end", self.utterance, ""))
             self.open_utterance = False
 
+    # ---- the client's voice ----------------------------------------------------------------
+
+    async def listen(self, message: dict) -> None:
+        """Start an utterance of the client's voice: the binary messages that follow are its PCM
+        (s16le mono at ``rate``), until a ``flush`` (or ``stop``)."""
+        from vtts.serve.listen import Listener
+
+        if self.open_utterance:
+            raise ClientError("busy", "an utterance of text is open: flush (or stop) it first")
+        rate = message.get("rate")
+        lo, hi = protocol.LISTEN_RATES
+        if isinstance(rate, bool) or not isinstance(rate, int) or not lo <= rate <= hi:
+            raise ClientError(
+                "malformed", f"listen needs a rate, a whole number {lo}–{hi} Hz, got {rate!r}"
+            )
+        autonomous = message.get("autonomous", True)
+        if not isinstance(autonomous, bool):
+            raise ClientError("malformed", f"autonomous must be true or false, got {autonomous!r}")
+        seed = (self.seed + self.clauses_spoken) % 2**63
+        self.clauses_spoken += 1
+        decoder = await self.server.decoder()
+        self.listener = await asyncio.to_thread(
+            Listener, self.head.model, self.head.params, rate, self.server.options.fps, seed,
+            autonomous, decoder,
+        )  # fmt: skip
+        self.utterance += 1
+        await self.send({"type": "listening", "utterance": self.utterance, "rate": rate,
+                         "fps": self.server.options.fps})  # fmt: skip
+
+    async def hear(self, data: bytes) -> None:
+        """The next piece of the client's voice: its face and sound sent back as they are known."""
+        listener = self.listener
+        await self._send_heard(await asyncio.to_thread(listener.feed, data))
+
+    async def end_listening(self) -> None:
+        listener, self.listener = self.listener, None
+        await self._send_heard(await asyncio.to_thread(listener.finish))
+        samples = listener.samples_in
+        await self.send({"type": "end", "utterance": self.utterance, "samples": samples,
+                         "duration": samples / listener.rate})  # fmt: skip
+
+    async def _send_heard(self, heard) -> None:
+        u, fps = self.utterance, self.server.options.fps
+        if len(heard.face):
+            await self.send(protocol.pack_face(u, 0, heard.first_frame / fps, fps, heard.face))
+        for k in range(0, heard.audio.shape[0], AUDIO_CHUNK):
+            await self.send(protocol.pack_audio(u, 0, heard.first_sample + k,
+                                                heard.audio[k : k + AUDIO_CHUNK]))  # fmt: skip
+
     async def stop(self) -> None:
-        """Forget the text not yet spoken, end the utterance and say so."""
+        """Forget the text not yet spoken (or the voice), end the utterance and say so."""
         stopped = self.utterance
+        self.listener = None
         await self._stop_speaking()
         self.cutter.clear()
         self.open_utterance = False
@@ -482,9 +545,25 @@ class Server:
         self.pool = ThreadPoolExecutor(max_workers=SYNTH_WORKERS, thread_name_prefix="vtts-speak")
         self.slots = DeadlineSlots(SYNTH_WORKERS)
         self._numbers = itertools.count(1)
+        # a recognizer's decoder being made ahead for the next listen (a Future), and its thread
+        self._spare = None
+        self._decoders = ThreadPoolExecutor(max_workers=1, thread_name_prefix="vtts-decoder")
         #: which server process a session reached (``HOST:PID``, the ``opened`` message's
         #: ``server``): behind a proxy of several servers (Ray Serve's) a session stays on one
         self.name = f"{socket.gethostname()}:{os.getpid()}"
+
+    async def decoder(self):
+        """A speech recognizer's decoder for a ``listen`` (:mod:`vtts.serve.listen`): the one
+        made ahead, and the next one started, so that a voice's first samples wait for none
+        (but the server's first ``listen``, which starts the recognizer: 1.3 s)."""
+        from vtts.speech.recognize import RecognizerOptions, make_decoder
+
+        spare = self._spare
+        if spare is None:
+            spare = self._decoders.submit(make_decoder, RecognizerOptions())
+        decoder = await asyncio.wrap_future(spare)
+        self._spare = self._decoders.submit(make_decoder, RecognizerOptions())
+        return decoder
 
     def speak_clause(self, text, head, engine, voice, rate, pitch, seed):
         """One clause spoken (in a worker thread): :func:`vtts.api.speak.speak`."""
@@ -576,6 +655,7 @@ class Server:
         from vtts.speech.tts import keep_workers_ready
 
         self.pool.shutdown(wait=False, cancel_futures=True)
+        self._decoders.shutdown(wait=False, cancel_futures=True)
         keep_workers_ready(0)
 
     @contextlib.contextmanager

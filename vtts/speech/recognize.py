@@ -328,11 +328,14 @@ class LiveRecognizer:
     RESTART_S = 10.0
     PAUSE_FRAMES = 30
 
-    def __init__(self, rate: int, options: RecognizerOptions | None = None) -> None:
+    def __init__(self, rate: int, options: RecognizerOptions | None = None,
+                 decoder=None) -> None:  # fmt: skip
+        """``decoder``: one :func:`make_decoder` made ahead for ``options`` and not used yet
+        (making one takes some 0.2 s, which a live stream need not wait for)."""
         check_rate(rate)
         self.rate = int(rate)
         self.options = options or RecognizerOptions()
-        self._decoder = make_decoder(self.options)
+        self._decoder = decoder if decoder is not None else make_decoder(self.options)
         self._resampler = StreamResampler(self.rate, DECODER_RATE)
         self._pending = np.zeros(0, np.float32)  # samples at 16 kHz not yet in a whole frame
         self._history = np.zeros(0, np.float32)  # the last window's worth, for frame energies

@@ -9,7 +9,9 @@
 //   session.stop();
 //   session.frameAt()   // the face's parameter values now (Float32Array of N_PARAMS), or null
 //
-// Events: opened, clause, word, bookmark, audiostart (the first sample of an utterance is played;
+//   session.listen(16000); session.sendAudio(int16Array); …; session.flush();   // a voice in
+//
+// Events: opened, clause, listening, word, bookmark, audiostart (the first sample of an utterance is played;
 // e.at is its performance.now() time), end (its last sample), stopped, error, underrun.
 // The protocol is docs/serve.md's, version 1.
 
@@ -116,9 +118,24 @@ export class Session {
     this.ws.send(JSON.stringify(message));
   }
 
-  say(text) { this.context.resume(); this.send({ type: 'say', text }); }
+  say(text) { this.context.resume(); this.output.gain.value = 1; this.send({ type: 'say', text }); }
   append(text) { this.context.resume(); this.send({ type: 'append', text }); }
   flush() { this.send({ type: 'flush' }); }
+
+  // An utterance of a voice from elsewhere (a microphone, a realtime voice model): its PCM sent
+  // with sendAudio() as it comes (Int16Array, mono at `rate` Hz), ended by flush() or stop().
+  // The server sends back the face as it recognizes the voice, and the voice with it: they play
+  // here on one clock like a say's (muted with { mute: true }, e.g. for the user's own voice).
+  listen(rate, { autonomous = true, mute = false } = {}) {
+    this.context.resume();
+    this.output.gain.value = mute ? 0 : 1;
+    this.send({ type: 'listen', rate, autonomous });
+  }
+
+  sendAudio(pcm) {
+    if (this.ws.readyState !== WebSocket.OPEN) throw new Error('the session is closed');
+    this.ws.send(pcm instanceof Int16Array ? pcm.buffer.slice(pcm.byteOffset, pcm.byteOffset + pcm.byteLength) : pcm);
+  }
 
   // Silence now: every scheduled source stops, the face goes back to rest, and the server drops
   // the rest of the text.
@@ -144,11 +161,11 @@ export class Session {
   }
 
   control(m) {
-    if (m.type === 'clause') {
+    if (m.type === 'clause' || m.type === 'listening') {
       const u = this.utterance(m.utterance);
       if (u === null) return;
       u.rate = m.rate;
-      this.emit('clause', m);
+      this.emit(m.type, m);
     } else if (m.type === 'end') {
       const u = this.utterance(m.utterance);
       if (u === null) return;
