@@ -36,7 +36,9 @@ def page():
     warm_up(server)
     with (
         server.running() as url,
-        Chromium(SIZE, transparent=True, autoplay=True, binary=binary) as browser,
+        Chromium(
+            SIZE, transparent=True, autoplay=True, fake_microphone=True, binary=binary
+        ) as browser,  # fmt: skip
     ):
         browser.load(f"{url}/?bar=0&background=transparent")
         yield server, browser
@@ -93,6 +95,43 @@ def test_stop_silences_at_once_and_the_next_text_starts(page):
     assert result["ms"] < 100
     seen = browser.evaluate(f"({SAY})('Again.')")
     assert "audiostart" in seen and "end" in seen
+
+
+MIC = """() => new Promise(async (resolve) => {
+  const session = vtts.session;
+  session.handlers.clear();
+  const seen = { shown: 0 };
+  let number = null;
+  const poll = setInterval(() => {
+    const f = session.frameAt();
+    if (f !== null && f.utterance === number) seen.shown += 1;
+  }, 20);
+  vtts.on('listening', (m) => { number = m.utterance; seen.listening = m.rate; });
+  vtts.on('audiostart', () => { seen.audiostart = true; });
+  vtts.on('end', (e) => {
+    const u = session.utterances.get(e.utterance);
+    seen.frames = u ? u.faces.reduce((n, f) => n + f.frames, 0) : -1;
+    seen.faces = u ? u.faces.length : -1;
+    clearInterval(poll); seen.duration = e.duration; resolve(seen);
+  });
+  vtts.on('error', (e) => { clearInterval(poll); resolve({ error: e }); });
+  try { seen.rate = await vtts.microphone(); } catch (e) { resolve({ error: String(e) }); return; }
+  setTimeout(() => vtts.stopMicrophone(), 1500);
+})"""
+
+
+def test_the_microphone_is_a_voice_the_face_follows(page):
+    """The page's Mic (Chromium's fake microphone, its test beeps): a listen at the audio
+    context's rate, face frames streamed back and shown on the voice's clock, an end when the
+    microphone stops; then a say is heard again."""
+    _, browser = page
+    seen = browser.evaluate(f"({MIC})()")
+    assert "error" not in seen, seen
+    assert seen["listening"] == seen["rate"] >= 8000
+    assert seen["frames"] > 15 and seen["audiostart"] and seen["shown"] > 5, seen
+    assert 1.0 < seen["duration"] < 4.0
+    again = browser.evaluate(f"({SAY})('Hi.')")
+    assert "audiostart" in again and "end" in again
 
 
 def test_a_bad_bookmark_is_an_error_event(page):

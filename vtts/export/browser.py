@@ -60,7 +60,9 @@ class Chromium:
 
     ``transparent`` makes the page's default background transparent, so a page that paints no
     background gives screenshots whose alpha is what it drew. ``autoplay`` lets media play
-    without a user gesture (the benchmark's playback). Use it as a context manager: the browser
+    without a user gesture (the benchmark's playback). ``fake_microphone`` grants a page's
+    ``getUserMedia`` without asking and gives it Chromium's test signal (a beep) as the
+    microphone. Use it as a context manager: the browser
     and its profile folder are removed on exit."""
 
     def __init__(
@@ -69,6 +71,7 @@ class Chromium:
         *,
         transparent: bool = False,
         autoplay: bool = False,
+        fake_microphone: bool = False,
         binary: str | None = None,
     ) -> None:
         binary = binary or find_chromium()
@@ -110,6 +113,9 @@ class Chromium:
         ]
         if autoplay:
             args.append("--autoplay-policy=no-user-gesture-required")
+        if fake_microphone:
+            # getUserMedia granted without asking, its microphone Chromium's own test signal
+            args += ["--use-fake-ui-for-media-stream", "--use-fake-device-for-media-stream"]
         args.append("about:blank")
 
         def child_fds() -> None:

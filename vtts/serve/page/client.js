@@ -10,6 +10,7 @@
 //   session.frameAt()   // the face's parameter values now (Float32Array of N_PARAMS), or null
 //
 //   session.listen(16000); session.sendAudio(int16Array); …; session.flush();   // a voice in
+//   await session.microphone(); … session.stopMicrophone();                 // the user's voice
 //
 // Events: opened, clause, listening, word, bookmark, audiostart (the first sample of an utterance is played;
 // e.at is its performance.now() time), end (its last sample), stopped, error, underrun.
@@ -49,6 +50,7 @@ export class Session {
     this.pendingStops = 0;
     this.opened = null;
     this.params = null;
+    this.mic = null; // the microphone while it is the voice (microphone())
     this.stats = { underruns: 0, underrunSeconds: 0 };
     this.context = new AudioContext({ latencyHint: 'interactive' });
     this.analyser = this.context.createAnalyser();
@@ -130,6 +132,43 @@ export class Session {
     this.context.resume();
     this.output.gain.value = mute ? 0 : 1;
     this.send({ type: 'listen', rate, autonomous });
+  }
+
+  // The microphone as the voice (getUserMedia): a listen at the AudioContext's rate, muted here
+  // (the user hears themselves), the face following; stopMicrophone() ends it (a flush).
+  async microphone() {
+    const stream = await navigator.mediaDevices.getUserMedia({ audio: { channelCount: 1 } });
+    await this.context.audioWorklet.addModule(new URL('./capture.js', import.meta.url));
+    const source = this.context.createMediaStreamSource(stream);
+    const node = new AudioWorkletNode(this.context, 'vtts-capture');
+    const silent = this.context.createGain();
+    silent.gain.value = 0;
+    const rate = this.context.sampleRate;
+    const piece = Math.round(rate * 0.02); // 20 ms a message
+    let buffer = new Int16Array(piece);
+    let n = 0;
+    this.listen(rate, { mute: true });
+    node.port.onmessage = (e) => {
+      if (this.mic === null || this.ws.readyState !== WebSocket.OPEN) return;
+      for (const v of e.data) {
+        buffer[n++] = Math.max(-32768, Math.min(32767, Math.round(v * 32767)));
+        if (n === piece) { this.sendAudio(buffer); buffer = new Int16Array(piece); n = 0; }
+      }
+    };
+    source.connect(node);
+    node.connect(silent); // a worklet runs only as part of a graph that reaches the output
+    silent.connect(this.context.destination);
+    this.mic = { stream, source, node, silent };
+    return rate;
+  }
+
+  stopMicrophone() {
+    const mic = this.mic;
+    if (!mic) return;
+    this.mic = null;
+    for (const track of mic.stream.getTracks()) track.stop();
+    mic.source.disconnect(); mic.node.disconnect(); mic.silent.disconnect();
+    this.flush();
   }
 
   sendAudio(pcm) {

@@ -172,7 +172,17 @@ async function main() {
     const text = $('text').value;
     if (text.trim()) session.say(text);
   });
-  $('stop').addEventListener('click', () => session.stop());
+  $('stop').addEventListener('click', () => { session.stopMicrophone(); session.stop(); });
+  $('mic').addEventListener('click', async () => {
+    const button = $('mic');
+    if (session.mic) { session.stopMicrophone(); button.setAttribute('aria-pressed', 'false'); return; }
+    try {
+      await session.microphone();
+      button.setAttribute('aria-pressed', 'true');
+    } catch (e) {
+      $('message').textContent = `no microphone: ${e.message}`;
+    }
+  });
   session.on('error', (e) => { $('message').textContent = e.message; });
   session.on('clause', () => { $('message').textContent = ''; });
 
@@ -182,6 +192,10 @@ async function main() {
     append: (text) => session.append(text),
     flush: () => session.flush(),
     stop: () => session.stop(),
+    listen: (rate, options) => session.listen(rate, options),
+    sendAudio: (pcm) => session.sendAudio(pcm),
+    microphone: () => session.microphone(),
+    stopMicrophone: () => session.stopMicrophone(),
     on: (name, fn) => session.on(name, fn),
     off: (name, fn) => session.off(name, fn),
     hold: (values) => { held = values === null ? null : Float32Array.from(values); dirty = true; },
