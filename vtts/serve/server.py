@@ -152,8 +152,13 @@ class Session:
                         await self.control(msg.data)
                     except ClientError as e:
                         await self.error(e.code, e.message)
+                    except (ConnectionResetError, ConnectionError):
+                        break  # an answer could not be sent: the client is gone
                 elif msg.type == WSMsgType.BINARY and self.listener is not None:
-                    await self.hear(msg.data)
+                    try:
+                        await self.hear(msg.data)
+                    except (ConnectionResetError, ConnectionError):
+                        break  # the client went away, or does not read what it is sent
                 elif msg.type == WSMsgType.BINARY:
                     await self.error(
                         "malformed",
