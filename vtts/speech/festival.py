@@ -43,6 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from vtts.errors import SpeechError
+from vtts.speech.engine import BilabialTiming, LipTiming
 from vtts.speech.phonemes import Mark, Phone, viseme_tables
 from vtts.speech.tts import Speech, Voice, Word, check_rate_pitch
 
@@ -411,6 +412,14 @@ class FestivalEngine:
 
     name = "festival"
     default_voice = DEFAULT_VOICE
+    #: The HTS segments start 7–15 ms before their sound and hold a stop's closure: no lead.
+    lead = 0.0
+    #: In its audio a p's closure starts 10 ms before the p and the burst comes 55 ms into it
+    #: (the rest is aspiration); a b opens 13 ms before its end; an m is its murmur
+    #: (docs/speech.md, *The closure measure*).
+    bilabials = BilabialTiming(
+        p=LipTiming(-0.01, 0.055, "start"), b=LipTiming(-0.005, -0.012), m=LipTiming(0.0, 0.0)
+    )
 
     def speak(self, text, *, voice=None, rate=None, pitch=None):
         from vtts.speech.engine import Spoken, bookmark_positions
