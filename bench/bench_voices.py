@@ -4,12 +4,12 @@ synthesis speed against espeak-ng's; reading 10 minutes of audio in each kind of
 Per engine (espeak-ng; festival and Piper where installed), :func:`engine_rows`:
 
 - **Mouth closure**: for every p, b and m of bilabial-rich texts (``bench_lipsync``'s, tuned and
-  held apart), the closure in the engine's own audio — the centre of the quietest 10 ms of the
-  phone (for a b or p from 40 ms before it, its silent closure being in the phone before when
-  that is no pause) — and whether the timeline (cybatt, 30 Hz, the engine's lead, no autonomous
-  motion) has the lips closed in that closure's frame: the lip gap within 10 % of the
-  utterance's widest. Target ≥ 90 %. Also with the frame before allowed (the mouth leads the
-  sound by design, up to a frame: the lip sync target).
+  held apart), the closure heard in the engine's own audio
+  (:func:`vtts.animate.lipsync.lip_closures`: from the fall to the rise of the energy above
+  1 kHz; adjacent bilabials are one closure) and whether the timeline (cybatt, 30 Hz, the
+  engine's lead and bilabial timing, no autonomous motion) has the lips closed in the frame of
+  that closure's centre: the lip gap within 10 % of the utterance's widest. Target ≥ 90 %. Also
+  with the frame before allowed (the mouth leads the sound by design, up to a frame).
 - **Speed**: ``vtts say`` wall time / audio duration (``bench_say``'s 5 s and 10 s texts, cybatt,
   352×288 MP4, median of 3 runs; a fresh process each, so Piper's voice load, 1–1.7 s, is in
   every run); and the **first audio** of a two-sentence text from the engine's

@@ -2,10 +2,11 @@
 
 An engine takes bookmarked text (:class:`vtts.speech.bookmarks.BookmarkedText`) and returns a
 :class:`Spoken`: the audio, its phones (with their MPEG-4 visemes) and words in the audio's clock,
-and the time of each bookmark. It also lists its installed voices (:class:`VoiceInfo`). A new
-engine is one module that defines ``ENGINE``, an object with the methods of :class:`Engine`, and a
-line in :data:`ENGINES`; nothing else changes (the timeline, the outputs and ``vtts voices`` take
-it from there).
+and the time of each bookmark. It also lists its installed voices (:class:`VoiceInfo`) and states
+its timing facts, measured on its own audio: the mouth's lead and where the lips are shut for
+its bilabials (:class:`BilabialTiming`). A new engine is one module that defines ``ENGINE``, an
+object with the methods and attributes of :class:`Engine`, and a line in :data:`ENGINES`;
+nothing else changes (the timeline, the outputs and ``vtts voices`` take it from there).
 
 The engines:
 
