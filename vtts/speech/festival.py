@@ -412,11 +412,12 @@ class FestivalEngine:
 
     name = "festival"
     default_voice = DEFAULT_VOICE
-    #: The HTS segments start 7–15 ms before their sound and hold a stop's closure: no lead.
+    #: The HTS segments start somewhat before their sound and hold a stop's closure: no lead
+    #: (the lip sync bench's choice, docs/speech.md).
     lead = 0.0
-    #: In its audio a p's closure starts 10 ms before the p and the burst comes 55 ms into it
-    #: (the rest is aspiration); a b opens 13 ms before its end; an m is its murmur
-    #: (docs/speech.md, *The closure measure*).
+    #: In its audio a p holds its closure and then its aspiration, the burst between; a b opens
+    #: shortly before its end; an m is its murmur (medians of its audio's closures:
+    #: docs/speech.md, *The closure measure*).
     bilabials = BilabialTiming(
         p=LipTiming(-0.01, 0.055, "start"), b=LipTiming(-0.005, -0.012), m=LipTiming(0.0, 0.0)
     )

@@ -446,12 +446,11 @@ class PiperEngine:
     name = "piper"
     default_voice = "en_US-joe-medium"
     #: Its alignments give a stop's closure to the phone before (as espeak-ng's events do) and
-    #: come late against its sound: the mouth leads them by 50 ms (``make bench``, lipsync).
+    #: come late against its sound; the lip sync bench chose the lead (docs/speech.md).
     lead = 0.05
-    #: In its audio (alignments in steps of 11.6 ms) a p's closure starts 65 ms before the p
-    #: and the burst comes 22 ms into it; a b's closure starts 45 ms before it and opens 28 ms
-    #: before its end; an m's murmur starts 45 ms before it and ends 22 ms before its end
-    #: (docs/speech.md, *The closure measure*).
+    #: In its audio every bilabial's closure starts in the phone before it, and a stop's burst
+    #: comes into the stop's own phone (medians of its audio's closures, to its alignments'
+    #: hop: docs/speech.md, *The closure measure*).
     bilabials = BilabialTiming(
         p=LipTiming(-0.065, 0.02, "start"),
         b=LipTiming(-0.045, -0.025),

@@ -630,11 +630,11 @@ class EspeakEngine:
     name = "espeak"
     default_voice = "en-us"
     #: espeak-ng's phones start at the sound they name (a stop at its release, its silent
-    #: closure in the phone before): the mouth leads them by 40 ms (``make bench``, lipsync).
+    #: closure in the phone before); the lip sync bench chose the lead (docs/speech.md).
     lead = 0.04
-    #: In its audio a p's closure is the 45 ms before the p, which starts at the burst; a b
-    #: holds its closure (voiced) and opens 16 ms before its end; an m's murmur starts 10 ms
-    #: before it and ends 20 ms before its end (docs/speech.md, *The closure measure*).
+    #: In its audio a p's closure lies in the phone before and the p starts at the burst; a b
+    #: holds its (voiced) closure and opens before its end; an m is its murmur (medians of its
+    #: audio's closures: docs/speech.md, *The closure measure*).
     bilabials = BilabialTiming(
         p=LipTiming(-0.05, 0.0, "start"), b=LipTiming(0.0, -0.02), m=LipTiming(-0.005, -0.015)
     )
