@@ -11,8 +11,8 @@ at ``fps`` frames per second:
   amplitude, offset; overlapping requests superimpose linearly;
 - **mouth closure wins**: the lips are shut for every p/b/m from its closure's start to its
   release, where the engine's own audio has them shut against its phones
-  (:class:`vtts.speech.engine.BilabialTiming`), half a frame ahead — the viseme weights go to
-  viseme 1 and expressions that would open the model's mouth are held back;
+  (:class:`vtts.speech.engine.BilabialTiming`), :data:`CLOSURE_LEAD` ahead — the viseme weights
+  go to viseme 1 and expressions that would open the model's mouth are held back;
 - **autonomous behaviour** from the model's habits: blinks, small nods, head motion and gaze,
   drawn from a generator seeded by ``seed`` and the model's name (reproducible, and different
   for two models); a bookmark for the same action overrides the autonomous one near it;
@@ -31,6 +31,7 @@ import numpy as np
 from vtts.face.miap import EXPRESSION_BASE, N_PARAMS, VISEME_BASE, Miap
 from vtts.fap import FapStream
 from vtts.speech.bookmarks import Bookmark
+from vtts.speech.engine import BilabialTiming, engine_timing
 from vtts.speech.timings import TimedPhone
 
 VOWEL_VISEMES = frozenset({10, 11, 12, 13, 14})
@@ -43,7 +44,8 @@ MOUTH_FAPS = (3, 4, 5, 8, 9, 10, 11, 16, 17, 51, 52, 55, 56, 57, 58)
 LEAD = 0.04
 #: How far a bilabial's closure is put ahead of where the engine's audio has it, s: half a
 #: 30 Hz frame (a frame is on screen for 33 ms from its time, so a pose is seen 17 ms after it
-#: on average). Chosen on the lip sync bench's tuned texts (docs/speech.md, *Lip sync*).
+#: on average). Chosen on the lip sync bench's tuned texts (docs/speech.md, *The closure
+#: measure*).
 CLOSURE_LEAD = 1 / 60
 #: How long the lips take to shut before a bilabial's closure and to free after it, s (a linear
 #: ramp, on top of the coarticulation, which already draws them towards viseme 1): the shortest
@@ -139,7 +141,7 @@ def shut(
     return k
 
 
-def closure_spans(phones: list[TimedPhone], bilabials) -> list[tuple[float, float]]:
+def closure_spans(phones: list[TimedPhone], bilabials: BilabialTiming) -> list[tuple[float, float]]:
     """When the lips are shut for the bilabials of ``phones``, (start, end) s: each run of
     adjacent bilabial phones is one closure (``m b``), from its onset to its release where
     ``bilabials`` (the engine's :class:`~vtts.speech.engine.BilabialTiming`) puts them in the
@@ -198,16 +200,12 @@ def _near(t: float, others: list[float], window: float) -> bool:
 def speech_lead(engine: str | None) -> float:
     """The lead (s) for phones timed by ``engine`` (its :attr:`~vtts.speech.engine.Engine.lead`;
     espeak-ng's, :data:`LEAD`, for others)."""
-    from vtts.speech.engine import engine_timing
-
     return engine_timing(engine)[0]
 
 
-def speech_bilabials(engine: str | None):
+def speech_bilabials(engine: str | None) -> BilabialTiming:
     """The :class:`~vtts.speech.engine.BilabialTiming` of phones timed by ``engine`` (espeak-ng's
     for others)."""
-    from vtts.speech.engine import engine_timing
-
     return engine_timing(engine)[1]
 
 
@@ -224,7 +222,7 @@ def build_timeline(
     seed: int = 0,
     autonomous: bool = True,
     lead: float = LEAD,
-    bilabials=None,
+    bilabials: BilabialTiming | None = None,
 ) -> Timeline:
     """The :class:`Timeline` of ``model`` speaking ``phones`` with ``bookmarks`` (times set)
     for ``duration`` s. ``lead``: how far the visemes are put ahead of the phones' times, s
