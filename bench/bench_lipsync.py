@@ -18,7 +18,8 @@ leads. Target: 0 or −1 (the lips and jaw move before the sound they shape).
   (``vttsPlayer.seek``) and the mouth region's darkness read from a screenshot, against the
   speech's RMS (espeak-ng, the first text only: a screenshot per frame is slow).
 
-The texts ``TUNED`` are those the leads of :data:`vtts.animate.timeline.LEADS` were chosen on;
+The texts ``TUNED`` are those the engines' leads (:attr:`vtts.speech.engine.Engine.lead`) were
+chosen on;
 ``HELD`` were written afterwards and never used for choosing (reported separately).
 """
 
@@ -136,7 +137,7 @@ def _web_lag(folder: Path, audio: np.ndarray, rate: int, n: int) -> int:
 
 def _timeline_rows(engine: str, case: str, text: str) -> list[dict]:
     from vtts.animate.lipsync import lip_gaps, peak_lag, rms_per_frame
-    from vtts.animate.timeline import build_timeline, speech_lead
+    from vtts.animate.timeline import build_timeline, speech_bilabials, speech_lead
     from vtts.face import load_model
     from vtts.utterance import prepare_utterance
 
@@ -145,7 +146,8 @@ def _timeline_rows(engine: str, case: str, text: str) -> list[dict]:
     rows = []
     for fps in (FPS, 200.0):
         tl = build_timeline(model, utt.phones, [], utt.duration, fps=fps, autonomous=False,
-                            lead=speech_lead(engine))  # fmt: skip
+                            lead=speech_lead(engine),
+                            bilabials=speech_bilabials(engine))  # fmt: skip
         gap = lip_gaps(model, tl.params)
         rms = rms_per_frame(utt.audio, utt.rate, fps, tl.n_frames)
         lag = peak_lag(gap, rms, max_lag=int(round(0.2 * fps)))

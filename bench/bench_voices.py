@@ -4,12 +4,12 @@ synthesis speed against espeak-ng's; reading 10 minutes of audio in each kind of
 Per engine (espeak-ng; festival and Piper where installed), :func:`engine_rows`:
 
 - **Mouth closure**: for every p, b and m of bilabial-rich texts (``bench_lipsync``'s, tuned and
-  held apart), the closure in the engine's own audio — the centre of the quietest 10 ms of the
-  phone (for a b or p from 40 ms before it, its silent closure being in the phone before when
-  that is no pause) — and whether the timeline (cybatt, 30 Hz, the engine's lead, no autonomous
-  motion) has the lips closed in that closure's frame: the lip gap within 10 % of the
-  utterance's widest. Target ≥ 90 %. Also with the frame before allowed (the mouth leads the
-  sound by design, up to a frame: the lip sync target).
+  held apart), the closure heard in the engine's own audio
+  (:func:`vtts.animate.lipsync.lip_closures`: from the fall to the rise of the energy above
+  1 kHz; adjacent bilabials are one closure) and whether the timeline (cybatt, 30 Hz, the
+  engine's lead and bilabial timing, no autonomous motion) has the lips closed in the frame of
+  that closure's centre: the lip gap within 10 % of the utterance's widest. Target ≥ 90 %. Also
+  with the frame before allowed (the mouth leads the sound by design, up to a frame).
 - **Speed**: ``vtts say`` wall time / audio duration (``bench_say``'s 5 s and 10 s texts, cybatt,
   352×288 MP4, median of 3 runs; a fresh process each, so Piper's voice load, 1–1.7 s, is in
   every run); and the **first audio** of a two-sentence text from the engine's
@@ -167,33 +167,24 @@ def engines() -> list[str]:
     return [e for e in ENGINES if any(v.engine == e for v in found)]
 
 
-def closure_hits(model, utt, lead: float, fps: float = 30.0) -> tuple[list[bool], list[bool]]:
+def closure_hits(model, utt, engine: str, fps: float = 30.0) -> tuple[list[bool], list[bool]]:
     """For each bilabial phone of ``utt``: are the lips closed in the frame of its closure in
-    the audio; and in that frame or the one before."""
-    from vtts.animate.lipsync import lip_gaps
-    from vtts.animate.timeline import build_timeline
+    the audio (:func:`vtts.animate.lipsync.lip_closures`: the frame showing the closure's
+    centre); and in that frame or the one before. The timeline is ``engine``'s (its lead and
+    bilabial timing)."""
+    from vtts.animate.lipsync import lip_closures, lip_gaps
+    from vtts.animate.timeline import build_timeline, speech_bilabials, speech_lead
 
-    tl = build_timeline(model, utt.phones, [], utt.duration, fps=fps, autonomous=False, lead=lead)
+    tl = build_timeline(model, utt.phones, [], utt.duration, fps=fps, autonomous=False,
+                        lead=speech_lead(engine), bilabials=speech_bilabials(engine))  # fmt: skip
     gap = lip_gaps(model, tl.params)
     closed = gap <= CLOSED * gap.max()
-    x = utt.audio.astype(np.float64)
-    w = utt.rate // 100
     own, lead_ok = [], []
-    for i, p in enumerate(utt.phones):
-        if p.viseme != 1:
-            continue
-        a = p.start
-        if p.phoneme.lower() not in ("m", "em") and i > 0 and utt.phones[i - 1].viseme != 0:
-            a = max(p.start - 0.04, utt.phones[i - 1].start)
-        ia, ib = int(a * utt.rate), int(p.end * utt.rate)
-        if ib - ia <= w:
-            t = (a + p.end) / 2
-        else:
-            e = np.convolve(x[ia:ib] ** 2, np.ones(w) / w, mode="valid")
-            t = (ia + int(np.argmin(e)) + w / 2) / utt.rate
-        k = min(int(t * fps), len(gap) - 1)
-        own.append(bool(closed[k]))
-        lead_ok.append(bool(closed[k] or (k > 0 and closed[k - 1])))
+    for c in lip_closures(utt.audio, utt.rate, utt.phones):
+        k = int(np.clip(np.floor(c.centre * fps), 0, len(gap) - 1))
+        for _ in range(c.first, c.last + 1):
+            own.append(bool(closed[k]))
+            lead_ok.append(bool(closed[k] or (k > 0 and closed[k - 1])))
     return own, lead_ok
 
 
@@ -232,7 +223,6 @@ def engine_rows(which: list[str] | None = None) -> list[dict]:
 
     from bench_lipsync import HELD, TUNED  # noqa: I001  (bench/ is on the path in bench/run.py)
 
-    from vtts.animate.timeline import speech_lead
     from vtts.face import load_model
     from vtts.speech.bookmarks import parse_bookmarks
     from vtts.speech.engine import load_engine
@@ -252,8 +242,7 @@ def engine_rows(which: list[str] | None = None) -> list[dict]:
         own: list[bool] = []
         led: list[bool] = []
         for group, texts in (("tuned", TUNED), ("held apart", HELD)):
-            hits = [closure_hits(model, prepare_utterance(t, engine=name), speech_lead(name))
-                    for t in texts]  # fmt: skip
+            hits = [closure_hits(model, prepare_utterance(t, engine=name), name) for t in texts]
             o = [h for a, _ in hits for h in a]
             lead_ok = [h for _, b in hits for h in b]
             own += o

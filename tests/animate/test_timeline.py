@@ -8,8 +8,11 @@ import numpy as np
 import pytest
 
 from vtts.animate.timeline import (
+    CLOSURE_LEAD,
+    LEAD,
     build_timeline,
     closure,
+    closure_spans,
     timeline_stream,
     viseme_weights,
 )
@@ -17,6 +20,7 @@ from vtts.face import load_model
 from vtts.face.miap import EXPRESSION_BASE, VISEME_BASE
 from vtts.fap import format_fap, parse_fap
 from vtts.speech.bookmarks import Bookmark
+from vtts.speech.engine import ENGINES, BilabialTiming, LipTiming, engine_timing, load_engine
 from vtts.speech.timings import TimedPhone
 
 HEAD = Path(__file__).parents[1] / "data" / "models" / "head.wrl"
@@ -65,6 +69,51 @@ def test_bilabial_centres_close_fully_under_an_expression(head):
         assert np.all(tl.params[i, [2, 3, 4]] == 0)  # jaw and mid-lip FAPs too
     # between closures the expression is there
     assert tl.params[int(0.75 * 30), EXPRESSION_BASE + 1] > 0.5
+
+
+#: espeak-ng-like: a p's closure is the 50 ms before it, a b opens 20 ms before its end.
+TIMING = BilabialTiming(LipTiming(-0.05, 0.0, "start"), LipTiming(0.0, -0.02), LipTiming(0.0, 0.0))
+
+
+def test_lips_shut_from_the_closures_onset_to_its_release(head):
+    # "a p a m b a": the p's closure in the phone before it; m b one closure
+    phones = [TimedPhone(0.0, 0.3, 10, "a"), TimedPhone(0.3, 0.35, 1, "p"),
+              TimedPhone(0.35, 0.6, 10, "a"), TimedPhone(0.6, 0.68, 1, "m"),
+              TimedPhone(0.68, 0.76, 1, "b"), TimedPhone(0.76, 1.0, 10, "a")]  # fmt: skip
+    spans = closure_spans(phones, TIMING)
+    lead = CLOSURE_LEAD
+    assert np.allclose(spans, [(0.25 - lead, 0.3 - lead), (0.6 - lead, 0.74 - lead)])
+    tl = build_timeline(head, phones, [], 1.2, fps=30, autonomous=False, bilabials=TIMING)
+    assert tl.closures == spans
+    assert tl.bilabial_centres == pytest.approx([0.5 * (a + b) for a, b in spans])
+    for a, b in spans:
+        inside = (tl.times >= a) & (tl.times <= b)
+        assert inside.sum() >= 2 and np.all(tl.params[inside, VISEME_BASE + 1] == 1.0)
+    vowel = (tl.times > 0.32) & (tl.times < 0.55)
+    assert tl.params[vowel, VISEME_BASE + 1].min() < 0.2  # open between the closures
+    # a bilabial at the very start is shut from the first frame
+    first = closure_spans([TimedPhone(0.0, 0.05, 1, "p"), TimedPhone(0.05, 0.3, 10, "a")], TIMING)
+    assert first[0][0] == 0.0 and first[0][1] >= 0.0
+
+
+def test_a_closure_shorter_than_a_frame_still_shuts_a_frame(head):
+    brief = BilabialTiming(*(LipTiming(0.0, -0.08),) * 3)  # the release before the onset
+    phones = phones_for([10, 1, 10], start=0.2, step=0.06)
+    tl = build_timeline(head, phones, [], 0.6, fps=30, autonomous=False, bilabials=brief)
+    assert tl.closures[0][0] == tl.closures[0][1]
+    assert tl.params[:, VISEME_BASE + 1].max() == 1.0
+
+
+def test_each_engine_gives_its_lead_and_bilabial_timing():
+    for name in ENGINES:
+        engine = load_engine(name)
+        assert isinstance(engine.bilabials, BilabialTiming) and 0 <= engine.lead < 0.1
+        assert engine_timing(name) == (engine.lead, engine.bilabials)
+    assert engine_timing(None) == engine_timing("espeak") == engine_timing("no such engine")
+    assert engine_timing(None)[0] == LEAD
+    b = TIMING
+    assert [b.of(x) for x in ("m", "em", "m-", "p", "b", "ɓ", "")] == [b.m, b.m, b.m, b.p, b.b,
+                                                                     b.b, b.b]  # fmt: skip
 
 
 def test_closure_is_one_at_the_nearest_frame():

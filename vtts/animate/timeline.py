@@ -9,8 +9,10 @@ at ``fps`` frames per second:
   dominance, so mouth shapes blend without hard switches;
 - **expressions** from the model's temporal tables: onset, a climax for the requested duration and
   amplitude, offset; overlapping requests superimpose linearly;
-- **mouth closure wins**: around the centre of every p/b/m the lips are forced shut — the viseme
-  weights go to viseme 1 and expressions that would open the model's mouth are held back;
+- **mouth closure wins**: the lips are shut for every p/b/m from its closure's start to its
+  release, where the engine's own audio has them shut against its phones
+  (:class:`vtts.speech.engine.BilabialTiming`), :data:`CLOSURE_LEAD` ahead — the viseme weights
+  go to viseme 1 and expressions that would open the model's mouth are held back;
 - **autonomous behaviour** from the model's habits: blinks, small nods, head motion and gaze,
   drawn from a generator seeded by ``seed`` and the model's name (reproducible, and different
   for two models); a bookmark for the same action overrides the autonomous one near it;
@@ -29,21 +31,26 @@ import numpy as np
 from vtts.face.miap import EXPRESSION_BASE, N_PARAMS, VISEME_BASE, Miap
 from vtts.fap import FapStream
 from vtts.speech.bookmarks import Bookmark
+from vtts.speech.engine import BilabialTiming, engine_timing
 from vtts.speech.timings import TimedPhone
 
 VOWEL_VISEMES = frozenset({10, 11, 12, 13, 14})
 BILABIAL = 1
 #: Low-level FAPs that open the lips or jaw; held back during a bilabial closure.
 MOUTH_FAPS = (3, 4, 5, 8, 9, 10, 11, 16, 17, 51, 52, 55, 56, 57, 58)
-#: How far the mouth is put ahead of the phone times, s, by the engine that timed them (see
-#: :func:`speech_lead`). The lips and jaw move before the sound they shape; espeak-ng's phones
-#: start at the sound they name (a stop at its release, its silent closure in the phone before),
-#: festival's HTS segments somewhat before their sound, so the same anticipation needs less lead;
-#: Piper's alignments give a stop's closure to the phone before it, as espeak-ng does.
-#: ``docs/speech.md`` gives the measurement (``make bench``, lipsync) that set them.
-LEADS = {"espeak": 0.04, "festival": 0.0, "piper": 0.05}
-#: The lead of phones from elsewhere (``--phonemes``, a recording aligned with espeak-ng's phones).
-LEAD = LEADS["espeak"]
+#: The lead of phones timed by espeak-ng, and of phones from elsewhere (``--phonemes``, a
+#: recording aligned with espeak-ng's phones), s: each engine gives its own
+#: (:attr:`vtts.speech.engine.Engine.lead`, :func:`speech_lead`).
+LEAD = 0.04
+#: How far a bilabial's closure is put ahead of where the engine's audio has it, s: half a
+#: 30 Hz frame (a frame is on screen for 33 ms from its time, so a pose is seen 17 ms after it
+#: on average). Chosen on the lip sync bench's tuned texts (docs/speech.md, *The closure
+#: measure*).
+CLOSURE_LEAD = 1 / 60
+#: How long the lips take to shut before a bilabial's closure and to free after it, s (a linear
+#: ramp, on top of the coarticulation, which already draws them towards viseme 1): the shortest
+#: that moves a viseme weight at most 0.75 in a 30 Hz frame.
+CLOSING_S = 0.045
 #: Ramp time of a ``<fap …>`` bookmark's values, s.
 FAP_RAMP = 0.12
 
@@ -51,12 +58,15 @@ FAP_RAMP = 0.12
 @dataclass
 class Timeline:
     """One model's animation: ``params (n, N_PARAMS)`` at ``fps``; ``times (n,)`` in s;
-    ``bilabial_centres`` (s); ``events``: behaviour → list of (start s, duration s) it ran."""
+    ``closures``: (start, end) s of each span the lips are shut for bilabials, and
+    ``bilabial_centres`` their centres (s); ``events``: behaviour → list of (start s, duration s)
+    it ran."""
 
     params: np.ndarray
     fps: float
     times: np.ndarray
     bilabial_centres: list[float] = field(default_factory=list)
+    closures: list[tuple[float, float]] = field(default_factory=list)
     events: dict[str, list[tuple[float, float]]] = field(default_factory=dict)
 
     @property
@@ -105,13 +115,51 @@ def viseme_weights(t: np.ndarray, phones: list[TimedPhone]) -> np.ndarray:
 
 def closure(t: np.ndarray, centres: list[float], fps: float, width: float = 0.05) -> np.ndarray:
     """``(n,)`` in [0, 1]: 1 within half a frame of a bilabial centre (so the nearest frame is
-    fully closed), falling smoothly to 0 over ``width`` s on either side."""
+    fully closed), falling smoothly to 0 over ``width`` s on either side (the live voice's
+    closures, :mod:`vtts.animate.voice`, which knows no engine's timing)."""
     k = np.zeros(t.size)
     half = 0.5 / fps
     for c in centres:
         x = np.clip((np.abs(t - c) - half) / width, 0.0, 1.0)
         k = np.maximum(k, 0.5 + 0.5 * np.cos(np.pi * x))
     return k
+
+
+def shut(
+    t: np.ndarray, spans: list[tuple[float, float]], fps: float, width: float = CLOSING_S
+) -> np.ndarray:
+    """``(n,)`` in [0, 1]: 1 over each (start, end) span (s; one shorter than a frame is widened
+    to a frame about its centre, so a frame falls inside it), falling linearly to 0 over
+    ``width`` s on either side."""
+    k = np.zeros(t.size)
+    for a, b in spans:
+        if b - a < 1.0 / fps:
+            c = 0.5 * (a + b)
+            a, b = c - 0.5 / fps, c + 0.5 / fps
+        x = np.clip(np.maximum(a - t, t - b) / width, 0.0, 1.0)
+        k = np.maximum(k, 1.0 - x)
+    return k
+
+
+def closure_spans(phones: list[TimedPhone], bilabials: BilabialTiming) -> list[tuple[float, float]]:
+    """When the lips are shut for the bilabials of ``phones``, (start, end) s: each run of
+    adjacent bilabial phones is one closure (``m b``), from its onset to its release where
+    ``bilabials`` (the engine's :class:`~vtts.speech.engine.BilabialTiming`) puts them in the
+    audio, :data:`CLOSURE_LEAD` ahead; never before the time 0."""
+    spans = []
+    i = 0
+    while i < len(phones):
+        if phones[i].viseme != BILABIAL:
+            i += 1
+            continue
+        j = i
+        while j + 1 < len(phones) and phones[j + 1].viseme == BILABIAL:
+            j += 1
+        onset, release = bilabials.span(phones[i], phones[j])
+        a = max(onset - CLOSURE_LEAD, 0.0)
+        spans.append((a, max(release - CLOSURE_LEAD, a)))
+        i = j + 1
+    return spans
 
 
 # ---- behaviours ----------------------------------------------------------------------------------
@@ -150,8 +198,15 @@ def _near(t: float, others: list[float], window: float) -> bool:
 
 
 def speech_lead(engine: str | None) -> float:
-    """The lead (s) for phones timed by ``engine`` (:data:`LEADS`; :data:`LEAD` for others)."""
-    return LEADS.get(engine or "", LEAD)
+    """The lead (s) for phones timed by ``engine`` (its :attr:`~vtts.speech.engine.Engine.lead`;
+    espeak-ng's, :data:`LEAD`, for others)."""
+    return engine_timing(engine)[0]
+
+
+def speech_bilabials(engine: str | None) -> BilabialTiming:
+    """The :class:`~vtts.speech.engine.BilabialTiming` of phones timed by ``engine`` (espeak-ng's
+    for others)."""
+    return engine_timing(engine)[1]
 
 
 # ---- the whole timeline --------------------------------------------------------------------------
@@ -167,10 +222,13 @@ def build_timeline(
     seed: int = 0,
     autonomous: bool = True,
     lead: float = LEAD,
+    bilabials: BilabialTiming | None = None,
 ) -> Timeline:
     """The :class:`Timeline` of ``model`` speaking ``phones`` with ``bookmarks`` (times set)
-    for ``duration`` s. ``lead``: how far the visemes and the bilabial closures are put ahead of
-    the phones' times, s (:func:`speech_lead` of the engine that timed them)."""
+    for ``duration`` s. ``lead``: how far the visemes are put ahead of the phones' times, s
+    (:func:`speech_lead` of the engine that timed them); ``bilabials``: where its audio has the
+    lips shut against its phones (:func:`speech_bilabials` of the engine; espeak-ng's when
+    None), which places the closures (:func:`closure_spans`)."""
     n = max(1, int(np.ceil(duration * fps - 1e-9)))
     t = np.arange(n) / fps
     p = np.zeros((n, N_PARAMS))
@@ -178,11 +236,11 @@ def build_timeline(
     temporal = model.temporal
     have = set(model.tables.adts)
 
-    # visemes with coarticulation, then the bilabial closures, ahead of the phones by the lead
+    # visemes with coarticulation ahead of the phones by the lead, then the bilabial closures
     vw = viseme_weights(t + lead, phones)
-    # (a bilabial at the very start: the lips are shut from the first frame)
-    centres = [max(0.5 * (ph.start + ph.end) - lead, 0.0) for ph in phones if ph.viseme == BILABIAL]
-    kappa = closure(t, centres, fps)
+    spans = closure_spans(phones, bilabials or speech_bilabials(None))
+    centres = [0.5 * (a + b) for a, b in spans]
+    kappa = shut(t, spans, fps, CLOSING_S)
     vw = (1 - kappa)[:, None] * vw
     vw[:, BILABIAL] += kappa
     p[:, VISEME_BASE + 1 : VISEME_BASE + 15] = vw[:, 1:]
@@ -316,7 +374,7 @@ def build_timeline(
         p[:, k - 1] *= 1 - kappa
     # MIAPs the model cannot show stay in the vector (the exported stream keeps them)
     del have
-    return Timeline(p, fps, t, centres, events)
+    return Timeline(p, fps, t, centres, closures=spans, events=events)
 
 
 def mouth_opening_expressions(model) -> list[int]:

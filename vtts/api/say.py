@@ -165,7 +165,7 @@ def speak_and_set_up(o: SayOptions, text: str, models: list, known: set[str]):
     another) and the timelines are built in a worker thread while the renderer is set up."""
     from concurrent.futures import ThreadPoolExecutor
 
-    from vtts.animate.timeline import build_timeline, speech_lead
+    from vtts.animate.timeline import build_timeline, speech_bilabials, speech_lead
     from vtts.api.outputs import SpeechTrack
     from vtts.threads import result
     from vtts.utterance import prepare_utterance
@@ -196,6 +196,7 @@ def speak_and_set_up(o: SayOptions, text: str, models: list, known: set[str]):
                     seed=o.seed,
                     autonomous=not o.no_autonomous,
                     lead=speech_lead(o.engine),
+                    bilabials=speech_bilabials(o.engine),
                 )
                 for m in models
             ]

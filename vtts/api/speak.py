@@ -53,7 +53,7 @@ def speak(
     :class:`~vtts.face.FaceModel`) timeline of it at ``fps`` Hz with the autonomous behaviour of
     ``seed``. Raises :class:`~vtts.errors.BookmarkError` for a bad bookmark and
     :class:`~vtts.errors.SpeechError` when the engine fails."""
-    from vtts.animate.timeline import build_timeline, speech_lead
+    from vtts.animate.timeline import build_timeline, speech_bilabials, speech_lead
     from vtts.utterance import prepare_utterance
 
     if engine not in ENGINES:
@@ -69,6 +69,7 @@ def speak(
         seed=seed,
         autonomous=autonomous,
         lead=speech_lead(engine),
+        bilabials=speech_bilabials(engine),
     )
     words = [(float(w.start), float(w.end), str(w.label)) for w in utt.words]
     marks = [(float(b.time), str(b.written)) for b in utt.bookmarks if b.time is not None]

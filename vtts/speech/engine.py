@@ -2,10 +2,11 @@
 
 An engine takes bookmarked text (:class:`vtts.speech.bookmarks.BookmarkedText`) and returns a
 :class:`Spoken`: the audio, its phones (with their MPEG-4 visemes) and words in the audio's clock,
-and the time of each bookmark. It also lists its installed voices (:class:`VoiceInfo`). A new
-engine is one module that defines ``ENGINE``, an object with the methods of :class:`Engine`, and a
-line in :data:`ENGINES`; nothing else changes (the timeline, the outputs and ``vtts voices`` take
-it from there).
+and the time of each bookmark. It also lists its installed voices (:class:`VoiceInfo`) and states
+its timing facts, measured on its own audio: the mouth's lead and where the lips are shut for
+its bilabials (:class:`BilabialTiming`). A new engine is one module that defines ``ENGINE``, an
+object with the methods and attributes of :class:`Engine`, and a line in :data:`ENGINES`;
+nothing else changes (the timeline, the outputs and ``vtts voices`` take it from there).
 
 The engines:
 
@@ -33,15 +34,18 @@ if TYPE_CHECKING:
     from vtts.speech.tts import Speech
 
 __all__ = [
+    "BilabialTiming",
     "DEFAULT_ENGINE",
     "ENGINES",
     "Engine",
+    "LipTiming",
     "MissingEngine",
     "Spoken",
     "VoiceInfo",
     "bookmark_positions",
     "installed_voices",
     "end_of_word_before",
+    "engine_timing",
     "load_engine",
     "words_before",
 ]
@@ -96,6 +100,45 @@ class Spoken:
     bookmarks: list[float] = field(default_factory=list)
 
 
+@dataclass(frozen=True)
+class LipTiming:
+    """Where an engine's own audio has the lips shut for one kind of bilabial, against the
+    phone it gives (s): the closure starts ``onset`` after the phone's start (negative: in the
+    phone before) and the lips open ``release`` after the phone's ``anchor`` (``"start"`` or
+    ``"end"``)."""
+
+    onset: float
+    release: float
+    anchor: str = "end"
+
+
+@dataclass(frozen=True)
+class BilabialTiming:
+    """An engine's :class:`LipTiming` of ``p``, ``b`` and ``m`` (measured on its own audio by
+    :func:`vtts.animate.lipsync.lip_closures`; docs/speech.md gives the figures)."""
+
+    p: LipTiming
+    b: LipTiming
+    m: LipTiming
+
+    def of(self, phoneme: str) -> LipTiming:
+        """The timing of a bilabial phone by its label: m (``m``, ``em``, ``m-``) or p, and b
+        for the rest (``b`` and the rarer bilabials)."""
+        label = phoneme.lower().lstrip("'ˈˌ")
+        if label.startswith(("m", "em")):
+            return self.m
+        return self.p if label.startswith("p") else self.b
+
+    def span(self, first, last) -> tuple[float, float]:
+        """(closure onset, release), s, of adjacent bilabial phones ``first`` … ``last`` (with
+        ``start``, ``end`` and ``phoneme``): one closure from the first's onset to the last's
+        release."""
+        a = self.of(first.phoneme)
+        z = self.of(last.phoneme)
+        release = (last.start if z.anchor == "start" else last.end) + z.release
+        return first.start + a.onset, release
+
+
 class Engine(Protocol):
     """What every engine module's ``ENGINE`` gives."""
 
@@ -103,6 +146,10 @@ class Engine(Protocol):
     name: str
     #: the voice used without ``--voice``
     default_voice: str
+    #: how far the mouth leads the phone times it gives, s (the lip sync bench's choice)
+    lead: float
+    #: where its audio has the lips shut for a p, b or m, against its phones
+    bilabials: BilabialTiming
 
     def speak(
         self,
@@ -140,6 +187,14 @@ def load_engine(name: str) -> Engine:
     if module is None:
         raise SpeechError(f"unknown speech engine {name!r}; known: {', '.join(ENGINES)}")
     return importlib.import_module(module).ENGINE
+
+
+def engine_timing(name: str | None) -> tuple[float, BilabialTiming]:
+    """(lead s, :class:`BilabialTiming`) of the phones ``name`` times; espeak-ng's for None or
+    a name that is no engine (phones from ``--phonemes`` or a recording aligned with espeak-ng's
+    phones)."""
+    engine = importlib.import_module(ENGINES.get(name or "", ENGINES["espeak"])).ENGINE
+    return engine.lead, engine.bilabials
 
 
 # ---- bookmarks and words, shared by the engines -------------------------------------------------

@@ -43,6 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from vtts.errors import SpeechError
+from vtts.speech.engine import BilabialTiming, LipTiming
 from vtts.speech.phonemes import Mark, Phone, viseme_tables
 from vtts.speech.tts import Speech, Voice, Word, check_rate_pitch
 
@@ -411,6 +412,15 @@ class FestivalEngine:
 
     name = "festival"
     default_voice = DEFAULT_VOICE
+    #: The HTS segments start somewhat before their sound and hold a stop's closure: no lead
+    #: (the lip sync bench's choice, docs/speech.md).
+    lead = 0.0
+    #: In its audio a p holds its closure and then its aspiration, the burst between; a b opens
+    #: shortly before its end; an m is its murmur (medians of its audio's closures:
+    #: docs/speech.md, *The closure measure*).
+    bilabials = BilabialTiming(
+        p=LipTiming(-0.01, 0.055, "start"), b=LipTiming(-0.005, -0.012), m=LipTiming(0.0, 0.0)
+    )
 
     def speak(self, text, *, voice=None, rate=None, pitch=None):
         from vtts.speech.engine import Spoken, bookmark_positions

@@ -47,6 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from vtts.errors import SpeechError
+from vtts.speech.engine import BilabialTiming, LipTiming
 from vtts.speech.phonemes import PAUSES, Mark, Phone, viseme_of
 
 __all__ = [
@@ -628,6 +629,15 @@ class EspeakEngine:
 
     name = "espeak"
     default_voice = "en-us"
+    #: espeak-ng's phones start at the sound they name (a stop at its release, its silent
+    #: closure in the phone before); the lip sync bench chose the lead (docs/speech.md).
+    lead = 0.04
+    #: In its audio a p's closure lies in the phone before and the p starts at the burst; a b
+    #: holds its (voiced) closure and opens before its end; an m is its murmur (medians of its
+    #: audio's closures: docs/speech.md, *The closure measure*).
+    bilabials = BilabialTiming(
+        p=LipTiming(-0.05, 0.0, "start"), b=LipTiming(0.0, -0.02), m=LipTiming(-0.005, -0.015)
+    )
 
     def speak(self, text, *, voice=None, rate=None, pitch=None):
         from vtts.speech.engine import Spoken, end_of_word_before
