@@ -53,12 +53,15 @@ class TalkingPhotoOptions:
     parts the photo shows instead of the model (:data:`PHOTO_SHOWN`); ``handles``: the parts
     whose motion the photo follows (:data:`HANDLES`); ``feather``: the width (pixels, a
     Gaussian's sigma) of the drawn head's soft edge (None: a 300th of the smaller side, at least
-    0.75; 0: a hard edge)."""
+    0.75; 0: a hard edge); ``segment``: warp only the person (the photo segmented by
+    :func:`vtts.fit.segment.person_probability`), never the background behind it (False: the
+    whole photo as one layer)."""
 
     warp: WarpOptions = field(default_factory=WarpOptions)
     hidden: tuple[str, ...] = PHOTO_SHOWN
     handles: tuple[str, ...] = HANDLES
     feather: float | None = None
+    segment: bool = True
 
     def __post_init__(self) -> None:
         if self.feather is not None and not (
@@ -113,7 +116,12 @@ class TalkingPhoto:
         self.photo = photo
         self.renderer.pose(model.params())
         rest, depth = self._projected(with_depth=True)
-        self.warp = PhotoWarp(photo, rest, depth, self.options.warp)
+        person = None
+        if self.options.segment:
+            from vtts.fit.segment import person_probability
+
+            person = person_probability(photo)
+        self.warp = PhotoWarp(photo, rest, depth, self.options.warp, person)
         f = self.options.feather
         self.feather = max(0.75, min(w, h) / 300) if f is None else float(f)
 
