@@ -146,8 +146,8 @@ def test_only_the_person_moves_never_the_background(scene, person):
         assert np.array_equal(out[y, x + 10], photo[y, x]), (x, y)
     # where the head was and is no more, the background shows (filled in from around it: blue
     # and white, not the person's red)
-    left = np.abs(((xs + 0.5 - CENTRE[0]) / 50) ** 2 + ((ys + 0.5 - CENTRE[1]) / 66) ** 2) <= 1
-    left &= (xs + 0.5 - 10 - CENTRE[0]) / 50 < -1.15 + 0 * ys  # left of the moved head's edge
+    left = ((xs + 0.5 - CENTRE[0]) / 50) ** 2 + ((ys + 0.5 - CENTRE[1]) / 66) ** 2 <= 1
+    left &= xs + 0.5 < CENTRE[0] + 10 - 1.15 * 50  # left of the moved head's edge
     left &= np.abs(ys + 0.5 - CENTRE[1]) < 20
     assert left.sum() > 20
     revealed = out[left].astype(int)

@@ -18,10 +18,10 @@ short of it is scaled down. Inside the head the model is drawn over the photo.
 
 Layered by the person (``person``: the probability that a pixel of the photo shows the person,
 :func:`vtts.fit.segment.person_probability`): only the person — face, hair, neck, shoulders and
-clothes — is warped, and the photo's background is never dragged with it. The person, grown by
-:data:`MARGIN` of a head size (the segmentation's edge lies inside hair's fringe), is a layer
-with a soft edge (:data:`EDGE` of a head size beyond it), warped with its coverage and laid
-over the background; the background behind the person (what a move reveals) is filled from the
+clothes — is warped, and the photo's background is never dragged with it. The person (up to
+the segmentation's edge, :data:`MARGIN`; the face's outline always) is a layer with a soft
+edge (:data:`EDGE` of a head size beyond it), warped with its coverage and laid over the
+background; the background behind the person (what a move reveals) is filled from the
 background around it (each pixel the colour of the nearest background pixel, smoothed over
 :data:`FILL_BLUR` of a head size). Where nothing moves the picture is the photo, exactly. A
 segmentation that misses the face (a painting, a cartoon) is not used: the whole photo is then
@@ -52,8 +52,9 @@ WIDENINGS = 4
 INVERSE_STEPS = 8
 #: The probability from which a pixel is the person's (the layer warped over the background).
 PERSON = 0.5
-#: How far the person's layer reaches beyond the segmentation's edge, in head sizes.
-MARGIN = 1 / 24
+#: How far the person's layer reaches beyond the segmentation's edge, in head sizes (below 0:
+#: short of it).
+MARGIN = 0.0
 #: The width of the layer's soft edge beyond that, in head sizes.
 EDGE = 1 / 24
 #: The smoothing (a Gaussian's sigma, in head sizes) of the background filled in behind the
@@ -345,8 +346,8 @@ def _handles(rest: np.ndarray, depth: np.ndarray | None, inside: np.ndarray,
 
 def _layers(photo: np.ndarray, person: np.ndarray, hull: np.ndarray,
             head_size: float) -> tuple[np.ndarray | None, np.ndarray | None]:  # fmt: skip
-    """The person's layer's coverage ``(H, W) float32`` (1 on the person grown by
-    :data:`MARGIN` and within the face's outline ``hull``, falling to 0 over :data:`EDGE`) and
+    """The person's layer's coverage ``(H, W) float32`` (1 on the person, to :data:`MARGIN`
+    from its edge, and within the face's outline ``hull``; falling to 0 over :data:`EDGE`) and
     the background ``(H, W, 3) uint8`` (the photo where the coverage is below 1, filled from
     the nearest background pixels where it is 1); ``(None, None)`` when the segmentation holds
     less than :data:`FACE_IN_PERSON` of the face's outline as the person (then one layer)."""
@@ -359,10 +360,11 @@ def _layers(photo: np.ndarray, person: np.ndarray, hull: np.ndarray,
     shown = person >= PERSON
     if not face.any() or shown[face].mean() < FACE_IN_PERSON:
         return None, None
-    # grown by the margin: the distance of every pixel from the person (and its face)
-    outside = distance_transform_edt(~(shown | face))
+    # the signed distance of every pixel from the person's edge (and its face's): out positive
+    body = shown | face
+    outside = distance_transform_edt(~body) - distance_transform_edt(body)
     margin, edge = MARGIN * head_size, max(EDGE * head_size, 1.0)
-    layer = outside <= margin
+    layer = (outside <= margin) | face
     if layer.all():
         return None, None
     t = np.clip(1.0 - (outside - margin) / edge, 0.0, 1.0)
