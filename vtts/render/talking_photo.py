@@ -8,8 +8,11 @@ cavity). The parts the photo shows better than a model can — the hair, the ear
 (:data:`PHOTO_SHOWN`) — are posed but not drawn: there the photo itself shows, warped by a smooth
 2-D mesh warp (:class:`~vtts.render.photo_warp.PhotoWarp`) whose handles are the head's
 visible vertices (:data:`HANDLES`: the face, the hair cap and the ears), projected at rest and in
-each frame, fading out with the distance from the head. Far from the head the photo's pixels
-stay as they are; a nod carries the hair and collar with it and stretches the picture smoothly
+each frame, fading out with the distance from the head. Only the person is warped (the photo
+segmented once, :func:`vtts.fit.segment.person_probability`): the person is a layer over the
+photo's background, which never moves and is filled in behind the person where a move reveals
+it (:attr:`TalkingPhotoOptions.segment`). Far from the head the photo's pixels stay as they
+are; a nod carries the hair and collar with it and stretches the picture smoothly
 (the warp is continuous and kept fold-free), never tearing it. This is the "bring a portrait to
 life" setting (Averbuch-Elor et al. 2017, who warp a portrait by a driving video in 2-D and add
 the mouth), driven here by any FAP stream: text, voice or a video's analysis.
