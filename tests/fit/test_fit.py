@@ -122,6 +122,29 @@ def test_records_its_photo_for_a_talking_photo(akiyo, tmp_path):
     assert np.abs(nod[60:200, 120:240].astype(int) - image[60:200, 120:240]).mean() > 5
 
 
+def test_a_talking_photo_warps_the_person_not_the_wall_behind(akiyo):
+    _, model, image, _ = akiyo
+    from vtts.render.talking_photo import TalkingPhoto, TalkingPhotoOptions
+
+    roll = model.params({50: 15000})  # the head rolled, 0.15 rad
+    with TalkingPhoto(model) as tp:
+        coverage = tp.warp.coverage
+        rolled = tp.render(roll)
+    with TalkingPhoto(model, options=TalkingPhotoOptions(segment=False)) as tp:
+        dragged = tp.render(roll)
+    # the photo's segmentation is used: Akiyo (her face and her hair) is the warped layer, the
+    # newsroom's wall beside her head is not
+    assert coverage is not None
+    assert coverage[110, 176] == 1.0 and coverage[40, 60] == 0.0
+    # one layer drags the wall around her head; the person's layer moves over far less of it
+    wall = coverage == 0
+    moved = (rolled != image).any(axis=-1) & wall
+    dragged = (dragged != image).any(axis=-1) & wall
+    assert dragged.sum() > 500
+    assert moved.sum() < 0.5 * dragged.sum()
+    assert not np.array_equal(rolled, image)
+
+
 def test_keeps_the_generic_topology(akiyo):
     _, model, _, _ = akiyo
     generic = vtts.load_model("cybatt")

@@ -105,6 +105,68 @@ def test_a_large_jerk_is_kept_fold_free_by_widening_or_scaling(scene):
     assert fold_free(field, warp.step, outside) >= 0.25 - 1e-9
 
 
+@pytest.fixture(scope="module")
+def person():
+    """A photo of a person — a red head (the handles' ellipse) on a red body below it — before
+    a background of blue and white vertical stripes, and the person's probability (1 on the
+    person, 0 elsewhere)."""
+    rng = np.random.default_rng(11)
+    ys, xs = np.mgrid[0:H, 0:W]
+    head = ((xs + 0.5 - CENTRE[0]) / 50) ** 2 + ((ys + 0.5 - CENTRE[1]) / 66) ** 2 <= 1
+    body = (ys >= 165) & (np.abs(xs + 0.5 - CENTRE[0]) < 90)
+    shown = head | body
+    photo = np.zeros((H, W, 3), np.uint8)
+    photo[...] = np.where(((xs // 8) % 2 == 0)[..., None], [40, 60, 220], [235, 235, 235])
+    photo[shown] = np.c_[rng.integers(180, 256, shown.sum()), rng.integers(0, 60, shown.sum()),
+                         rng.integers(0, 60, shown.sum())]  # fmt: skip
+    return photo, shown.astype(np.float32)
+
+
+def test_only_the_person_moves_never_the_background(scene, person):
+    _, rest, _ = scene
+    photo, probability = person
+    options = WarpOptions(reach=1.0, motion=3.0)  # a wide fade: it reaches the background
+    layered = PhotoWarp(photo, rest, options=options, person=probability)
+    single = PhotoWarp(photo, rest, options=options)
+    assert layered.coverage is not None
+    # at rest the picture is the photo, exactly
+    assert np.array_equal(layered(rest), photo)
+    shift = np.array([10.0, 0.0])
+    out, dragged = layered(rest + shift), single(rest + shift)
+    ys, xs = np.mgrid[0:H, 0:W]
+    # the background where the person (moved by at most the shift) does not come
+    background = layered.coverage == 0
+    for dx in range(1, 12):
+        background[:, dx:] &= layered.coverage[:, :-dx] == 0
+    # one layer drags the stripes near the head; with the person layered over them they stay
+    assert not np.array_equal(dragged[background], photo[background])
+    assert np.array_equal(out[background], photo[background])
+    # the head moved with its handles
+    for x, y in [(160, 110), (140, 90), (175, 140)]:
+        assert np.array_equal(out[y, x + 10], photo[y, x]), (x, y)
+    # where the head was and is no more, the background shows (filled in from around it: blue
+    # and white, not the person's red)
+    left = ((xs + 0.5 - CENTRE[0]) / 50) ** 2 + ((ys + 0.5 - CENTRE[1]) / 66) ** 2 <= 1
+    left &= xs + 0.5 < CENTRE[0] + 10 - 1.15 * 50  # left of the moved head's edge
+    left &= np.abs(ys + 0.5 - CENTRE[1]) < 20
+    assert left.sum() > 20
+    revealed = out[left].astype(int)
+    assert (revealed[:, 2] > revealed[:, 0]).mean() > 0.9  # blue above red: the background's
+
+
+def test_a_segmentation_that_misses_the_face_is_not_used(scene, person):
+    _, rest, _ = scene
+    photo, probability = person
+    elsewhere = np.zeros_like(probability)
+    elsewhere[:40, :40] = 1.0  # a "person" in the corner, not where the face is
+    warp = PhotoWarp(photo, rest, person=elsewhere)
+    assert warp.coverage is None
+    moved = nod(rest, 10)
+    assert np.array_equal(warp(moved), PhotoWarp(photo, rest)(moved))
+    with pytest.raises(RenderError, match="probability"):
+        PhotoWarp(photo, rest, person=probability[:-1])
+
+
 def test_bilinear_samples_between_pixels():
     image = np.zeros((2, 2, 1), np.uint8)
     image[0, 1] = 200

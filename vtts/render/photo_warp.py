@@ -16,6 +16,17 @@ stays positive; the fade is widened (up to :data:`WIDENINGS` times by 1.5) until
 determinant outside the head's outline is at least :data:`MIN_JACOBIAN`, and what is still
 short of it is scaled down. Inside the head the model is drawn over the photo.
 
+Layered by the person (``person``: the probability that a pixel of the photo shows the person,
+:func:`vtts.fit.segment.person_probability`): only the person — face, hair, neck, shoulders and
+clothes — is warped, and the photo's background is never dragged with it. The person (up to
+the segmentation's edge, :data:`MARGIN`; the face's outline always) is a layer with a soft
+edge (:data:`EDGE` of a head size beyond it), warped with its coverage and laid over the
+background; the background behind the person (what a move reveals) is filled from the
+background around it (each pixel the colour of the nearest background pixel, smoothed over
+:data:`FILL_BLUR` of a head size). Where nothing moves the picture is the photo, exactly. A
+segmentation that misses the face (a painting, a cartoon) is not used: the whole photo is then
+one layer.
+
 Coordinates are pixels, x right and y down, with the centre of pixel ``[i, j]`` at ``(j + 0.5,
 i + 0.5)`` (as :meth:`vtts.render.Camera.project` gives them).
 
@@ -29,7 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.interpolate import RBFInterpolator
-from scipy.ndimage import distance_transform_edt, map_coordinates
+from scipy.ndimage import distance_transform_edt, gaussian_filter, map_coordinates
 
 from vtts.errors import RenderError
 
@@ -39,6 +50,18 @@ MIN_JACOBIAN = 0.25
 WIDENINGS = 4
 #: Fixed-point steps that invert the warp on the grid.
 INVERSE_STEPS = 8
+#: The probability from which a pixel is the person's (the layer warped over the background).
+PERSON = 0.5
+#: How far the person's layer reaches beyond the segmentation's edge, in head sizes (below 0:
+#: short of it).
+MARGIN = 0.0
+#: The width of the layer's soft edge beyond that, in head sizes.
+EDGE = 1 / 24
+#: The smoothing (a Gaussian's sigma, in head sizes) of the background filled in behind the
+#: person.
+FILL_BLUR = 1 / 12
+#: The share of the face's outline the segmentation must hold as the person to be used.
+FACE_IN_PERSON = 0.5
 
 
 @dataclass(frozen=True)
@@ -78,10 +101,12 @@ class PhotoWarp:
     (None: all alike). Of points that fall into the same cell (:attr:`WarpOptions.cell`) the
     nearest to the camera is the handle there (the visible surface: a turned head's far side
     moves the other way). Calling it with the points' positions in a frame, ``(n, 2)``, gives
-    that frame's photo."""
+    that frame's photo. ``person`` ``(H, W)`` (0–1): the probability that each pixel shows the
+    person (None: the whole photo is warped as one layer); see the module's docstring."""
 
     def __init__(self, photo: np.ndarray, rest: np.ndarray, depth: np.ndarray | None = None,
-                 options: WarpOptions | None = None) -> None:  # fmt: skip
+                 options: WarpOptions | None = None,
+                 person: np.ndarray | None = None) -> None:  # fmt: skip
         photo = np.asarray(photo)
         if photo.ndim != 3 or photo.shape[2] != 3 or photo.dtype != np.uint8:
             raise RenderError(f"the photo must be (H, W, 3) uint8, got {photo.shape} {photo.dtype}")
@@ -90,8 +115,13 @@ class PhotoWarp:
             raise RenderError(f"the handles must be (n, 2) finite pixels, got {rest.shape}")
         self.options = options or WarpOptions()
         self.photo = photo
-        self._packed = packed(photo)
         h, w = photo.shape[:2]
+        if person is not None:
+            person = np.asarray(person, np.float32)
+            if person.shape != (h, w) or not np.isfinite(person).all():
+                raise RenderError(
+                    f"the person's probability must be ({h}, {w}) finite, got {person.shape}"
+                )
         self.size = (w, h)
         inside = (rest[:, 0] >= 0) & (rest[:, 0] <= w) & (rest[:, 1] >= 0) & (rest[:, 1] <= h)
         if inside.sum() < 3:
@@ -112,6 +142,12 @@ class PhotoWarp:
         from matplotlib.path import Path as Polygon
 
         self.head = Polygon(hull).contains_points(self.nodes.reshape(-1, 2)).reshape(nodes_x.shape)
+        #: the person's layer's coverage ``(H, W)`` (0–1) and the background behind it ``(H, W,
+        #: 3) uint8``; None: one layer, the whole photo
+        self.coverage, self.background = (None, None)
+        if person is not None:
+            self.coverage, self.background = _layers(photo, person, hull, self.head_size)
+        self._packed = packed(photo, self.coverage)
         # distance (pixels) of every node from the head's outline, 0 inside
         self.distance = distance_transform_edt(~self.head) * g if self.head.any() else None
         #: the fade's width (pixels) used in the last frame, and the factor it was scaled by
@@ -223,10 +259,17 @@ class PhotoWarp:
         sy = rows @ y[..., 1] @ cols.T
         window = out[i0:i1, j0:j1]
         if needed is None:
-            window[...] = sample(self._packed, (w, h), sx, sy)
+            mask = np.ones(window.shape[:2], bool)
         else:
             mask = np.asarray(needed, bool)[i0:i1, j0:j1]
+        if self.coverage is None:
             window[mask] = sample(self._packed, (w, h), sx[mask], sy[mask])
+            return out
+        # the person's layer, warped with its coverage, over the background behind it
+        warped = sample(self._packed, (w, h), sx[mask], sy[mask], channels=4)
+        a = warped[:, 3:].astype(np.float32) / 255.0
+        behind = self.background[i0:i1, j0:j1][mask].astype(np.float32)
+        window[mask] = (warped[:, :3] * a + behind * (1.0 - a) + 0.5).astype(np.uint8)
         return out
 
 
@@ -242,19 +285,23 @@ def _upsampling(pixels: np.ndarray, step: int, nodes: int) -> np.ndarray:
     return m
 
 
-def packed(image: np.ndarray) -> np.ndarray:
-    """``image`` ``(H, W, 3) uint8`` as ``(H·W,) uint32``, a pixel's bytes in one word (what
-    :func:`sample` gathers: one load per corner instead of three)."""
+def packed(image: np.ndarray, alpha: np.ndarray | None = None) -> np.ndarray:
+    """``image`` ``(H, W, 3) uint8`` (and its coverage ``alpha`` ``(H, W)`` 0–1, the fourth
+    byte; None: 0) as ``(H·W,) uint32``, a pixel's bytes in one word (what :func:`sample`
+    gathers: one load per corner instead of three)."""
     h, w = image.shape[:2]
     rgba = np.zeros((h, w, 4), np.uint8)
     rgba[..., :3] = image
+    if alpha is not None:
+        rgba[..., 3] = np.round(np.clip(alpha, 0.0, 1.0) * 255.0).astype(np.uint8)
     return rgba.view(np.uint32).reshape(-1)
 
 
-def sample(pixels: np.ndarray, size: tuple[int, int], x: np.ndarray, y: np.ndarray) -> np.ndarray:
+def sample(pixels: np.ndarray, size: tuple[int, int], x: np.ndarray, y: np.ndarray,
+           channels: int = 3) -> np.ndarray:  # fmt: skip
     """The image :func:`packed` as ``pixels`` (of ``size`` (W, H)) sampled bilinearly at the
     pixel coordinates ``x``, ``y`` (any shape; pixel centres at +0.5; beyond the edge the edge's
-    pixels): ``(*x.shape, 3) uint8``."""
+    pixels): ``(*x.shape, channels) uint8`` (3: RGB; 4: and the coverage byte)."""
     w, h = size
     x = np.clip(np.asarray(x, np.float64) - 0.5, 0.0, w - 1.0)
     y = np.clip(np.asarray(y, np.float64) - 0.5, 0.0, h - 1.0)
@@ -266,7 +313,7 @@ def sample(pixels: np.ndarray, size: tuple[int, int], x: np.ndarray, y: np.ndarr
     i = y0 * w + x0
 
     def corner(at: np.ndarray) -> np.ndarray:
-        return pixels[at].view(np.uint8).reshape(*at.shape, 4)[..., :3].astype(np.float32)
+        return pixels[at].view(np.uint8).reshape(*at.shape, 4)[..., :channels].astype(np.float32)
 
     a, b, c, d = corner(i), corner(i + dx), corner(i + dy), corner(i + dy + dx)
     top = a + (b - a) * fx
@@ -295,6 +342,42 @@ def _handles(rest: np.ndarray, depth: np.ndarray | None, inside: np.ndarray,
     order = np.lexsort((z[idx], key))  # by cell, then nearest first
     first = np.r_[True, key[order][1:] != key[order][:-1]]
     return np.sort(idx[order][first])
+
+
+def _layers(photo: np.ndarray, person: np.ndarray, hull: np.ndarray,
+            head_size: float) -> tuple[np.ndarray | None, np.ndarray | None]:  # fmt: skip
+    """The person's layer's coverage ``(H, W) float32`` (1 on the person, to :data:`MARGIN`
+    from its edge, and within the face's outline ``hull``; falling to 0 over :data:`EDGE`) and
+    the background ``(H, W, 3) uint8`` (the photo where the coverage is below 1, filled from
+    the nearest background pixels where it is 1); ``(None, None)`` when the segmentation holds
+    less than :data:`FACE_IN_PERSON` of the face's outline as the person (then one layer)."""
+    from matplotlib.path import Path as Polygon
+
+    h, w = person.shape
+    ys, xs = np.mgrid[0:h, 0:w]
+    centres = np.c_[xs.ravel() + 0.5, ys.ravel() + 0.5]
+    face = Polygon(hull).contains_points(centres).reshape(h, w)
+    shown = person >= PERSON
+    if not face.any() or shown[face].mean() < FACE_IN_PERSON:
+        return None, None
+    # the signed distance of every pixel from the person's edge (and its face's): out positive
+    body = shown | face
+    outside = distance_transform_edt(~body) - distance_transform_edt(body)
+    margin, edge = MARGIN * head_size, max(EDGE * head_size, 1.0)
+    layer = (outside <= margin) | face
+    if layer.all():
+        return None, None
+    t = np.clip(1.0 - (outside - margin) / edge, 0.0, 1.0)
+    coverage = (t * t * (3.0 - 2.0 * t)).astype(np.float32)
+    coverage[layer] = 1.0
+    # behind the person: the nearest background pixel's colour, smoothed within the layer
+    _, (iy, ix) = distance_transform_edt(layer, return_indices=True)
+    filled = photo[iy, ix].astype(np.float32)
+    sigma = max(FILL_BLUR * head_size, 1.0)
+    smooth = gaussian_filter(filled, (sigma, sigma, 0), mode="nearest")
+    background = photo.copy()
+    background[layer] = np.clip(np.round(smooth[layer]), 0, 255).astype(np.uint8)
+    return coverage, background
 
 
 def _hull(points: np.ndarray) -> np.ndarray:
