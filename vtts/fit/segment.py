@@ -11,6 +11,8 @@ from the face's landmarks and colours (:mod:`vtts.fit.hair`).
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 from PIL import Image
 
@@ -61,12 +63,15 @@ class SelfieSegmenter:
 
 
 _default: SelfieSegmenter | None = None
+_default_lock = threading.Lock()
 
 
 def person_probability(image: np.ndarray) -> np.ndarray:
     """``(H, W) float32``: the probability that each pixel of ``image (H, W, 3) uint8`` shows the
-    person (a shared :class:`SelfieSegmenter`, built on first use)."""
+    person (a shared :class:`SelfieSegmenter`, built on first use; one thread at a time uses it,
+    as fitting and talking photos may run in several threads of one process)."""
     global _default
-    if _default is None:
-        _default = SelfieSegmenter()
-    return _default(image)
+    with _default_lock:
+        if _default is None:
+            _default = SelfieSegmenter()
+        return _default(image)
