@@ -11,7 +11,9 @@ also lays the models out side by side (or in a room) and puts the camera and lig
 
 from __future__ import annotations
 
+import threading
 import weakref
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -404,13 +406,35 @@ def _rot_xy(ax: float, ay: float) -> np.ndarray:
     return m
 
 
+#: How many decoded texture images :func:`load_image` keeps, the most recently used.
+DECODED_IMAGES = 8
+_decoded: OrderedDict[tuple, np.ndarray] = OrderedDict()
+_decoded_lock = threading.Lock()
+
+
 def load_image(path: Path) -> np.ndarray:
-    """A texture image file as ``(h, w, 4) uint8`` RGBA, top row first."""
+    """A texture image file as ``(h, w, 4) uint8`` RGBA, top row first (read-only).
+
+    The last :data:`DECODED_IMAGES` images are kept, by the file's path, inode, size and
+    times: a renderer made again for the same head decodes its atlas (a megapixel PNG) once."""
     from PIL import Image
 
     try:
+        st = Path(path).stat()
+        key = (str(path), st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
+        with _decoded_lock:
+            rgba = _decoded.get(key)
+            if rgba is not None:
+                _decoded.move_to_end(key)
+                return rgba
         with Image.open(path) as im:
             check_image_size(*im.size, file=str(path), what="texture image")
-            return np.asarray(im.convert("RGBA"))
+            rgba = np.asarray(im.convert("RGBA"))
     except (OSError, Image.DecompressionBombError) as e:
         raise RenderError(f"cannot read texture image {path}: {e}") from None
+    rgba.flags.writeable = False
+    with _decoded_lock:
+        _decoded[key] = rgba
+        while len(_decoded) > DECODED_IMAGES:
+            _decoded.popitem(last=False)
+    return rgba
