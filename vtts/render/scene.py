@@ -214,7 +214,7 @@ class SceneBuilder:
             if geom.name and geom.name not in animated:
                 inst.still[geom.name] = (node, tm.positions)
             if geom.name in animated:
-                inc = incidence(tm.faces, tm.positions.shape[0])
+                inc = _incidence(tm)
                 inst.meshes.append(
                     AnimatedMesh(
                         geom.name,
@@ -404,6 +404,22 @@ def _rot_xy(ax: float, ay: float) -> np.ndarray:
     m = np.eye(4)
     m[:3, :3] = rotation_matrix([0, 1, 0, ay]) @ rotation_matrix([1, 0, 0, ax])
     return m
+
+
+#: The incidence matrices of the meshes :func:`~vtts.vrml.triangulate` keeps (read-only, given
+#: again for the same geometry), while they are kept.
+_incidences: weakref.WeakKeyDictionary[TriangleMesh, sp.csr_matrix] = weakref.WeakKeyDictionary()
+
+
+def _incidence(tm: TriangleMesh) -> sp.csr_matrix:
+    """``(n, m)``: which of ``tm``'s triangles touch each vertex (:func:`vtts.mesh.incidence`),
+    made once for a kept (read-only) mesh."""
+    if tm.faces.flags.writeable:
+        return incidence(tm.faces, tm.positions.shape[0])
+    inc = _incidences.get(tm)
+    if inc is None:
+        inc = _incidences[tm] = incidence(tm.faces, tm.positions.shape[0])
+    return inc
 
 
 #: How many decoded texture images :func:`load_image` keeps, the most recently used.
