@@ -11,6 +11,7 @@ also lays the models out side by side (or in a room) and puts the camera and lig
 
 from __future__ import annotations
 
+import hashlib
 import threading
 import weakref
 from collections import OrderedDict
@@ -424,33 +425,38 @@ def _incidence(tm: TriangleMesh) -> sp.csr_matrix:
 
 #: How many decoded texture images :func:`load_image` keeps, the most recently used.
 DECODED_IMAGES = 8
-_decoded: OrderedDict[tuple, np.ndarray] = OrderedDict()
+#: Files larger than this (bytes) are decoded every time, not kept.
+DECODED_MAX_BYTES = 64 << 20
+_decoded: OrderedDict[bytes, np.ndarray] = OrderedDict()
 _decoded_lock = threading.Lock()
 
 
 def load_image(path: Path) -> np.ndarray:
     """A texture image file as ``(h, w, 4) uint8`` RGBA, top row first (read-only).
 
-    The last :data:`DECODED_IMAGES` images are kept, by the file's path, inode, size and
-    times: a renderer made again for the same head decodes its atlas (a megapixel PNG) once."""
+    The last :data:`DECODED_IMAGES` images are kept by a digest of the file's bytes: a renderer
+    made again for the same head decodes its atlas (a megapixel PNG) once, and a file written
+    anew is decoded anew whatever its name, size and times."""
     from PIL import Image
 
     try:
-        st = Path(path).stat()
-        key = (str(path), st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
-        with _decoded_lock:
-            rgba = _decoded.get(key)
-            if rgba is not None:
-                _decoded.move_to_end(key)
-                return rgba
+        key = None
+        if Path(path).stat().st_size <= DECODED_MAX_BYTES:
+            key = hashlib.blake2b(Path(path).read_bytes(), digest_size=20).digest()
+            with _decoded_lock:
+                rgba = _decoded.get(key)
+                if rgba is not None:
+                    _decoded.move_to_end(key)
+                    return rgba
         with Image.open(path) as im:
             check_image_size(*im.size, file=str(path), what="texture image")
             rgba = np.asarray(im.convert("RGBA"))
     except (OSError, Image.DecompressionBombError) as e:
         raise RenderError(f"cannot read texture image {path}: {e}") from None
     rgba.flags.writeable = False
-    with _decoded_lock:
-        _decoded[key] = rgba
-        while len(_decoded) > DECODED_IMAGES:
-            _decoded.popitem(last=False)
+    if key is not None:
+        with _decoded_lock:
+            _decoded[key] = rgba
+            while len(_decoded) > DECODED_IMAGES:
+                _decoded.popitem(last=False)
     return rgba
