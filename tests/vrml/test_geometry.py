@@ -280,9 +280,14 @@ def test_check_face_set_is_not_for_other_nodes():
         check_face_set(parse(H + "DEF B Box { }").node("B"))
 
 
-def test_a_kept_mesh_is_given_again_read_only_and_a_changed_node_gets_its_own():
+def test_a_kept_mesh_is_given_again_read_only_and_a_changed_node_gets_its_own(monkeypatch):
     """triangulate keeps meshes by their node's geometry: the same geometry (another node, the
-    same fields) gives the kept mesh, read-only; any field it reads, changed, gives a new one."""
+    same fields) gives the kept mesh, read-only; any field it reads, changed, gives a new one.
+    (A cube is small enough to be made anew each time: here it is kept too.)"""
+    import vtts.vrml.geometry
+
+    assert triangulate(ifs()) is not triangulate(ifs())
+    monkeypatch.setattr(vtts.vrml.geometry, "KEEP_FROM", 0)
     a = triangulate(ifs())
     assert triangulate(ifs()) is a
     assert not a.positions.flags.writeable and not a.normals.flags.writeable

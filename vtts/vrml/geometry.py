@@ -245,6 +245,9 @@ def _fan_triangle_count(sep: np.ndarray, n: int) -> int:
 
 #: How many meshes :func:`triangulate` keeps, the most recently used.
 TRIANGULATED = 256
+#: Meshes with fewer coordIndex entries than this are made anew each time: they take less
+#: time to make than to look up.
+KEEP_FROM = 1024
 _triangulated: OrderedDict[bytes, TriangleMesh] = OrderedDict()
 _triangulated_lock = threading.Lock()
 
@@ -277,14 +280,15 @@ def triangulate(node: Node, points: np.ndarray | None = None) -> TriangleMesh:
     ``points`` (``(p, 3) float64``) replaces the Coordinate's points, which is how animated
     (deformed) geometry is triangulated with the same topology.
 
-    Without ``points`` the mesh is kept (the last :data:`TRIANGULATED`, by a digest of the
-    node's geometry) and given again, read-only, for the same geometry: a renderer is made for
-    a head again and again, and its generated normals were most of the time that took.
+    Without ``points`` a mesh of :data:`KEEP_FROM` coordIndex entries or more is kept (the last
+    :data:`TRIANGULATED`, by a digest of the node's geometry) and given again, read-only, for
+    the same geometry: a renderer is made for a head again and again, and its generated normals
+    were most of the time that took.
     """
     node = node.expand()
     if node.type.name != "IndexedFaceSet":
         raise TypeError(f"not an IndexedFaceSet: {node.type.name}")
-    if points is not None:
+    if points is not None or np.size(node["coordIndex"]) < KEEP_FROM:
         return _triangulate(node, points)
     key = _geometry_key(node)
     with _triangulated_lock:
