@@ -736,10 +736,10 @@ def _num(x: float) -> str:
 def fmt(a: np.ndarray, decimals: int = 5) -> np.ndarray:
     """Numbers as short fixed-point text (``0.25``, ``-1``, ``0``), rounded to ``decimals``."""
     a = np.round(np.asarray(a, dtype=np.float64), decimals) + 0.0
-    s = np.char.mod(f"%.{decimals}f", a)
-    s = np.char.rstrip(np.char.rstrip(s, "0"), ".")
-    s[(s == "-0") | (s == "")] = "0"
-    return s
+    # str's % per number: numpy's char.mod makes the same text, several times slower
+    form = f"%.{decimals}f"
+    words = [(form % x).rstrip("0").rstrip(".") for x in a.ravel().tolist()]
+    return np.array([w if w not in ("-0", "") else "0" for w in words], dtype=str).reshape(a.shape)
 
 
 def fmt_rows(a: np.ndarray, decimals: int = 5, sep: str = ",\n") -> str:

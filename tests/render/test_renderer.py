@@ -245,3 +245,19 @@ def test_triangle_numbers_need_a_plain_renderer(head):
     bg = np.zeros((288, 352, 3), np.uint8)
     with FaceRenderer(head, background=bg) as r, pytest.raises(RenderError, match="triangle"):
         r.render(head.params({}), triangles=True)
+
+
+def test_a_texture_file_written_anew_is_read_anew(tmp_path):
+    """Decoded texture images are kept by the file's bytes: the same file again gives the kept
+    image (read-only), the file rewritten in place at once (the same name, size and, often, the
+    same time stamp) gives its new pixels."""
+    from PIL import Image
+
+    from vtts.render.scene import load_image
+
+    png = tmp_path / "t.bmp"
+    Image.new("RGB", (8, 8), (10, 20, 30)).save(png)
+    first = load_image(png)
+    assert load_image(png) is first and not first.flags.writeable
+    Image.new("RGB", (8, 8), (40, 50, 60)).save(png)
+    assert load_image(png)[0, 0].tolist() == [40, 50, 60, 255]

@@ -278,3 +278,41 @@ def test_check_face_set_agrees_on_every_file_in_the_repository():
 def test_check_face_set_is_not_for_other_nodes():
     with pytest.raises(TypeError, match="not an IndexedFaceSet"):
         check_face_set(parse(H + "DEF B Box { }").node("B"))
+
+
+def test_a_kept_mesh_is_given_again_read_only_and_a_changed_node_gets_its_own(monkeypatch):
+    """triangulate keeps meshes by their node's geometry: the same geometry (another node, the
+    same fields) gives the kept mesh, read-only; any field it reads, changed, gives a new one.
+    (A cube is small enough to be made anew each time: here it is kept too.)"""
+    import vtts.vrml.geometry
+
+    assert triangulate(ifs()) is not triangulate(ifs())
+    monkeypatch.setattr(vtts.vrml.geometry, "KEEP_FROM", 0)
+    a = triangulate(ifs())
+    assert triangulate(ifs()) is a
+    assert not a.positions.flags.writeable and not a.normals.flags.writeable
+    with pytest.raises(ValueError, match="read-only"):
+        a.positions[0] = 0
+    changed = [
+        ifs(points=CUBE_POINTS.replace("-1 -1 1,", "-1 -1 2,", 1)),
+        ifs(faces=CUBE_FACES.replace("0 1 2 3", "0 2 3 1", 1)),
+        ifs("ccw FALSE"),
+        ifs("solid FALSE"),
+        ifs("creaseAngle 1"),
+        ifs("texCoord TextureCoordinate { point [ 0 0, 1 0, 1 1, 0 1 ] } "
+            "texCoordIndex [ 0 1 2 3 -1, 0 1 2 3 -1, 0 1 2 3 -1, 0 1 2 3 -1, 0 1 2 3 -1, "
+            "0 1 2 3 ]"),
+    ]  # fmt: skip
+    meshes = [triangulate(n) for n in changed]
+    assert all(m is not a for m in meshes) and len({id(m) for m in meshes}) == len(meshes)
+    # a node changed after its mesh was kept gives the changed mesh: a field set anew, or its
+    # array changed in place
+    node = ifs()
+    coord = node["coord"].expand()
+    coord.fields["point"] = coord["point"] * 2
+    assert np.array_equal(triangulate(node).positions, 2 * a.positions)
+    coord.fields["point"] *= 1.5
+    assert np.array_equal(triangulate(node).positions, 3 * a.positions)
+    # replacement points (an animated pose) are never kept
+    moved = triangulate(ifs(), points=a.positions[:8] * 0 + 1)
+    assert moved is not triangulate(ifs(), points=a.positions[:8] * 0 + 1)

@@ -22,6 +22,7 @@ from __future__ import annotations
 import os
 import sys
 import types
+import weakref
 from collections.abc import Iterable, Iterator, MutableSet
 
 import numpy as np
@@ -331,6 +332,23 @@ def node_matrices(path: list) -> list[np.ndarray]:
 
 
 _TEXTURE_CLASS = None
+#: The mipmap chains of read-only texture images (the decoded image files renderers share,
+#: :func:`vtts.render.scene.load_image`), by the image's id while it lives.
+_MIPMAPS: dict[int, tuple[weakref.ref, list[np.ndarray]]] = {}
+
+
+def _mips(source: np.ndarray, mip_levels) -> list[np.ndarray]:
+    """The mipmap chain of ``source (h, w, 4) uint8`` flipped upside down (GL's row order),
+    made once per read-only image: another renderer of the same head uploads the same levels."""
+    if source.flags.writeable:
+        return mip_levels(np.flip(source, axis=0))
+    key = id(source)
+    kept = _MIPMAPS.get(key)
+    if kept is not None and kept[0]() is source:
+        return kept[1]
+    levels = mip_levels(np.flip(source, axis=0))
+    _MIPMAPS[key] = (weakref.ref(source, lambda _, key=key: _MIPMAPS.pop(key, None)), levels)
+    return levels
 
 
 def pyrender_texture(rgba: np.ndarray):
@@ -370,7 +388,7 @@ def _texture_class():
             self._texid = GL.glGenTextures(1)
             GL.glBindTexture(self.tex_type, self._texid)
             GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
-            for k, level in enumerate(mip_levels(np.flip(source, axis=0))):
+            for k, level in enumerate(_mips(source, mip_levels)):
                 h, w = level.shape[:2]
                 GL.glTexImage2D(
                     self.tex_type, k, GL.GL_RGBA, w, h, 0, GL.GL_RGBA, GL.GL_UNSIGNED_BYTE,

@@ -11,7 +11,10 @@ also lays the models out side by side (or in a room) and puts the camera and lig
 
 from __future__ import annotations
 
+import hashlib
+import threading
 import weakref
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -212,7 +215,7 @@ class SceneBuilder:
             if geom.name and geom.name not in animated:
                 inst.still[geom.name] = (node, tm.positions)
             if geom.name in animated:
-                inc = incidence(tm.faces, tm.positions.shape[0])
+                inc = _incidence(tm)
                 inst.meshes.append(
                     AnimatedMesh(
                         geom.name,
@@ -404,13 +407,56 @@ def _rot_xy(ax: float, ay: float) -> np.ndarray:
     return m
 
 
+#: The incidence matrices of the meshes :func:`~vtts.vrml.triangulate` keeps (read-only, given
+#: again for the same geometry), while they are kept.
+_incidences: weakref.WeakKeyDictionary[TriangleMesh, sp.csr_matrix] = weakref.WeakKeyDictionary()
+
+
+def _incidence(tm: TriangleMesh) -> sp.csr_matrix:
+    """``(n, m)``: which of ``tm``'s triangles touch each vertex (:func:`vtts.mesh.incidence`),
+    made once for a kept (read-only) mesh."""
+    if tm.faces.flags.writeable:
+        return incidence(tm.faces, tm.positions.shape[0])
+    inc = _incidences.get(tm)
+    if inc is None:
+        inc = _incidences[tm] = incidence(tm.faces, tm.positions.shape[0])
+    return inc
+
+
+#: How many decoded texture images :func:`load_image` keeps, the most recently used.
+DECODED_IMAGES = 8
+#: Files larger than this (bytes) are decoded every time, not kept.
+DECODED_MAX_BYTES = 64 << 20
+_decoded: OrderedDict[bytes, np.ndarray] = OrderedDict()
+_decoded_lock = threading.Lock()
+
+
 def load_image(path: Path) -> np.ndarray:
-    """A texture image file as ``(h, w, 4) uint8`` RGBA, top row first."""
+    """A texture image file as ``(h, w, 4) uint8`` RGBA, top row first (read-only).
+
+    The last :data:`DECODED_IMAGES` images are kept by a digest of the file's bytes: a renderer
+    made again for the same head decodes its atlas (a megapixel PNG) once, and a file written
+    anew is decoded anew whatever its name, size and times."""
     from PIL import Image
 
     try:
+        key = None
+        if Path(path).stat().st_size <= DECODED_MAX_BYTES:
+            key = hashlib.blake2b(Path(path).read_bytes(), digest_size=20).digest()
+            with _decoded_lock:
+                rgba = _decoded.get(key)
+                if rgba is not None:
+                    _decoded.move_to_end(key)
+                    return rgba
         with Image.open(path) as im:
             check_image_size(*im.size, file=str(path), what="texture image")
-            return np.asarray(im.convert("RGBA"))
+            rgba = np.asarray(im.convert("RGBA"))
     except (OSError, Image.DecompressionBombError) as e:
         raise RenderError(f"cannot read texture image {path}: {e}") from None
+    rgba.flags.writeable = False
+    if key is not None:
+        with _decoded_lock:
+            _decoded[key] = rgba
+            while len(_decoded) > DECODED_IMAGES:
+                _decoded.popitem(last=False)
+    return rgba

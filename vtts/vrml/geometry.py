@@ -10,7 +10,10 @@ gives the triangles of the primitives (Box, Sphere, Cylinder, Cone).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import hashlib
+import threading
+from collections import OrderedDict
+from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -240,15 +243,73 @@ def _fan_triangle_count(sep: np.ndarray, n: int) -> int:
     return int(np.maximum(corners - 2, 0).sum())
 
 
+#: How many meshes :func:`triangulate` keeps, the most recently used.
+TRIANGULATED = 256
+#: Meshes with fewer coordIndex entries than this are made anew each time: they take less
+#: time to make than to look up.
+KEEP_FROM = 1024
+_triangulated: OrderedDict[bytes, TriangleMesh] = OrderedDict()
+_triangulated_lock = threading.Lock()
+
+
+def _geometry_key(node: Node) -> bytes:
+    """A digest of everything :func:`triangulate` reads of an IndexedFaceSet ``node``: two
+    nodes with the same digest give the same triangles."""
+    h = hashlib.blake2b(digest_size=20)
+    for name in ("ccw", "solid", "creaseAngle", "normalPerVertex", "colorPerVertex"):
+        h.update(repr(node[name]).encode())
+    for name in ("coordIndex", "normalIndex", "colorIndex", "texCoordIndex"):
+        a = np.ascontiguousarray(node[name], dtype=np.int64)
+        h.update(b"%d|" % a.size)
+        h.update(a)
+    for name, value in (("coord", "point"), ("normal", "vector"), ("color", "color"),
+                        ("texCoord", "point")):  # fmt: skip
+        a = _attribute_node_values(node, name, value)
+        if a is None:
+            h.update(b"none|")
+        else:
+            a = np.ascontiguousarray(a)
+            h.update(repr(a.shape).encode())
+            h.update(a)
+    return h.digest()
+
+
 def triangulate(node: Node, points: np.ndarray | None = None) -> TriangleMesh:
     """The :class:`TriangleMesh` of an IndexedFaceSet node.
 
     ``points`` (``(p, 3) float64``) replaces the Coordinate's points, which is how animated
     (deformed) geometry is triangulated with the same topology.
+
+    Without ``points`` a mesh of :data:`KEEP_FROM` coordIndex entries or more is kept (the last
+    :data:`TRIANGULATED`, by a digest of the node's geometry) and given again, read-only, for
+    the same geometry: a renderer is made for a head again and again, and its generated normals
+    were most of the time that took.
     """
     node = node.expand()
     if node.type.name != "IndexedFaceSet":
         raise TypeError(f"not an IndexedFaceSet: {node.type.name}")
+    if points is not None or np.size(node["coordIndex"]) < KEEP_FROM:
+        return _triangulate(node, points)
+    key = _geometry_key(node)
+    with _triangulated_lock:
+        mesh = _triangulated.get(key)
+        if mesh is not None:
+            _triangulated.move_to_end(key)
+            return mesh
+    mesh = _triangulate(node, None)
+    for f in fields(mesh):
+        value = getattr(mesh, f.name)
+        if isinstance(value, np.ndarray):
+            value.flags.writeable = False
+    with _triangulated_lock:
+        _triangulated[key] = mesh
+        while len(_triangulated) > TRIANGULATED:
+            _triangulated.popitem(last=False)
+    return mesh
+
+
+def _triangulate(node: Node, points: np.ndarray | None) -> TriangleMesh:
+    """:func:`triangulate` of the expanded IndexedFaceSet ``node``, made anew."""
     if points is None:
         pts = _attribute_node_values(node, "coord", "point")
         points = np.zeros((0, 3)) if pts is None else pts
