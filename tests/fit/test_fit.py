@@ -124,13 +124,14 @@ def test_records_its_photo_for_a_talking_photo(akiyo, tmp_path):
 
 def test_a_talking_photo_warps_the_person_not_the_wall_behind(akiyo):
     _, model, image, _ = akiyo
+    from vtts.fit.segment import person_probability
     from vtts.render.talking_photo import TalkingPhoto, TalkingPhotoOptions
 
     roll = model.params({50: 15000})  # the head rolled, 0.15 rad
-    with TalkingPhoto(model) as tp:
+    with TalkingPhoto(model, options=TalkingPhotoOptions(segment=person_probability)) as tp:
         coverage = tp.warp.coverage
         rolled = tp.render(roll)
-    with TalkingPhoto(model, options=TalkingPhotoOptions(segment=False)) as tp:
+    with TalkingPhoto(model) as tp:
         dragged = tp.render(roll)
     # the photo's segmentation is used: Akiyo (her face and her hair) is the warped layer, the
     # newsroom's wall beside her head is not

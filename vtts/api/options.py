@@ -277,11 +277,13 @@ class View:
         if self.camera and self.viewpoint:
             raise RenderError("--camera and --viewpoint both choose the camera: give one of them")
         if self.talking_photo():
-            from vtts.render.talking_photo import PHOTO_VIEWPOINT, TalkingPhoto
+            from vtts.fit.segment import person_probability
+            from vtts.render.talking_photo import PHOTO_VIEWPOINT, TalkingPhoto, TalkingPhotoOptions
 
             self._check_photo_view()
             return TalkingPhoto(
                 models,
+                options=TalkingPhotoOptions(segment=person_probability),
                 size=self.frame_size() if self.size else None,
                 viewpoint=self.viewpoint or PHOTO_VIEWPOINT,
                 supersample=supersample,

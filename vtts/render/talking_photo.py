@@ -9,7 +9,7 @@ cavity). The parts the photo shows better than a model can — the hair, the ear
 2-D mesh warp (:class:`~vtts.render.photo_warp.PhotoWarp`) whose handles are the head's
 visible vertices (:data:`HANDLES`: the face, the hair cap and the ears), projected at rest and in
 each frame, fading out with the distance from the head. Only the person is warped (the photo
-segmented once, :func:`vtts.fit.segment.person_probability`): the person is a layer over the
+segmented once, by :attr:`TalkingPhotoOptions.segment`): the person is a layer over the
 photo's background, which never moves and is filled in behind the person where a move reveals
 it (:attr:`TalkingPhotoOptions.segment`). Far from the head the photo's pixels stay as they
 are; a nod carries the hair and collar with it and stretches the picture smoothly
@@ -24,7 +24,7 @@ the mouth), driven here by any FAP stream: text, voice or a video's analysis.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -56,15 +56,15 @@ class TalkingPhotoOptions:
     parts the photo shows instead of the model (:data:`PHOTO_SHOWN`); ``handles``: the parts
     whose motion the photo follows (:data:`HANDLES`); ``feather``: the width (pixels, a
     Gaussian's sigma) of the drawn head's soft edge (None: a 300th of the smaller side, at least
-    0.75; 0: a hard edge); ``segment``: warp only the person (the photo segmented by
-    :func:`vtts.fit.segment.person_probability`), never the background behind it (False: the
-    whole photo as one layer)."""
+    0.75; 0: a hard edge); ``segment``: the photo's person probability, ``(H, W, 3) uint8 ->
+    (H, W) float32`` in 0–1 (the commands give :func:`vtts.fit.segment.person_probability`): the
+    person is warped, never the background behind it (None: the whole photo as one layer)."""
 
     warp: WarpOptions = field(default_factory=WarpOptions)
     hidden: tuple[str, ...] = PHOTO_SHOWN
     handles: tuple[str, ...] = HANDLES
     feather: float | None = None
-    segment: bool = True
+    segment: Callable[[np.ndarray], np.ndarray] | None = None
 
     def __post_init__(self) -> None:
         if self.feather is not None and not (
@@ -120,10 +120,8 @@ class TalkingPhoto:
         self.renderer.pose(model.params())
         rest, depth = self._projected(with_depth=True)
         person = None
-        if self.options.segment:
-            from vtts.fit.segment import person_probability
-
-            person = person_probability(photo)
+        if self.options.segment is not None:
+            person = self.options.segment(photo)
         self.warp = PhotoWarp(photo, rest, depth, self.options.warp, person)
         f = self.options.feather
         self.feather = max(0.75, min(w, h) / 300) if f is None else float(f)
