@@ -22,10 +22,12 @@ demo:
 # The suite runs on pytest-xdist workers, a test file per worker so that a file's fixtures are
 # made once: one per core and one more, since the files that start Ray, a server or a browser
 # spend much of their time waiting on those processes (on 2 cores 3 workers took 298 s where 2
-# took 339 s, 2026-11-29). WORKERS=N overrides it.
+# took 339 s, 2026-11-29). WORKERS=N overrides it. Files are handed out in collection order
+# (--no-loadscope-reorder: not most tests first), which tests/conftest.py starts with the
+# slowest files (SLOW_FIRST), so that none of them is left alone at the end.
 WORKERS ?= $(shell echo $$(( $$(nproc 2>/dev/null || echo 1) + 1 )))
 test: setup
-	$(PY) -m pytest -q -n $(WORKERS) --dist loadfile
+	$(PY) -m pytest -q -n $(WORKERS) --dist loadfile --no-loadscope-reorder
 
 lint: setup
 	$(VENV)/bin/ruff check .

@@ -66,3 +66,37 @@ def shared_fit(fits: SharedFits) -> Iterator[None]:
     """The test's fits are shared with the session's (:class:`SharedFits`)."""
     with fits.sharing():
         yield
+
+
+#: The files that take a worker longest (about 15–60 s each on 2 cores; most wait on Ray, a
+#: server, a browser or a rendering): collected first, so that pytest-xdist's ``loadfile``
+#: scheduling, which hands files out in collection order, starts them first and the run does
+#: not end with one of them alone on a worker. Order within a file is kept.
+SLOW_FIRST = (
+    "batch/test_ray.py",
+    "serve/test_serve_ray.py",
+    "analysis/test_estimator.py",
+    "fit/test_fit.py",
+    "analysis/test_stream_cli.py",
+    "analysis/test_tracker.py",
+    "batch/test_pool.py",
+    "models/test_bundled.py",
+    "serve/test_serve_browser.py",
+    "analysis/test_track.py",
+    "fit/test_portrait.py",
+    "export/test_web_browser.py",
+)
+
+
+def pytest_collection_modifyitems(session, config, items) -> None:
+    tests = Path(__file__).parent
+    rank = {name: i for i, name in enumerate(SLOW_FIRST)}
+
+    def first(item) -> int:
+        path = Path(str(item.fspath))
+        try:
+            return rank.get(path.relative_to(tests).as_posix(), len(rank))
+        except ValueError:
+            return len(rank)
+
+    items.sort(key=first)
