@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import time
 from collections.abc import Callable
 
@@ -125,8 +126,16 @@ def run_on_ray(models: list[str], *, replicas: int = 2, host: str = "127.0.0.1",
             shutil.rmtree(temp_dir, ignore_errors=True)
             raise
     try:
-        serve.start(http_options={"host": host, "port": port})
-        serve.run(app, name=APP_NAME, route_prefix="/")
+        try:
+            serve.start(http_options={"host": host, "port": port})
+            serve.run(app, name=APP_NAME, route_prefix="/")
+        except Exception as e:  # Ray's own errors (an actor that died, a port taken, a timeout)
+            cause = getattr(e, "cause", None) or e  # a task's error carries the one it raised
+            lines = re.sub(r"\x1b\[[0-9;]*m", "", str(cause)).strip().splitlines()
+            raise ServeError(
+                f"Ray Serve did not start on {host}:{port}: {type(cause).__name__}: "
+                f"{lines[-1] if lines else 'no message'}"
+            ) from None
         announce(
             f"vtts serve: http://{host if ':' not in host else f'[{host}]'}:{port}/ "
             f"({', '.join(models)}; {replicas} Ray Serve replicas); Ctrl-C ends it"
