@@ -8,12 +8,9 @@ from __future__ import annotations
 
 import asyncio
 import os
-import select
 import signal
 import socket
 import subprocess
-import sys
-import time
 import urllib.request
 from pathlib import Path
 
@@ -21,6 +18,8 @@ import pytest
 
 from vtts.errors import ServeError
 from vtts.serve.client import Client
+
+from .serving import start_serving
 
 ROOT = Path(__file__).parents[2]
 
@@ -35,23 +34,11 @@ def _free_port() -> int:
 def ray_serve():
     """``(url, the command's process)``: ``vtts serve --replicas 2`` once it says it serves."""
     port = _free_port()
-    exe = Path(sys.executable).with_name("vtts")
-    env = {**os.environ, "PYTHONPATH": str(ROOT), "PYTHONUNBUFFERED": "1", "LP_NUM_THREADS": "1"}
-    proc = subprocess.Popen(
-        [str(exe), "serve", "--replicas", "2", "--port", str(port), "--model", "cybatt"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
-    )  # fmt: skip
+    args = ["--replicas", "2", "--port", str(port), "--model", "cybatt"]
+    url, line, proc = start_serving(args, 180)
     try:
-        deadline = time.monotonic() + 180
-        line = ""
-        while "http://" not in line:
-            assert time.monotonic() < deadline, "vtts serve --replicas 2 did not start in 180 s"
-            ready, _, _ = select.select([proc.stdout], [], [], 1)
-            if ready:
-                line = proc.stdout.readline()
-            assert proc.poll() is None, proc.stderr.read()
         assert f"http://127.0.0.1:{port}/" in line and "2 Ray Serve replicas" in line, line
-        yield f"http://127.0.0.1:{port}", proc
+        yield url, proc
     finally:
         if proc.poll() is None:
             proc.send_signal(signal.SIGTERM)

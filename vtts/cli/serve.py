@@ -61,9 +61,10 @@ def cmd_serve(args: argparse.Namespace) -> int:
     try:
         if args.replicas is not None:
             check_number(args.replicas, "--replicas", 0, 256, ServeError)
-            from vtts.serve.server import load_heads
+            from vtts.face import load_model
 
-            load_heads(args.model or ["cybatt"], args.fps)  # a bad model: an error here, at once
+            for name in args.model or ["cybatt"]:  # a bad model: an error here, before Ray
+                load_model(name)
             from vtts.serve.ray_serve import run_on_ray
 
             run_on_ray(args.model or ["cybatt"], replicas=args.replicas, host=args.host,
