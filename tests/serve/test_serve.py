@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import asyncio
 import base64
+import collections
+import contextlib
 import itertools
 import json
 import os
@@ -281,11 +283,22 @@ def test_a_thousand_sockets(server):
             sockets = await asyncio.gather(
                 *[http.ws_connect(url.replace("http", "ws") + "/session") for _ in range(1000)]
             )
-            full = 0
-            for ws in sockets[MAX_SERVE_SESSIONS:]:
+
+            # which sockets became sessions is the order they reached the server in, not the
+            # list's: each is asked to open, and answers "opened" or was told "full"
+            async def first_answer(ws) -> str:
+                with contextlib.suppress(ConnectionError):
+                    await ws.send_str(json.dumps({"type": "open"}))
                 m = await ws.receive(timeout=30)
-                full += m.type == aiohttp.WSMsgType.TEXT and json.loads(m.data)["code"] == "full"
+                if m.type != aiohttp.WSMsgType.TEXT:
+                    return str(m.type)
+                m = json.loads(m.data)
+                return m.get("code", m["type"])
+
+            answers = await asyncio.gather(*[first_answer(ws) for ws in sockets])
+            full = answers.count("full")
             sessions = len(srv.sessions)
+            assert answers.count("opened") == MAX_SERVE_SESSIONS, collections.Counter(answers)
             await asyncio.gather(*[ws.close() for ws in sockets])
         for _ in range(100):
             if not srv.sessions:
