@@ -200,10 +200,11 @@ def test_normals_only_where_triangles_are_drawn_are_the_full_meshs():
             assert np.array_equal(am.normals(pos)[:, used], full[:, used])  # the same bits
 
 
-def test_the_drawn_vertices_are_found_without_numpy_ma():
+def test_the_drawn_vertices_are_found_without_numpy_ma(tmp_path):
     """The vertices a simplified mesh draws are ``np.unique``'s answer, found without its look
     for masked arrays: a renderer with a detail leaves ``numpy.ma`` unimported (12–35 ms of a
-    ``vtts say``'s start-up)."""
+    ``vtts say``'s start-up), also when the model is parsed afresh (an empty model cache)."""
+    import os
     import subprocess
     import sys
 
@@ -224,7 +225,10 @@ def test_the_drawn_vertices_are_found_without_numpy_ma():
         "    assert any(am.drawn is not None for am in r.instances[0].meshes)\n"
         "print(type(sys.modules['numpy.ma']).__name__)\n"
     )
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    env = {**os.environ, "VTTS_CACHE_DIR": str(tmp_path)}
+    r = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env
+    )
     assert r.returncode == 0, r.stderr
     assert r.stdout.split() == ["_DeferredPackage"]
 

@@ -89,7 +89,9 @@ class MeshTable:
             raise AdtError(f"IndexedFaceSet {self.node}: {problem}")
         if self.vertices.size and self.vertices.min() < 0:
             raise AdtError(f"IndexedFaceSet {self.node}: vertex index {self.vertices.min()} < 0")
-        if np.unique(self.vertices).size != self.vertices.size:
+        # sorted neighbours rather than np.unique, which imports numpy.ma (see vtts.deferred)
+        ordered = np.sort(self.vertices)
+        if np.any(ordered[1:] == ordered[:-1]):
             raise AdtError(f"IndexedFaceSet {self.node}: a vertex is listed twice")
 
     def displacement(self, f: float) -> np.ndarray:
