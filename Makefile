@@ -25,16 +25,23 @@ demo:
 # took 339 s, 2026-11-29). WORKERS=N overrides it. Files are handed out in collection order
 # (--no-loadscope-reorder: not most tests first), which tests/conftest.py starts with the
 # slowest files (SLOW_FIRST), so that none of them is left alone at the end.
+#
+# PYTHONDONTWRITEBYTECODE is cleared for the run: where it is set (this workplace's shells set it), no
+# Python process caches what it compiles, and setup installs packages without byte-compiling
+# them (scripts/setup.sh), so each of the suite's workers and its hundreds of `vtts`
+# subprocesses compiled numpy, scipy, pyrender, ray … from source again: 3.5 s of CPU for a
+# process that imports the renderer. Cleared, each module is compiled once, by the first
+# process that imports it.
 WORKERS ?= $(shell echo $$(( $$(nproc 2>/dev/null || echo 1) + 1 )))
 test: setup
-	$(PY) -m pytest -q -n $(WORKERS) --dist loadfile --no-loadscope-reorder
+	PYTHONDONTWRITEBYTECODE= $(PY) -m pytest -q -n $(WORKERS) --dist loadfile --no-loadscope-reorder
 
 lint: setup
 	$(VENV)/bin/ruff check .
 
 bench:
 	@bash scripts/setup.sh test,bench
-	$(PY) bench/run.py
+	PYTHONDONTWRITEBYTECODE= $(PY) bench/run.py
 
 # Re-resolve pyproject.toml's dependencies (with the test and bench extras) in a fresh venv and pin
 # them all in constraints.txt, which setup installs from; run `make test` and commit the lock.

@@ -138,7 +138,7 @@ if ! covered; then
     "(versions from constraints.txt)"
   # --no-compile: byte-compiling every installed module took half of pip's time, for modules
   # most commands never import; Python compiles those a command imports once, at their first
-  # import.
+  # import — unless PYTHONDONTWRITEBYTECODE is set, which `make test` and `make bench` clear.
   .venv/bin/python -m pip install -q --no-compile -c constraints.txt --upgrade pip
   # every package, transitive ones and the build backend (hatchling) too, at its locked version;
   # a dependency the lock lacks would come unpinned (tests/test_lock.py says so: `make lock`)

@@ -96,3 +96,11 @@ def test_setup_refuses_odd_extras():
         capture_output=True, text=True, timeout=60,
     )  # fmt: skip
     assert r.returncode == 2 and "comma-separated" in r.stderr
+
+
+@pytest.mark.parametrize("target", ["test", "bench"])
+def test_the_suite_and_the_bench_keep_what_python_compiles(target):
+    """Setup installs packages without byte-compiling them; where PYTHONDONTWRITEBYTECODE is set,
+    every process of the suite would compile what it imports from source again (3.5 s of CPU for
+    one that imports the renderer): the recipes clear it."""
+    assert re.search(r"^\tPYTHONDONTWRITEBYTECODE= \$\(PY\) ", recipe(target), re.M)
