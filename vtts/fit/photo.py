@@ -27,7 +27,14 @@ from vtts.face import FaceModel
 from vtts.face.adt import AnimationTables, format_adt
 from vtts.face.atlas import EAR_TILE
 from vtts.face.source_photo import record_photo
-from vtts.fit.expression import expression_basis, for_photo, skin_trust
+from vtts.fit.expression import (
+    SHUT_LIPS,
+    close_lips,
+    expression_basis,
+    for_photo,
+    lips_gap,
+    skin_trust,
+)
 from vtts.fit.frame import FRAME_APPEARANCES, frame_texture, project_frame
 from vtts.fit.generic import GenericHead, generic_head, landmark_map
 from vtts.fit.hair import HairShell, fit_hair_shell
@@ -35,6 +42,7 @@ from vtts.fit.head import (
     fitted_fapu,
     fitted_geometry,
     fitted_scene,
+    matte,
     set_texture_url,
     transfer_tables,
 )
@@ -462,16 +470,21 @@ def fit_photo(
     scene = fitted_scene(g.model, geometry, f"{name}-face.png", title)
     add_viewpoint(scene, shape)
     expression = fitted_expression(shape.expression, g.model.fapu, fapu)
+    shut = portrait and lips_gap(chosen.landmarks) < SHUT_LIPS
+    if shut:
+        expression = close_lips(FaceModel(scene, tables, Path("fitted.wrl")), shape.camera,
+                                expression)  # fmt: skip
     set_photo_expression(scene, expression)
     timings["head"] = time.perf_counter() - t
     hair, trust, skin = None, None, None
     if portrait:
         t = time.perf_counter()
+        matte(scene)
         trust = person_probability(image)
         hair = fit_hair_shell(scene, shape.camera, trust)
         if CUT_NECK and NECK in scene.defs and NECK in photo_parts:
             _cut_at_collar(scene, tables, shape, image, expression)
-        skin = skin_trust((w, h), chosen.landmarks)
+        skin = skin_trust((w, h), chosen.landmarks, mouth=not shut)
         timings["hair"] = time.perf_counter() - t
     t = time.perf_counter()
     atlas, seen = _texture(g, scene, tables, shape, image, chosen, photo_parts, expression,
