@@ -146,6 +146,28 @@ def test_a_talking_photo_warps_the_person_not_the_wall_behind(akiyo):
     assert not np.array_equal(rolled, image)
 
 
+def test_shut_lips_show_no_teeth_and_the_skin_no_highlight(akiyo):
+    """Akiyo's lips barely part (a dark seam): at the photo's view the head draws them shut,
+    with none of its lit teeth between them; and its painted skin is matte (the photo brings
+    its own highlights), so that a black texel can draw a black pixel."""
+    from vtts.fit.expression import SHUT_LIPS, lips_gap
+    from vtts.fit.photo import PHOTO_VIEWPOINT
+
+    head, model, image, _ = akiyo
+    assert lips_gap(head.face.landmarks) < SHUT_LIPS
+    h, w = image.shape[:2]
+    with FaceRenderer(model, size=(w, h), viewpoint=PHOTO_VIEWPOINT) as r:
+        _, numbers = r.render(model.params(head.expression), triangles=True)
+        inside = sum(
+            int(((numbers >= first) & (numbers < first + count)).sum())
+            for node, first, count in r.triangle_sets
+            if node.name in ("UPPER_TEETH", "LOWER_TEETH", "TONGUE", "MOUTH")
+        )
+    assert inside == 0
+    skin = model.scene.node("SKIN").expand()["material"].expand()
+    assert "specularColor" in skin.fields and not np.any(skin["specularColor"])
+
+
 def test_keeps_the_generic_topology(akiyo):
     _, model, _, _ = akiyo
     generic = vtts.load_model("cybatt")

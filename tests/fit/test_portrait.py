@@ -311,3 +311,40 @@ def test_a_tall_hat_is_left_out_with_a_warning(fitted):
 
 def fitted_person(head) -> np.ndarray:
     return person_probability(head.photo)
+
+
+# ---- glasses ----------------------------------------------------------------------------------
+
+
+def _frame(clip: str, side: int = SIDE) -> np.ndarray:
+    """The first frame of a development clip, cropped square around its face and scaled to
+    ``side``."""
+    from vtts.analysis.video import read_video
+
+    frame = next(iter(read_video(Path(__file__).parents[1] / "data" / "video" / clip).frames()))
+    lm = _landmarks(frame)
+    c, r = lm.mean(axis=0), 1.3 * np.ptp(lm[:, 1])
+    return small(frame, tuple(int(v) for v in (c[0] - r, c[1] - r, c[0] + r, c[1] + r)), side)
+
+
+def test_glasses_are_told_from_bare_skin():
+    """lp_d13 wears thin metal glasses, lp_d3 none (both 160² crops of development frames)."""
+    from vtts.fit.glasses import GLASSES, glasses_score, wears_glasses
+
+    for clip, wears in (("lp_d13.mp4", True), ("lp_d3.mp4", False)):
+        image = _frame(clip)
+        score = glasses_score(image, _landmarks(image))
+        assert wears_glasses(image, _landmarks(image)) == wears, (clip, score)
+        assert (score >= 2 * GLASSES) if wears else (score < GLASSES / 2), (clip, score)
+
+
+def test_a_photo_with_glasses_is_fitted_with_a_warning(astronaut, fitted):
+    """Glasses drawn on the astronaut: the head is fitted, with a warning that they are not
+    modelled, and the report says so; the photo without them gives no warning."""
+    from vtts.fit.glasses import GLASSES
+
+    with pytest.warns(Warning, match="glasses") as caught:
+        head = fit_photo(glasses(astronaut))
+    assert head.glasses >= GLASSES
+    assert sum("glasses" in str(w.message) for w in caught) == 1
+    assert fitted.glasses < GLASSES

@@ -55,3 +55,23 @@ def test_an_appearance_without_material_is_unlit(tmp_path):
         with FaceRenderer(load_model(str(tmp_path / "m.wrl")), size=(64, 64)) as r:
             centre = r.render(np.zeros(90))[32, 32]
         assert (tuple(centre) != (200, 30, 90)) == lit, (material, centre)
+
+
+def test_a_black_specular_colour_draws_no_highlight(tmp_path):
+    """A Material that sets ``specularColor 0 0 0`` (a photo-textured head's skin) draws a
+    black surface black; one that leaves it at its default keeps the renderer's highlight."""
+    from vtts.face import load_model
+    from vtts.render import FaceRenderer
+
+    quad = (
+        "geometry IndexedFaceSet { coord Coordinate { point [-1 -1 0, 1 -1 0, 1 1 0, -1 1 0] }"
+        " coordIndex [0 1 2 3 -1] }"
+    )
+    for specular, floor in (("", True), ("specularColor 0 0 0", False)):
+        (tmp_path / "m.wrl").write_text(
+            "#VRML V2.0 utf8\nShape { appearance Appearance { material Material { "
+            f"diffuseColor 0 0 0 shininess 0.12 {specular} }} }} {quad} }}\n"
+        )
+        with FaceRenderer(load_model(str(tmp_path / "m.wrl")), size=(64, 64)) as r:
+            centre = r.render(np.zeros(90))[32, 32]
+        assert (int(centre.max()) > 8) == floor, (specular, centre)

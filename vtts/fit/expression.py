@@ -55,6 +55,15 @@ OPEN_GAP, SHUT_JAW = 0.15, 0.05
 #: How far (pixels, as a share of the eye distance) beyond the photo's inner lip and eye
 #: contours the skin takes nothing from the photo.
 MARGIN = 0.01
+#: Lips parted by less than this share of the eye distance (the inner lips' middles, landmarks
+#: 13 and 14) show a dark seam, not the teeth: the head at the photo's view draws them shut
+#: (:func:`close_lips`), and the seam is painted on the lips (:func:`skin_trust`).
+SHUT_LIPS = 0.05
+#: How far (pixels at the photo's view) the shut lips' middles overlap: no crack of the teeth
+#: between them.
+LIPS_OVERLAP = 0.5
+#: The FAPs that close the lips' middles (lower_t_midlip, raise_b_midlip: positive closes).
+CLOSING = (4, 5)
 
 
 @dataclass
@@ -99,6 +108,43 @@ def expression_basis(model: FaceModel, landmark_matrix, faps=EXPRESSION_FAPS) ->
                            np.array([faps[k] for k in numbers]), one_way)  # fmt: skip
 
 
+def lips_gap(landmarks: np.ndarray) -> float:
+    """The gap between the inner lips' middles (landmarks 13 and 14 of ``landmarks (468,
+    ≥2)``, pixels) as a share of the eye distance."""
+    pts = np.asarray(landmarks, np.float64)[:, :2]
+    eyes = float(np.linalg.norm(pts[[33, 133]].mean(axis=0) - pts[[263, 362]].mean(axis=0)))
+    return float(np.linalg.norm(pts[13] - pts[14])) / max(eyes, 1e-9)
+
+
+def close_lips(model: FaceModel, camera, expression: dict[int, float]) -> dict[int, float]:
+    """``expression`` ``{FAP: value}`` with the lips' middles (FAPs 4 and 5, by the same
+    amount) closed until they overlap by :data:`LIPS_OVERLAP` pixels as ``camera``
+    (:class:`~vtts.render.Camera`) sees ``model`` (its MPEG-4 feature points 2.2 and 2.3, the
+    inner lips' middles): a photo whose lips are barely parted shows a dark seam there, which
+    the model's lit teeth behind a crack would draw white. Unchanged where they already meet."""
+    fp = model.tables.feature_points
+    if not all(k in fp and fp[k][0] == "FACE" for k in ("2.2", "2.3")):
+        return expression
+    top, bottom = fp["2.2"][1], fp["2.3"][1]
+
+    def gap(values: dict[int, float]) -> float:
+        pts = model.engine.points(model.params(values)).get("FACE", model.neutral_points("FACE"))
+        a, b = pts[top], pts[bottom]
+        pa, pb, below = camera.project(np.array([a, b, a - [0.0, 0.1, 0.0]]))
+        down = (below - pa) / max(float(np.linalg.norm(below - pa)), 1e-9)
+        return float((pb - pa) @ down)
+
+    now = gap(expression)
+    if now <= -LIPS_OVERLAP:
+        return expression
+    probe = {**expression, **{k: expression.get(k, 0.0) + PROBE for k in CLOSING}}
+    per_unit = (gap(probe) - now) / PROBE
+    if per_unit >= 0:
+        return expression
+    more = round((-LIPS_OVERLAP - now) / per_unit)
+    return {**expression, **{k: expression.get(k, 0.0) + more for k in CLOSING}}
+
+
 def for_photo(basis: ExpressionBasis, landmarks: np.ndarray) -> ExpressionBasis:
     """``basis`` with the jaw's prior (open_jaw, FAP 3) narrowed to what the photo's lips show:
     the gap between the inner lips' middles (landmarks 13, 14 of ``landmarks (468, ≥2)``,
@@ -114,17 +160,18 @@ def for_photo(basis: ExpressionBasis, landmarks: np.ndarray) -> ExpressionBasis:
     return replace(basis, sigma=sigma)
 
 
-def skin_trust(size: tuple[int, int], landmarks: np.ndarray) -> np.ndarray:
+def skin_trust(size: tuple[int, int], landmarks: np.ndarray, mouth: bool = True) -> np.ndarray:
     """``(H, W) float32`` for a photo of ``size`` (W, H): 0 inside the inner lip contour (an
-    open mouth) and the two eyes' contours, grown by :data:`MARGIN` of the eye distance, 1
-    elsewhere: what the skin may take from the photo (``landmarks (468, ≥2)`` pixels)."""
+    open mouth; not where ``mouth`` is False: lips drawn shut, :func:`close_lips`) and the two
+    eyes' contours, grown by :data:`MARGIN` of the eye distance, 1 elsewhere: what the skin
+    may take from the photo (``landmarks (468, ≥2)`` pixels)."""
     w, h = size
     pts = np.asarray(landmarks, np.float64)[:, :2]
     eyes = float(np.linalg.norm(pts[[33, 133]].mean(axis=0) - pts[[263, 362]].mean(axis=0)))
     grow = max(1, round(MARGIN * eyes))
     im = Image.new("L", (w, h), 255)
     draw = ImageDraw.Draw(im)
-    for contour in (LIPS_INNER, RIGHT_EYE, LEFT_EYE):
+    for contour in (LIPS_INNER, RIGHT_EYE, LEFT_EYE)[0 if mouth else 1 :]:
         poly = [tuple(p) for p in pts[list(contour)] - 0.5]
         draw.polygon(poly, fill=0, outline=0, width=grow)
         draw.line([*poly, poly[0]], fill=0, width=2 * grow + 1)

@@ -51,7 +51,7 @@ SEAM = 0.25
 EAR_SHOWN = 0.85
 #: How far the shell's silhouette stays inside the photo's person: a share of its radius, at
 #: least some pixels (hair's edge is ragged and the renderer's edge pixels mix in the background).
-INSET_SHARE, INSET_PX = 0.02, 2.0
+INSET_SHARE, INSET_PX = 0.04, 2.0
 #: Probability from which a pixel counts as the person.
 PERSON = 0.5
 

@@ -35,6 +35,11 @@ from vtts.vrml import Scene, standard_node_types
 WARP_STRIDE = 7
 #: The fitted eyes' shininess (the generic eyes': 0.75; the renderer turns it into roughness).
 EYE_SHININESS = 0.1
+#: The Appearances of a portrait's head that the photo paints (skin, hair, ears, neck; the
+#: eyes): drawn without the renderer's highlight (``specularColor 0 0 0``), since the photo
+#: brings its own — with it, no texture could give a pixel darker than the highlight's floor
+#: (about 30 of 255 at the photo's view), and dark hair rendered grey.
+MATTE_APPEARANCES = ("SKIN", "EYE")
 #: The eye Transforms whose ``center`` is the eyeball's centre.
 EYE_TRANSFORMS = {"L_EYEBALL": ("L_EYE_YAW", "L_EYE_PITCH"),
                   "R_EYEBALL": ("R_EYE_YAW", "R_EYE_PITCH")}  # fmt: skip
@@ -177,6 +182,16 @@ def fitted_scene(model: FaceModel, geometry: FittedGeometry, texture_url: str,
     if infos:
         infos[0].fields["title"] = title
     return scene
+
+
+def matte(scene: Scene) -> None:
+    """Give the :data:`MATTE_APPEARANCES` of ``scene`` (changed in place) no highlight of the
+    renderer's (``specularColor 0 0 0``; :data:`vtts.render.scene.SPECULAR`)."""
+    for name in MATTE_APPEARANCES:
+        if name in scene.defs:
+            material = scene.node(name).expand()["material"]
+            if material is not None:
+                material.expand().fields["specularColor"] = np.zeros(3)
 
 
 def transfer_tables(generic: AnimationTables, fapu0: Fapu, fapu: Fapu) -> AnimationTables:

@@ -15,6 +15,7 @@ import contextlib
 import functools
 import tempfile
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -27,14 +28,23 @@ from vtts.face import FaceModel
 from vtts.face.adt import AnimationTables, format_adt
 from vtts.face.atlas import EAR_TILE
 from vtts.face.source_photo import record_photo
-from vtts.fit.expression import expression_basis, for_photo, skin_trust
+from vtts.fit.expression import (
+    SHUT_LIPS,
+    close_lips,
+    expression_basis,
+    for_photo,
+    lips_gap,
+    skin_trust,
+)
 from vtts.fit.frame import FRAME_APPEARANCES, frame_texture, project_frame
 from vtts.fit.generic import GenericHead, generic_head, landmark_map
+from vtts.fit.glasses import GLASSES, glasses_score
 from vtts.fit.hair import HairShell, fit_hair_shell
 from vtts.fit.head import (
     fitted_fapu,
     fitted_geometry,
     fitted_scene,
+    matte,
     set_texture_url,
     transfer_tables,
 )
@@ -137,6 +147,9 @@ class FittedHead:
                (:mod:`vtts.fit.expression`): ``model.params(head.expression)`` at the
                ``photo`` Viewpoint gives the photo back; empty for a head made for a video
     hair       the :class:`~vtts.fit.hair.HairShell` (None for a head made for a video)
+    glasses    how plainly the photo shows glasses (:func:`~vtts.fit.glasses.glasses_score`;
+               from :data:`~vtts.fit.glasses.GLASSES` on: glasses, with a warning), None for
+               a head made for a video
     """
 
     scene: Scene
@@ -152,6 +165,7 @@ class FittedHead:
     frame: np.ndarray | None = None
     expression: dict[int, float] = field(default_factory=dict)
     hair: HairShell | None = None
+    glasses: float | None = None
 
     def write(self, path: str | Path) -> list[Path]:
         """Write ``PATH.wrl`` (the scene), ``PATH.adt`` (its tables), ``PATH-face.png`` (its
@@ -462,16 +476,32 @@ def fit_photo(
     scene = fitted_scene(g.model, geometry, f"{name}-face.png", title)
     add_viewpoint(scene, shape)
     expression = fitted_expression(shape.expression, g.model.fapu, fapu)
+    shut = portrait and lips_gap(chosen.landmarks) < SHUT_LIPS
+    if shut:
+        expression = close_lips(FaceModel(scene, tables, Path("fitted.wrl")), shape.camera,
+                                expression)  # fmt: skip
     set_photo_expression(scene, expression)
     timings["head"] = time.perf_counter() - t
-    hair, trust, skin = None, None, None
+    hair, trust, skin, glasses = None, None, None, None
     if portrait:
         t = time.perf_counter()
+        glasses = glasses_score(image, chosen.landmarks)
+        if glasses >= GLASSES:
+            warnings.warn(
+                VttsWarning(
+                    "the photo shows glasses: they are not modelled — the head's shape is fitted "
+                    "to the face, but their frame and the lenses' tint are painted on the skin "
+                    "around the eyes and turn with it; a photo without glasses gives a better "
+                    "head"
+                ),
+                stacklevel=2,
+            )
+        matte(scene)
         trust = person_probability(image)
         hair = fit_hair_shell(scene, shape.camera, trust)
         if CUT_NECK and NECK in scene.defs and NECK in photo_parts:
             _cut_at_collar(scene, tables, shape, image, expression)
-        skin = skin_trust((w, h), chosen.landmarks)
+        skin = skin_trust((w, h), chosen.landmarks, mouth=not shut)
         timings["hair"] = time.perf_counter() - t
     t = time.perf_counter()
     atlas, seen = _texture(g, scene, tables, shape, image, chosen, photo_parts, expression,
@@ -479,7 +509,7 @@ def fit_photo(
     timings["texture"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t0
     return FittedHead(scene, tables, atlas, shape, chosen, image, len(faces), seen, personality,
-                      timings, expression=expression, hair=hair)  # fmt: skip
+                      timings, expression=expression, hair=hair, glasses=glasses)  # fmt: skip
 
 
 #: How the first WorldInfo's info line that holds the photo's expression begins.

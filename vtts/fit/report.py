@@ -5,7 +5,8 @@
 - ``overlay.png``: the photo beside the model rendered at ``--viewpoint photo`` over it;
 - ``turned.png``: the model turned 30° to its right, facing, and 30° to its left;
 - ``figures.json``: landmark reprojection error (pixels and % of the eye distance), the face
-  PSNR between the photo and the rendering over the face's pixels, timings and file sizes.
+  PSNR between the photo and the rendering over the face's pixels, whether the photo shows
+  glasses (:mod:`vtts.fit.glasses`), timings and file sizes.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from PIL import Image, ImageDraw
 from vtts.atomic import atomic_path
 from vtts.face import FaceModel
 from vtts.fit.generic import landmark_map
+from vtts.fit.glasses import GLASSES
 
 #: The parts whose pixels make "the face" for the PSNR: skin, eyes and mouth.
 FACE_PARTS = ("FACE", "L_EYEBALL", "R_EYEBALL", "MOUTH", "UPPER_TEETH", "LOWER_TEETH", "TONGUE")
@@ -89,6 +91,9 @@ def figures(model: FaceModel, head, photo: np.ndarray) -> dict:
         "psnr_db": {k: psnr(image[m], photo[m]) for k, m in masks.items() if m.any()},
         "pixels": {k: int(m.sum()) for k, m in masks.items()},
         "head_yaw_degrees": math.degrees(shape.yaw),
+        "glasses": None
+        if head.glasses is None
+        else {"score": head.glasses, "found": head.glasses >= GLASSES},
         "photo_expression_faps": {str(k): v for k, v in head.expression.items()},
         "focal_px": shape.focal,
         "skin_seen_by_photo": head.seen,

@@ -42,7 +42,7 @@ from vtts.render.pyrender_adapter import (
     shader_source,
     texture_id,
 )
-from vtts.render.scene import UNLIT
+from vtts.render.scene import SPECULAR, UNLIT
 
 SHADER_DIR = Path(__file__).resolve().parent / "shaders"
 
@@ -59,7 +59,12 @@ _RESOLVE_EDITS = (
     ("in vec3 frag_position;", "vec3 frag_position;"),
     ("in vec3 frag_normal;", "vec3 frag_normal;"),
     ("in vec4 color_multiplier;", "vec4 color_multiplier;"),
-    ("uniform Material material;", "Material material;"),
+    ("uniform Material material;", "Material material;\nfloat specular_scale = 1.0;"),
+    # the dielectric highlight scaled per material (SPECULAR: none for ``specularColor 0 0 0``)
+    (
+        "vec3 f0 = mix(dialectric_spec, base_color.rgb, metallic);",
+        "vec3 f0 = mix(dialectric_spec * specular_scale, base_color.rgb, metallic);",
+    ),
     ("void main()", "void pyrender_main()"),
 )
 
@@ -266,6 +271,9 @@ class DeferredPass(ForwardPass):
         )
         self._uniform_array(pid, "roughness_factors", [m.roughnessFactor for m in materials])
         self._uniform_array(pid, "unlit", [float(getattr(m, UNLIT, False)) for m in materials])
+        self._uniform_array(
+            pid, "specular_scales", [float(getattr(m, SPECULAR, 1.0)) for m in materials]
+        )
         GL.glBindVertexArray(vertex_array)
         GL.glDrawArrays(GL.GL_TRIANGLES, 0, 3)
         GL.glDepthFunc(GL.GL_LESS)  # the depth state pyrender draws with, for whoever draws next

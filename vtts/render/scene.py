@@ -38,6 +38,14 @@ from vtts.vrml.scene import GROUPING
 #: such mode: a scene that the G-buffer cannot hold draws these materials lit.
 UNLIT = "vtts_unlit"
 
+#: The attribute that gives a pyrender material's dielectric highlight as a fraction of
+#: pyrender's (its fixed Fresnel reflectance of 0.04): 0 for a VRML Material that sets
+#: ``specularColor 0 0 0`` in the file (VRML97's "no highlight", which a photo-textured head
+#: asks for: its photo brings its own), 1 for every other (a Material that leaves the field at
+#: its default keeps pyrender's highlight, as the bundled heads were made with). Honoured by the
+#: deferred pass; pyrender's own shader draws every material with the highlight.
+SPECULAR = "vtts_specular"
+
 #: The scene's ambient light (RGB, 0–1).
 AMBIENT_LIGHT = (0.35, 0.35, 0.35)
 
@@ -284,6 +292,7 @@ class SceneBuilder:
         emissive = np.zeros(3)
         roughness = 0.8
         texture = None
+        specular = 1.0
         if appearance is not None:
             appearance = appearance.expand()
             mat = appearance["material"]
@@ -293,6 +302,8 @@ class SceneBuilder:
                 base[3] = 1.0 - float(mat["transparency"])
                 emissive = np.asarray(mat["emissiveColor"], dtype=np.float64)
                 roughness = float(np.clip(1.0 - 0.8 * mat["shininess"], 0.05, 1.0))
+                if "specularColor" in mat.fields and not np.any(mat["specularColor"]):
+                    specular = 0.0
             tex = appearance["texture"]
             if tex is not None:
                 texture = self._texture(model, tex.expand())
@@ -309,6 +320,7 @@ class SceneBuilder:
         )
         # VRML97: an Appearance without a Material is not lit; its texture shows as it is
         setattr(material, UNLIT, appearance is not None and appearance["material"] is None)
+        setattr(material, SPECULAR, specular)
         self._materials[key] = material
         return material
 

@@ -12,6 +12,7 @@ uniform vec4 base_color_factors[MAX_MATERIALS];
 uniform vec4 emissive_metallic_factors[MAX_MATERIALS];
 uniform float roughness_factors[MAX_MATERIALS];
 uniform float unlit[MAX_MATERIALS];  // 1: no lighting (VRML97's Appearance without a Material)
+uniform float specular_scales[MAX_MATERIALS];  // the dielectric highlight's share (SPECULAR)
 
 void main()
 {
@@ -34,6 +35,7 @@ void main()
     material.emissive_factor = emissive_metallic_factors[m].xyz;
     material.metallic_factor = emissive_metallic_factors[m].w;
     material.roughness_factor = roughness_factors[m];
+    specular_scale = specular_scales[m];
     if (unlit[m] > 0.5) {
         // VRML97: without a Material the texture's colour is shown as it is (sRGB, no lights)
         vec4 colour = base_color_factors[m];
