@@ -63,7 +63,7 @@ SWITCH = 4.0
 PRIOR_WEIGHT = 0.5
 BIAS = {1: 3.0}
 #: What PocketSphinx's viseme for a frame adds to that viseme's score.
-EVIDENCE = 4.0
+EVIDENCE = 6.0
 
 SUBJECTS = """man woman boy girl baby farmer teacher pilot doctor captain mayor neighbor singer
 painter plumber butcher barber baker mother father brother sister grandmother monkey puppy

@@ -1,5 +1,12 @@
 """Phones recognized from the voice alone: lip-sync for audio without a transcript.
 
+:func:`recognize` takes each 10 ms frame's viseme from the viseme classifier
+(:mod:`vtts.speech.viseme_classifier`, trained on synthetic speech), with PocketSphinx's visemes
+(below) adding to its scores before the smoothing; each run of one viseme is a phone, named by
+PocketSphinx's phone where the two agree, else by the classifier's class (:data:`CLASS_NAMES`).
+With ``RecognizerOptions(classifier=False)``, and for a steady loud sound (music, loud noise),
+PocketSphinx's phones alone. :class:`LiveRecognizer` uses PocketSphinx alone.
+
 PocketSphinx (``pocketsphinx`` 5.1.1, BSD; its wheel carries the US-English acoustic model and
 ``en-us-phone.lm.bin``, a phone language model) decodes the audio in *allphone* mode, Rhubarb Lip
 Sync's settings (:class:`RecognizerOptions`): a phone loop weighted by the phone model, with
