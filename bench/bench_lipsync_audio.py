@@ -3,8 +3,10 @@ against the truth of speech whose phone times are known.
 
 Three paths, each giving a viseme (silence or one of the 14 MPEG-4 visemes) per 10 ms frame:
 
-(a) **recognized**: ``vtts.speech.recognize.recognize`` (PocketSphinx allphone; the energy where
-    no phone is recognized in audible sound) — ``vtts say --audio REC``;
+(a) **recognized**: ``vtts.speech.recognize.recognize`` (the viseme classifier of
+    ``vtts.speech.viseme_classifier``; the energy where it finds no viseme in audible sound) —
+    ``vtts say --audio REC``; and for comparison **PocketSphinx** alone, what (a) was before
+    the classifier (``RecognizerOptions(classifier=False)``: PocketSphinx allphone);
 (b) **aligned**: the transcript aligned to the audio (``vtts.align.align``) — ``vtts say --audio
     REC --text T``, the upper bound;
 (c) **energy only**: ``vtts.speech.energy.energy_visemes`` alone — what cheap lip-sync does.
@@ -118,17 +120,25 @@ def frames_of(phones, n: int) -> np.ndarray:
     return out
 
 
-def _bilabials(truth_phones, path_phones) -> tuple[int, int]:
-    """(found, total) truth bilabials with a path bilabial's centre within 1/30 s of theirs."""
+def _bilabials(truth_phones, path_phones, *, closures: bool = False) -> tuple[int, int]:
+    """(found, total) truth bilabials with a path bilabial's centre within 1/30 s of theirs;
+    ``closures``: adjacent truth bilabials (``m p`` in "empty", ``b p`` in "Bob put") count as
+    one closure, centred on the middle of the two."""
     centres = np.array([0.5 * (p.start + p.end) for p in path_phones if p.viseme == 1])
-    found = total = 0
+    spans: list[list[float]] = []
+    previous = None
     for p in truth_phones:
-        if p.viseme != 1:
-            continue
-        total += 1
-        c = 0.5 * (p.start + p.end)
+        if p.viseme == 1:
+            if closures and previous is not None and previous.viseme == 1 and spans:
+                spans[-1][1] = p.end
+            else:
+                spans.append([p.start, p.end])
+        previous = p
+    found = 0
+    for a, b in spans:
+        c = 0.5 * (a + b)
         found += bool(centres.size and np.min(np.abs(centres - c)) <= 1.0 / FPS + 1e-9)
-    return found, total
+    return found, len(spans)
 
 
 def _phones_of(vis: np.ndarray):
@@ -141,12 +151,15 @@ def _phones_of(vis: np.ndarray):
 
 
 class Tally:
-    """Frames agreeing, frames, speech frames agreeing, speech frames, bilabials found/total."""
+    """Frames agreeing, frames, speech frames agreeing, speech frames, bilabials found/total,
+    closures found/total."""
 
     def __init__(self) -> None:
         self.same = self.n = self.speech_same = self.speech = self.bil = self.bil_total = 0
+        self.clo = self.clo_total = 0
 
-    def add(self, truth: np.ndarray, got: np.ndarray, bil: tuple[int, int]) -> None:
+    def add(self, truth: np.ndarray, got: np.ndarray, bil: tuple[int, int],
+            clo: tuple[int, int] = (0, 0)) -> None:  # fmt: skip
         n = min(truth.size, got.size)
         t, g = truth[:n], got[:n]
         self.same += int(np.sum(t == g))
@@ -155,6 +168,8 @@ class Tally:
         self.speech += int(np.sum(t != 0))
         self.bil += bil[0]
         self.bil_total += bil[1]
+        self.clo += clo[0]
+        self.clo_total += clo[1]
 
 
 def _paths(samples: np.ndarray, rate: int, ssml: str | None, truth_phones) -> dict:
@@ -162,11 +177,13 @@ def _paths(samples: np.ndarray, rate: int, ssml: str | None, truth_phones) -> di
     from vtts.align import align
     from vtts.speech.audio import resample
     from vtts.speech.energy import energy_frames, energy_visemes
-    from vtts.speech.recognize import recognize
+    from vtts.speech.recognize import RecognizerOptions, recognize
 
     n = int(np.ceil(len(samples) / rate / FRAME))
     rec = recognize(samples, rate)
     out = {"recognized": (frames_of(rec.phones, n), rec.phones)}
+    ps = recognize(samples, rate, RecognizerOptions(classifier=False))
+    out["pocketsphinx"] = (frames_of(ps.phones, n), ps.phones)
     if ssml is not None:
         al = align(samples, rate, ssml)
         out["aligned"] = (frames_of(al.phones, n), al.phones)
@@ -191,7 +208,12 @@ def _synthetic(texts: list[str], voice: tuple, tallies: dict) -> None:
         for path, (got, phones) in _paths(
             samples, int(speech.rate), f"<speak>{escape(text)}</speak>", truth_phones
         ).items():
-            tallies.setdefault(path, Tally()).add(truth, got, _bilabials(truth_phones, phones))
+            tallies.setdefault(path, Tally()).add(
+                truth,
+                got,
+                _bilabials(truth_phones, phones),
+                _bilabials(truth_phones, phones, closures=True),
+            )
 
 
 def _transcripts() -> dict[tuple[str, str], str]:
@@ -243,7 +265,12 @@ def _real(items, tallies: dict) -> None:
         for path, (got, phones) in _paths(
             samples, rate, f"<speak>{escape(text)}</speak>", truth_phones
         ).items():
-            tallies.setdefault(path, Tally()).add(truth, got, _bilabials(truth_phones, phones))
+            tallies.setdefault(path, Tally()).add(
+                truth,
+                got,
+                _bilabials(truth_phones, phones),
+                _bilabials(truth_phones, phones, closures=True),
+            )
 
 
 def _speed_audio(seconds: float) -> tuple[np.ndarray, int]:
@@ -345,7 +372,7 @@ def _row(case: str, value, unit: str, target: str = "", ok=None) -> dict:
 def _agreement_rows(label: str, tallies: dict) -> list[dict]:
     rows = []
     b = tallies.get("aligned")
-    for path in ("recognized", "aligned", "energy only"):
+    for path in ("recognized", "pocketsphinx", "aligned", "energy only"):
         t = tallies.get(path)
         if t is None:
             continue
@@ -367,6 +394,15 @@ def _agreement_rows(label: str, tallies: dict) -> list[dict]:
                     "%",
                     tgt,
                     ok,
+                )  # fmt: skip
+            )
+            clo = 100.0 * t.clo / max(t.clo_total, 1)
+            rows.append(
+                _row(
+                    f"{label}: {path}: closures (adjacent p b m one) within 1/30 s "
+                    f"(of {t.clo_total})",
+                    clo,
+                    "%",
                 )  # fmt: skip
             )
     return rows
@@ -399,9 +435,10 @@ def run() -> list[dict]:
     x, rate = _speed_audio(20.0 if QUICK else 60.0)
     wall, cpu = _speed(x, rate)
     d = len(x) / rate
-    rows.append(_row(f"speed: recognize {d:.0f} s of speech, wall", wall, "× duration", "≤ 0.1",
-                     wall <= 0.1))  # fmt: skip
-    rows.append(_row(f"speed: recognize {d:.0f} s of speech, CPU", cpu, "× duration"))
+    # the target is on CPU time: wall time is an upper bound on a loaded machine
+    rows.append(_row(f"speed: recognize {d:.0f} s of speech, wall", wall, "× duration"))
+    rows.append(_row(f"speed: recognize {d:.0f} s of speech, CPU", cpu, "× duration", "≤ 0.1",
+                     cpu <= 0.1))  # fmt: skip
     lat = live_latency(x, rate)
     rows.append(_row("live: latency p50 (20 ms chunks)", 1000 * lat["p50"], "ms"))
     rows.append(_row("live: latency p95 (20 ms chunks)", 1000 * lat["p95"], "ms", "≤ 150",

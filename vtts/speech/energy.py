@@ -66,10 +66,15 @@ class Levels:
     floor: float
 
     @property
+    def steady(self) -> bool:
+        """The sound is steady and loud (music, loud noise): its loud frames within
+        :data:`STEADY_DB` of its floor, the floor above :data:`LOUD_FLOOR_DBFS`."""
+        return self.loud - self.floor < STEADY_DB and self.floor > LOUD_FLOOR_DBFS
+
+    @property
     def audible(self) -> float:
         """The level above which a frame is audible, dB."""
-        steady = self.loud - self.floor < STEADY_DB and self.floor > LOUD_FLOOR_DBFS
-        floor = SILENT_DBFS if steady else self.floor + ABOVE_FLOOR_DB
+        floor = SILENT_DBFS if self.steady else self.floor + ABOVE_FLOOR_DB
         return max(self.loud - RANGE_DB, floor, SILENT_DBFS)
 
 

@@ -1,5 +1,12 @@
 """Phones recognized from the voice alone: lip-sync for audio without a transcript.
 
+:func:`recognize` takes each 10 ms frame's viseme from the viseme classifier
+(:mod:`vtts.speech.viseme_classifier`, trained on synthetic speech), with PocketSphinx's visemes
+(below) adding to its scores before the smoothing; each run of one viseme is a phone, named by
+PocketSphinx's phone where the two agree, else by the classifier's class (:data:`CLASS_NAMES`).
+With ``RecognizerOptions(classifier=False)``, and for a steady loud sound (music, loud noise),
+PocketSphinx's phones alone. :class:`LiveRecognizer` uses PocketSphinx alone.
+
 PocketSphinx (``pocketsphinx`` 5.1.1, BSD; its wheel carries the US-English acoustic model and
 ``en-us-phone.lm.bin``, a phone language model) decodes the audio in *allphone* mode, Rhubarb Lip
 Sync's settings (:class:`RecognizerOptions`): a phone loop weighted by the phone model, with
@@ -60,6 +67,10 @@ PIECE_S = 30.0
 CUT_WINDOW_S = 5.0
 #: Names the decoder gives to what is not a phone.
 NOT_PHONES = frozenset({"SIL", "<sil>", "<s>", "</s>", "(NULL)", "+SPN+", "+NSN+", "[NOISE]"})
+#: Names of the classifier's phones, by viseme: the ARPAbet phones of its class.
+CLASS_NAMES = ("SIL", "P|B|M", "F|V", "TH|DH", "T|D", "K|G|NG|HH", "CH|JH|SH|ZH", "S|Z", "N|L",
+               "R", "AA|AE|AH|AW|AY", "AX|EH|ER|EY", "IH|IY|Y", "AO|OW|OY", "UH|UW|W")  # fmt: skip
+_CLASS_VISEMES = {name: v for v, name in enumerate(CLASS_NAMES) if v}
 #: Names of the phones filled in from the energy (:mod:`vtts.speech.energy`), by viseme.
 ENERGY_NAMES = {0: "SIL", 7: "~hiss", 10: "~wide", 11: "~half", 12: "~slight"}
 
@@ -75,13 +86,17 @@ class RecognizerOptions:
     (a speech engine's pauses) does not skew them — on espeak-ng's speech the recognizer took
     audible frames for silence half as often with it (docs/speech.md); ``fill``: give audible
     frames without a recognized phone visemes from the energy (False: they stay pauses, as the
-    recognizer said)."""
+    recognizer said); ``classifier``: :func:`recognize` takes each frame's viseme from the
+    viseme classifier (:mod:`vtts.speech.viseme_classifier`) instead of PocketSphinx's phones
+    (False: PocketSphinx's, as before the classifier; :class:`LiveRecognizer` always uses
+    PocketSphinx)."""
 
     language_weight: float = 0.8
     beam: float = 1e-20
     phone_beam: float = 1e-20
     dither: bool = True
     fill: bool = True
+    classifier: bool = True
 
     def __post_init__(self) -> None:
         if not (0.0 < self.language_weight <= 100.0):
@@ -166,7 +181,10 @@ def segments_to_phones(
 
 
 def phone_viseme(name: str) -> int:
-    """The viseme of a decoder's phone name (0 for silence and fillers)."""
+    """The viseme of a decoder's phone name (0 for silence and fillers), or of a classifier's
+    (:data:`CLASS_NAMES`)."""
+    if name in _CLASS_VISEMES:
+        return _CLASS_VISEMES[name]
     if name in NOT_PHONES or name.startswith("+") or name.startswith("["):
         return 0
     try:
@@ -281,17 +299,45 @@ def recognize(
     names: list[str] = []
     first: list[int] = []
     last: list[int] = []
-    decoder = make_decoder(options) if np.any(frames.db > lv.audible) else None
+    heard = bool(np.any(frames.db > lv.audible))
+    classifier = None
+    # a steady loud sound (music, loud noise) lacks speech's rise and fall: the classifier,
+    # trained on speech, would see visemes in it; PocketSphinx and the energy judge it alone
+    if options.classifier and heard and not lv.steady:
+        from vtts.speech.viseme_classifier import load_classifier
+
+        classifier = load_classifier()
+    use_decoder = heard and (classifier is None or classifier.evidence > 0)
+    decoder = make_decoder(options) if use_decoder else None
     for a, b in bounds:
+        p_names: list[str] = []
+        p_first: list[int] = []
+        p_last: list[int] = []
         if decoder is not None:
             pcm = np.round(x[a * hop : b * hop] * 32767.0).astype(np.int16)
             decoder.start_utt()
             decoder.process_raw(pcm.tobytes(), no_search=False, full_utt=True)
             decoder.end_utt()
             for s in decoder.seg() or ():
-                names.append(s.word)
-                first.append(a + s.start_frame)
-                last.append(a + s.end_frame)
+                p_names.append(s.word)
+                p_first.append(s.start_frame)
+                p_last.append(s.end_frame)
+        if classifier is None:
+            names += p_names
+            first += [a + f for f in p_first]
+            last += [a + f for f in p_last]
+        else:
+            # PocketSphinx's visemes are evidence for the classifier; its phones name the
+            # classifier's runs where they agree
+            p_index, p_vis = segments_to_phones(p_names, np.array(p_first), np.array(p_last), b - a)
+            piece = classifier.visemes(x[a * hop : b * hop], p_vis if decoder else None)[: b - a]
+            edges = np.concatenate([[0], np.flatnonzero(np.diff(piece)) + 1, [piece.size]])
+            for s, e in zip(edges[:-1], edges[1:], strict=True):
+                v, mid = int(piece[s]), (s + e) // 2
+                agree = decoder is not None and p_vis[mid] == v and p_index[mid] >= 0
+                names.append(p_names[p_index[mid]] if agree else CLASS_NAMES[v])
+                first.append(a + int(s))
+                last.append(a + int(e) - 1)
         if progress is not None:
             progress(min(b * FRAME_S, duration), duration)
     index, vis = segments_to_phones(names, np.array(first), np.array(last), n)

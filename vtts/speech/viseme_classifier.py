@@ -1,0 +1,250 @@
+"""Visemes classified frame by frame from the sound: a small network trained on synthetic speech.
+
+Each 10 ms frame (frame ``k`` spans ``[k, k + 1) * FRAME_S`` s, its 25 ms window centred on the
+frame's middle, as :func:`vtts.speech.energy.energy_frames`) gets :data:`N_MELS` log-mel band
+levels (dB) at 16 kHz. They are made independent of the recording's level and channel: floored
+at :data:`FLOOR_DB` below the loud frames (their 90th percentile), then each band's mean over the
+audible frames (within :data:`AUDIBLE_DB` of the loud ones) subtracted, with one more feature,
+the frame's level against the loud frames. The features of the frames at :data:`OFFSETS` around
+each frame are stacked (the ends repeat the first and last frame) and a multilayer perceptron
+(ReLU hidden layers, softmax out) gives the frame's probability of each of the 15 visemes.
+:func:`smooth` then finds the likeliest viseme sequence in which each viseme lasts at least its
+minimum number of frames and every change costs a penalty (Viterbi over a chain of states per
+viseme).
+
+The weights, the feature standardization and the smoothing's parameters are one ``.npz`` file,
+``vtts/data/viseme_classifier.npz``, made by ``scripts/train_viseme_classifier.py`` (seeded:
+the same file from the same packages) from espeak-ng's and festival's speech of generated
+sentences with their exact phone times. Inference is numpy only.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
+
+import numpy as np
+
+from vtts.errors import SpeechError
+
+__all__ = [
+    "N_MELS",
+    "OFFSETS",
+    "RATE",
+    "VisemeClassifier",
+    "frame_features",
+    "load_classifier",
+    "smooth",
+]
+
+#: Rate of the audio the features are made from, Hz.
+RATE = 16000
+#: Frame step and analysis window, samples at :data:`RATE` (10 ms and 25 ms).
+HOP = 160
+WINDOW = 400
+N_FFT = 512
+#: Mel bands between :data:`FMIN` and :data:`FMAX` Hz.
+N_MELS = 40
+FMIN = 60.0
+FMAX = 7600.0
+#: Band levels are floored this many dB below the loud frames' level.
+FLOOR_DB = 70.0
+#: Frames within this many dB of the loud frames give the band means.
+AUDIBLE_DB = 35.0
+#: Frames (relative to the one classified) whose features are stacked.
+OFFSETS = (-12, -8, -5, -3, -2, -1, 0, 1, 2, 3, 5, 8, 12)
+#: Frames per block of inference (bounded memory for long files).
+BLOCK = 4096
+#: The product's weights, a file of the package's data.
+WEIGHTS = "viseme_classifier.npz"
+
+
+def _mel_filters() -> np.ndarray:
+    """``(N_MELS, N_FFT // 2 + 1)`` float32 triangular filters on the HTK mel scale."""
+    mel = lambda f: 2595.0 * np.log10(1.0 + f / 700.0)  # noqa: E731
+    hz = lambda m: 700.0 * (10.0 ** (m / 2595.0) - 1.0)  # noqa: E731
+    edges = hz(np.linspace(mel(FMIN), mel(FMAX), N_MELS + 2))
+    freqs = np.fft.rfftfreq(N_FFT, 1.0 / RATE)
+    out = np.zeros((N_MELS, freqs.size), np.float32)
+    for i in range(N_MELS):
+        lo, mid, hi = edges[i : i + 3]
+        up = (freqs - lo) / (mid - lo)
+        down = (hi - freqs) / (hi - mid)
+        out[i] = np.maximum(0.0, np.minimum(up, down))
+    return out
+
+
+@cache
+def _constants() -> tuple[np.ndarray, np.ndarray]:
+    return _mel_filters(), np.hanning(WINDOW).astype(np.float32)
+
+
+def band_levels(samples: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per 10 ms frame of ``(n,)`` float32 samples at :data:`RATE` in [-1, 1]: ``(frames,
+    N_MELS)`` float32 band levels (dB) and ``(frames,)`` float32 frame level (dB); ``ceil(n /
+    HOP)`` frames, computed in blocks."""
+    x = np.asarray(samples, np.float32)
+    filters, window = _constants()
+    n_frames = -(-len(x) // HOP)
+    padded = np.pad(x, (WINDOW // 2 - HOP // 2, WINDOW))
+    bands = np.empty((n_frames, N_MELS), np.float32)
+    level = np.empty(n_frames, np.float32)
+    for a in range(0, n_frames, BLOCK):
+        b = min(a + BLOCK, n_frames)
+        idx = (np.arange(a, b) * HOP)[:, None] + np.arange(WINDOW)[None, :]
+        spec = np.abs(np.fft.rfft(padded[idx] * window, N_FFT)) ** 2
+        bands[a:b] = 10.0 * np.log10(spec @ filters.T + 1e-10)
+        level[a:b] = 10.0 * np.log10(spec.sum(axis=1) + 1e-10)
+    return bands, level
+
+
+def frame_features(samples: np.ndarray) -> np.ndarray:
+    """``(frames, N_MELS + 1)`` float32 features of ``(n,)`` samples at :data:`RATE` (see the
+    module docstring): band levels less their mean over the audible frames, and the frame's
+    level against the loud frames, dB."""
+    bands, level = band_levels(samples)
+    if level.size == 0:
+        return np.zeros((0, N_MELS + 1), np.float32)
+    loud = float(np.percentile(level, 90))
+    bands = np.maximum(bands, loud - FLOOR_DB - 10.0 * np.log10(N_MELS))
+    level = np.maximum(level, loud - FLOOR_DB)
+    audible = level > loud - AUDIBLE_DB
+    mean = bands[audible].mean(axis=0) if np.any(audible) else bands.mean(axis=0)
+    return np.concatenate([bands - mean, (level - loud)[:, None]], axis=1).astype(np.float32)
+
+
+def stack(features: np.ndarray, a: int, b: int) -> np.ndarray:
+    """``(b - a, len(OFFSETS) * d)`` the features of frames ``a..b`` with their neighbours at
+    :data:`OFFSETS` (indices clipped to the ends)."""
+    n = features.shape[0]
+    rows = np.clip(np.arange(a, b)[:, None] + np.asarray(OFFSETS)[None, :], 0, n - 1)
+    return features[rows].reshape(b - a, -1)
+
+
+@dataclass(frozen=True)
+class VisemeClassifier:
+    """The trained network and its smoothing (see the module docstring).
+
+    mean, scale   ``(d,)`` float32 standardization of the stacked features
+    weights       per layer ``(d_in, d_out)`` float32; ``biases`` per layer ``(d_out,)``
+    log_prior     ``(15,)`` float32 log share of each viseme in the training frames
+    prior_weight  how much of the log prior is taken from the log posteriors (scaled
+                  likelihoods: 1 removes it whole)
+    min_frames    ``(15,)`` int, the fewest frames a viseme lasts
+    switch        the cost of a change of viseme, in log probability
+    bias          ``(15,)`` float32 added to each viseme's score (log probability)
+    evidence      what a viseme another recognizer gives a frame adds to that viseme's score
+                  there (PocketSphinx's, :func:`vtts.speech.recognize.recognize`)
+    """
+
+    mean: np.ndarray
+    scale: np.ndarray
+    weights: tuple[np.ndarray, ...]
+    biases: tuple[np.ndarray, ...]
+    log_prior: np.ndarray
+    prior_weight: float
+    min_frames: np.ndarray
+    switch: float
+    bias: np.ndarray
+    evidence: float
+
+    def log_posteriors(self, features: np.ndarray) -> np.ndarray:
+        """``(frames, 15)`` float32 log probabilities of each viseme from :func:`frame_features`
+        ``(frames, d)``."""
+        n = features.shape[0]
+        out = np.empty((n, 15), np.float32)
+        for a in range(0, n, BLOCK):
+            b = min(a + BLOCK, n)
+            h = (stack(features, a, b) - self.mean) / self.scale
+            for k, (w, c) in enumerate(zip(self.weights, self.biases, strict=True)):
+                h = h @ w + c
+                if k < len(self.weights) - 1:
+                    np.maximum(h, 0.0, out=h)
+            h -= h.max(axis=1, keepdims=True)
+            out[a:b] = h - np.log(np.exp(h).sum(axis=1, keepdims=True))
+        return out
+
+    def visemes(self, samples: np.ndarray, other: np.ndarray | None = None) -> np.ndarray:
+        """``(ceil(n / HOP),)`` int8 smoothed visemes of ``(n,)`` float32 samples at
+        :data:`RATE`; ``other``: ``(frames,)`` int visemes another recognizer gave the frames
+        (each adds :attr:`evidence` to its viseme's score)."""
+        scores = self.log_posteriors(frame_features(samples))
+        scores += self.bias - self.prior_weight * self.log_prior
+        if other is not None:
+            m = min(other.size, scores.shape[0])
+            scores[np.arange(m), np.asarray(other[:m], int)] += self.evidence
+        return smooth(scores, self.min_frames, self.switch)
+
+
+def smooth(scores: np.ndarray, min_frames: np.ndarray, switch: float) -> np.ndarray:
+    """The viseme sequence ``(frames,)`` int8 maximizing the sum of ``scores`` ``(frames, 15)``
+    (log likelihoods) less ``switch`` per change, each viseme ``v`` lasting at least
+    ``min_frames[v]`` frames (the first and last runs may be shorter): Viterbi over a chain of
+    ``min_frames[v]`` states per viseme, the last looping."""
+    n, k = scores.shape
+    if n == 0:
+        return np.zeros(0, np.int8)
+    m = np.maximum(np.asarray(min_frames, int), 1)
+    owner = np.repeat(np.arange(k), m)  # the viseme of each state
+    first = np.concatenate([[0], np.cumsum(m)[:-1]])
+    last = first + m - 1
+    s = owner.size
+    inner = np.setdiff1d(np.arange(s), first)  # states entered from the state before
+    delta = np.full(s, -np.inf)
+    delta[first] = scores[0]
+    delta[last] = scores[0]  # the first run may be short
+    back = np.zeros((n, s), np.int32)
+    idx = np.arange(s)
+    sc = scores.astype(np.float64)
+    for t in range(1, n):
+        ends = delta[last]
+        order = np.argsort(ends)
+        best, second = order[-1], order[-2]
+        # entering v from the best end of another viseme
+        src = np.where(np.arange(k) == best, last[second], last[best])
+        new = np.empty(s)
+        bp = idx.copy()
+        new[first] = delta[src] - switch
+        bp[first] = src
+        new[inner] = delta[inner - 1]
+        bp[inner] = inner - 1
+        stay = delta[last] >= new[last]
+        new[last] = np.where(stay, delta[last], new[last])
+        bp[last] = np.where(stay, last, bp[last])
+        delta = new + sc[t, owner]
+        back[t] = bp
+    # the last run may be short: end in any state
+    state = int(np.argmax(delta))
+    out = np.empty(n, np.int8)
+    for t in range(n - 1, -1, -1):
+        out[t] = owner[state]
+        state = back[t, state]
+    return out
+
+
+@cache
+def load_classifier(path: Path | None = None) -> VisemeClassifier:
+    """The classifier in ``path`` (``vtts/data/viseme_classifier.npz`` by default);
+    :class:`SpeechError` naming the file when it is missing or not one."""
+    if path is None:
+        from vtts.resources import package_data
+
+        path = package_data(WEIGHTS)
+    try:
+        with np.load(path) as z:
+            layers = int(z["layers"])
+            return VisemeClassifier(
+                mean=z["mean"].astype(np.float32),
+                scale=z["scale"].astype(np.float32),
+                weights=tuple(z[f"w{i}"].astype(np.float32) for i in range(layers)),
+                biases=tuple(z[f"b{i}"].astype(np.float32) for i in range(layers)),
+                log_prior=z["log_prior"].astype(np.float32),
+                prior_weight=float(z["prior_weight"]),
+                min_frames=z["min_frames"].astype(int),
+                switch=float(z["switch"]),
+                bias=z["bias"].astype(np.float32),
+                evidence=float(z["evidence"]),
+            )
+    except (OSError, KeyError, ValueError) as e:
+        raise SpeechError(f"{path}: not a viseme classifier's weights ({e})") from None
