@@ -281,6 +281,9 @@ def test_a_solve_on_the_window_around_the_face_is_the_solve_on_the_whole_image(
     fills it with the head: under half)."""
     import vtts.analysis.estimator as estimator_module
 
+    # every rendering of the whole frame (a window of it differs by a gray level at a few
+    # pixels: test_renderings_near_the_face_are_windows_of_the_whole_frames)
+    monkeypatch.setattr(estimator_module, "_clear", lambda *args: False)
     truth = _params({3: 200, 12: 80, 19: 300, 35: 100, 48: 1500, 49: -2500})
     frame = FaceRenderer(cybatt, size=SIZE).render(truth).astype(np.float32)
     steps = {}
@@ -640,3 +643,45 @@ def test_the_search_keeps_a_fap_within_its_bounds(cybatt):
     est._history = [(0, est.params.copy(), est.translation.copy())]
     fe = est.estimate(frame, 5)
     assert 196 <= fe.params[18] <= 200 and abs(fe.params[19] - 300) <= 5, fe.params[18:20]
+
+
+def test_renderings_near_the_face_are_windows_of_the_whole_frames(cybatt):
+    """After the first rendering, the solves render a window of the frame around the face
+    (``_render_near_face``): it shows the whole frame's triangles and, but for a gray level at
+    a few textured pixels, its colors; a window the face left is rendered again whole."""
+    est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS)
+    est.params[:] = _params({48: 1500, 49: -2500})
+    est._render_window(1)  # the first: the whole frame, which sets the window
+    x0, y0, ww, wh = est._render_box
+    assert x0 % 4 == 0 and y0 % 4 == 0 and ww < SIZE[0]
+    image, numbers, (top, left) = est._render_near_face()
+    assert (top, left) == (y0, x0) and numbers.shape == (wh, ww)
+    whole, all_numbers = est._synthesize(est.camera, SIZE, triangles=True)
+    part = (slice(top, top + wh), slice(left, left + ww))
+    assert np.array_equal(numbers, all_numbers[part])
+    assert np.abs(image.astype(int) - whole[part]).max() <= 1
+    assert (est._face_indices(all_numbers) >= 0).sum() == (est._face_indices(numbers) >= 0).sum()
+    est._render_box = (0, 0, 64, 64)  # the face is not there
+    image, numbers, (top, left) = est._render_near_face()
+    assert (top, left) == (0, 0) and numbers.shape == (SIZE[1], SIZE[0])
+    est._render_box = (x0 + 40, y0, ww, wh)  # the face comes too near the window's left side
+    _, numbers, _ = est._render_near_face()
+    assert numbers.shape == (SIZE[1], SIZE[0])
+
+
+def test_the_window_around_the_face_holds_it_with_its_margin():
+    from vtts.analysis.estimator import _clear, _window_of
+
+    size = (352, 288)
+    cases = [(((40, 120), (50, 130)), (0, 0)), (((0, 60), (300, 350)), (0, 0)),
+             (((10, 50), (5, 40)), (100, 80)), (((0, 288), (0, 352)), (0, 0))]  # fmt: skip
+    for inner, at in cases:
+        x0, y0, ww, wh = _window_of(inner, at, size, 24, 4, None)
+        assert x0 % 4 == 0 and y0 % 4 == 0 and x0 + ww <= 352 and y0 + wh <= 288
+        (i0, i1), (j0, j1) = inner
+        moved = ((i0 + at[1] - y0, i1 + at[1] - y0), (j0 + at[0] - x0, j1 + at[0] - x0))
+        assert _clear(moved, (x0, y0, ww, wh), size, 24), (inner, (x0, y0, ww, wh))
+        again = _window_of(moved, (x0, y0), size, 24, 4, (x0, y0, ww, wh))
+        assert 0 <= again[2] - ww < 4 and 0 <= again[3] - wh < 4  # kept while it fits
+    assert not _clear(((10, 50), (5, 40)), (100, 80, 96, 96), size, 24)
+    assert _clear(((10, 50), (5, 40)), (0, 0, 96, 96), size, 24)  # the frame's own sides

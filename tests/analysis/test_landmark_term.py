@@ -202,6 +202,20 @@ def test_the_working_size_estimates_the_same_head(tmp_path):
         assert np.abs(fa.params[47:50] - fb.params[47:50]).max() < 2500
 
 
+@pytest.mark.usefixtures("shared_fit")
+def test_the_accurate_mode_works_at_the_working_size_too(tmp_path):
+    """Akiyo twice as large (her eyes 69 pixels apart): the accurate mode estimates her at half
+    size, as the tracking mode does, through the full size's camera."""
+    frames = [np.repeat(np.repeat(f, 2, axis=0), 2, axis=1) for f in _frames(AKIYO, 2)]
+    tracked = track(frames, fps=25.0, model_path=tmp_path / "big.wrl")
+    assert tracked.scale == 2 and not tracked.restarts
+    at_full = track(frames[:1], fps=25.0, model_path=tmp_path / "full.wrl", scale=1)
+    assert at_full.scale == 1
+    for a, b in ((tracked.analysis.camera, at_full.analysis.camera),):
+        assert (a.fx, a.cx, a.cy) == pytest.approx((b.fx, b.cx, b.cy))
+    assert all(np.isfinite(fe.psnr) for fe in tracked.analysis.frames)
+
+
 def test_bad_landmarks_to_follow_and_a_bad_working_scale_are_clear_errors(tmp_path):
     from vtts.errors import AnalysisError, FitError
 

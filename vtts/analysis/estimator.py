@@ -155,6 +155,16 @@ STALL_GAIN: float | None = 0.01
 #: Pixels around the image of what a refined FAP moves that its match is measured over.
 REFINE_MARGIN = 4
 
+#: The solves' renderings and a frame's final rendering draw a window of the frame around the
+#: face (:meth:`Estimator._render_near_face`): the last face's box with this many pixels (of the
+#: full size) more on each side than :data:`RENDER_MARGIN`, so that a face that moved this far
+#: since is still inside, …
+RENDER_SLACK = 16
+#: … and a rendering whose face comes closer than this (pixels) to a side of the window that is
+#: not the frame's is made again of the whole frame: the smoothing, the gradients and the
+#: tracker's samples read that far around the face.
+RENDER_MARGIN = 24
+
 
 @dataclass
 class Level:
@@ -298,6 +308,11 @@ class Estimator:
         for node, first, count in self._renderer.triangle_sets:
             if node.name in self.ignored:  # drawn (they hide what is behind them), not matched
                 self._faces[first : first + count] = -1
+        #: the window ``(x0, y0, width, height)`` of the frame that the next rendering near the
+        #: face draws (:meth:`_render_near_face`; None: the whole frame), its corner a multiple
+        #: of every pyramid factor
+        self._render_box: tuple[int, int, int, int] | None = None
+        self._align = math.lcm(*(lv.factor for lv in self.pyramid))
         self._last_step: _Step | None = None
         self._stalled = False  # the level being solved ended on a step taken back
         #: the triangle indices of the last frame's final rendering (full size), or None
@@ -358,23 +373,59 @@ class Estimator:
         around it (the smoothing's reach and the gradients'), so that the subsampling, the
         smoothing, the erosion of the outline and the gradients give the same numbers over the
         face as on the whole image, for a fraction of the pixels (the face is a sixth of a CIF
-        head-and-shoulders frame). With ``whole``, or without face pixels, the whole level."""
-        image, numbers = self._synthesize(self.camera, self.size, triangles=True)
-        numbers = self._at_level(numbers, factor)
+        head-and-shoulders frame). With ``whole``, or without face pixels, the whole level.
+
+        But for ``whole``, what is rendered is a window of the frame around the face
+        (:meth:`_render_near_face`), which holds that window and the smoothing's margin."""
+        if whole:
+            image, numbers = self._synthesize(self.camera, self.size, triangles=True)
+            top = left = 0
+        else:
+            image, numbers, (top, left) = self._render_near_face()
+        # the level's pixels the rendered window holds: level pixel (i, j) is the full-size
+        # pixel at its centre, (i f + f // 2, j f + f // 2); the window starts at a multiple of f
         w, h = self._levels[factor][1]
-        box = (0, h), (0, w)
-        drawn = None if whole else _bounds(numbers >= 0)  # what is drawn holds the face
-        if drawn is not None:
-            (y0, y1), (x0, x1) = drawn
-            inner = _bounds(self._face_indices(numbers[y0:y1, x0:x1]) >= 0)
-            if inner is not None:
-                m = _window_margin(self.sigma)
-                (i0, i1), (j0, j1) = inner
-                box = (max(0, y0 + i0 - m), min(h, y0 + i1 + m)), (
-                    max(0, x0 + j0 - m), min(w, x0 + j1 + m))  # fmt: skip
+        ly, lx = top // factor, left // factor
+        c = factor // 2
+        faces = self._face_indices(numbers[c::factor, c::factor][: h - ly, : w - lx])
+        wh, ww = faces.shape
+        box = (0, wh), (0, ww)
+        inner = _bounds(faces >= 0)
+        if inner is not None and not whole:
+            m = _window_margin(self.sigma)
+            (i0, i1), (j0, j1) = inner
+            box = (max(0, i0 - m), min(wh, i1 + m)), (max(0, j0 - m), min(ww, j1 + m))
         (y0, y1), (x0, x1) = box
         window = image[y0 * factor : y1 * factor, x0 * factor : x1 * factor]
-        return subsample(window, factor), self._face_indices(numbers[y0:y1, x0:x1]), (y0, x0)
+        return subsample(window, factor), faces[y0:y1, x0:x1], (ly + y0, lx + x0)
+
+    def _render_near_face(self) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
+        """The model at the current estimate, rendered in the window of the frame around the
+        face (:attr:`_render_box`): the window's image ``(h, w, 3) uint8``, the renderer's
+        triangle numbers ``(h, w)`` and where its top-left pixel lies in the frame ``(top,
+        left)``. A window whose face comes within :data:`RENDER_MARGIN` pixels of a side that
+        is not the frame's, or that shows no face, is rendered again as the whole frame (so are
+        the first frame's); the next window is the face's box with :data:`RENDER_SLACK` pixels
+        more on each side. The pixels are the whole frame's rendering's (up to a gray level at
+        a few textured ones: :meth:`~vtts.render.renderer.FaceRenderer.set_view`)."""
+        w, h = self.size
+        box = self._render_box
+        image = numbers = None
+        inner = None
+        if box is not None:
+            x0, y0, ww, wh = box
+            cam = replace(self.camera, cx=self.camera.cx - x0, cy=self.camera.cy - y0)
+            image, numbers = self._synthesize(cam, (ww, wh), triangles=True)
+            inner = _bounds(self._face_indices(numbers) >= 0)
+            if inner is None or not _clear(inner, box, self.size, RENDER_MARGIN):
+                image = None
+        if image is None:
+            x0, y0 = 0, 0
+            image, numbers = self._synthesize(self.camera, self.size, triangles=True)
+            inner = _bounds(self._face_indices(numbers) >= 0)
+        self._render_box = None if inner is None else _window_of(
+            inner, (x0, y0), self.size, RENDER_MARGIN + RENDER_SLACK, self._align, box)  # fmt: skip
+        return image, numbers, (y0, x0)
 
     def _at_level(self, full: np.ndarray, factor: int) -> np.ndarray:
         """A full-size per-pixel array ``(H, W)`` (triangle numbers or indices) at pyramid
@@ -559,17 +610,22 @@ class Estimator:
         face PSNR of one full-size rendering (:meth:`_final_rendering`) against the camera frame
         ``full`` ``(H, W, 3) float32``."""
         with self._refining(lit):
-            params, (image, ids) = self._settle(full, index, self._final_rendering)
-        self._shown = ids
+            params, (image, ids, (top, left)) = self._settle(full, index, self._final_rendering)
+        h, w = ids.shape
+        self._shown = np.full(full.shape[:2], -1, dtype=ids.dtype)
+        self._shown[top : top + h, left : left + w] = ids
         synth = np.clip(np.round(image * self.gain + self.offset), 0, 255)
         mask = ids >= 0
-        return self._estimate_of(params, index, time, face_psnr(full, synth, mask),
+        seen = full[top : top + h, left : left + w]
+        return self._estimate_of(params, index, time, face_psnr(seen, synth, mask),
                                  int(mask.sum()), solves)  # fmt: skip
 
-    def _final_rendering(self) -> tuple[np.ndarray, np.ndarray]:
+    def _final_rendering(self) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
         """The full-size rendering a frame's estimate ends with, at the integer FAPs the
-        estimate gives (:meth:`render` at factor 1)."""
-        return self.render(1)
+        estimate gives, of the window around the face (:meth:`_render_window` at factor 1):
+        its image ``(h, w, 3) float32``, triangle indices ``(h, w)`` and top-left pixel ``(top,
+        left)`` in the frame; every face pixel lies inside."""
+        return self._render_window(1)
 
     def _lit_frame(self) -> bool:
         """Whether the frame being estimated shows a lit face (:data:`LIT_SHARE`), by the face
@@ -1111,6 +1167,44 @@ def _bounds(mask: np.ndarray) -> tuple[tuple[int, int], tuple[int, int]] | None:
     if rows.size == 0:
         return None
     return (int(rows[0]), int(rows[-1]) + 1), (int(cols[0]), int(cols[-1]) + 1)
+
+
+def _clear(inner: tuple[tuple[int, int], tuple[int, int]], box: tuple[int, int, int, int],
+           size: tuple[int, int], margin: int) -> bool:  # fmt: skip
+    """Whether the rows and columns ``inner`` (:func:`_bounds`, in the pixels of the window
+    ``box`` ``(x0, y0, width, height)`` of a frame of ``size`` (W, H)) keep ``margin`` pixels
+    from every side of the window that is not a side of the frame."""
+    (i0, i1), (j0, j1) = inner
+    x0, y0, ww, wh = box
+    w, h = size
+    return ((y0 == 0 or i0 >= margin) and (y0 + wh == h or i1 <= wh - margin)
+            and (x0 == 0 or j0 >= margin) and (x0 + ww == w or j1 <= ww - margin))  # fmt: skip
+
+
+def _window_of(inner: tuple[tuple[int, int], tuple[int, int]], at: tuple[int, int],
+               size: tuple[int, int], margin: int, align: int,
+               last: tuple[int, int, int, int] | None) -> tuple[int, int, int, int]:  # fmt: skip
+    """The window ``(x0, y0, width, height)`` of a frame of ``size`` (W, H) that holds the
+    rows and columns ``inner`` (:func:`_bounds`, of an image whose top-left pixel is the
+    frame's ``at`` (x, y)) with ``margin`` pixels on each side: of the ``last`` window's size
+    where that fits with at most 64 pixels to spare (the renderer's targets are then not made
+    anew), else of the size rounded up to 32 pixels, and widened at the top and the left to a
+    corner that is a multiple of ``align``."""
+    (i0, i1), (j0, j1) = inner
+    lo = (at[0] + j0 - margin, at[1] + i0 - margin)
+    need = (j1 - j0 + 2 * margin, i1 - i0 + 2 * margin)
+    out = []
+    for axis in (0, 1):
+        n = size[axis]
+        have = last[2 + axis] if last is not None else 0
+        side = have if need[axis] <= have <= need[axis] + 64 else -(-need[axis] // 32) * 32
+        side = min(side, n)
+        start = min(max(0, lo[axis] - (side - need[axis]) // 2), n - side)
+        end = start + side
+        start -= start % align
+        out.append((start, end - start))
+    (x0, ww), (y0, wh) = out
+    return x0, y0, ww, wh
 
 
 def _window_margin(sigma: float) -> int:

@@ -65,6 +65,8 @@ class HeadGeometry:
         animated = set(model.tables.mesh_nodes())
         self._static_cache: dict[int, np.ndarray] = {}
         self._last = None
+        # the derivatives of the world matrices at the last pose asked for, by unknown
+        self._derivatives: tuple[tuple[bytes, bytes], dict] | None = None
         self._local: tuple[bytes, dict[int, np.ndarray]] | None = None
         self._pose: tuple[bytes, Pose] | None = None
         self._columns: dict[tuple[str, int], np.ndarray] = {}
@@ -258,13 +260,20 @@ class HeadGeometry:
         out = np.zeros((len(vertices), 3, k_count))
         shape_ids = self.shape_of_vertex[ordered]
         local, mats, _ = self._state(params, translation)
-        # Transform chains: the derivative of each shape's world matrix
-        d_mats: dict[int, list[np.ndarray | None]] = {}
+        # Transform chains: the derivative of each shape's world matrix (kept for the last pose:
+        # a solve asks for the pixels' and the landmarks' motion at the same one)
+        key = (np.asarray(params, np.float64).tobytes(),
+               np.asarray(translation, np.float64).tobytes())  # fmt: skip
+        if self._derivatives is None or self._derivatives[0] != key:
+            self._derivatives = (key, {
+                j: self._matrix_derivatives(params, translation, u - 1)
+                for j, u in enumerate(self.unknowns)
+                if not isinstance(u, str) and u - 1 in self._rotating
+            })  # fmt: skip
+        d_mats: dict[int, list[np.ndarray | None]] = self._derivatives[1]
         for j, u in enumerate(self.unknowns):
             if isinstance(u, str):
                 out[:, "xyz".index(u[1]), j] = 1.0
-            elif u - 1 in self._rotating:
-                d_mats[j] = self._matrix_derivatives(params, translation, u - 1)
         starts = np.flatnonzero(np.diff(shape_ids, prepend=-1))
         for start, stop in zip(starts, [*starts[1:], len(ordered)], strict=True):
             si = int(shape_ids[start])

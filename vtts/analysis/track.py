@@ -89,10 +89,12 @@ RECENT = 10
 #: The FAPs the iris model observes (lids 19–22, gaze 23–26): when any is estimated, the eyes
 #: are looked at in every frame (:mod:`vtts.fit.iris`).
 EYE_FAPS = frozenset(range(19, 27))
-#: In the tracking mode, a video whose face shows its eyes further apart than this (pixels, eye
-#: centre to eye centre, at the first face) is estimated at a working size: subsampled by the
-#: smallest whole factor that brings them within it (Akiyo's are 34 pixels apart at CIF). The
-#: landmarks are still found in the frame itself, and the estimates are the same parameters.
+#: A video whose face shows its eyes further apart than this (pixels, eye centre to eye centre,
+#: at the first face) is estimated at a working size, in both modes: subsampled by the smallest
+#: whole factor that brings them within it (Akiyo's are 34 pixels apart at CIF). The landmarks
+#: are still found in the frame itself, and the estimates are the same parameters. The accurate
+#: mode at the working size: the people clips 2–3 times faster, Equation 18 as good or better
+#: (docs/analysis.md, "Speed").
 WORKING_EYES_PX = 64.0
 #: A given model whose feature points already fall this close (median, pixels) to the first
 #: face's landmarks is left where the camera frames it (a video rendered by vtts itself).
@@ -168,8 +170,8 @@ def track(
     face holds the last estimate (``Tracked.unseen``). False: the photometric terms alone.
 
     ``scale``: estimate the frames subsampled by this whole factor (the landmarks are found at
-    full size); None: in the tracking mode the factor that brings the first face's eyes within
-    :data:`WORKING_EYES_PX` pixels, else 1."""
+    full size); None: the factor that brings the first face's eyes within
+    :data:`WORKING_EYES_PX` pixels."""
     from vtts.fit.landmarks import detect_faces
 
     if not (math.isfinite(fps) and fps > 0):
@@ -211,7 +213,7 @@ def track(
                 _progress(progress, i)
                 continue
             chosen = _choose(faces, face, i, anchor is not None) if faces else None
-            result.scale = scale or (working_scale(chosen) if tracking else 1)
+            result.scale = scale or (working_scale(chosen) if chosen is not None else 1)
             estimator = _start(result, frame, chosen, face, model, model_path, camera, unknowns,
                                detector, {"finish": not tracking, **options})  # fmt: skip
             result.first = before[0][0] if before else i

@@ -295,22 +295,37 @@ class Tracker(Estimator):
             except VttsError:  # out of view: the next frame's estimate finds out and recovers
                 self._samples = None
 
-    def _final_rendering(self) -> tuple[np.ndarray, np.ndarray]:
+    def _final_rendering(self) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
         """The frame's final rendering; with :attr:`finish`, its face also gives the samples for
         the next frame (none where it shows too little of the face: the next frame renders; none
         on a lit face, whose next frame takes the whole pyramid)."""
-        image, ids = super()._final_rendering()
+        image, ids, (top, left) = super()._final_rendering()
         if self.finish:
             self._samples = None
             rows, cols = np.nonzero(ids >= 0)
             if rows.size and not super()._lit_frame():
-                x0, y0, ww, wh = _window_around(rows, cols, self._box_size(), self.size)
-                box = (slice(y0, y0 + wh), slice(x0, x0 + ww))
+                x0, y0, ww, wh = _window_around(rows + top, cols + left, self._box_size(),
+                                                self.size)  # fmt: skip
+                # the samples' window in the rendered one's pixels: what lies beyond it is far
+                # from the face (:data:`~vtts.analysis.estimator.RENDER_MARGIN`), and no sample
+                # reads it
+                h, w = ids.shape
+                window = np.zeros((wh, ww, 3), image.dtype)
+                faces = np.full((wh, ww), -1, ids.dtype)
+                ys = slice(max(y0, top), min(y0 + wh, top + h))
+                xs = slice(max(x0, left), min(x0 + ww, left + w))
+                inside = (slice(ys.start - y0, ys.stop - y0), slice(xs.start - x0, xs.stop - x0))
+                there = (
+                    slice(ys.start - top, ys.stop - top),
+                    slice(xs.start - left, xs.stop - left),
+                )
+                window[inside] = image[there]
+                faces[inside] = ids[there]
                 try:
-                    self._samples = self._take(image[box], ids[box], x0, y0, self.sample_step)
+                    self._samples = self._take(window, faces, x0, y0, self.sample_step)
                 except VttsError:
                     pass
-        return image, ids
+        return image, ids, (top, left)
 
     # ---- samples -------------------------------------------------------------------------------
 
