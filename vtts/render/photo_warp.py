@@ -70,9 +70,9 @@ class WarpOptions:
 
     ``reach``: how far beyond the head's outline (in head sizes: the square root of the area
     its outline encloses) the motion fades out to nothing; ``above``: and how many times as far
-    above the middle of the outline (the hair on the skull turns with the face; below the
-    outline's lowest point the reach is ``reach``, the neck and shoulders stay; a smoothstep
-    between); ``motion``: and at least this many
+    from the outline's top up (the hair on the skull turns with the face; from the outline's
+    lowest point down the reach is ``reach``: the neck and shoulders stay; a smoothstep in
+    height between); ``motion``: and at least this many
     times the largest displacement of a handle (a gentle slope keeps the warp fold-free);
     ``cell``: the handles' spacing, in
     head sizes (one handle, the nearest to the camera, per cell of that size); ``grid``: the
@@ -155,9 +155,9 @@ class PhotoWarp:
         self._packed = packed(photo, self.coverage)
         # distance (pixels) of every node from the head's outline, 0 inside
         self.distance = distance_transform_edt(~self.head) * g if self.head.any() else None
-        # the fade's width at each node, as a share of the reach: ``above`` times as wide above
-        # the face's middle (the skull and the hair on it turn with the face), 1 from its
-        # lowest point down (the neck and shoulders stay), a smoothstep between
+        # the fade's width at each node, as a share of the reach: ``above`` times as wide from
+        # the face's top up (the skull and the hair on it turn with the face), 1 from its lowest
+        # point down (the neck and shoulders stay), a smoothstep in height between
         top, chin = float(hull[:, 1].min()), float(hull[:, 1].max())
         u = np.clip((chin - self.nodes[..., 1]) / max(chin - top, 1.0), 0.0, 1.0)
         self._widths = 1.0 + (self.options.above - 1.0) * u * u * (3.0 - 2.0 * u)
