@@ -1,15 +1,15 @@
 """A smooth 2-D warp of a photo that follows a head's projected motion (the talking photo's
 hair, ears, neck and shoulders: :mod:`vtts.render.talking_photo`).
 
-The head's vertices, projected into the photo at rest and in the current frame, are the
-handles: a thin-plate spline through their displacements (``scipy.interpolate.RBFInterpolator``,
-with an affine part, so a head that only moves, turns or nods in the picture carries the photo
-around it along exactly) gives the displacement of every node of a coarse grid, and that
-displacement fades out with the distance from the head (a smoothstep over :attr:`WarpOptions.reach`
-head sizes), so that the picture far from the head stays as it is. The photo is then resampled
-through the inverse of that map (found by fixed-point iteration on the grid, then bilinear
-within the grid's cells), so every output pixel takes one place of the photo: the map is
-continuous, and no gap opens (no tear).
+The head's vertices, projected into the photo at rest and in the current frame, are the handles: a
+thin-plate spline through their displacements (``scipy.interpolate.RBFInterpolator``, with an affine
+part, so a head that only moves, turns or nods in the picture carries the photo around it along
+exactly) gives the displacement of every node of a coarse grid, and that displacement fades out with
+the distance from the head (a smoothstep over :attr:`WarpOptions.reach` head sizes,
+:attr:`WarpOptions.above` times that above the head), so that the picture far from the head stays as
+it is. The photo is then resampled through the inverse of that map (found by fixed-point iteration
+on the grid, then bilinear within the grid's cells), so every output pixel takes one place of the
+photo: the map is continuous, and no gap opens (no tear).
 
 Fold-free: the forward map ``x ↦ x + d(x)`` stays one-to-one while its Jacobian determinant
 stays positive; the fade is widened (up to :data:`WIDENINGS` times by 1.5) until the least
