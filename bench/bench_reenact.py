@@ -119,8 +119,9 @@ def _clip(clip: str, limit: int | None, pictures: Path | None) -> Clip:
     from vtts.analysis.track import track
     from vtts.analysis.video import read_video
     from vtts.animate.fapstream import head_roots, stream_params
+    from vtts.fit.segment import person_probability
     from vtts.render import FaceRenderer
-    from vtts.render.talking_photo import PHOTO_VIEWPOINT, TalkingPhoto
+    from vtts.render.talking_photo import PHOTO_VIEWPOINT, TalkingPhoto, TalkingPhotoOptions
 
     video = read_video(VIDEOS / f"{clip}.mp4")
     frames = [f for i, f in enumerate(video.frames()) if limit is None or i < limit]
@@ -158,7 +159,9 @@ def _clip(clip: str, limit: int | None, pictures: Path | None) -> Clip:
             return head_roots(renderer.model_matrix(0), stream.translation, model.fapu)
 
         # one renderer after the other: the GL context holds one scene at a time
-        with TalkingPhoto(model) as tp:
+        # as --background photo makes it: the person warped over the photo's still background
+        options = TalkingPhotoOptions(segment=person_probability)
+        with TalkingPhoto(model, options=options) as tp:
             roots = roots_of(tp)
             spent = 0.0
             for k in range(1, n):

@@ -76,6 +76,24 @@ def test_pixels_near_the_head_move_with_it(scene):
     assert np.abs(field[distance > warp.last_reach]).max() == 0
 
 
+def test_the_hair_above_follows_farther_than_the_shoulders_below(scene):
+    photo, rest, _ = scene
+    warp = PhotoWarp(photo, rest, options=WarpOptions(reach=0.25, above=2.0, motion=0.0))
+    shift = np.array([6.0, 0.0])
+    field = warp.field(rest + shift)
+    column = int(np.argmin(np.abs(warp.gx - CENTRE[0])))
+    top, chin = rest[:, 1].min(), rest[:, 1].max()
+    gap = 0.35 * warp.head_size  # beyond the reach below the chin, within it above the top
+    above = int(np.argmin(np.abs(warp.gy - (top - gap))))
+    below = int(np.argmin(np.abs(warp.gy - (chin + gap))))
+    assert np.linalg.norm(field[above, column]) > 0.5
+    assert np.linalg.norm(field[below, column]) == 0
+    # one reach all round: the same distance above and below fades alike
+    even = PhotoWarp(photo, rest, options=WarpOptions(reach=0.25, above=1.0, motion=0.0))
+    field = even.field(rest + shift)
+    assert np.linalg.norm(field[above, column]) == np.linalg.norm(field[below, column]) == 0
+
+
 @pytest.mark.parametrize("default", [True, False], ids=["default", "wide"])
 @pytest.mark.parametrize("degrees", [-25.0, 10.0, 25.0])
 def test_a_nod_neither_tears_nor_folds(scene, degrees, default):
@@ -184,6 +202,8 @@ def test_bad_handles_and_options_are_errors():
         PhotoWarp(photo.astype(float), np.zeros((4, 2)))
     with pytest.raises(RenderError, match="reach"):
         WarpOptions(reach=float("nan"))
+    with pytest.raises(RenderError, match="above"):
+        WarpOptions(above=0.5)
     warp = PhotoWarp(photo, np.array([[10.0, 10.0], [20.0, 10.0], [15.0, 20.0]]))
     with pytest.raises(RenderError, match="not finite"):
         warp.field(np.array([[np.nan, 10.0], [20.0, 10.0], [15.0, 20.0]]))

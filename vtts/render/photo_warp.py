@@ -1,15 +1,15 @@
 """A smooth 2-D warp of a photo that follows a head's projected motion (the talking photo's
 hair, ears, neck and shoulders: :mod:`vtts.render.talking_photo`).
 
-The head's vertices, projected into the photo at rest and in the current frame, are the
-handles: a thin-plate spline through their displacements (``scipy.interpolate.RBFInterpolator``,
-with an affine part, so a head that only moves, turns or nods in the picture carries the photo
-around it along exactly) gives the displacement of every node of a coarse grid, and that
-displacement fades out with the distance from the head (a smoothstep over :attr:`WarpOptions.reach`
-head sizes), so that the picture far from the head stays as it is. The photo is then resampled
-through the inverse of that map (found by fixed-point iteration on the grid, then bilinear
-within the grid's cells), so every output pixel takes one place of the photo: the map is
-continuous, and no gap opens (no tear).
+The head's vertices, projected into the photo at rest and in the current frame, are the handles: a
+thin-plate spline through their displacements (``scipy.interpolate.RBFInterpolator``, with an affine
+part, so a head that only moves, turns or nods in the picture carries the photo around it along
+exactly) gives the displacement of every node of a coarse grid, and that displacement fades out with
+the distance from the head (a smoothstep over :attr:`WarpOptions.reach` head sizes,
+:attr:`WarpOptions.above` times that above the head), so that the picture far from the head stays as
+it is. The photo is then resampled through the inverse of that map (found by fixed-point iteration
+on the grid, then bilinear within the grid's cells), so every output pixel takes one place of the
+photo: the map is continuous, and no gap opens (no tear).
 
 Fold-free: the forward map ``x ↦ x + d(x)`` stays one-to-one while its Jacobian determinant
 stays positive; the fade is widened (up to :data:`WIDENINGS` times by 1.5) until the least
@@ -69,7 +69,10 @@ class WarpOptions:
     """How the photo around the head follows it.
 
     ``reach``: how far beyond the head's outline (in head sizes: the square root of the area
-    its outline encloses) the motion fades out to nothing; ``motion``: and at least this many
+    its outline encloses) the motion fades out to nothing; ``above``: and how many times as far
+    from the outline's top up (the hair on the skull turns with the face; from the outline's
+    lowest point down the reach is ``reach``: the neck and shoulders stay; a smoothstep in
+    height between); ``motion``: and at least this many
     times the largest displacement of a handle (a gentle slope keeps the warp fold-free);
     ``cell``: the handles' spacing, in
     head sizes (one handle, the nearest to the camera, per cell of that size); ``grid``: the
@@ -77,6 +80,7 @@ class WarpOptions:
     ``smoothing``: the thin-plate spline's smoothing (0: through every handle exactly)."""
 
     reach: float = 0.25
+    above: float = 1.5
     motion: float = 1.5
     cell: float = 1 / 12
     grid: int = 0
@@ -85,6 +89,7 @@ class WarpOptions:
     def __post_init__(self) -> None:
         checks = (
             ("reach", self.reach, 0.05, 20.0),
+            ("above", self.above, 1.0, 20.0),
             ("motion", self.motion, 0.0, 20.0),
             ("cell", self.cell, 0.005, 1.0),
             ("grid", self.grid, 0, 512),
@@ -150,7 +155,14 @@ class PhotoWarp:
         self._packed = packed(photo, self.coverage)
         # distance (pixels) of every node from the head's outline, 0 inside
         self.distance = distance_transform_edt(~self.head) * g if self.head.any() else None
-        #: the fade's width (pixels) used in the last frame, and the factor it was scaled by
+        # the fade's width at each node, as a share of the reach: ``above`` times as wide from
+        # the face's top up (the skull and the hair on it turn with the face), 1 from its lowest
+        # point down (the neck and shoulders stay), a smoothstep in height between
+        top, chin = float(hull[:, 1].min()), float(hull[:, 1].max())
+        u = np.clip((chin - self.nodes[..., 1]) / max(chin - top, 1.0), 0.0, 1.0)
+        self._widths = 1.0 + (self.options.above - 1.0) * u * u * (3.0 - 2.0 * u)
+        #: the fade's widest reach (pixels, above the head) in the last frame, and the factor the
+        #: motion outside the head was scaled by
         self.last_reach = 0.0
         self.last_scale = 1.0
 
@@ -174,9 +186,9 @@ class PhotoWarp:
         # the motion, as the head's, within the head and as far as it reaches
         nodes = self.nodes.reshape(-1, 2)
         reach0 = self.options.reach * self.head_size
-        reach = max(reach0, self.options.motion * float(np.abs(d).max()))
+        reach = max(reach0, self.options.motion * float(np.abs(d).max())) * self._widths
         near = (
-            self.distance.ravel() < reach * 1.5**WIDENINGS
+            self.distance.ravel() < np.max(reach) * 1.5**WIDENINGS
             if self.distance is not None
             else (np.ones(len(nodes), bool))
         )
@@ -203,7 +215,7 @@ class PhotoWarp:
                     hi = mid
             scale = lo
             f = f * np.where(outside, scale, 1.0)[..., None]
-        self.last_reach, self.last_scale = reach, scale
+        self.last_reach, self.last_scale = float(np.max(reach)), scale
         return f
 
     def _spline(self, d: np.ndarray):
