@@ -431,7 +431,7 @@ def estimate(o: AnalyzeOptions, stdin: BinaryIO, stdout: BinaryIO) -> Analyzed:
             from vtts.analysis.texture import retexture
 
             video = read_video(o.video, fps=o.fps)  # again: the frames were not kept
-            tracked.model = retexture(tracked, video.frames(), video.size)
+            tracked.model = retexture(tracked, video.frames, video.size)
             textured = sum(not np.isnan(fe.psnr) for fe in analysis.frames)
         stream = analysis.stream(name, fapu=tracked.model.fapu)
         steps = None
