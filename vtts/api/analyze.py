@@ -24,7 +24,8 @@ import numpy as np
 
 from vtts.errors import AnalysisError
 
-#: The texture of a fitted head: what the tracked frames show on average, or its anchor frame.
+#: The texture of a fitted head: what most tracked frames show (``mean``: a robust average), or
+#: its anchor frame.
 TEXTURES = ("mean", "anchor")
 #: The base steps of a coded ``.fbs``: measured on the face, or MPEG-4's.
 STEPS = ("face", "mpeg4")
