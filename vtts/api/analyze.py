@@ -24,7 +24,8 @@ import numpy as np
 
 from vtts.errors import AnalysisError
 
-#: The texture of a fitted head: what the tracked frames show on average, or its anchor frame.
+#: The texture of a fitted head: what most tracked frames show (``mean``: a robust average), or
+#: its anchor frame.
 TEXTURES = ("mean", "anchor")
 #: The base steps of a coded ``.fbs``: measured on the face, or MPEG-4's.
 STEPS = ("face", "mpeg4")
@@ -431,7 +432,7 @@ def estimate(o: AnalyzeOptions, stdin: BinaryIO, stdout: BinaryIO) -> Analyzed:
             from vtts.analysis.texture import retexture
 
             video = read_video(o.video, fps=o.fps)  # again: the frames were not kept
-            tracked.model = retexture(tracked, video.frames(), video.size)
+            tracked.model = retexture(tracked, video.frames, video.size)
             textured = sum(not np.isnan(fe.psnr) for fe in analysis.frames)
         stream = analysis.stream(name, fapu=tracked.model.fapu)
         steps = None

@@ -120,8 +120,8 @@ def add_parser(sub) -> None:
         "--texture",
         choices=("mean", "anchor"),
         help="the fitted head's texture: mean (the default for a video file): what the tracked "
-        "frames show on average; anchor: the frame it was fitted to (always for frames on "
-        "stdin or --stream)",
+        "frames show (a robust least-squares average: what most of them show); anchor: the "
+        "frame it was fitted to (always for frames on stdin or --stream)",
     )
     an.add_argument(
         "--report",
