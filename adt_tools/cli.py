@@ -194,9 +194,11 @@ def cmd_fit(args: argparse.Namespace) -> int:
     name = args.name or out.stem
     with reported_warnings():
         try:
-            image, exif_focal = load_photo(args.photo)
-            head = fit_photo(image, personality=args.personality, face=args.face,
-                             focal_35mm=args.focal or exif_focal, name=name)  # fmt: skip
+            # the fit sees pixels: its warnings (glasses, several faces …) name the photo here
+            with reported_warnings(file=str(args.photo)):
+                image, exif_focal = load_photo(args.photo)
+                head = fit_photo(image, personality=args.personality, face=args.face,
+                                 focal_35mm=args.focal or exif_focal, name=name)  # fmt: skip
         except FitError as e:
             if not e.file and not str(e.message).startswith(str(args.photo)):
                 e.file = str(args.photo)

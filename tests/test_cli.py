@@ -119,3 +119,18 @@ def test_outputs_get_ordinary_permissions(tmp_path):
     out = tmp_path / "x.txt"
     write_text(out, "hi")
     assert stat.S_IMODE(os.stat(out).st_mode) == 0o666 & ~current_umask()
+
+
+def test_a_warning_without_a_file_is_told_of_the_input_given(capsys):
+    """``reported_warnings(file=...)`` names the input where the library could not (the fit sees
+    a photo's pixels, not its file); a warning that names its own file keeps it."""
+    import warnings
+
+    from vtts.errors import VttsWarning
+    from vtts.messages import reported_warnings
+
+    with reported_warnings(file="me.jpg"):
+        warnings.warn(VttsWarning("the photo shows glasses"), stacklevel=1)
+        warnings.warn(VttsWarning("odd node", file="x.wrl", line=3, column=1), stacklevel=1)
+    err = capsys.readouterr().err.splitlines()
+    assert err == ["me.jpg: warning: the photo shows glasses", "x.wrl:3:1: warning: odd node"]

@@ -75,8 +75,9 @@ def printable(text: str) -> str:
 
 
 @contextmanager
-def reported_warnings() -> Iterator[None]:
-    """Print library warnings as ``FILE:LINE:COL: warning: MESSAGE`` lines."""
+def reported_warnings(file: str | None = None) -> Iterator[None]:
+    """Print library warnings as ``FILE:LINE:COL: warning: MESSAGE`` lines; ``file`` names the
+    input a warning is about where the library did not (a photo the fit was given as pixels)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
@@ -85,7 +86,8 @@ def reported_warnings() -> Iterator[None]:
             for w in caught:
                 msg = w.message
                 if isinstance(msg, VttsWarning):
-                    parts = [str(p) for p in (msg.file, msg.line, msg.column) if p is not None]
+                    where = msg.file if msg.file is not None else file
+                    parts = [str(p) for p in (where, msg.line, msg.column) if p is not None]
                     loc = ":".join(parts)
                     text = f"{loc + ': ' if loc else ''}warning: {msg.message}"
                     print(printable(text), file=sys.stderr)
