@@ -92,9 +92,8 @@ EYE_FAPS = frozenset(range(19, 27))
 #: A video whose face shows its eyes further apart than this (pixels, eye centre to eye centre,
 #: at the first face) is estimated at a working size, in both modes: subsampled by the smallest
 #: whole factor that brings them within it (Akiyo's are 34 pixels apart at CIF). The landmarks
-#: are still found in the frame itself, and the estimates are the same parameters. The accurate
-#: mode at the working size: the people clips 2–3 times faster, Equation 18 as good or better
-#: (docs/analysis.md, "Speed").
+#: are still found in the frame itself, and the estimates are the same parameters (what the
+#: accurate mode gains by it: docs/analysis.md, "Speed").
 WORKING_EYES_PX = 64.0
 #: A given model whose feature points already fall this close (median, pixels) to the first
 #: face's landmarks is left where the camera frames it (a video rendered by vtts itself).
