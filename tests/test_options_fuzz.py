@@ -24,9 +24,12 @@ from vtts.fap.coding import fap_set
 from vtts.render import Camera
 from vtts.render.color import TRANSPARENT, parse_background
 
+from .fuzzing import examples
 from .hostile import DATA, INTERESTING, mutate, mutations
 
-FUZZ = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+FUZZ = settings(
+    max_examples=examples(150), deadline=None, suppress_health_check=[HealthCheck.too_slow]
+)
 
 WORDS = [
     "19", "3", "68", "69", "0", "1", "2", "-1", "+5", "+-5", "open_jaw", "head_pitch", "viseme",
@@ -220,7 +223,7 @@ def test_every_option_takes_dashes_as_a_value(name: str, option: str) -> None:
         assert value[-1] == "--" or not isinstance(value[-1], list)
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=examples(60), deadline=None)
 @given(st.sampled_from(OPTIONS), st.one_of(st.sampled_from(HOSTILE), option_text))
 def test_every_option_takes_any_value(option: tuple[str, str], value: str) -> None:
     """Whatever the value, an option's type gives a value or a usage error, never an exception."""

@@ -24,6 +24,7 @@ from vtts.face import load_model
 from vtts.face.adt import format_adt, parse_adt
 from vtts.vrml import read
 
+from ..fuzzing import examples
 from ..hostile import byte_mutations, mutate, mutate_bytes, mutations
 from .adi_helpers import SAMPLE, face_points, face_triangles, write_gltf, write_obj, write_ply
 
@@ -55,7 +56,9 @@ def gltf() -> dict:
     return json.loads(corpus()[".gltf"])
 
 
-FUZZ = settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+FUZZ = settings(
+    max_examples=examples(100), deadline=None, suppress_health_check=[HealthCheck.too_slow]
+)
 
 
 @pytest.fixture(scope="module")

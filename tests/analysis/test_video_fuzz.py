@@ -28,6 +28,7 @@ from vtts.errors import AnalysisError
 from vtts.limits import LimitError
 from vtts.render import VideoWriter, write_png
 
+from ..fuzzing import examples
 from ..hostile import byte_mutations, mutate_bytes
 
 DATA = Path(__file__).resolve().parents[1] / "data"
@@ -35,8 +36,12 @@ _FRAME = np.asarray(
     Image.open(DATA / "photos" / "akiyo_frame0.png").convert("RGB").resize((40, 32))
 )
 
-FUZZ = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-FEW = settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+FUZZ = settings(
+    max_examples=examples(150), deadline=None, suppress_health_check=[HealthCheck.too_slow]
+)
+FEW = settings(
+    max_examples=examples(12), deadline=None, suppress_health_check=[HealthCheck.too_slow]
+)
 
 
 def _pngs() -> list[bytes]:

@@ -20,6 +20,7 @@ from vtts.face import FaceModel
 from vtts.face.adt import AnimationTables, check_tables, format_adt, parse_adt
 from vtts.vrml import read
 
+from ..fuzzing import examples
 from ..hostile import mutate, mutations
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -32,7 +33,9 @@ TEMPORAL = _CYBATT[_CYBATT.index("#TemporalDefinitionTables") :]
 CORPUS = [REAL, WRITTEN, TEMPORAL]
 SCENE = read(HEAD / "head.wrl")
 
-FUZZ = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+FUZZ = settings(
+    max_examples=examples(150), deadline=None, suppress_health_check=[HealthCheck.too_slow]
+)
 
 
 def parse_or_adt_error(text: str) -> AnimationTables | None:

@@ -13,6 +13,7 @@ from vtts.errors import FapError
 from vtts.fap import FapStream, format_fap, parse_fap
 from vtts.fap.stream import WRITE_VERSION
 
+from ..fuzzing import examples
 from ..hostile import mutate, mutations
 
 DATA = Path(__file__).resolve().parent.parent / "data" / "fap"
@@ -20,7 +21,9 @@ DATA = Path(__file__).resolve().parent.parent / "data" / "fap"
 REAL_LINES = (DATA / "xface-hate.fap").read_text().split("\n")[:13]
 REAL = "\n".join(REAL_LINES) + "\n"
 
-FUZZ = settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+FUZZ = settings(
+    max_examples=examples(200), deadline=None, suppress_health_check=[HealthCheck.too_slow]
+)
 
 
 def parse_or_fap_error(text: str) -> FapStream | None:

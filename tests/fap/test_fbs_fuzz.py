@@ -21,6 +21,7 @@ from vtts.errors import CodingError, FapError
 from vtts.fap import FapStream, format_fap, parse_fap
 from vtts.fap.coding import decode, encode, read_header
 
+from ..fuzzing import examples
 from ..hostile import byte_mutations, mutate_bytes
 
 DATA = Path(__file__).resolve().parent.parent / "data" / "fap"
@@ -44,7 +45,9 @@ CODED = [
                            ("huffman", 2.0, "paper17"), ("arithmetic", 1.0, "3-13")]
 ]  # fmt: skip
 
-FUZZ = settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+FUZZ = settings(
+    max_examples=examples(200), deadline=None, suppress_health_check=[HealthCheck.too_slow]
+)
 
 
 def split(data: bytes) -> tuple[bytes, bytes]:

@@ -23,6 +23,7 @@ from vtts.errors import FitError, VttsWarning
 from vtts.fit import load_photo
 from vtts.limits import MAX_PHOTO_PIXELS, LimitError
 
+from ..fuzzing import examples
 from ..hostile import byte_mutations, mutate_bytes
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "photos"
@@ -43,7 +44,9 @@ def _photos() -> list[bytes]:
 
 
 PHOTOS = _photos()
-FUZZ = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+FUZZ = settings(
+    max_examples=examples(150), deadline=None, suppress_health_check=[HealthCheck.too_slow]
+)
 
 
 @pytest.fixture(scope="module")

@@ -18,6 +18,7 @@ from vtts.errors import BookmarkError
 from vtts.limits import MAX_DURATION_S, MAX_FAP_VALUE
 from vtts.speech.bookmarks import Bookmark, BookmarkedText, parse_bookmarks
 
+from ..fuzzing import examples
 from ..hostile import mutate, mutations
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -29,7 +30,9 @@ CORPUS = [
     "<joy>\n<Sadness 250ms 1>line two <fap 48=+1.5>\\",
 ]
 
-FUZZ = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+FUZZ = settings(
+    max_examples=examples(150), deadline=None, suppress_health_check=[HealthCheck.too_slow]
+)
 
 
 def _number(x: float) -> str:

@@ -22,6 +22,7 @@ from vtts.limits import MAX_AUDIO_S, MAX_DURATION_S, LimitError
 from vtts.speech.audio import read_for_mp4
 from vtts.speech.phonemes import PhonemeFile, read_phoneme_file
 
+from ..fuzzing import examples
 from ..hostile import byte_mutations, mutate, mutate_bytes, mutations
 
 POLLY = "\n".join(
@@ -60,7 +61,9 @@ phone	0.0630	0.3059	oU	13
 """
 CORPUS = [POLLY, TABLE, ARPABET, IPA, TIMINGS]
 
-FUZZ = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+FUZZ = settings(
+    max_examples=examples(150), deadline=None, suppress_health_check=[HealthCheck.too_slow]
+)
 
 
 @pytest.fixture(scope="module")

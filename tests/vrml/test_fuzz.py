@@ -9,10 +9,8 @@ inputs found here are kept as explicit examples and regression tests at the end 
 
 from __future__ import annotations
 
-import importlib.util
 import itertools
 import re
-import sys
 import warnings
 from pathlib import Path
 
@@ -22,6 +20,9 @@ from hypothesis import strategies as st
 
 from vtts import vrml
 from vtts.errors import VttsError
+
+from ..fuzzing import examples
+from .test_roundtrip_property import vrml_texts  # random valid scene texts
 
 DATA = Path(__file__).resolve().parent.parent / "data" / "vrml97"
 GOOD = sorted((DATA / "good").glob("*.wrl"))
@@ -289,23 +290,6 @@ def use(scene: vrml.Scene, lenient: bool) -> None:
         pass
 
 
-def _load_generator():
-    """The random valid scene texts of test_roundtrip_property.py (loaded by path, so that it
-    works whatever pytest's import mode)."""
-    path = Path(__file__).with_name("test_roundtrip_property.py")
-    spec = importlib.util.spec_from_file_location("_vrml_scene_texts", path)
-    assert spec is not None and spec.loader is not None
-    module = sys.modules.get(spec.name)
-    if module is None:
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[spec.name] = module  # dataclasses look their module up there
-        spec.loader.exec_module(module)
-    return module.vrml_texts
-
-
-vrml_texts = _load_generator()
-
-
 def test_corpus_is_valid() -> None:
     for data in [p.read_bytes() for p in GOOD] + RICH:
         vrml.parse(data)
@@ -313,7 +297,7 @@ def test_corpus_is_valid() -> None:
 
 
 FUZZ = settings(
-    max_examples=1200,
+    max_examples=examples(1200),
     deadline=None,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
 )
@@ -333,19 +317,19 @@ def test_mutated_corpus(data: bytes, ops: list[tuple[str, int, int, bytes]]) -> 
     check(mutate(data, ops))
 
 
-@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(300), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(vrml_texts(), st.lists(MUTATION, min_size=1, max_size=3))
 def test_mutated_generated_scenes(text: str, ops: list[tuple[str, int, int, bytes]]) -> None:
     check(mutate(text.encode("utf-8"), ops))
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(st.binary(max_size=400))
 def test_random_bytes_after_the_header(data: bytes) -> None:
     check(HEADER + data)
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(st.text(max_size=200))
 def test_random_unicode_after_the_header(text: str) -> None:
     check(HEADER + text.encode("utf-8", "surrogatepass"))
@@ -371,7 +355,7 @@ NESTERS = [
 DEEPEST = 2000
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(40), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     st.lists(st.sampled_from(NESTERS), min_size=1, max_size=3),
     st.integers(1, DEEPEST),

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from vtts.vrml.fields import format_number, format_numbers
+from vtts.vrml.fields import _seven_digits, format_number, format_numbers
 
 EDGES = [0.0, -0.0, 1.0, -1.0, 100.0, 1e15, 1e16, 1e22, 123456789012345678.0, 1e-4, 1e-5,
          0.0001234, 2.5e-7, 5e-324, 1.7976931348623157e308, 0.1, -3.25]  # fmt: skip
@@ -47,3 +47,20 @@ def test_float32_numbers_are_written_at_their_own_precision():
 def test_integers_and_grouping():
     assert format_numbers(np.arange(8), per_line=4) == ["0 1 2 3", "4 5 6 7"]
     assert format_numbers(np.arange(3), per_line=2) == ["0", "1", "2"]
+
+
+def test_numbers_of_seven_digits_are_written_as_repr_writes_them():
+    """Arrays of numbers rounded to 7 significant digits or fewer (a fitted head's tables) take
+    a faster format: the same text as repr's, trimmed."""
+    rng = np.random.default_rng(2)
+    for exponent in range(-14, 5):
+        values = rng.choice([-1, 1], (300, 3)) * rng.uniform(0.1, 10, (300, 3)) * 10.0**exponent
+        digits = rng.integers(1, 8) - 1 - np.floor(np.log10(np.abs(values)))
+        values = np.round(values * 10.0**digits) / 10.0**digits
+        values[::7] = 0.0
+        values[::11] = -0.0
+        values[::13] = np.round(values[::13] * 10.0**-exponent)  # whole numbers
+        assert _seven_digits(values), exponent  # the faster format is the one tested
+        lines = format_numbers(values)
+        expected = [" ".join(format_number(x) for x in row) for row in values.tolist()]
+        assert lines == expected

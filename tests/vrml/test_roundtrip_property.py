@@ -28,6 +28,8 @@ from vtts import vrml
 from vtts.vrml import FIELD_TYPES, FieldType, standard_node_types
 from vtts.vrml.parser import URL_FIELDS
 
+from ..fuzzing import examples
+
 HEADER = "#VRML V2.0 utf8\n"
 STD = standard_node_types()
 ALL_ROLES = frozenset().union(*(t.roles for t in STD.values()))
@@ -597,7 +599,7 @@ LEADING_ZERO_WITH_HEX = (
 
 
 @settings(
-    max_examples=200,
+    max_examples=examples(200),
     deadline=None,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
 )
@@ -647,7 +649,7 @@ def test_generator_covers_the_brief() -> None:
             vrml_texts(),
             covered,
             settings=settings(
-                max_examples=400,
+                max_examples=examples(400),
                 deadline=None,
                 database=None,
                 derandomize=True,
@@ -681,7 +683,7 @@ SPECIAL = [
 ]
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=examples(150), deadline=None)
 @given(
     st.lists(st.tuples(FLOATS, FLOATS, FLOATS), max_size=20),
     st.sampled_from(["repr", ".17e", ".17g"]),
@@ -704,7 +706,7 @@ def test_mfvec3f_is_bit_exact(points: list[tuple[float, float, float]], style: s
     assert vrml.dumps(s2) == t
 
 
-@settings(max_examples=100, deadline=None)
+@settings(max_examples=examples(100), deadline=None)
 @given(st.tuples(FLOATS, FLOATS, FLOATS), FLOATS)
 @example((-0.0, 0.0, -0.0), -0.0)
 def test_sf_numbers_are_bit_exact(vec: tuple[float, float, float], x: float) -> None:
