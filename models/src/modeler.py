@@ -25,6 +25,7 @@ sliding over the eyeball).
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -742,11 +743,22 @@ def fmt(a: np.ndarray, decimals: int = 5) -> np.ndarray:
     return np.array([w if w not in ("-0", "") else "0" for w in words], dtype=str).reshape(a.shape)
 
 
+#: Trailing zeros of a "%.Nf" number's fraction, then a point left with no fraction.
+_ZEROS = re.compile(r"0+(?=[ ,\n]|$)")
+_BARE_POINT = re.compile(r"\.(?=[ ,\n]|$)")
+
+
 def fmt_rows(a: np.ndarray, decimals: int = 5, sep: str = ",\n") -> str:
-    s = fmt(a, decimals)
-    if s.ndim == 1:
-        return " ".join(s.tolist())
-    return sep.join(" ".join(row) for row in s.tolist())
+    """The rows of ``a`` (``(n, k)``, or one row ``(k,)``) as :func:`fmt` writes their numbers,
+    space-separated, rows joined by ``sep``: one %-format per row and two trims over the whole
+    text (the exports' text took 3.5 s a head number by number)."""
+    a = np.round(np.asarray(a, dtype=np.float64), decimals) + 0.0
+    rows = a.reshape(1, -1) if a.ndim == 1 else a
+    if not rows.size:
+        return "" if a.ndim == 1 else sep.join("" for _ in range(rows.shape[0]))
+    row_format = " ".join([f"%.{decimals}f"] * rows.shape[1])
+    text = sep.join([row_format % tuple(row) for row in rows.tolist()])
+    return _BARE_POINT.sub("", _ZEROS.sub("", text))  # no "-0": rounded numbers plus 0.0
 
 
 def fmt_faces(f: np.ndarray) -> str:
