@@ -61,9 +61,9 @@ MIN_FRAMES = {0: 3, 1: 3}
 DEFAULT_MIN_FRAMES = 2
 SWITCH = 7.0
 PRIOR_WEIGHT = 0.5
-BIAS = {1: 1.0}
+BIAS = {1: 2.0}
 #: Added to a viseme's score times the network's probability of it (p b m).
-BOOST = {1: 3.0}
+BOOST = {1: 2.0}
 #: What PocketSphinx's viseme for a frame adds to that viseme's score.
 EVIDENCE = 6.0
 
