@@ -3,7 +3,9 @@
 :func:`recognize` takes each 10 ms frame's viseme from the viseme classifier
 (:mod:`vtts.speech.viseme_classifier`, trained on synthetic speech), with PocketSphinx's visemes
 (below) adding to its scores before the smoothing; each run of one viseme is a phone, named by
-PocketSphinx's phone where the two agree, else by the classifier's class (:data:`CLASS_NAMES`).
+PocketSphinx's phone where the two agree, else by the classifier's class (:data:`CLASS_NAMES`),
+and a bilabial run whose level steps (a nasal's murmur, then a stop's closure) is two phones
+(:func:`split_closures`).
 With ``RecognizerOptions(classifier=False)``, and for a steady loud sound (music, loud noise),
 PocketSphinx's phones alone. :class:`LiveRecognizer` uses PocketSphinx alone.
 
@@ -55,6 +57,7 @@ __all__ = [
     "RecognizerOptions",
     "recognize",
     "segments_to_phones",
+    "split_closures",
 ]
 
 #: The acoustic model's rate, Hz: audio is resampled to it.
