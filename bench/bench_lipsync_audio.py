@@ -20,7 +20,9 @@ those rows are labelled so.
 
 Figures: **agreement**, the share of 10 ms frames whose viseme is the truth's (all frames, and
 the frames where the truth speaks); **bilabial closures**: of the truth's p, b, m, the share whose
-centre has a bilabial of the path within one 30 Hz frame (1/30 s); **speed**: recognition's wall
+centre has a bilabial of the path within one 30 Hz frame (1/30 s); **closures**: the same with
+adjacent p b m (of the truth and of the path) one closure each; **false closures**: the path's
+closures that overlap none of the truth's p b m widened by 1/30 s; **speed**: recognition's wall
 and CPU time as a fraction of the audio's duration (60 s of festival's speech in one file);
 **live latency**: :class:`~vtts.speech.recognize.LiveRecognizer` fed 20 ms chunks in real time
 (simulated: each chunk arrives when its last sample would, is processed once it has arrived and
@@ -123,8 +125,11 @@ def frames_of(phones, n: int) -> np.ndarray:
 def _bilabials(truth_phones, path_phones, *, closures: bool = False) -> tuple[int, int]:
     """(found, total) truth bilabials with a path bilabial's centre within 1/30 s of theirs;
     ``closures``: adjacent truth bilabials (``m p`` in "empty", ``b p`` in "Bob put") count as
-    one closure, centred on the middle of the two."""
-    centres = np.array([0.5 * (p.start + p.end) for p in path_phones if p.viseme == 1])
+    one closure, centred on the middle of the two, and so do the path's (a recognizer that
+    names the two phones of one closure has one closure there)."""
+    runs = _closures(path_phones) if closures else [
+        (p.start, p.end) for p in path_phones if p.viseme == 1]  # fmt: skip
+    centres = np.array([0.5 * (a + b) for a, b in runs])
     spans: list[list[float]] = []
     previous = None
     for p in truth_phones:
@@ -141,6 +146,29 @@ def _bilabials(truth_phones, path_phones, *, closures: bool = False) -> tuple[in
     return found, len(spans)
 
 
+def _closures(phones) -> list[tuple[float, float]]:
+    """The (start, end) of each run of adjacent bilabial phones (one closure of the lips)."""
+    runs: list[list[float]] = []
+    for p in phones:
+        if p.viseme != 1:
+            continue
+        if runs and abs(runs[-1][1] - p.start) < 1e-6:
+            runs[-1][1] = p.end
+        else:
+            runs.append([p.start, p.end])
+    return [(a, b) for a, b in runs]
+
+
+def _false_closures(truth_phones, path_phones) -> tuple[int, int]:
+    """(false, total) closures of the path (runs of adjacent bilabials) that overlap no truth
+    p, b or m widened by 1/30 s on each side: lips shut where the speaker's were not."""
+    truth = [(p.start, p.end) for p in truth_phones if p.viseme == 1]
+    runs = _closures(path_phones)
+    w = 1.0 / FPS
+    false = sum(not any(a - w < te and ts < b + w for ts, te in truth) for a, b in runs)
+    return false, len(runs)
+
+
 def _phones_of(vis: np.ndarray):
     """Runs of a per-frame viseme array as phones (for the energy path's bilabials: none)."""
     from vtts.speech.phonemes import Phone
@@ -152,14 +180,14 @@ def _phones_of(vis: np.ndarray):
 
 class Tally:
     """Frames agreeing, frames, speech frames agreeing, speech frames, bilabials found/total,
-    closures found/total."""
+    closures found/total, false closures/closures of the path."""
 
     def __init__(self) -> None:
         self.same = self.n = self.speech_same = self.speech = self.bil = self.bil_total = 0
-        self.clo = self.clo_total = 0
+        self.clo = self.clo_total = self.false = self.false_total = 0
 
     def add(self, truth: np.ndarray, got: np.ndarray, bil: tuple[int, int],
-            clo: tuple[int, int] = (0, 0)) -> None:  # fmt: skip
+            clo: tuple[int, int] = (0, 0), false: tuple[int, int] = (0, 0)) -> None:  # fmt: skip
         n = min(truth.size, got.size)
         t, g = truth[:n], got[:n]
         self.same += int(np.sum(t == g))
@@ -170,6 +198,8 @@ class Tally:
         self.bil_total += bil[1]
         self.clo += clo[0]
         self.clo_total += clo[1]
+        self.false += false[0]
+        self.false_total += false[1]
 
 
 def _paths(samples: np.ndarray, rate: int, ssml: str | None, truth_phones) -> dict:
@@ -213,6 +243,7 @@ def _synthetic(texts: list[str], voice: tuple, tallies: dict) -> None:
                 got,
                 _bilabials(truth_phones, phones),
                 _bilabials(truth_phones, phones, closures=True),
+                _false_closures(truth_phones, phones),
             )
 
 
@@ -270,6 +301,7 @@ def _real(items, tallies: dict) -> None:
                 got,
                 _bilabials(truth_phones, phones),
                 _bilabials(truth_phones, phones, closures=True),
+                _false_closures(truth_phones, phones),
             )
 
 
@@ -402,6 +434,15 @@ def _agreement_rows(label: str, tallies: dict) -> list[dict]:
                     f"{label}: {path}: closures (adjacent p b m one) within 1/30 s "
                     f"(of {t.clo_total})",
                     clo,
+                    "%",
+                )  # fmt: skip
+            )
+            fa = 100.0 * t.false / max(t.false_total, 1)
+            rows.append(
+                _row(
+                    f"{label}: {path}: false closures, none of the truth's within 1/30 s "
+                    f"({t.false} of {t.false_total})",
+                    fa,
                     "%",
                 )  # fmt: skip
             )

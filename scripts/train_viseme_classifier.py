@@ -59,9 +59,11 @@ EPOCHS = 7
 #: docs/speech.md).
 MIN_FRAMES = {0: 3, 1: 3}
 DEFAULT_MIN_FRAMES = 2
-SWITCH = 4.0
+SWITCH = 7.0
 PRIOR_WEIGHT = 0.5
-BIAS = {1: 3.0}
+BIAS = {1: 2.0}
+#: Added to a viseme's score times the network's probability of it (p b m).
+BOOST = {1: 2.0}
 #: What PocketSphinx's viseme for a frame adds to that viseme's score.
 EVIDENCE = 6.0
 
@@ -307,6 +309,7 @@ def _arrays(net, mean: np.ndarray, scale: np.ndarray, y: np.ndarray) -> dict:
               "log_prior": np.log(counts / counts.sum()).astype(np.float32),
               "prior_weight": np.float32(PRIOR_WEIGHT), "switch": np.float32(SWITCH),
               "bias": np.array([BIAS.get(v, 0.0) for v in range(15)], np.float32),
+              "boost": np.array([BOOST.get(v, 0.0) for v in range(15)], np.float32),
               "evidence": np.float32(EVIDENCE),
               "min_frames": np.array([MIN_FRAMES.get(v, DEFAULT_MIN_FRAMES) for v in range(15)],
                                      np.int8)}  # fmt: skip

@@ -17,7 +17,9 @@ from vtts.speech.recognize import (
     RecognizerOptions,
     StreamResampler,
     _cuts,
+    phone_viseme,
     recognize,
+    split_closures,
 )
 
 from ..in_process import vtts
@@ -107,6 +109,22 @@ def test_the_classifier_finds_the_closures_of_a_voice_it_never_heard() -> None:
     assert bilabials >= BILABIALS_MIN and agreement >= AGREEMENT_MIN, (bilabials, agreement)
     ps_bilabials, ps_agreement = found(recognize(x, rate, RecognizerOptions(classifier=False)))
     assert ps_bilabials < BILABIALS_MIN or ps_agreement < AGREEMENT_MIN
+
+
+def test_a_closure_over_a_murmur_and_a_silence_is_two_phones() -> None:
+    """One bilabial run of 10 frames, a nasal's murmur (-25 dB) then a stop's closure (-45 dB):
+    cut where the level steps, the louder part named M, the quieter P|B; a short run, or one
+    whose level stays, is left whole; the visemes do not change."""
+    vis = np.array([10] * 4 + [1] * 10 + [11] * 4 + [1] * 5 + [1] * 8, np.int8)
+    index = np.array([0] * 4 + [1] * 10 + [2] * 4 + [3] * 5 + [4] * 8, np.int32)
+    db = np.array([-20.0] * 4 + [-25.0] * 6 + [-45.0] * 4 + [-20.0] * 4 + [-25] * 3 + [-45] * 2
+                  + [-30.0] * 8)  # fmt: skip
+    names = ["AA", "P|B|M", "EH", "P|B|M", "P|B|M"]
+    new_index, new_names = split_closures(vis, index, names, db)
+    assert new_names[:5] == ["AA", "M", "EH", "P|B|M", "P|B|M"]
+    assert new_names[5:] == ["P|B"] and phone_viseme("P|B") == 1
+    assert new_index[4:10].tolist() == [1] * 6 and new_index[10:14].tolist() == [5] * 4
+    assert np.array_equal(new_index[14:], index[14:])
 
 
 def test_silence_is_one_pause_and_noise_no_speech() -> None:

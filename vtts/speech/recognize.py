@@ -3,7 +3,9 @@
 :func:`recognize` takes each 10 ms frame's viseme from the viseme classifier
 (:mod:`vtts.speech.viseme_classifier`, trained on synthetic speech), with PocketSphinx's visemes
 (below) adding to its scores before the smoothing; each run of one viseme is a phone, named by
-PocketSphinx's phone where the two agree, else by the classifier's class (:data:`CLASS_NAMES`).
+PocketSphinx's phone where the two agree, else by the classifier's class (:data:`CLASS_NAMES`),
+and a bilabial run whose level steps (a nasal's murmur, then a stop's closure) is two phones
+(:func:`split_closures`).
 With ``RecognizerOptions(classifier=False)``, and for a steady loud sound (music, loud noise),
 PocketSphinx's phones alone. :class:`LiveRecognizer` uses PocketSphinx alone.
 
@@ -55,6 +57,7 @@ __all__ = [
     "RecognizerOptions",
     "recognize",
     "segments_to_phones",
+    "split_closures",
 ]
 
 #: The acoustic model's rate, Hz: audio is resampled to it.
@@ -70,7 +73,14 @@ NOT_PHONES = frozenset({"SIL", "<sil>", "<s>", "</s>", "(NULL)", "+SPN+", "+NSN+
 #: Names of the classifier's phones, by viseme: the ARPAbet phones of its class.
 CLASS_NAMES = ("SIL", "P|B|M", "F|V", "TH|DH", "T|D", "K|G|NG|HH", "CH|JH|SH|ZH", "S|Z", "N|L",
                "R", "AA|AE|AH|AW|AY", "AX|EH|ER|EY", "IH|IY|Y", "AO|OW|OY", "UH|UW|W")  # fmt: skip
-_CLASS_VISEMES = {name: v for v, name in enumerate(CLASS_NAMES) if v}
+#: Names of the two phones a bilabial closure is split into (:func:`split_closures`): the
+#: louder part, a nasal's murmur, and the quieter, a stop's closure.
+MURMUR_NAME, CLOSURE_NAME = "M", "P|B"
+_CLASS_VISEMES = {name: v for v, name in enumerate(CLASS_NAMES) if v} | {CLOSURE_NAME: 1}
+#: A run of the classifier's bilabial of at least SPLIT_FRAMES frames whose level steps by at
+#: least SPLIT_DB between two parts of at least SPLIT_FRAMES // 2 frames is two phones.
+SPLIT_FRAMES = 6
+SPLIT_DB = 6.0
 #: Names of the phones filled in from the energy (:mod:`vtts.speech.energy`), by viseme.
 ENERGY_NAMES = {0: "SIL", 7: "~hiss", 10: "~wide", 11: "~half", 12: "~slight"}
 
@@ -248,6 +258,40 @@ def frames_to_phones(
     return merged
 
 
+def split_closures(
+    vis: np.ndarray, index: np.ndarray, names: list[str], db: np.ndarray
+) -> tuple[np.ndarray, list[str]]:
+    """Bilabial phones (viseme 1) split in two where the level steps inside them: ``m p`` in
+    "empty", ``m b`` in "number" — the lips close once, over a nasal's murmur then a stop's
+    silent closure (or the reverse), and the classifier, whose class is all of p, b and m,
+    gives one run. A phone of ``vis`` ``(n,)`` with one ``index`` ``(n,)`` over at least
+    :data:`SPLIT_FRAMES` frames is cut where the mean levels (``db`` ``(n,)``, dB) of the two
+    parts (each at least :data:`SPLIT_FRAMES` // 2 frames) differ most, when by at least
+    :data:`SPLIT_DB`; the louder part is named :data:`MURMUR_NAME`, the quieter
+    :data:`CLOSURE_NAME`. Returns the new ``index`` and ``names`` (``names`` extended); the
+    visemes do not change."""
+    index, names = index.copy(), list(names)
+    key = index.astype(np.int64) * 16 + vis
+    edges = np.concatenate([[0], np.flatnonzero(np.diff(key)) + 1, [vis.size]])
+    half = SPLIT_FRAMES // 2
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        if vis[a] != 1 or index[a] < 0 or b - a < SPLIT_FRAMES:
+            continue
+        c = np.arange(a + half, b - half + 1)
+        total = np.cumsum(np.concatenate([[0.0], db[a:b].astype(np.float64)]))
+        left = total[c - a] / (c - a)
+        right = (total[-1] - total[c - a]) / (b - c)
+        k = int(np.argmax(np.abs(left - right)))
+        if abs(left[k] - right[k]) < SPLIT_DB:
+            continue
+        cut = int(c[k])
+        louder_first = left[k] > right[k]
+        names[index[a]] = MURMUR_NAME if louder_first else CLOSURE_NAME
+        names.append(CLOSURE_NAME if louder_first else MURMUR_NAME)
+        index[cut:b] = len(names) - 1
+    return index, names
+
+
 def _cuts(db: np.ndarray, piece: int, window: int) -> list[int]:
     """Frame indices where the audio is cut into pieces of at most ``piece`` frames: the
     quietest frame of the last ``window`` frames of each."""
@@ -342,6 +386,8 @@ def recognize(
             progress(min(b * FRAME_S, duration), duration)
     index, vis = segments_to_phones(names, np.array(first), np.array(last), n)
     vis, filled = merge_energy(vis, index, frames, lv, options.fill)
+    if classifier is not None:
+        index, names = split_closures(vis, index, names, frames.db)
     phones = frames_to_phones(vis, index, names, filled, duration)
     audible = frames.db > lv.audible
     return Recognition(

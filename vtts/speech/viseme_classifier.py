@@ -134,6 +134,10 @@ class VisemeClassifier:
     min_frames    ``(15,)`` int, the fewest frames a viseme lasts
     switch        the cost of a change of viseme, in log probability
     bias          ``(15,)`` float32 added to each viseme's score (log probability)
+    boost         ``(15,)`` float32 added to each viseme's score times the network's
+                  probability of it: a lower threshold where the network hears the viseme
+                  (p b m: a closure it is fairly sure of is kept against the other
+                  recognizer's evidence)
     evidence      what a viseme another recognizer gives a frame adds to that viseme's score
                   there (PocketSphinx's, :func:`vtts.speech.recognize.recognize`)
     """
@@ -147,6 +151,7 @@ class VisemeClassifier:
     min_frames: np.ndarray
     switch: float
     bias: np.ndarray
+    boost: np.ndarray
     evidence: float
 
     def log_posteriors(self, features: np.ndarray) -> np.ndarray:
@@ -169,8 +174,9 @@ class VisemeClassifier:
         """``(ceil(n / HOP),)`` int8 smoothed visemes of ``(n,)`` float32 samples at
         :data:`RATE`; ``other``: ``(frames,)`` int visemes another recognizer gave the frames
         (each adds :attr:`evidence` to its viseme's score)."""
-        scores = self.log_posteriors(frame_features(samples))
-        scores += self.bias - self.prior_weight * self.log_prior
+        log_p = self.log_posteriors(frame_features(samples))
+        scores = log_p + self.bias - self.prior_weight * self.log_prior
+        scores += self.boost * np.exp(log_p)
         if other is not None:
             m = min(other.size, scores.shape[0])
             scores[np.arange(m), np.asarray(other[:m], int)] += self.evidence
@@ -244,6 +250,7 @@ def load_classifier(path: Path | None = None) -> VisemeClassifier:
                 min_frames=z["min_frames"].astype(int),
                 switch=float(z["switch"]),
                 bias=z["bias"].astype(np.float32),
+                boost=z["boost"].astype(np.float32),
                 evidence=float(z["evidence"]),
             )
     except (OSError, KeyError, ValueError) as e:
