@@ -99,6 +99,31 @@ def test_a_smile_with_teeth_is_fitted_as_expression_and_the_neutral_mouth_is_shu
     assert gap[0] < 0.5 * gap[1]
 
 
+def test_the_teeth_meet_the_teeth_the_photo_shows(fitted):
+    """The astronaut shows her upper teeth: the model's are moved down until, at the photo's
+    view, their tips meet the lower edge of hers, and the photo paints them; a shut mouth
+    shows no teeth to place."""
+    from vtts.fit.teeth import MIDDLE, teeth_mask
+
+    landmarks = fitted.face.landmarks
+    teeth = teeth_mask(fitted.photo, landmarks)
+    assert teeth is not None
+    assert fitted.teeth is not None and fitted.teeth < 0
+    inner = landmarks[list(LIPS_INNER), :2]
+    mid, half = (inner[:, 0].min() + inner[:, 0].max()) / 2, MIDDLE * np.ptp(inner[:, 0]) / 2
+    cols = [c for c in range(int(mid - half) + 1, int(mid + half)) if teeth[:, c].any()]
+    edge = np.median([np.flatnonzero(teeth[:, c]).max() + 1.0 for c in cols])
+    upper = np.asarray(fitted.scene.node("UPPER_TEETH").expand()["coord"].expand()["point"])
+    xy = fitted.shape.camera.project(upper)
+    tips = xy[np.abs(xy[:, 0] - mid) <= half, 1].max()
+    assert abs(tips - edge) < 1.0, (tips, edge)
+    # the lips drawn over the opening: no teeth
+    shut = Image.fromarray(fitted.photo.copy())
+    lip = tuple(int(v) for v in fitted.photo[int(landmarks[17, 1]), int(landmarks[17, 0])])
+    ImageDraw.Draw(shut).polygon([tuple(p) for p in inner], fill=lip)
+    assert teeth_mask(np.asarray(shut), landmarks) is None
+
+
 def test_the_hair_shell_grows_to_the_silhouette_and_keeps_the_seam(fitted):
     scene = copy.deepcopy(fitted.scene)
     cam = fitted.shape.camera
