@@ -363,13 +363,43 @@ def test_glasses_are_told_from_bare_skin():
         assert (score >= 2 * GLASSES) if wears else (score < GLASSES / 2), (clip, score)
 
 
-def test_a_photo_with_glasses_is_fitted_with_a_warning(astronaut, fitted):
-    """Glasses drawn on the astronaut: the head is fitted, with a warning that they are not
-    modelled, and the report says so; the photo without them gives no warning."""
-    from vtts.fit.glasses import GLASSES
+def test_the_frame_is_found_and_filled_from_the_skin_around_it(astronaut):
+    """Glasses drawn on the astronaut (dark rims two pixels wide): the rims' mask covers the
+    frame's pixels and little beyond them, and filling them gives back the skin the frame
+    hides, nearly as the photo without glasses shows it."""
+    from scipy import ndimage
 
+    from vtts.fit.glasses import rim_mask, without_rims
+
+    image = glasses(astronaut)
+    frame = np.abs(image.astype(int) - astronaut.astype(int)).sum(axis=2) > 60
+    rims = rim_mask(image, detect_faces(image)[0].landmarks)
+    assert (rims & frame).sum() >= 0.9 * frame.sum()
+    assert (rims & ~ndimage.binary_dilation(frame, iterations=3)).sum() <= 0.05 * rims.sum()
+    filled = without_rims(image, rims)
+    assert (filled[~rims] == image[~rims]).all()
+    off = np.abs(filled.astype(int) - astronaut.astype(int))[frame].mean()
+    assert off < 0.25 * np.abs(image.astype(int) - astronaut.astype(int))[frame].mean()
+
+
+def test_a_photo_with_glasses_is_fitted_with_a_warning_and_no_frame(astronaut, fitted,
+                                                                    tmp_path):  # fmt: skip
+    """Glasses drawn on the astronaut: the head is fitted, with a warning that they are not
+    modelled, and the report says so; its texture has no frame: at the photo's view the head
+    draws the skin where the photo shows the rims. The photo without them gives no
+    warning."""
+    from vtts.fit.glasses import GLASSES
+    from vtts.fit.report import photo_view
+
+    image = glasses(astronaut)
     with pytest.warns(Warning, match="glasses") as caught:
-        head = fit_photo(glasses(astronaut))
+        head = fit_photo(image)
     assert head.glasses >= GLASSES
     assert sum("glasses" in str(w.message) for w in caught) == 1
     assert fitted.glasses < GLASSES
+    drawn, masks = photo_view(head.model(tmp_path), image, head.expression)
+    frame = (np.abs(image.astype(int) - astronaut.astype(int)).sum(axis=2) > 60) & masks["skin"]
+    assert frame.sum() > 50
+    to_skin = np.abs(drawn.astype(int) - astronaut.astype(int))[frame].mean()
+    to_frame = np.abs(drawn.astype(int) - image.astype(int))[frame].mean()
+    assert to_skin < 0.3 * to_frame, (to_skin, to_frame)

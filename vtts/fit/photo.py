@@ -38,7 +38,7 @@ from vtts.fit.expression import (
 )
 from vtts.fit.frame import FRAME_APPEARANCES, frame_texture, project_frame
 from vtts.fit.generic import GenericHead, generic_head, landmark_map
-from vtts.fit.glasses import GLASSES, glasses_score
+from vtts.fit.glasses import GLASSES, glasses_score, rim_mask, without_rims
 from vtts.fit.hair import HairShell, fit_hair_shell
 from vtts.fit.head import (
     fitted_fapu,
@@ -488,6 +488,7 @@ def fit_photo(
     set_photo_expression(scene, expression)
     timings["head"] = time.perf_counter() - t
     hair, trust, skin, glasses, teeth = None, None, None, None, None
+    painted = image  # what the texture is painted from
     if portrait:
         t = time.perf_counter()
         glasses = glasses_score(image, chosen.landmarks)
@@ -495,12 +496,14 @@ def fit_photo(
             warnings.warn(
                 VttsWarning(
                     "the photo shows glasses: they are not modelled — the head's shape is fitted "
-                    "to the face, but their frame and the lenses' tint are painted on the skin "
-                    "around the eyes and turn with it; a photo without glasses gives a better "
-                    "head"
+                    "to the face and the frame is kept off the skin where it is found (the skin "
+                    "around it fills it), but the lenses' tint and what the frame hides stay "
+                    "painted around the eyes; a photo without glasses gives a better head"
                 ),
                 stacklevel=2,
             )
+            # the texture is painted from the photo without the frame (vtts.fit.glasses)
+            painted = without_rims(image, rim_mask(image, chosen.landmarks))
         matte(scene)
         trust = person_probability(image)
         hair = fit_hair_shell(scene, shape.camera, trust)
@@ -513,7 +516,7 @@ def fit_photo(
             photo_parts = (*photo_parts, *(n for n in TEETH if n not in photo_parts))
         timings["hair"] = time.perf_counter() - t
     t = time.perf_counter()
-    atlas, seen = _texture(g, scene, tables, shape, image, chosen, photo_parts, expression,
+    atlas, seen = _texture(g, scene, tables, shape, painted, chosen, photo_parts, expression,
                            trust, skin)  # fmt: skip
     timings["texture"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t0
