@@ -175,17 +175,13 @@ def _circular_path(cost: np.ndarray, barred: np.ndarray) -> np.ndarray:
     c = np.concatenate([np.where(barred, -1e9, cost)] * 2)
     score = c[0].copy()
     back = np.zeros(c.shape, np.int64)
-    idx = np.arange(n)
+    # each sample's reachable predecessors, (n, 2 RIM_STEP + 1)
+    near = np.clip(np.arange(n)[:, None] + np.arange(-RIM_STEP, RIM_STEP + 1)[None], 0, n - 1)
+    rows = np.arange(n)
     for i in range(1, len(c)):
-        best = np.full(n, -np.inf)
-        arg = np.zeros(n, np.int64)
-        for step in range(-RIM_STEP, RIM_STEP + 1):
-            j = np.clip(idx + step, 0, n - 1)
-            better = score[j] > best
-            best = np.where(better, score[j], best)
-            arg = np.where(better, j, arg)
-        score = best + c[i]
-        back[i] = arg
+        k = np.argmax(score[near], axis=1)
+        back[i] = near[rows, k]
+        score = score[back[i]] + c[i]
     path = np.zeros(len(c), np.int64)
     path[-1] = int(np.argmax(score))
     for i in range(len(c) - 1, 0, -1):
