@@ -159,6 +159,7 @@ def test_the_fit_at_the_photo_view_gives_the_photo_back(fitted, tmp_path):
     assert figs["psnr_db"]["skin"] > 25
     assert figs["psnr_db"]["head"] > 19
     assert figs["photo_expression_faps"]
+    assert figs["teeth_moved"] == fitted.teeth < 0  # her teeth, placed (vtts.fit.teeth)
     # the written head keeps the photo's expression
     from vtts.fit.photo import photo_expression
 
