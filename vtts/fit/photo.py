@@ -497,8 +497,8 @@ def fit_photo(
                 VttsWarning(
                     "the photo shows glasses: they are not modelled — the head's shape is fitted "
                     "to the face and the frame is kept off the skin where it is found (the skin "
-                    "around it fills it), but the lenses' tint and what the frame hides stay "
-                    "painted around the eyes; a photo without glasses gives a better head"
+                    "around it fills it), but the lenses' tint and reflections stay painted "
+                    "around the eyes; a photo without glasses gives a better head"
                 ),
                 stacklevel=2,
             )
