@@ -99,6 +99,33 @@ def test_a_smile_with_teeth_is_fitted_as_expression_and_the_neutral_mouth_is_shu
     assert gap[0] < 0.5 * gap[1]
 
 
+def test_the_teeth_meet_the_teeth_the_photo_shows(fitted):
+    """The astronaut shows her upper teeth: the model's are moved down until, at the photo's
+    view, their tips meet the lower edge of hers, and widened to her mouth's opening; a shut
+    mouth shows no teeth to place."""
+    from vtts.fit.teeth import MIDDLE, teeth_mask
+
+    landmarks = fitted.face.landmarks
+    teeth = teeth_mask(fitted.photo, landmarks)
+    assert teeth is not None
+    assert fitted.teeth is not None and fitted.teeth < 0
+    inner = landmarks[list(LIPS_INNER), :2]
+    mid, half = (inner[:, 0].min() + inner[:, 0].max()) / 2, MIDDLE * np.ptp(inner[:, 0]) / 2
+    cols = [c for c in range(int(mid - half) + 1, int(mid + half)) if teeth[:, c].any()]
+    edge = np.median([np.flatnonzero(teeth[:, c]).max() + 1.0 for c in cols])
+    upper = np.asarray(fitted.scene.node("UPPER_TEETH").expand()["coord"].expand()["point"])
+    xy = fitted.shape.camera.project(upper)
+    tips = xy[np.abs(xy[:, 0] - mid) <= half, 1].max()
+    assert abs(tips - edge) < 1.0, (tips, edge)
+    # and as wide as her mouth's opening between the inner lip corners
+    assert np.ptp(xy[:, 0]) == pytest.approx(np.ptp(inner[:, 0]), rel=0.03)
+    # the lips drawn over the opening: no teeth
+    shut = Image.fromarray(fitted.photo.copy())
+    lip = tuple(int(v) for v in fitted.photo[int(landmarks[17, 1]), int(landmarks[17, 0])])
+    ImageDraw.Draw(shut).polygon([tuple(p) for p in inner], fill=lip)
+    assert teeth_mask(np.asarray(shut), landmarks) is None
+
+
 def test_the_hair_shell_grows_to_the_silhouette_and_keeps_the_seam(fitted):
     scene = copy.deepcopy(fitted.scene)
     cam = fitted.shape.camera
@@ -134,6 +161,7 @@ def test_the_fit_at_the_photo_view_gives_the_photo_back(fitted, tmp_path):
     assert figs["psnr_db"]["skin"] > 25
     assert figs["psnr_db"]["head"] > 19
     assert figs["photo_expression_faps"]
+    assert figs["teeth_moved"] == fitted.teeth < 0  # her teeth, placed (vtts.fit.teeth)
     # the written head keeps the photo's expression
     from vtts.fit.photo import photo_expression
 
@@ -338,13 +366,43 @@ def test_glasses_are_told_from_bare_skin():
         assert (score >= 2 * GLASSES) if wears else (score < GLASSES / 2), (clip, score)
 
 
-def test_a_photo_with_glasses_is_fitted_with_a_warning(astronaut, fitted):
-    """Glasses drawn on the astronaut: the head is fitted, with a warning that they are not
-    modelled, and the report says so; the photo without them gives no warning."""
-    from vtts.fit.glasses import GLASSES
+def test_the_frame_is_found_and_filled_from_the_skin_around_it(astronaut):
+    """Glasses drawn on the astronaut (dark rims two pixels wide): the rims' mask covers the
+    frame's pixels and little beyond them, and filling them gives back the skin the frame
+    hides, nearly as the photo without glasses shows it."""
+    from scipy import ndimage
 
+    from vtts.fit.glasses import rim_mask, without_rims
+
+    image = glasses(astronaut)
+    frame = np.abs(image.astype(int) - astronaut.astype(int)).sum(axis=2) > 60
+    rims = rim_mask(image, detect_faces(image)[0].landmarks)
+    assert (rims & frame).sum() >= 0.9 * frame.sum()
+    assert (rims & ~ndimage.binary_dilation(frame, iterations=3)).sum() <= 0.05 * rims.sum()
+    filled = without_rims(image, rims)
+    assert (filled[~rims] == image[~rims]).all()
+    off = np.abs(filled.astype(int) - astronaut.astype(int))[frame].mean()
+    assert off < 0.25 * np.abs(image.astype(int) - astronaut.astype(int))[frame].mean()
+
+
+def test_a_photo_with_glasses_is_fitted_with_a_warning_and_no_frame(astronaut, fitted,
+                                                                    tmp_path):  # fmt: skip
+    """Glasses drawn on the astronaut: the head is fitted, with a warning that they are not
+    modelled, and the report says so; its texture has no frame: at the photo's view the head
+    draws the skin where the photo shows the rims. The photo without them gives no
+    warning."""
+    from vtts.fit.glasses import GLASSES
+    from vtts.fit.report import photo_view
+
+    image = glasses(astronaut)
     with pytest.warns(Warning, match="glasses") as caught:
-        head = fit_photo(glasses(astronaut))
+        head = fit_photo(image)
     assert head.glasses >= GLASSES
     assert sum("glasses" in str(w.message) for w in caught) == 1
     assert fitted.glasses < GLASSES
+    drawn, masks = photo_view(head.model(tmp_path), image, head.expression)
+    frame = (np.abs(image.astype(int) - astronaut.astype(int)).sum(axis=2) > 60) & masks["skin"]
+    assert frame.sum() > 50
+    to_skin = np.abs(drawn.astype(int) - astronaut.astype(int))[frame].mean()
+    to_frame = np.abs(drawn.astype(int) - image.astype(int))[frame].mean()
+    assert to_skin < 0.3 * to_frame, (to_skin, to_frame)

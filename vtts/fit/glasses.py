@@ -13,15 +13,23 @@ side (an edge, such as a fringe's, stands out of neither). Its largest size with
 is the score; a frame's bridge scores 5–130, bare skin under 4 (docs/fitting.md, "Glasses").
 
 A fitted head does not model glasses: :func:`vtts.fit.photo.fit_photo` warns when the photo
-shows them (their frame is then painted on the skin: finding the whole rim — thin, clear
-plastic or metal, broken by reflections — well enough to keep it off is not done).
+shows them, and keeps their frame off the skin. The frame's pixels (:func:`rim_mask`) are thin
+lines, dark or light, around the eyes: where a pixel stands out of its neighbourhood (a grey
+closing or opening :data:`SCALE` ``e`` wide), inside the face's oval and off the eyes and the
+brows, in runs longer than a crease or the skin's grain; and, since a clear rim's contrast
+fades along it, each lens's rim is also followed as a smooth closed ring around its eye
+(:func:`rim_ring`). Those pixels are filled from the skin around them (:func:`without_rims`)
+before the texture is painted: turned, the head shows no frame on the cheeks and the nose. The
+lenses' tint and reflections stay, and so does what the frame hid.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from PIL import Image
+from PIL import Image, ImageDraw
 from scipy import ndimage
+
+from vtts.fit.landmarks import FACE_OVAL, LEFT_EYE, LEFT_EYEBROW, RIGHT_EYE, RIGHT_EYEBROW
 
 #: The band's half width across the face (eye distances).
 BAND = 0.07
@@ -95,3 +103,170 @@ def glasses_score(image: np.ndarray, landmarks: np.ndarray) -> float:
 def wears_glasses(image: np.ndarray, landmarks: np.ndarray) -> bool:
     """Whether the face of ``landmarks`` in ``image`` wears glasses (:func:`glasses_score`)."""
     return glasses_score(image, landmarks) >= GLASSES
+
+
+#: Where a frame's rims are looked for, in the face's frame (eye distances from the eyes'
+#: midpoint): across, and from above the eyes' line to below it. Within it, the eyes and the
+#: brows (:data:`KEEP_OUT` beyond their contours) and whatever lies outside the face's oval
+#: are not a frame.
+REGION_ACROSS, REGION_DOWN = 1.25, (-0.4, 0.55)
+KEEP_OUT = 0.05
+#: A rim's pixel stands out of its neighbourhood (a grey closing or opening :data:`SCALE` ``e``
+#: wide) by this many robust standard deviations of the region's values, and at least
+#: :data:`LEAST` grey levels.
+RIM_SIGMAS = 4.0
+#: Weaker line pixels (this many robust standard deviations) count where they join a rim's
+#: pixel: a rim's contrast varies along it (reflections, the lens's edge over skin or eye).
+WEAK_SIGMAS = 2.0
+#: A frame's line is long: a connected run of rim pixels shorter than this (eye distances,
+#: its longer side) is the skin's texture or a crease.
+RIM_LENGTH = 0.25
+#: Each lens's rim is also looked for as a ring around its eye (:func:`rim_ring`): between
+#: these radii (eye distances), in this many directions, moving at most this many radius
+#: samples (about a pixel each) from one direction to the next; kept where it follows line
+#: pixels (:data:`WEAK_SIGMAS`) over this share of the directions.
+RIM_RADII = (0.22, 0.8)
+RIM_DIRECTIONS, RIM_STEP = 96, 1
+RIM_SHOWN = 0.5
+#: The harmonics of the smooth curve a rim's radius follows around the eye, and how close
+#: (a share of the radii searched) the ring stays to it.
+HARMONICS, NEAR_CURVE = 2, 0.06
+#: Pixels the frame's mask is grown by: the photo's blur and the rims' faint edges.
+GROW = 1
+
+
+def rim_ring(score: np.ndarray, centre: np.ndarray, e: float) -> np.ndarray | None:
+    """The likeliest rim around an eye: ``(RIM_DIRECTIONS, 2)`` pixels (x, y), a point per
+    direction around ``centre (2,)``, through ``score (H, W)`` (how plainly each pixel shows a
+    line), ``e`` the eye distance (pixels); None where it does not follow lines over at least
+    :data:`RIM_SHOWN` of the directions. The closed path of the largest total score that moves
+    at most :data:`RIM_STEP` samples outward or inward from one direction to the next; then its
+    radius fitted by the circle's first :data:`HARMONICS` (the tenth of directions off it most,
+    three times, left out: where it strayed to a crease) and the path found again within
+    :data:`NEAR_CURVE` of that smooth curve."""
+    n_r = max(int(round((RIM_RADII[1] - RIM_RADII[0]) * e)), 8)  # about a pixel apart
+    radii = np.linspace(RIM_RADII[0] * e, RIM_RADII[1] * e, n_r)
+    theta = np.arange(RIM_DIRECTIONS) / RIM_DIRECTIONS * 2 * np.pi
+    x = centre[0] + np.cos(theta)[:, None] * radii[None]
+    y = centre[1] + np.sin(theta)[:, None] * radii[None]
+    cost = ndimage.map_coordinates(score, [y - 0.5, x - 0.5], order=1, mode="constant")
+    path = _circular_path(cost, np.zeros(cost.shape, bool))
+    basis = np.stack([np.ones_like(theta)] + [f(m * theta) for m in range(1, HARMONICS + 1)
+                                             for f in (np.cos, np.sin)], 1)  # fmt: skip
+    keep = np.ones(RIM_DIRECTIONS, bool)
+    for _ in range(3):
+        coef, *_ = np.linalg.lstsq(basis[keep], path[keep].astype(float), rcond=None)
+        off = np.abs(basis @ coef - path)
+        keep = off <= np.quantile(off, 0.9)
+    far = np.abs(np.arange(n_r)[None] - (basis @ coef)[:, None]) > NEAR_CURVE * n_r
+    path = _circular_path(cost, far)
+    if np.mean(cost[np.arange(RIM_DIRECTIONS), path] >= WEAK_SIGMAS) < RIM_SHOWN:
+        return None
+    r = radii[path]
+    return np.stack([centre[0] + np.cos(theta) * r, centre[1] + np.sin(theta) * r], 1)
+
+
+def _circular_path(cost: np.ndarray, barred: np.ndarray) -> np.ndarray:
+    """``(D,)`` the index (along axis 1 of ``cost (D, R)``) of the closed path around the
+    ``D`` directions of the largest total cost, moving at most :data:`RIM_STEP` per direction
+    and never onto ``barred (D, R)``: dynamic programming around the circle twice, the second
+    lap's path (whose start the first lap settled)."""
+    d, n = cost.shape
+    c = np.concatenate([np.where(barred, -1e9, cost)] * 2)
+    score = c[0].copy()
+    back = np.zeros(c.shape, np.int64)
+    # each sample's reachable predecessors, (n, 2 RIM_STEP + 1)
+    near = np.clip(np.arange(n)[:, None] + np.arange(-RIM_STEP, RIM_STEP + 1)[None], 0, n - 1)
+    rows = np.arange(n)
+    for i in range(1, len(c)):
+        k = np.argmax(score[near], axis=1)
+        back[i] = near[rows, k]
+        score = score[back[i]] + c[i]
+    path = np.zeros(len(c), np.int64)
+    path[-1] = int(np.argmax(score))
+    for i in range(len(c) - 1, 0, -1):
+        path[i - 1] = back[i, path[i]]
+    return path[d:]
+
+
+def rim_mask(image: np.ndarray, landmarks: np.ndarray) -> np.ndarray:
+    """``(H, W) bool``: the pixels of ``image (H, W, 3) uint8`` that show a glasses frame on the
+    face of ``landmarks (468, ≥2)`` (pixels): thin lines, dark or light (metal, plastic and
+    clear rims), around the eyes, inside the face's oval and off the eyes and brows, in long
+    connected runs (see the constants above), grown by a pixel (the photo's blur). Call it for
+    a photo that shows glasses (:func:`wears_glasses`): a bare face has some lines there too
+    (creases, the nose's edges), and those would be taken. Empty for a face too small to
+    tell."""
+    h, w = image.shape[:2]
+    centre, across, down, e = _frame(landmarks)
+    if e < 12:
+        return np.zeros((h, w), bool)
+    pts = np.asarray(landmarks, np.float64)[:, :2]
+    grey = _grey(image)
+    side = 2 * max(1, round(SCALE * e)) + 1
+    line = np.maximum(ndimage.grey_closing(grey, size=(side, side)) - grey,
+                      grey - ndimage.grey_opening(grey, size=(side, side)))  # fmt: skip
+    yy, xx = np.mgrid[:h, :w]
+    rel = np.stack([xx + 0.5 - centre[0], yy + 0.5 - centre[1]], -1)
+    u, v = rel @ across / e, rel @ down / e
+    region = (np.abs(u) <= REGION_ACROSS) & (v >= REGION_DOWN[0]) & (v <= REGION_DOWN[1])
+    face = Image.new("L", (w, h), 0)
+    ImageDraw.Draw(face).polygon([tuple(p) for p in pts[list(FACE_OVAL)] - 0.5], fill=1)
+    out = Image.new("L", (w, h), 0)
+    draw = ImageDraw.Draw(out)
+    grow = max(1, round(KEEP_OUT * e))
+    for contour in (LEFT_EYE, RIGHT_EYE, LEFT_EYEBROW, RIGHT_EYEBROW):
+        poly = [tuple(p) for p in pts[list(contour)] - 0.5]
+        draw.polygon(poly, fill=1, outline=1, width=grow)
+        draw.line([*poly, poly[0]], fill=1, width=2 * grow + 1)
+    region &= np.asarray(face, bool) & ~np.asarray(out, bool)
+    if not region.any():
+        return np.zeros((h, w), bool)
+    values = line[region]
+    med = float(np.median(values))
+    spread = 1.4826 * float(np.median(np.abs(values - med)))
+    # hysteresis: the runs of weaker line pixels that hold a strong one
+    strong = region & (line >= max(med + RIM_SIGMAS * max(spread, FLOOR), LEAST))
+    weak = region & (line >= max(med + WEAK_SIGMAS * max(spread, FLOOR), LEAST))
+    labels, n = ndimage.label(weak, structure=np.ones((3, 3), bool))
+    if n == 0:
+        return weak
+    held = np.zeros(n + 1, bool)
+    held[np.unique(labels[strong])] = True
+    long = np.zeros(n + 1, bool)
+    for k, box in enumerate(ndimage.find_objects(labels), start=1):
+        long[k] = max(box[0].stop - box[0].start, box[1].stop - box[1].start) >= RIM_LENGTH * e
+    long[0] = False
+    rims = (long & held)[labels]
+    # each lens's rim as a closed curve around its eye, where the runs above leave gaps (a clear
+    # rim's contrast fades along it): the likeliest smooth ring of line pixels
+    score = np.clip((line - med) / max(spread, FLOOR), 0.0, 10.0) * region
+    for eye in (pts[[33, 133]].mean(axis=0), pts[[362, 263]].mean(axis=0)):
+        ring = rim_ring(score, eye, e)
+        if ring is None:
+            continue
+        draw = Image.new("L", (w, h), 0)
+        ImageDraw.Draw(draw).line([*map(tuple, ring - 0.5), tuple(ring[0] - 0.5)], fill=1,
+                                  width=side)  # fmt: skip
+        rims |= np.asarray(draw, bool) & weak
+    return ndimage.binary_dilation(rims, iterations=GROW)
+
+
+def without_rims(image: np.ndarray, rims: np.ndarray) -> np.ndarray:
+    """``image (H, W, 3) uint8`` with the pixels of ``rims (H, W) bool`` (:func:`rim_mask`)
+    filled from the pixels around them (pull-push interpolation,
+    :func:`vtts.fit.texture.pull_push`, over the rims' box and a margin): the skin the frame
+    hides, as the skin beside it shows, so that the texture takes no frame. A copy."""
+    from vtts.fit.texture import pull_push
+
+    out = np.array(image, np.uint8, copy=True)
+    if not rims.any():
+        return out
+    rows, cols = np.nonzero(rims)
+    margin = 8
+    r0, r1 = max(rows.min() - margin, 0), min(rows.max() + margin + 1, rims.shape[0])
+    c0, c1 = max(cols.min() - margin, 0), min(cols.max() + margin + 1, rims.shape[1])
+    hole = rims[r0:r1, c0:c1]
+    filled = pull_push(out[r0:r1, c0:c1].astype(np.float32), (~hole).astype(np.float32))
+    out[r0:r1, c0:c1][hole] = np.clip(filled[hole] + 0.5, 0, 255).astype(np.uint8)
+    return out

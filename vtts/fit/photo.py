@@ -38,7 +38,7 @@ from vtts.fit.expression import (
 )
 from vtts.fit.frame import FRAME_APPEARANCES, frame_texture, project_frame
 from vtts.fit.generic import GenericHead, generic_head, landmark_map
-from vtts.fit.glasses import GLASSES, glasses_score
+from vtts.fit.glasses import GLASSES, glasses_score, rim_mask, without_rims
 from vtts.fit.hair import HairShell, fit_hair_shell
 from vtts.fit.head import (
     fitted_fapu,
@@ -67,6 +67,7 @@ from vtts.fit.shape import (
     fit_shape,
     focal_length,
 )
+from vtts.fit.teeth import TEETH, place_teeth
 from vtts.fit.texture import (
     ATLAS_SIZE,
     EAR_TILES,
@@ -150,6 +151,9 @@ class FittedHead:
     glasses    how plainly the photo shows glasses (:func:`~vtts.fit.glasses.glasses_score`;
                from :data:`~vtts.fit.glasses.GLASSES` on: glasses, with a warning), None for
                a head made for a video
+    teeth      how far the upper teeth were moved up (model units, negative: down) to meet the
+               teeth the photo's open mouth shows (:func:`~vtts.fit.teeth.place_teeth`), None
+               where it shows none (or for a head made for a video)
     """
 
     scene: Scene
@@ -166,6 +170,7 @@ class FittedHead:
     expression: dict[int, float] = field(default_factory=dict)
     hair: HairShell | None = None
     glasses: float | None = None
+    teeth: float | None = None
 
     def write(self, path: str | Path) -> list[Path]:
         """Write ``PATH.wrl`` (the scene), ``PATH.adt`` (its tables), ``PATH-face.png`` (its
@@ -482,7 +487,8 @@ def fit_photo(
                                 expression)  # fmt: skip
     set_photo_expression(scene, expression)
     timings["head"] = time.perf_counter() - t
-    hair, trust, skin, glasses = None, None, None, None
+    hair, trust, skin, glasses, teeth = None, None, None, None, None
+    painted = image  # what the texture is painted from
     if portrait:
         t = time.perf_counter()
         glasses = glasses_score(image, chosen.landmarks)
@@ -490,26 +496,33 @@ def fit_photo(
             warnings.warn(
                 VttsWarning(
                     "the photo shows glasses: they are not modelled — the head's shape is fitted "
-                    "to the face, but their frame and the lenses' tint are painted on the skin "
-                    "around the eyes and turn with it; a photo without glasses gives a better "
-                    "head"
+                    "to the face and the frame is kept off the skin where it is found (the skin "
+                    "around it fills it), but the lenses' tint and reflections stay painted "
+                    "around the eyes; a photo without glasses gives a better head"
                 ),
                 stacklevel=2,
             )
+            # the texture is painted from the photo without the frame (vtts.fit.glasses)
+            painted = without_rims(image, rim_mask(image, chosen.landmarks))
         matte(scene)
         trust = person_probability(image)
         hair = fit_hair_shell(scene, shape.camera, trust)
         if CUT_NECK and NECK in scene.defs and NECK in photo_parts:
             _cut_at_collar(scene, tables, shape, image, expression)
         skin = skin_trust((w, h), chosen.landmarks, mouth=not shut)
+        teeth = None if shut else place_teeth(scene, shape.camera, image, chosen.landmarks)
+        if teeth is not None:
+            # the photo paints the teeth where they show, placed where it shows them
+            photo_parts = (*photo_parts, *(n for n in TEETH if n not in photo_parts))
         timings["hair"] = time.perf_counter() - t
     t = time.perf_counter()
-    atlas, seen = _texture(g, scene, tables, shape, image, chosen, photo_parts, expression,
+    atlas, seen = _texture(g, scene, tables, shape, painted, chosen, photo_parts, expression,
                            trust, skin)  # fmt: skip
     timings["texture"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t0
     return FittedHead(scene, tables, atlas, shape, chosen, image, len(faces), seen, personality,
-                      timings, expression=expression, hair=hair, glasses=glasses)  # fmt: skip
+                      timings, expression=expression, hair=hair, glasses=glasses,
+                      teeth=teeth)  # fmt: skip
 
 
 #: How the first WorldInfo's info line that holds the photo's expression begins.

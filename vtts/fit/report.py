@@ -6,7 +6,9 @@
 - ``turned.png``: the model turned 30° to its right, facing, and 30° to its left;
 - ``figures.json``: landmark reprojection error (pixels and % of the eye distance), the face
   PSNR between the photo and the rendering over the face's pixels, whether the photo shows
-  glasses (:mod:`vtts.fit.glasses`), timings and file sizes.
+  glasses (:mod:`vtts.fit.glasses`), how far the upper teeth were moved to the teeth the photo
+  shows (:mod:`vtts.fit.teeth`; model units, + up, null where none were), timings and file
+  sizes.
 """
 
 from __future__ import annotations
@@ -95,6 +97,7 @@ def figures(model: FaceModel, head, photo: np.ndarray) -> dict:
         if head.glasses is None
         else {"score": head.glasses, "found": head.glasses >= GLASSES},
         "photo_expression_faps": {str(k): v for k, v in head.expression.items()},
+        "teeth_moved": head.teeth,
         "focal_px": shape.focal,
         "skin_seen_by_photo": head.seen,
         "seconds": head.timings,

@@ -68,10 +68,13 @@ GRAZING = (0.2, 0.5)
 #: or the ear's own edge, seen nearly edge-on; the grazing weight falls off only at
 #: :data:`RIM_GRAZING`.
 RIM_PARTS = ("HAIR", "L_EAR", "R_EAR")
-RIM_GRAZING = (0.02, 0.1)
+RIM_GRAZING = (0.0, 0.02)
 #: How far behind the surface the photo's pixel shows may be for the texel to be seen (model
 #: units; the face is about 1.2 wide).
 DEPTH_TOLERANCE = 0.01
+#: At a grazing view a pixel spans a range of depths: the tolerance grows by the depth across
+#: half a pixel there, up to this much more (model units).
+GRAZING_DEPTH = 0.05
 #: The grey (sRGB) the shading is measured with: bright enough to be above the 8-bit floor
 #: everywhere, dark enough never to saturate.
 PROBE_GREY = 0.5
@@ -355,7 +358,11 @@ def project_skin(
     cosine = -np.einsum("ij,ij->i", texels.normals, ray) / dist
     col = np.clip(xy[:, 0].astype(np.int64), 0, w - 1)
     row = np.clip(xy[:, 1].astype(np.int64), 0, h - 1)
-    seen = inside & texels.photo & (cosine > 0) & (dist <= depth[row, col] + DEPTH_TOLERANCE)
+    # half a pixel's footprint across the surface, in depth: a grazing surface's texels lie
+    # deeper than the depth the pixel's centre shows
+    slope = np.sqrt(np.maximum(1 - cosine**2, 0.0)) / np.maximum(cosine, 1e-3)
+    tolerance = DEPTH_TOLERANCE + np.minimum(0.5 * dist / camera.fx * slope, GRAZING_DEPTH)
+    seen = inside & texels.photo & (cosine > 0) & (dist <= depth[row, col] + tolerance)
     idx = np.flatnonzero(seen)
     taps = Taps.at((h, w), xy[idx])
     a = taps(gain)
