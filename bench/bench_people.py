@@ -25,7 +25,8 @@ accurate mode (the default for a file; every second frame, ``--step 2``: see
 The **steady speed** is the frames estimated after the anchor frame over the wall time they took
 (one estimate to the next, as they are handed on): choosing the anchor, fitting the head, the
 frames tracked backwards from the anchor (handed on all at once) and the texturing afterwards
-are left out. Wall time: the figure depends on what else the machine runs.
+are left out. Wall time: the figure depends on what else the machine runs; beside it, the CPU
+time (process time, all threads: the renderer's too) per steady frame, which depends on it less.
 
 Rows per clip and mode, then summary rows: the median and the worst clip of the
 **development** part (Akiyo, Carphone, ``lp_d0``, ``lp_d3``, ``lp_d12``, ``lp_d13``) and,
@@ -110,6 +111,7 @@ class Measured:
     kbps: float = math.nan
     steady_fps: float = math.nan
     steady_frames: int = 0
+    steady_cpu_ms: float = math.nan  # process time per steady frame
     overall_fps: float = math.nan
     analyzed: int = 0
     worst: tuple | None = None  # (camera index, FrameMeasure, rgba)
@@ -225,19 +227,22 @@ def _clip(clip: str, mode: str, tracking: bool, step: int, limit: int | None,
     h, w = frames[0].shape[:2]
     result = Measured(clip, mode, (w, h))
     stamps: list[float] = []
+    cpu: list[float] = []
     with tempfile.TemporaryDirectory(prefix="vtts-bench-people-") as tmp:
         t0 = time.perf_counter()
         anchor = choose_anchor(frames, fps, len(frames), step=step)
         options = {} if unknowns is None else {"unknowns": unknowns}
         tracked = track(frames, fps=fps, model_path=Path(tmp) / f"{clip}-model.wrl", step=step,
                         tracking=tracking, anchor=anchor, **options,
-                        on_estimate=lambda _fe: stamps.append(time.perf_counter()))  # fmt: skip
+                        on_estimate=lambda _fe: (stamps.append(time.perf_counter()),
+                                                 cpu.append(time.process_time())))  # fmt: skip
         # the frames handed on after the anchor's batch (anchor and frames before it) came
         # one by one: the steady part
         first = sum(1 for fe in tracked.analysis.frames if fe.index <= (anchor or 0))
         if len(stamps) - first >= 2:
             result.steady_frames = len(stamps) - first
             result.steady_fps = result.steady_frames / (stamps[-1] - stamps[first - 1])
+            result.steady_cpu_ms = (cpu[-1] - cpu[first - 1]) / result.steady_frames * 1000
         result.analyzed = len(tracked.analysis.frames)
         result.restarts, result.held = len(tracked.restarts), len(tracked.held)
         model = retexture(tracked, frames, (w, h))  # the head loaded again from its files
@@ -357,6 +362,8 @@ def _clip_rows(r: Measured, step: int) -> list[dict]:
     rows.append(_row(f"{base}: steady speed ({r.steady_frames} frames after the anchor, "
                      "fit excluded, wall)", _round(r.steady_fps), "frames/s",
                      f">= {target:g}", fps_ok))  # fmt: skip
+    rows.append(_row(f"{base}: CPU per steady frame (process time, all threads)",
+                     _round(r.steady_cpu_ms), "ms"))  # fmt: skip
     rows.append(_row(f"{base}: analysis speed (anchor, fit, texture and coding included, "
                      "wall)", _round(r.overall_fps), "frames/s"))  # fmt: skip
     rgb = np.array(r.rgb_psnr, np.float64)

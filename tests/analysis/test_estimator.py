@@ -95,6 +95,38 @@ def test_the_motion_of_the_model_matches_finite_differences(cybatt):
         assert np.abs(jac[:, :, j] - fd).max() < 1e-3 * scale, f"unknown {u}"
 
 
+def test_a_geometry_posed_again_and_again_gives_a_fresh_ones_numbers(cybatt):
+    """The posed Transforms it keeps (the eyes' while the head turns) are those of the pose."""
+    r = FaceRenderer(cybatt, size=SIZE)
+    root = r.scene.get_pose(r.instances[0].root)
+    unknowns = (3, 23, 25, 48, 49, "tx")
+    kept = HeadGeometry(cybatt, unknowns, root)
+    verts = np.arange(0, kept.n_vertices, 5)
+    t = np.zeros(3)
+    poses = [
+        _params({48: 2000, 49: -1000}),
+        _params({48: 2000, 49: -1000, 23: 3000, 25: -2000}),
+        _params({48: -500, 49: -1000, 23: 3000, 25: -2000}),
+        _params({48: -500, 3: 200}),
+    ]
+    for p in poses:
+        kept.positions(p, t), kept.jacobian(p, t, verts)
+    for p in (poses[-1], poses[1]):  # the last pose, and one asked for before
+        fresh = HeadGeometry(cybatt, unknowns, root)
+        assert np.array_equal(kept.positions(p, t), fresh.positions(p, t))
+        assert np.array_equal(kept.jacobian(p, t, verts), fresh.jacobian(p, t, verts))
+
+
+def test_subsampling_8_bit_images_sums_them_as_floats_would():
+    rng = np.random.default_rng(3)
+    for factor, shape in ((2, (37, 51, 3)), (3, (64, 47, 3)), (4, (36, 36, 3))):
+        image = rng.integers(0, 256, shape, dtype=np.uint8)
+        image[:4] = 255  # the largest sums
+        small = subsample(image, factor)
+        assert small.dtype == np.float32
+        assert np.array_equal(small, subsample(image.astype(np.float32), factor))
+
+
 # ---- estimates ---------------------------------------------------------------------------------
 
 

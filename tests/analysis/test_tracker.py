@@ -259,6 +259,22 @@ def test_between_frames_renders_only_samples_that_moved(cybatt):
     Estimator(cybatt, size=(176, 144)).between_frames()  # the accurate mode has nothing to do
 
 
+def test_no_rendering_ahead_after_a_frame_the_head_outran(cybatt):
+    """In the tracking mode with landmarks, a frame whose solves had to render (the head moved
+    further than the samples serve) renders nothing between frames: the next would outrun that
+    rendering too, and renders after its jump."""
+    tracker = _tracked_to_frame_1(Tracker(cybatt, size=(176, 144), unknowns=TABLE1_FAPS))
+    samples = tracker._samples
+    tracker._observed = (np.zeros((468, 2)), 100.0)  # as if observed on its landmarks
+    tracker.params[48] += 20000  # the samples moved pixels away
+    tracker._outrun = True
+    tracker.between_frames()
+    assert tracker._samples is samples
+    tracker._outrun = False  # a frame its samples served: render ahead as before
+    tracker.between_frames()
+    assert tracker._samples is not samples
+
+
 def test_the_lost_rule_caps_its_reference_in_the_tracking_mode_only():
     from vtts.analysis.track import LOST_REFERENCE_CAP_DB, _lost
 

@@ -15,6 +15,7 @@ before the barycentric combination:
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -39,7 +40,7 @@ class _Shape:
     first_vertex: int
     first_face: int  # index of its first triangle in HeadGeometry.faces
 
-    @property
+    @functools.cached_property
     def chain_key(self) -> tuple[int, ...]:
         """Which Transforms are above the shape (shapes with the same key share their world
         matrix)."""
@@ -64,6 +65,8 @@ class HeadGeometry:
         self.shapes: list[_Shape] = []
         animated = set(model.tables.mesh_nodes())
         self._static_cache: dict[int, np.ndarray] = {}
+        # the last posed matrix of each animated Transform, by id of its node, with its fields
+        self._posed: dict[int, tuple[tuple, np.ndarray]] = {}
         self._last = None
         # the derivatives of the world matrices at the last pose asked for, by unknown
         self._derivatives: tuple[tuple[bytes, bytes], dict] | None = None
@@ -135,9 +138,21 @@ class HeadGeometry:
             for s in self.shapes:
                 for node in s.chain:
                     if id(node) not in local:
-                        local[id(node)] = self._node_matrix(node, posed)
+                        local[id(node)] = self._posed_matrix(node, posed)
             self._local = (key, local)
         return self._local[1]
+
+    def _posed_matrix(self, node: Node, posed: dict[str, dict[str, np.ndarray]]) -> np.ndarray:
+        """:meth:`_node_matrix` of a pose, the last one of each Transform kept by its posed
+        fields' values (a pose usually moves the head's Transforms only, not the eyes')."""
+        fields = posed.get(node.name)
+        if not fields:
+            return self._static(node)
+        values = tuple((name, np.asarray(v, np.float64).tobytes()) for name, v in fields.items())
+        kept = self._posed.get(id(node))
+        if kept is None or kept[0] != values:
+            kept = self._posed[id(node)] = (values, self._node_matrix(node, posed))
+        return kept[1]
 
     def _matrices(self, params: np.ndarray, translation: np.ndarray) -> list[np.ndarray]:
         """World matrix ``(4, 4)`` of each shape."""

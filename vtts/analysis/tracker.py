@@ -195,6 +195,8 @@ class Tracker(Estimator):
         # with a margin; None for the whole frame
         self._box: tuple[int, int, int, int] | None = None
         self._samples: _Samples | None = None  # the last rendering's, while they serve
+        # whether the last frame's solves had to render (its head outran the samples)
+        self._outrun = False
 
     def forget_motion(self) -> None:
         super().forget_motion()
@@ -206,6 +208,7 @@ class Tracker(Estimator):
                  landmarks=None, eyes=None) -> FrameEstimate:  # fmt: skip
         """Update the estimate to the camera ``frame`` ``(H, W, 3) uint8`` and return it;
         ``landmarks`` and ``eyes`` as :meth:`Estimator.estimate`'s."""
+        self._outrun = False
         if not self._history or (self.finish and super()._lit_frame()):
             # a first frame: the accurate start; with ``finish``, a frame of a lit face (by the
             # last frame's last solve): the whole pyramid, as the estimator — its shading changes
@@ -224,6 +227,7 @@ class Tracker(Estimator):
         self._jump_to_landmarks()
         self.renderings = 0
         samples, solves = self._stages(frame)
+        self._outrun = self.renderings > 0
         if self.finish:
             # the accurate mode: the finest level of the pyramid, a rendering after every solve,
             # from where the samples left the estimate; the frame's final rendering gives the
@@ -286,9 +290,17 @@ class Tracker(Estimator):
         """Render now, after the estimate went out and before the next frame arrives, when the
         samples have moved :data:`AHEAD_PX` (:data:`AHEAD_LANDMARKS_PX` after a frame observed
         on its landmarks) since their rendering: the next frame would likely need it, and a
-        live stream has the time between two frames to spare."""
+        live stream has the time between two frames to spare. Not after a frame observed on its
+        landmarks whose solves had to render (the head moved further since the last frame than
+        the samples serve, as a head moving fast does): its next frame would likely outrun these
+        samples too, and renders after its jump onto its landmarks anyway."""
         quick = self._observed is not None and not self.finish
         ahead = AHEAD_LANDMARKS_PX if quick else AHEAD_PX
+        if quick and self._outrun:
+            # the head moved further between the last two frames than the samples serve, and
+            # the frame rendered within its solves, after its jump onto the landmarks: samples
+            # rendered now would likely be outrun again (docs/analysis.md, "Speed")
+            return
         if self._samples is not None and self._shift(self._samples) > ahead:
             try:
                 self._samples = self._sample(self.sample_step)
