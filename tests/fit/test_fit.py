@@ -146,6 +146,30 @@ def test_a_talking_photo_warps_the_person_not_the_wall_behind(akiyo):
     assert not np.array_equal(rolled, image)
 
 
+def test_a_talking_photo_leaves_the_eyes_corners_to_the_photo(akiyo):
+    """The fitted head's eye sockets (the generic cavity behind the eyeballs) show through the
+    corners of its lids, pink specks even at the photo's own view; a talking photo does not draw
+    them, and the photo's eye corners show there."""
+    from vtts.fit.photo import PHOTO_VIEWPOINT
+    from vtts.render.talking_photo import TalkingPhoto
+
+    _, model, image, _ = akiyo
+    h, w = image.shape[:2]
+
+    def sockets(renderer: FaceRenderer) -> int:
+        _, numbers = renderer.render(model.params(), triangles=True)
+        return sum(
+            int(((numbers >= first) & (numbers < first + count)).sum())
+            for node, first, count in renderer.triangle_sets
+            if node.name == "SOCKETS"
+        )
+
+    with FaceRenderer(model, size=(w, h), viewpoint=PHOTO_VIEWPOINT) as r:
+        assert sockets(r) > 0
+    with TalkingPhoto(model) as tp:
+        assert sockets(tp.renderer) == 0
+
+
 def test_shut_lips_show_no_teeth_and_the_skin_no_highlight(akiyo):
     """Akiyo's lips barely part (a dark seam): at the photo's view the head draws them shut,
     with none of its lit teeth between them; and its painted skin is matte (the photo brings

@@ -4,11 +4,11 @@ to, and the photo around it following its motion.
 The head is rendered at the photo's own camera (its ``photo`` Viewpoint) over nothing
 (``background="transparent"``); where it covers the picture it is drawn, with a soft edge
 (:attr:`TalkingPhotoOptions.feather`), the mouth's inside included (the model's teeth, tongue and
-cavity). The parts the photo shows better than a model can — the hair, the ears, the neck
-(:data:`PHOTO_SHOWN`) — are posed but not drawn: there the photo itself shows, warped by a smooth
-2-D mesh warp (:class:`~vtts.render.photo_warp.PhotoWarp`) whose handles are the head's
-visible vertices (:data:`HANDLES`: the face, the hair cap and the ears), projected at rest and in
-each frame, fading out with the distance from the head. Only the person is warped (the photo
+cavity). The parts the photo shows better than a model can — the hair, the ears, the neck, the
+eyes' corners (:data:`PHOTO_SHOWN`) — are posed but not drawn: there the photo itself shows,
+warped by a smooth 2-D mesh warp (:class:`~vtts.render.photo_warp.PhotoWarp`) whose handles are
+the head's visible vertices (:data:`HANDLES`: the face's), projected at rest and in each frame,
+fading out with the distance from the head. Only the person is warped (the photo
 segmented once, by :attr:`TalkingPhotoOptions.segment`): the person is a layer over the
 photo's background, which never moves and is filled in behind the person where a move reveals
 it (:attr:`TalkingPhotoOptions.segment`). Far from the head the photo's pixels stay as they
@@ -35,8 +35,10 @@ from vtts.face import FaceModel
 from vtts.render.photo_warp import PhotoWarp, WarpOptions
 
 #: The parts the photo shows rather than the model: posed (their vertices drive the warp) but not
-#: drawn. A fitted head's hair cap is skin-tight, its ears generic and its neck the bundled one.
-PHOTO_SHOWN = ("HAIR", "NECK", "L_EAR", "R_EAR")
+#: drawn. A fitted head's hair cap is skin-tight, its ears generic and its neck the bundled one;
+#: its eye sockets (the generic cavity behind the eyeballs) show through the corners of the
+#: lids as pink specks, even at the photo's own view, where the photo shows the eye's corners.
+PHOTO_SHOWN = ("HAIR", "NECK", "L_EAR", "R_EAR", "SOCKETS")
 #: The parts whose visible vertices are the warp's handles: the face (the jaw's motion stretches
 #: the throat below the chin; the spline's affine part carries the face's motion on to the hair
 #: and ears around it). The skull's parts are not among them: the tracked face is where a head's
