@@ -28,12 +28,14 @@ folder, printed): ``CLIP-reenact.png``, a few frames in rows: camera | talking p
 first frame | head over plain background.
 
 Environment: ``VTTS_BENCH_FRAMES=N`` each clip's first N frames, ``VTTS_BENCH_CLIPS=a,b`` only
-those clips (a quick look: the figures are then not the benchmark's).
+those clips (a quick look: the figures are then not the benchmark's); ``VTTS_BENCH_FAPS=LIST``
+estimates ``--faps LIST`` instead of the default set (``paper17,19-26``: with the eyes).
 """
 
 from __future__ import annotations
 
 import math
+import os
 import sys
 import tempfile
 import time
@@ -84,10 +86,11 @@ class Clip:
 
 
 def run() -> list[dict]:
-    from bench_people import chosen_clips, out_folder  # noqa: I001  (bench/ is on the path)
+    from bench_people import _unknowns, chosen_clips, out_folder  # noqa: I001  (bench/ on the path)
 
     out = out_folder("vtts-bench-reenact-")
     limit, chosen = chosen_clips()
+    unknowns = _unknowns(os.environ.get("VTTS_BENCH_FAPS", ""))
     unknown = sorted(set(chosen) - set(DEVELOPMENT) - set(SET_ASIDE))
     if unknown:
         raise ValueError(f"VTTS_BENCH_CLIPS names no clip of {VIDEOS}: {unknown}")
@@ -96,7 +99,8 @@ def run() -> list[dict]:
     results: dict[str, Clip] = {}
     for clip in (c for c in (*DEVELOPMENT, *SET_ASIDE) if not chosen or c in chosen):
         t0 = time.perf_counter()
-        results[clip] = measured = _clip(clip, limit, out if clip in DEVELOPMENT else None)
+        pictures = out if clip in DEVELOPMENT else None
+        results[clip] = measured = _clip(clip, limit, pictures, unknowns)
         print(f"  bench_reenact: {clip}: {time.perf_counter() - t0:.0f} s", file=sys.stderr)
         rows += _clip_rows(measured)
     for part, members in PARTS:
@@ -111,8 +115,9 @@ def _row(case: str, value, unit: str, target: str = "", ok=None) -> dict:
             "target": target, "ok": ok}  # fmt: skip
 
 
-def _clip(clip: str, limit: int | None, pictures: Path | None) -> Clip:
-    """``clip`` tracked from its first frame and replayed as a talking photo of that frame."""
+def _clip(clip: str, limit: int | None, pictures: Path | None, unknowns=None) -> Clip:
+    """``clip`` tracked from its first frame (estimating ``unknowns``, None: the default set)
+    and replayed as a talking photo of that frame."""
     from skimage.metrics import structural_similarity
 
     from vtts.analysis.landmark_quality import camera_landmarks, oval_mask, oval_psnr
@@ -130,8 +135,9 @@ def _clip(clip: str, limit: int | None, pictures: Path | None) -> Clip:
     sheet_at = set(np.linspace(1, len(frames) - 1, SHEET_FRAMES).round().astype(int).tolist())
     sheet: dict[int, list[np.ndarray]] = {k: [frames[k]] for k in sheet_at}
     with tempfile.TemporaryDirectory(prefix="vtts-bench-reenact-") as tmp:
+        options = {} if unknowns is None else {"unknowns": unknowns}
         tracked = track(frames, fps=video.fps, model_path=Path(tmp) / f"{clip}-model.wrl",
-                        tracking=True, anchor=0)  # fmt: skip
+                        tracking=True, anchor=0, **options)  # fmt: skip
         model = tracked.model
         result.tracked = len(tracked.analysis.frames)
         stream = tracked.analysis.stream(clip, fapu=model.fapu)
