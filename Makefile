@@ -20,9 +20,10 @@ demo:
 	@bash samples/demo.sh
 
 # The suite runs on pytest-xdist workers, a test file per worker so that a file's fixtures are
-# made once: one per core and one more, since the files that start Ray, a server or a browser
+# made once: one per core and two more, since the files that start Ray, a server or a browser
 # spend much of their time waiting on those processes (on 2 cores 3 workers took 298 s where 2
-# took 339 s, 2026-11-29). WORKERS=N overrides it. Files are handed out in collection order
+# took 339 s, 2026-11-29 04:50; 4 workers 239 s where 3 took 263 s, 11:35, the files that
+# start a local Ray taking turns: tests/conftest.py's one_ray_at_a_time). WORKERS=N overrides it. Files are handed out in collection order
 # (--no-loadscope-reorder: not most tests first), which tests/conftest.py starts with the
 # slowest files (SLOW_FIRST), so that none of them is left alone at the end.
 #
@@ -32,7 +33,7 @@ demo:
 # subprocesses compiled numpy, scipy, pyrender, ray … from source again: 3.5 s of CPU for a
 # process that imports the renderer. Cleared, each module is compiled once, by the first
 # process that imports it.
-WORKERS ?= $(shell echo $$(( $$(nproc 2>/dev/null || echo 1) + 1 )))
+WORKERS ?= $(shell echo $$(( $$(nproc 2>/dev/null || echo 1) + 2 )))
 test: setup
 	PYTHONDONTWRITEBYTECODE= $(PY) -m pytest -q -n $(WORKERS) --dist loadfile --no-loadscope-reorder
 

@@ -68,6 +68,25 @@ def shared_fit(fits: SharedFits) -> Iterator[None]:
         yield
 
 
+@pytest.fixture(scope="module")
+def one_ray_at_a_time(testrun_uid: str) -> Iterator[None]:
+    """The module's tests hold the run's Ray lock (a file locked with ``flock``): of the suite's
+    files that start a local Ray (its GCS, raylet, workers, Serve's proxy), one at a time, on
+    whichever pytest-xdist workers they run. Two Rays starting at once on 2 cores, beside the
+    other workers' tests, made Ray Serve's proxy die at its start; a worker waiting here spends
+    no CPU, which the other workers use."""
+    import fcntl
+    import tempfile
+
+    path = Path(tempfile.gettempdir()) / f"vtts-tests-ray-{testrun_uid}.lock"
+    with open(path, "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+
+
 #: The files that take a worker longest (about 15–60 s each on 2 cores; most wait on Ray, a
 #: server, a browser or a rendering): collected first, so that pytest-xdist's ``loadfile``
 #: scheduling, which hands files out in collection order, starts them first and the run does
@@ -78,8 +97,7 @@ SLOW_FIRST = (
     "fit/test_fit.py",
     "analysis/test_stream_cli.py",
     "analysis/test_tracker.py",
-    # the other file that starts a local Ray: not at the same moment as test_ray's (once, with
-    # 4 workers on 2 cores and test_ray's Ray starting too, Ray Serve's proxy died at its start)
+    # the other file that starts a local Ray (they take turns: one_ray_at_a_time)
     "serve/test_serve_ray.py",
     "batch/test_pool.py",
     "models/test_bundled.py",

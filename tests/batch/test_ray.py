@@ -17,6 +17,7 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
 import ray  # noqa: F401  (the test extra installs it: without it this test fails, loudly)
 
 from ..in_process import vtts
@@ -32,6 +33,8 @@ TEXTS = [
     "Good night.",
 ]
 BAD, KILLED = 2, 3
+#: the suite's local Rays start one at a time (tests/conftest.py)
+pytestmark = pytest.mark.usefixtures("one_ray_at_a_time")
 
 
 def _is_worker(pid: int) -> bool:

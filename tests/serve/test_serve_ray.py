@@ -31,7 +31,7 @@ def _free_port() -> int:
 
 
 @pytest.fixture(scope="module")
-def ray_serve():
+def ray_serve(one_ray_at_a_time):
     """``(url, the command's process)``: ``vtts serve --replicas 2`` once it says it serves."""
     port = _free_port()
     args = ["--replicas", "2", "--port", str(port), "--model", "cybatt"]
