@@ -232,19 +232,23 @@ def _synthetic(texts: list[str], voice: tuple, tallies: dict) -> None:
             power = np.mean(samples[np.abs(samples) > 0.01] ** 2)
             sigma = np.sqrt(power / 10 ** (snr / 10))
             samples = samples + rng.normal(0, sigma, len(samples)).astype(np.float32)
-        truth_phones = list(speech.phonemes)
-        n = int(np.ceil(len(samples) / speech.rate / FRAME))
-        truth = frames_of(truth_phones, n)
-        for path, (got, phones) in _paths(
-            samples, int(speech.rate), f"<speak>{escape(text)}</speak>", truth_phones
-        ).items():
-            tallies.setdefault(path, Tally()).add(
-                truth,
-                got,
-                _bilabials(truth_phones, phones),
-                _bilabials(truth_phones, phones, closures=True),
-                _false_closures(truth_phones, phones),
-            )
+        _tally(tallies, samples, int(speech.rate), text, list(speech.phonemes))
+
+
+def _tally(tallies: dict, samples: np.ndarray, rate: int, text: str, truth_phones: list) -> None:
+    """Each path's agreement, bilabials and false closures on ``samples`` ``(n,)`` float32 at
+    ``rate`` Hz, of ``text``, against ``truth_phones``, added to ``tallies`` (by path)."""
+    truth = frames_of(truth_phones, int(np.ceil(len(samples) / rate / FRAME)))
+    for path, (got, phones) in _paths(
+        samples, rate, f"<speak>{escape(text)}</speak>", truth_phones
+    ).items():
+        tallies.setdefault(path, Tally()).add(
+            truth,
+            got,
+            _bilabials(truth_phones, phones),
+            _bilabials(truth_phones, phones, closures=True),
+            _false_closures(truth_phones, phones),
+        )
 
 
 def _transcripts() -> dict[tuple[str, str], str]:
@@ -290,19 +294,7 @@ def _real(items, tallies: dict) -> None:
         x, rate = sf.read(str(REAL_DIR / folder / f"{name}.wav"), dtype="int16")
         text = texts[(folder, name)]
         truth_phones = _forced(x, text)
-        samples = x.astype(np.float32) / np.float32(32768)
-        n = int(np.ceil(len(samples) / rate / FRAME))
-        truth = frames_of(truth_phones, n)
-        for path, (got, phones) in _paths(
-            samples, rate, f"<speak>{escape(text)}</speak>", truth_phones
-        ).items():
-            tallies.setdefault(path, Tally()).add(
-                truth,
-                got,
-                _bilabials(truth_phones, phones),
-                _bilabials(truth_phones, phones, closures=True),
-                _false_closures(truth_phones, phones),
-            )
+        _tally(tallies, x.astype(np.float32) / np.float32(32768), rate, text, truth_phones)
 
 
 def _speed_audio(seconds: float) -> tuple[np.ndarray, int]:
