@@ -69,16 +69,17 @@ def shared_fit(fits: SharedFits) -> Iterator[None]:
 
 
 @pytest.fixture(scope="module")
-def one_ray_at_a_time(testrun_uid: str) -> Iterator[None]:
+def one_ray_at_a_time(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
     """The module's tests hold the run's Ray lock (a file locked with ``flock``): of the suite's
     files that start a local Ray (its GCS, raylet, workers, Serve's proxy), one at a time, on
     whichever pytest-xdist workers they run. Two Rays starting at once on 2 cores, beside the
     other workers' tests, made Ray Serve's proxy die at its start; a worker waiting here spends
-    no CPU, which the other workers use."""
+    no CPU, which the other workers use. The file lies in the folder the run's workers share
+    (the parent of each worker's base temporary folder), which pytest removes with the run's
+    other temporary folders."""
     import fcntl
-    import tempfile
 
-    path = Path(tempfile.gettempdir()) / f"vtts-tests-ray-{testrun_uid}.lock"
+    path = tmp_path_factory.getbasetemp().parent / "vtts-tests-ray.lock"
     with open(path, "a") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         try:
