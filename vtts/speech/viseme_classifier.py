@@ -8,9 +8,11 @@ audible frames (within :data:`AUDIBLE_DB` of the loud ones) subtracted, with one
 the frame's level against the loud frames. The features of the frames at :data:`OFFSETS` around
 each frame are stacked (the ends repeat the first and last frame) and a multilayer perceptron
 (ReLU hidden layers, softmax out) gives the frame's probability of each of the 15 visemes.
-:func:`smooth` then finds the likeliest viseme sequence in which each viseme lasts at least its
-minimum number of frames and every change costs a penalty (Viterbi over a chain of states per
-viseme).
+A recording's features are made with the mel filters' edges scaled by each of :data:`WARPS`
+(vocal tract length normalisation, no retraining) and those the network is surest of are kept
+(:meth:`VisemeClassifier.warped_log_posteriors`). :func:`smooth` then finds the likeliest
+viseme sequence in which each viseme lasts at least its minimum number of frames and every
+change costs a penalty (Viterbi over a chain of states per viseme).
 
 The weights, the feature standardization and the smoothing's parameters are one ``.npz`` file,
 ``vtts/data/viseme_classifier.npz``, made by ``scripts/train_viseme_classifier.py`` (seeded:
@@ -32,10 +34,12 @@ __all__ = [
     "N_MELS",
     "OFFSETS",
     "RATE",
+    "WARPS",
     "VisemeClassifier",
     "frame_features",
     "load_classifier",
     "smooth",
+    "warped_features",
 ]
 
 #: Rate of the audio the features are made from, Hz.
@@ -54,17 +58,26 @@ FLOOR_DB = 70.0
 AUDIBLE_DB = 35.0
 #: Frames (relative to the one classified) whose features are stacked.
 OFFSETS = (-12, -8, -5, -3, -2, -1, 0, 1, 2, 3, 5, 8, 12)
+#: Frequency warps tried on each recording (vocal tract length normalisation): the mel bands'
+#: edges scaled by each; the warp whose network is surest (its mean top probability over the
+#: audible frames) is taken when it beats the unwarped features' by at least
+#: :data:`WARP_MARGIN` — a voice with shorter or longer vocal tract than the training voices'
+#: (a child's, a high woman's) is heard as one of theirs.
+WARPS = (0.88, 0.94, 1.0, 1.06, 1.12)
+WARP_MARGIN = 0.03
 #: Frames per block of inference (bounded memory for long files).
 BLOCK = 4096
 #: The product's weights, a file of the package's data.
 WEIGHTS = "viseme_classifier.npz"
 
 
-def _mel_filters() -> np.ndarray:
-    """``(N_MELS, N_FFT // 2 + 1)`` float32 triangular filters on the HTK mel scale."""
+def _mel_filters(warp: float = 1.0) -> np.ndarray:
+    """``(N_MELS, N_FFT // 2 + 1)`` float32 triangular filters on the HTK mel scale, their
+    edges (Hz) times ``warp`` (above 1: each band hears higher frequencies, as the training
+    voices' band would a higher voice's)."""
     mel = lambda f: 2595.0 * np.log10(1.0 + f / 700.0)  # noqa: E731
     hz = lambda m: 700.0 * (10.0 ** (m / 2595.0) - 1.0)  # noqa: E731
-    edges = hz(np.linspace(mel(FMIN), mel(FMAX), N_MELS + 2))
+    edges = warp * hz(np.linspace(mel(FMIN), mel(FMAX), N_MELS + 2))
     freqs = np.fft.rfftfreq(N_FFT, 1.0 / RATE)
     out = np.zeros((N_MELS, freqs.size), np.float32)
     for i in range(N_MELS):
@@ -76,19 +89,28 @@ def _mel_filters() -> np.ndarray:
 
 
 @cache
-def _constants() -> tuple[np.ndarray, np.ndarray]:
-    return _mel_filters(), np.hanning(WINDOW).astype(np.float32)
+def _filters(warps: tuple[float, ...]) -> np.ndarray:
+    """``(len(warps) * N_MELS, N_FFT // 2 + 1)`` the filters of each warp, one after another."""
+    return np.concatenate([_mel_filters(w) for w in warps])
 
 
-def band_levels(samples: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per 10 ms frame of ``(n,)`` float32 samples at :data:`RATE` in [-1, 1]: ``(frames,
-    N_MELS)`` float32 band levels (dB) and ``(frames,)`` float32 frame level (dB); ``ceil(n /
-    HOP)`` frames, computed in blocks."""
+@cache
+def _window() -> np.ndarray:
+    return np.hanning(WINDOW).astype(np.float32)
+
+
+def band_levels(
+    samples: np.ndarray, warps: tuple[float, ...] = (1.0,)
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per 10 ms frame of ``(n,)`` float32 samples at :data:`RATE` in [-1, 1]: ``(len(warps),
+    frames, N_MELS)`` float32 band levels (dB) of the filters of each warp
+    (:func:`_mel_filters`; one spectrum for all) and ``(frames,)`` float32 frame level (dB);
+    ``ceil(n / HOP)`` frames, computed in blocks."""
     x = np.asarray(samples, np.float32)
-    filters, window = _constants()
+    filters, window = _filters(tuple(warps)), _window()
     n_frames = -(-len(x) // HOP)
     padded = np.pad(x, (WINDOW // 2 - HOP // 2, WINDOW))
-    bands = np.empty((n_frames, N_MELS), np.float32)
+    bands = np.empty((n_frames, len(warps) * N_MELS), np.float32)
     level = np.empty(n_frames, np.float32)
     for a in range(0, n_frames, BLOCK):
         b = min(a + BLOCK, n_frames)
@@ -96,22 +118,29 @@ def band_levels(samples: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         spec = np.abs(np.fft.rfft(padded[idx] * window, N_FFT)) ** 2
         bands[a:b] = 10.0 * np.log10(spec @ filters.T + 1e-10)
         level[a:b] = 10.0 * np.log10(spec.sum(axis=1) + 1e-10)
-    return bands, level
+    return bands.reshape(n_frames, len(warps), N_MELS).transpose(1, 0, 2), level
 
 
-def frame_features(samples: np.ndarray) -> np.ndarray:
-    """``(frames, N_MELS + 1)`` float32 features of ``(n,)`` samples at :data:`RATE` (see the
-    module docstring): band levels less their mean over the audible frames, and the frame's
-    level against the loud frames, dB."""
-    bands, level = band_levels(samples)
+def warped_features(samples: np.ndarray, warps: tuple[float, ...]) -> np.ndarray:
+    """``(len(warps), frames, N_MELS + 1)`` float32 :func:`frame_features` of ``(n,)`` samples
+    with the mel filters of each warp (:func:`_mel_filters`)."""
+    bands, level = band_levels(samples, warps)
     if level.size == 0:
-        return np.zeros((0, N_MELS + 1), np.float32)
+        return np.zeros((len(warps), 0, N_MELS + 1), np.float32)
     loud = float(np.percentile(level, 90))
     bands = np.maximum(bands, loud - FLOOR_DB - 10.0 * np.log10(N_MELS))
     level = np.maximum(level, loud - FLOOR_DB)
     audible = level > loud - AUDIBLE_DB
-    mean = bands[audible].mean(axis=0) if np.any(audible) else bands.mean(axis=0)
-    return np.concatenate([bands - mean, (level - loud)[:, None]], axis=1).astype(np.float32)
+    mean = bands[:, audible].mean(axis=1) if np.any(audible) else bands.mean(axis=1)
+    rel = np.broadcast_to((level - loud)[None, :, None], (len(warps), level.size, 1))
+    return np.concatenate([bands - mean[:, None, :], rel], axis=2).astype(np.float32)
+
+
+def frame_features(samples: np.ndarray, warp: float = 1.0) -> np.ndarray:
+    """``(frames, N_MELS + 1)`` float32 features of ``(n,)`` samples at :data:`RATE` (see the
+    module docstring): band levels less their mean over the audible frames, and the frame's
+    level against the loud frames, dB; ``warp``: of the mel filters (:func:`_mel_filters`)."""
+    return warped_features(samples, (warp,))[0]
 
 
 def stack(features: np.ndarray, a: int, b: int) -> np.ndarray:
@@ -170,11 +199,38 @@ class VisemeClassifier:
             out[a:b] = h - np.log(np.exp(h).sum(axis=1, keepdims=True))
         return out
 
+    def warped_log_posteriors(self, samples: np.ndarray) -> tuple[np.ndarray, float]:
+        """``(ceil(n / HOP), 15)`` float32 log probabilities of ``(n,)`` float32 samples at
+        :data:`RATE` with the features of the warp (of :data:`WARPS`) the network is surest of
+        — its mean top probability over the audible frames (within :data:`AUDIBLE_DB` of the
+        loud ones) at least :data:`WARP_MARGIN` above the unwarped features' — else unwarped;
+        and that warp."""
+        features = warped_features(samples, WARPS)
+        plain = WARPS.index(1.0)
+        audible = features[plain, :, -1] > -AUDIBLE_DB
+        best, best_log_p, best_sure = 1.0, self.log_posteriors(features[plain]), 0.0
+        if not np.any(audible):
+            return best_log_p, best
+        best_sure = float(np.exp(best_log_p[audible].max(axis=1)).mean()) + WARP_MARGIN
+        for warp, f in zip(WARPS, features, strict=True):
+            if warp == 1.0:
+                continue
+            log_p = self.log_posteriors(f)
+            sure = float(np.exp(log_p[audible].max(axis=1)).mean())
+            if sure >= best_sure:
+                best, best_log_p, best_sure = warp, log_p, sure
+        return best_log_p, best
+
     def visemes(self, samples: np.ndarray, other: np.ndarray | None = None) -> np.ndarray:
         """``(ceil(n / HOP),)`` int8 smoothed visemes of ``(n,)`` float32 samples at
-        :data:`RATE`; ``other``: ``(frames,)`` int visemes another recognizer gave the frames
-        (each adds :attr:`evidence` to its viseme's score)."""
-        log_p = self.log_posteriors(frame_features(samples))
+        :data:`RATE` (their features warped as :meth:`warped_log_posteriors` chooses);
+        ``other``: as :meth:`smoothed`'s."""
+        return self.smoothed(self.warped_log_posteriors(samples)[0], other)
+
+    def smoothed(self, log_p: np.ndarray, other: np.ndarray | None = None) -> np.ndarray:
+        """``(frames,)`` int8 visemes smoothed (:func:`smooth`) from the network's ``(frames,
+        15)`` log probabilities; ``other``: ``(frames,)`` int visemes another recognizer gave
+        the frames (each adds :attr:`evidence` to its viseme's score)."""
         scores = log_p + self.bias - self.prior_weight * self.log_prior
         scores += self.boost * np.exp(log_p)
         if other is not None:
