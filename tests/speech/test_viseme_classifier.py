@@ -21,6 +21,7 @@ from vtts.speech.viseme_classifier import (
     _mel_filters,
     frame_features,
     load_classifier,
+    noise_subtracted,
     smooth,
     warped_features,
 )
@@ -94,16 +95,55 @@ def test_a_higher_voice_than_any_trained_is_heard_through_a_warp() -> None:
     c = load_classifier()
     assert c.warped_log_posteriors(x)[1] == 1.0
     higher = resample_poly(x, 5, 6).astype(np.float32)  # at RATE: 1.2 times every frequency
-    log_p, warp = c.warped_log_posteriors(higher)
+    log_p, warp, _ = c.warped_log_posteriors(higher)
     assert warp > 1.0 and warp in WARPS
+    plain = c.log_posteriors(frame_features(higher))
+    assert _agreement(c, log_p, sp.phonemes, 1.2) > _agreement(c, plain, sp.phonemes, 1.2) + 0.05
+
+
+def test_noise_subtraction_takes_out_each_bands_floor() -> None:
+    """A band at a steady -40 dB with a burst at -10 dB: the floor falls by at least 5 dB (its
+    power less itself, 0.3 of it kept), the burst stays within 0.1 dB; a silent band stays
+    silent."""
+    bands = np.full((1, 100, N_MELS), -40.0, np.float32)
+    bands[0, 40:50, 3] = -10.0
+    bands[0, :, 7] = -100.0
+    out = noise_subtracted(bands)
+    assert out.shape == bands.shape
+    assert np.all(out[0, :40, 3] <= -45.0) and np.allclose(out[0, 40:50, 3], -10.0, atol=0.1)
+    assert np.all(out[0, :, 7] <= -98.5)  # (the levels' own 1e-10 power floor)
+
+
+def _agreement(c, log_p: np.ndarray, phones, stretch: float = 1.0) -> float:
+    """The share of frames whose smoothed viseme is the truth's (``phones`` times divided by
+    ``stretch``)."""
     n = log_p.shape[0]
     truth = np.zeros(n, int)
     mids = (np.arange(n) + 0.5) * HOP / RATE
-    for p in sp.phonemes:
-        a, b = np.searchsorted(mids, [p.start / 1.2, p.end / 1.2])
+    for p in phones:
+        a, b = np.searchsorted(mids, [p.start / stretch, p.end / stretch])
         truth[a:b] = p.viseme or 0
-    plain = c.smoothed(c.log_posteriors(frame_features(higher)))
-    assert np.mean(c.smoothed(log_p) == truth) > np.mean(plain == truth) + 0.05
+    return float(np.mean(c.smoothed(log_p) == truth))
+
+
+def test_speech_in_noise_is_heard_with_the_noise_taken_out() -> None:
+    """espeak-ng's en-gb in white noise at 10 dB SNR: the network is surer of the band levels
+    with each band's noise floor subtracted, and agrees with the truth more through them
+    (measured 0.82 against 0.75); the same speech without noise keeps them as they are."""
+    from vtts.speech.audio import resample
+    from vtts.speech.tts import synthesize
+
+    text = "Maybe Paul will bring the tomatoes home by the bus this evening."
+    sp = synthesize(f"<speak>{text}</speak>", voice="en-gb")
+    x = resample(sp.audio.astype(np.float32) / 32768, int(sp.rate), RATE)
+    c = load_classifier()
+    assert c.warped_log_posteriors(x)[2] is False
+    sigma = np.sqrt(np.mean(x[np.abs(x) > 0.01] ** 2) / 10.0)
+    noisy = x + np.random.default_rng(0).normal(0, sigma, x.size).astype(np.float32)
+    log_p, _, denoised = c.warped_log_posteriors(noisy)
+    assert denoised is True
+    plain = c.log_posteriors(frame_features(noisy))
+    assert _agreement(c, log_p, sp.phonemes) > _agreement(c, plain, sp.phonemes) + 0.03
 
 
 def test_the_weights_file_is_small_and_whole() -> None:

@@ -413,7 +413,7 @@ def recognize(
             # PocketSphinx's visemes are evidence for the classifier; its phones name the
             # classifier's runs where they agree
             p_index, p_vis = segments_to_phones(p_names, np.array(p_first), np.array(p_last), b - a)
-            log_p, _ = classifier.warped_log_posteriors(x[a * hop : b * hop])
+            log_p = classifier.warped_log_posteriors(x[a * hop : b * hop])[0]
             piece = classifier.smoothed(log_p, p_vis if decoder else None)[: b - a]
             closure[a : a + piece.size] = np.exp(log_p[: piece.size, 1])
             edges = np.concatenate([[0], np.flatnonzero(np.diff(piece)) + 1, [piece.size]])

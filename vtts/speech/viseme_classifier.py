@@ -9,7 +9,8 @@ the frame's level against the loud frames. The features of the frames at :data:`
 each frame are stacked (the ends repeat the first and last frame) and a multilayer perceptron
 (ReLU hidden layers, softmax out) gives the frame's probability of each of the 15 visemes.
 A recording's features are made with the mel filters' edges scaled by each of :data:`WARPS`
-(vocal tract length normalisation, no retraining) and those the network is surest of are kept
+(vocal tract length normalisation, no retraining), with the band levels as they are and with
+each band's noise floor subtracted, and those the network is surest of are kept
 (:meth:`VisemeClassifier.warped_log_posteriors`). :func:`smooth` then finds the likeliest
 viseme sequence in which each viseme lasts at least its minimum number of frames and every
 change costs a penalty (Viterbi over a chain of states per viseme).
@@ -38,6 +39,7 @@ __all__ = [
     "VisemeClassifier",
     "frame_features",
     "load_classifier",
+    "noise_subtracted",
     "smooth",
     "warped_features",
 ]
@@ -65,6 +67,12 @@ OFFSETS = (-12, -8, -5, -3, -2, -1, 0, 1, 2, 3, 5, 8, 12)
 #: (a child's, a high woman's) is heard as one of theirs.
 WARPS = (0.88, 0.94, 1.0, 1.06, 1.12)
 WARP_MARGIN = 0.03
+#: Noise taken out of the band levels (:func:`noise_subtracted`): each band's power at this
+#: percentile of the frames (its noise floor) is subtracted, leaving at least NOISE_KEEP of it;
+#: the features so made are kept where the network is surer of them by DENOISE_MARGIN.
+NOISE_PERCENTILE = 10.0
+NOISE_KEEP = 0.3
+DENOISE_MARGIN = 0.01
 #: Frames per block of inference (bounded memory for long files).
 BLOCK = 4096
 #: The product's weights, a file of the package's data.
@@ -121,19 +129,39 @@ def band_levels(
     return bands.reshape(n_frames, len(warps), N_MELS).transpose(1, 0, 2), level
 
 
-def warped_features(samples: np.ndarray, warps: tuple[float, ...]) -> np.ndarray:
-    """``(len(warps), frames, N_MELS + 1)`` float32 :func:`frame_features` of ``(n,)`` samples
-    with the mel filters of each warp (:func:`_mel_filters`)."""
-    bands, level = band_levels(samples, warps)
+def noise_subtracted(bands: np.ndarray) -> np.ndarray:
+    """Band levels ``(..., frames, N_MELS)`` dB with each band's noise taken out: its power at
+    the :data:`NOISE_PERCENTILE` th percentile of the frames subtracted from every frame's,
+    keeping at least :data:`NOISE_KEEP` of that noise power (spectral subtraction)."""
+    power = 10.0 ** (bands.astype(np.float64) / 10.0)
+    noise = np.percentile(power, NOISE_PERCENTILE, axis=-2, keepdims=True)
+    clean = np.maximum(power - noise, NOISE_KEEP * noise)
+    return (10.0 * np.log10(clean + 1e-10)).astype(np.float32)
+
+
+def _features(bands: np.ndarray, level: np.ndarray) -> np.ndarray:
+    """``(w, frames, N_MELS + 1)`` features from ``(w, frames, N_MELS)`` band levels and
+    ``(frames,)`` frame levels (dB; see the module docstring)."""
+    w = bands.shape[0]
     if level.size == 0:
-        return np.zeros((len(warps), 0, N_MELS + 1), np.float32)
+        return np.zeros((w, 0, N_MELS + 1), np.float32)
     loud = float(np.percentile(level, 90))
     bands = np.maximum(bands, loud - FLOOR_DB - 10.0 * np.log10(N_MELS))
     level = np.maximum(level, loud - FLOOR_DB)
     audible = level > loud - AUDIBLE_DB
     mean = bands[:, audible].mean(axis=1) if np.any(audible) else bands.mean(axis=1)
-    rel = np.broadcast_to((level - loud)[None, :, None], (len(warps), level.size, 1))
+    rel = np.broadcast_to((level - loud)[None, :, None], (w, level.size, 1))
     return np.concatenate([bands - mean[:, None, :], rel], axis=2).astype(np.float32)
+
+
+def warped_features(
+    samples: np.ndarray, warps: tuple[float, ...], denoise: bool = False
+) -> np.ndarray:
+    """``(len(warps), frames, N_MELS + 1)`` float32 :func:`frame_features` of ``(n,)`` samples
+    with the mel filters of each warp (:func:`_mel_filters`); ``denoise``: the band levels
+    :func:`noise_subtracted` first."""
+    bands, level = band_levels(samples, warps)
+    return _features(noise_subtracted(bands) if denoise else bands, level)
 
 
 def frame_features(samples: np.ndarray, warp: float = 1.0) -> np.ndarray:
@@ -199,27 +227,42 @@ class VisemeClassifier:
             out[a:b] = h - np.log(np.exp(h).sum(axis=1, keepdims=True))
         return out
 
-    def warped_log_posteriors(self, samples: np.ndarray) -> tuple[np.ndarray, float]:
+    def warped_log_posteriors(self, samples: np.ndarray) -> tuple[np.ndarray, float, bool]:
         """``(ceil(n / HOP), 15)`` float32 log probabilities of ``(n,)`` float32 samples at
-        :data:`RATE` with the features of the warp (of :data:`WARPS`) the network is surest of
-        — its mean top probability over the audible frames (within :data:`AUDIBLE_DB` of the
-        loud ones) at least :data:`WARP_MARGIN` above the unwarped features' — else unwarped;
-        and that warp."""
-        features = warped_features(samples, WARPS)
+        :data:`RATE` from the features the network is surest of — its mean top probability
+        over the audible frames (within :data:`AUDIBLE_DB` of the loud ones): of the warps of
+        :data:`WARPS`, one that beats the unwarped features by at least :data:`WARP_MARGIN`
+        (else unwarped), and of the band levels as they are or :func:`noise_subtracted`, the
+        latter where they beat the former by at least :data:`DENOISE_MARGIN`; and the warp and
+        whether the noise was subtracted."""
+        bands, level = band_levels(samples, WARPS)
+        log_p, warp, sure = self._surest(_features(bands, level))
+        clean_log_p, clean_warp, clean_sure = self._surest(
+            _features(noise_subtracted(bands), level)
+        )
+        if clean_sure >= sure + DENOISE_MARGIN:
+            return clean_log_p, clean_warp, True
+        return log_p, warp, False
+
+    def _surest(self, features: np.ndarray) -> tuple[np.ndarray, float, float]:
+        """Of ``(len(WARPS), frames, d)`` features, the warp's log probabilities ``(frames,
+        15)`` the network is surest of (by :data:`WARP_MARGIN` over the unwarped), the warp and
+        the mean top probability over the audible frames (0 where none is audible)."""
         plain = WARPS.index(1.0)
         audible = features[plain, :, -1] > -AUDIBLE_DB
-        best, best_log_p, best_sure = 1.0, self.log_posteriors(features[plain]), 0.0
+        best, best_log_p = 1.0, self.log_posteriors(features[plain])
         if not np.any(audible):
-            return best_log_p, best
-        best_sure = float(np.exp(best_log_p[audible].max(axis=1)).mean()) + WARP_MARGIN
+            return best_log_p, best, 0.0
+        plain_sure = float(np.exp(best_log_p[audible].max(axis=1)).mean())
+        best_sure = plain_sure
         for warp, f in zip(WARPS, features, strict=True):
             if warp == 1.0:
                 continue
             log_p = self.log_posteriors(f)
             sure = float(np.exp(log_p[audible].max(axis=1)).mean())
-            if sure >= best_sure:
+            if sure >= plain_sure + WARP_MARGIN and sure > best_sure:
                 best, best_log_p, best_sure = warp, log_p, sure
-        return best_log_p, best
+        return best_log_p, best, best_sure
 
     def visemes(self, samples: np.ndarray, other: np.ndarray | None = None) -> np.ndarray:
         """``(ceil(n / HOP),)`` int8 smoothed visemes of ``(n,)`` float32 samples at
