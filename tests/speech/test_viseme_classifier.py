@@ -146,6 +146,30 @@ def test_speech_in_noise_is_heard_with_the_noise_taken_out() -> None:
     assert _agreement(c, log_p, sp.phonemes) > _agreement(c, plain, sp.phonemes) + 0.03
 
 
+def test_the_other_recognizers_weight_grows_where_the_network_is_unsure() -> None:
+    """PocketSphinx says viseme 11 over 40 frames where the network gives viseme 10 a
+    probability of 0.95 (the rest spread evenly): the network's 10 stays (a flat weight of 6,
+    as before, gave 11); at 0.6 the other recognizer's 11 wins. The weight is ``evidence``
+    where the network is certain and ``evidence + evidence_per_nat * ln 15`` where it is
+    uniform."""
+    c = load_classifier()
+
+    def log_p(p_top: float) -> np.ndarray:
+        p = np.full(15, (1.0 - p_top) / 14)
+        p[10] = p_top
+        return np.log(np.tile(p, (40, 1))).astype(np.float32)
+
+    other = np.full(40, 11)
+    assert np.all(c.smoothed(log_p(0.95), other) == 10)
+    assert np.all(c.smoothed(log_p(0.6), other) == 11)
+    certain = np.where(np.arange(15) == 10, 0.0, -1e4)[None, :].repeat(5, axis=0)
+    assert np.allclose(c.evidence_weights(certain), c.evidence, atol=1e-3)
+    uniform = np.full((5, 15), -np.log(15.0))
+    expected = c.evidence + c.evidence_per_nat * np.log(15.0)
+    assert np.allclose(c.evidence_weights(uniform), expected, atol=1e-3)
+    assert c.evidence_weights(np.zeros((0, 15))).shape == (0,)
+
+
 def test_the_weights_file_is_small_and_whole() -> None:
     path = package_data(WEIGHTS)
     assert path.stat().st_size < 5_000_000

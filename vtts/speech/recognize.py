@@ -390,7 +390,9 @@ def recognize(
 
         classifier = load_classifier()
         closure = np.zeros(n, np.float32)
-    use_decoder = heard and (classifier is None or classifier.evidence > 0)
+    use_decoder = heard and (
+        classifier is None or classifier.evidence > 0 or classifier.evidence_per_nat > 0
+    )
     decoder = make_decoder(options) if use_decoder else None
     for a, b in bounds:
         p_names: list[str] = []

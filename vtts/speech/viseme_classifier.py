@@ -73,6 +73,9 @@ WARP_MARGIN = 0.03
 NOISE_PERCENTILE = 10.0
 NOISE_KEEP = 0.3
 DENOISE_MARGIN = 0.01
+#: Frames over which the network's entropy is averaged for the other recognizer's weight
+#: (:meth:`VisemeClassifier.evidence_weights`).
+ENTROPY_FRAMES = 11
 #: Frames per block of inference (bounded memory for long files).
 BLOCK = 4096
 #: The product's weights, a file of the package's data.
@@ -196,7 +199,10 @@ class VisemeClassifier:
                   (p b m: a closure it is fairly sure of is kept against the other
                   recognizer's evidence)
     evidence      what a viseme another recognizer gives a frame adds to that viseme's score
-                  there (PocketSphinx's, :func:`vtts.speech.recognize.recognize`)
+                  there (PocketSphinx's, :func:`vtts.speech.recognize.recognize`), plus
+    evidence_per_nat  times the entropy (nats) of the network's probabilities, averaged over
+                  the :data:`ENTROPY_FRAMES` frames around: the other recognizer weighs more
+                  where the network is unsure (natural speech, noise), less where it is sure
     """
 
     mean: np.ndarray
@@ -210,6 +216,7 @@ class VisemeClassifier:
     bias: np.ndarray
     boost: np.ndarray
     evidence: float
+    evidence_per_nat: float
 
     def log_posteriors(self, features: np.ndarray) -> np.ndarray:
         """``(frames, 15)`` float32 log probabilities of each viseme from :func:`frame_features`
@@ -278,8 +285,20 @@ class VisemeClassifier:
         scores += self.boost * np.exp(log_p)
         if other is not None:
             m = min(other.size, scores.shape[0])
-            scores[np.arange(m), np.asarray(other[:m], int)] += self.evidence
+            scores[np.arange(m), np.asarray(other[:m], int)] += self.evidence_weights(log_p)[:m]
         return smooth(scores, self.min_frames, self.switch)
+
+    def evidence_weights(self, log_p: np.ndarray) -> np.ndarray:
+        """``(frames,)`` what another recognizer's viseme adds to a frame's score:
+        :attr:`evidence` plus :attr:`evidence_per_nat` times the entropy (nats) of the
+        network's probabilities from ``(frames, 15)`` ``log_p``, averaged over the
+        :data:`ENTROPY_FRAMES` frames around each."""
+        from scipy.ndimage import uniform_filter1d
+
+        entropy = -(np.exp(log_p) * log_p).sum(axis=1)
+        if entropy.size:
+            entropy = uniform_filter1d(entropy, ENTROPY_FRAMES)
+        return self.evidence + self.evidence_per_nat * entropy
 
 
 def smooth(scores: np.ndarray, min_frames: np.ndarray, switch: float) -> np.ndarray:
@@ -351,6 +370,7 @@ def load_classifier(path: Path | None = None) -> VisemeClassifier:
                 bias=z["bias"].astype(np.float32),
                 boost=z["boost"].astype(np.float32),
                 evidence=float(z["evidence"]),
+                evidence_per_nat=float(z["evidence_per_nat"]),
             )
     except (OSError, KeyError, ValueError) as e:
         raise SpeechError(f"{path}: not a viseme classifier's weights ({e})") from None
