@@ -64,8 +64,10 @@ PRIOR_WEIGHT = 0.5
 BIAS = {1: 2.0}
 #: Added to a viseme's score times the network's probability of it (p b m).
 BOOST = {1: 2.0}
-#: What PocketSphinx's viseme for a frame adds to that viseme's score.
-EVIDENCE = 6.0
+#: What PocketSphinx's viseme for a frame adds to that viseme's score: EVIDENCE plus
+#: EVIDENCE_PER_NAT times the network's entropy there (nats, averaged over 11 frames).
+EVIDENCE = 3.0
+EVIDENCE_PER_NAT = 4.0
 
 SUBJECTS = """man woman boy girl baby farmer teacher pilot doctor captain mayor neighbor singer
 painter plumber butcher barber baker mother father brother sister grandmother monkey puppy
@@ -311,6 +313,7 @@ def _arrays(net, mean: np.ndarray, scale: np.ndarray, y: np.ndarray) -> dict:
               "bias": np.array([BIAS.get(v, 0.0) for v in range(15)], np.float32),
               "boost": np.array([BOOST.get(v, 0.0) for v in range(15)], np.float32),
               "evidence": np.float32(EVIDENCE),
+              "evidence_per_nat": np.float32(EVIDENCE_PER_NAT),
               "min_frames": np.array([MIN_FRAMES.get(v, DEFAULT_MIN_FRAMES) for v in range(15)],
                                      np.int8)}  # fmt: skip
     for i, (w, b) in enumerate(zip(net.coefs_, net.intercepts_, strict=True)):

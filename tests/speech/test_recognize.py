@@ -11,12 +11,14 @@ import pytest
 import soundfile as sf
 
 from vtts.errors import SpeechError
-from vtts.speech.energy import FRAME_S, energy_frames, energy_visemes
+from vtts.speech.energy import FRAME_S, EnergyFrames, Levels, energy_frames, energy_visemes
 from vtts.speech.recognize import (
+    CLOSURE_FRAMES,
     LiveRecognizer,
     RecognizerOptions,
     StreamResampler,
     _cuts,
+    merge_energy,
     phone_viseme,
     recognize,
     split_closures,
@@ -125,6 +127,30 @@ def test_a_closure_over_a_murmur_and_a_silence_is_two_phones() -> None:
     assert new_names[5:] == ["P|B"] and phone_viseme("P|B") == 1
     assert new_index[4:10].tolist() == [1] * 6 and new_index[10:14].tolist() == [5] * 4
     assert np.array_equal(new_index[14:], index[14:])
+
+
+def test_a_silent_closure_between_sounds_keeps_the_lips_shut() -> None:
+    """A bilabial the classifier hears (p b m 0.9) in silent frames between two vowels — a
+    stop's closure, ``b`` of "back" — stays closed, where a phone wholly in silence is
+    otherwise a pause; one it does not hear (0.2), one too long for a closure, one with no
+    sound before it, and every one without the classifier's probabilities, are pauses."""
+    lv = Levels(-10.0, -80.0)  # audible above -45 dB
+
+    def merged(closure_p: float, silent: int = 6, before: int = 5) -> list[int]:
+        vis = np.array([0] * 3 + [10] * before + [1] * silent + [11] * 5, np.int8)
+        index = np.array([-1] * 3 + [0] * before + [1] * silent + [2] * 5, np.int32)
+        loud = np.where(np.isin(vis, (10, 11)), -15.0, -70.0).astype(np.float32)
+        frames = EnergyFrames(loud, np.zeros(vis.size, np.float32))
+        closure = np.where(vis == 1, closure_p, 0.0).astype(np.float32)
+        out, _ = merge_energy(vis, index, frames, lv, fill=False, closure=closure)
+        without, _ = merge_energy(vis, index, frames, lv, fill=False)
+        assert without[vis == 1].tolist() == [0] * silent
+        return out[vis == 1].tolist()
+
+    assert merged(0.9) == [1] * 6
+    assert merged(0.2) == [0] * 6
+    assert merged(0.9, silent=CLOSURE_FRAMES + 1) == [0] * (CLOSURE_FRAMES + 1)
+    assert merged(0.9, before=0) == [0] * 6
 
 
 def test_silence_is_one_pause_and_noise_no_speech() -> None:

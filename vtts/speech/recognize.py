@@ -81,6 +81,11 @@ _CLASS_VISEMES = {name: v for v, name in enumerate(CLASS_NAMES) if v} | {CLOSURE
 #: least SPLIT_DB between two parts of at least SPLIT_FRAMES // 2 frames is two phones.
 SPLIT_FRAMES = 6
 SPLIT_DB = 6.0
+#: A classifier's bilabial lying wholly in inaudible frames between two heard phones, of at
+#: most CLOSURE_FRAMES frames where the classifier's mean probability of p b m is at least
+#: CLOSURE_P, is kept (a stop's silent closure), not made a pause.
+CLOSURE_FRAMES = 20
+CLOSURE_P = 0.5
 #: Names of the phones filled in from the energy (:mod:`vtts.speech.energy`), by viseme.
 ENERGY_NAMES = {0: "SIL", 7: "~hiss", 10: "~wide", 11: "~half", 12: "~slight"}
 
@@ -204,11 +209,20 @@ def phone_viseme(name: str) -> int:
 
 
 def merge_energy(
-    vis: np.ndarray, index: np.ndarray, frames: EnergyFrames, lv: Levels, fill: bool = True
+    vis: np.ndarray,
+    index: np.ndarray,
+    frames: EnergyFrames,
+    lv: Levels,
+    fill: bool = True,
+    closure: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The recognized visemes ``vis`` ``(n,)`` with the energy's where audible frames have no
-    phone (``fill``), and recognized phones lying wholly in inaudible frames made pauses.
-    Returns ``(visemes, filled)``: ``(n,)`` int8, and ``(n,)`` bool, the frames filled."""
+    phone (``fill``), and recognized phones lying wholly in inaudible frames made pauses —
+    except, given ``closure`` ``(n,)`` (the classifier's probability of p b m per frame), a
+    bilabial (viseme 1) of at most :data:`CLOSURE_FRAMES` frames between two phones that are
+    heard, where the mean of ``closure`` is at least :data:`CLOSURE_P`: a stop's silent closure
+    (``b`` of "back" between two vowels), whose silence is the lips shut. Returns ``(visemes,
+    filled)``: ``(n,)`` int8, and ``(n,)`` bool, the frames filled."""
     audible = frames.db > lv.audible
     out = vis.copy()
     # a phone in inaudible frames only is a pause (a closure inside a word is audible around it)
@@ -216,13 +230,36 @@ def merge_energy(
         valid = index >= 0
         heard = np.zeros(int(index.max()) + 2, bool)
         np.logical_or.at(heard, index[valid & audible], True)
-        out[valid & ~heard[np.where(valid, index, -1)]] = 0
+        silent = valid & ~heard[np.where(valid, index, -1)]
+        if closure is not None:
+            silent &= ~_silent_closures(vis, index, heard, closure)
+        out[silent] = 0
     filled = np.zeros(vis.shape, bool)
     if fill:
         by_energy = energy_visemes(frames, lv)
         filled = audible & (out == 0) & (by_energy != 0)
         out[filled] = by_energy[filled]
     return out, filled
+
+
+def _silent_closures(
+    vis: np.ndarray, index: np.ndarray, heard: np.ndarray, closure: np.ndarray
+) -> np.ndarray:
+    """``(n,)`` bool, the frames of bilabial phones (runs of one ``index`` ``(n,)`` with viseme
+    1 in ``vis`` ``(n,)``) of at most :data:`CLOSURE_FRAMES` frames whose phones before and
+    after are ``heard`` (by phone index) and whose mean ``closure`` ``(n,)`` is at least
+    :data:`CLOSURE_P`."""
+    key = index.astype(np.int64) * 16 + vis
+    edges = np.concatenate([[0], np.flatnonzero(np.diff(key)) + 1, [vis.size]])
+    keep = np.zeros(vis.size, bool)
+    for k in range(1, edges.size - 2):
+        a, b = edges[k], edges[k + 1]
+        before, after = index[a - 1], index[b]
+        if (vis[a] == 1 and index[a] >= 0 and b - a <= CLOSURE_FRAMES and before >= 0
+                and after >= 0 and heard[before] and heard[after]
+                and float(np.mean(closure[a:b])) >= CLOSURE_P):  # fmt: skip
+            keep[a:b] = True
+    return keep
 
 
 def frames_to_phones(
@@ -345,13 +382,17 @@ def recognize(
     last: list[int] = []
     heard = bool(np.any(frames.db > lv.audible))
     classifier = None
+    closure = None  # the classifier's probability of p b m per frame
     # a steady loud sound (music, loud noise) lacks speech's rise and fall: the classifier,
     # trained on speech, would see visemes in it; PocketSphinx and the energy judge it alone
     if options.classifier and heard and not lv.steady:
         from vtts.speech.viseme_classifier import load_classifier
 
         classifier = load_classifier()
-    use_decoder = heard and (classifier is None or classifier.evidence > 0)
+        closure = np.zeros(n, np.float32)
+    use_decoder = heard and (
+        classifier is None or classifier.evidence > 0 or classifier.evidence_per_nat > 0
+    )
     decoder = make_decoder(options) if use_decoder else None
     for a, b in bounds:
         p_names: list[str] = []
@@ -374,7 +415,9 @@ def recognize(
             # PocketSphinx's visemes are evidence for the classifier; its phones name the
             # classifier's runs where they agree
             p_index, p_vis = segments_to_phones(p_names, np.array(p_first), np.array(p_last), b - a)
-            piece = classifier.visemes(x[a * hop : b * hop], p_vis if decoder else None)[: b - a]
+            log_p = classifier.warped_log_posteriors(x[a * hop : b * hop])[0]
+            piece = classifier.smoothed(log_p, p_vis if decoder else None)[: b - a]
+            closure[a : a + piece.size] = np.exp(log_p[: piece.size, 1])
             edges = np.concatenate([[0], np.flatnonzero(np.diff(piece)) + 1, [piece.size]])
             for s, e in zip(edges[:-1], edges[1:], strict=True):
                 v, mid = int(piece[s]), (s + e) // 2
@@ -385,7 +428,7 @@ def recognize(
         if progress is not None:
             progress(min(b * FRAME_S, duration), duration)
     index, vis = segments_to_phones(names, np.array(first), np.array(last), n)
-    vis, filled = merge_energy(vis, index, frames, lv, options.fill)
+    vis, filled = merge_energy(vis, index, frames, lv, options.fill, closure)
     if classifier is not None:
         index, names = split_closures(vis, index, names, frames.db)
     phones = frames_to_phones(vis, index, names, filled, duration)
