@@ -154,10 +154,17 @@ def fitted_geometry(head: GenericHead, control: np.ndarray) -> FittedGeometry:
     return FittedGeometry(points, centres)
 
 
+#: ImageTextures of a fitted head that are not the atlas (DEF names): the glasses' RGBA image
+#: (:mod:`vtts.fit.glasses`).
+OWN_TEXTURES = ("GLASSES_TEXTURE",)
+
+
 def set_texture_url(scene: Scene, url: str) -> None:
-    """Point every ``ImageTexture`` of ``scene`` at ``url`` (the head has one atlas)."""
+    """Point every ``ImageTexture`` of ``scene`` at ``url`` (the head has one atlas), but for
+    the :data:`OWN_TEXTURES`."""
     for node in scene.find("ImageTexture"):
-        node.fields["url"] = [url]
+        if node.name not in OWN_TEXTURES:
+            node.fields["url"] = [url]
 
 
 def fitted_scene(model: FaceModel, geometry: FittedGeometry, texture_url: str,
