@@ -346,7 +346,11 @@ def glasses_part(photo: np.ndarray, rims: np.ndarray, camera, face: np.ndarray,
     origin, d = camera.pose[:3, 3], _ray(camera, px)
     # the skin beneath: the face's points interpolated over where the photo sees them
     xy = camera.project(face)
-    skin = LinearNDInterpolator(xy, face[:, 2])
+    pad = 0.25 * max(x1 - x0, y1 - y0)  # the skin around the box (the triangulation's time)
+    near = (xy[:, 0] > x0 - pad) & (xy[:, 0] < x1 + pad) & (xy[:, 1] > y0 - pad) & (
+        xy[:, 1] < y1 + pad
+    )
+    skin = LinearNDInterpolator(xy[near], face[near, 2])
     centre = _frame(landmarks)[0]
     bridge = np.asarray(skin(centre[None]), float)[0]
     e = _model_distance(camera, landmarks, skin)

@@ -546,12 +546,14 @@ def fit_photo(
     timings["texture"] = time.perf_counter() - t
     frame = None
     if rims is not None:
+        t = time.perf_counter()
         # the frame as a part of its own, added once the texture is painted (the probes must
         # see the skin behind it)
         part = glasses_part(image, rims, shape.camera, geometry.points["FACE"], chosen.landmarks)
         if part is not None:
             add_glasses(scene, part, f"{name}-glasses.png")
             frame = part.texture
+        timings["glasses"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t0
     return FittedHead(scene, tables, atlas, shape, chosen, image, len(faces), seen, personality,
                       timings, expression=expression, hair=hair, glasses=glasses,
