@@ -347,8 +347,11 @@ def glasses_part(photo: np.ndarray, rims: np.ndarray, camera, face: np.ndarray,
     # the skin beneath: the face's points interpolated over where the photo sees them
     xy = camera.project(face)
     pad = 0.25 * max(x1 - x0, y1 - y0)  # the skin around the box (the triangulation's time)
-    near = (xy[:, 0] > x0 - pad) & (xy[:, 0] < x1 + pad) & (xy[:, 1] > y0 - pad) & (
-        xy[:, 1] < y1 + pad
+    near = (
+        (xy[:, 0] > x0 - pad)
+        & (xy[:, 0] < x1 + pad)
+        & (xy[:, 1] > y0 - pad)
+        & (xy[:, 1] < y1 + pad)
     )
     skin = LinearNDInterpolator(xy[near], face[near, 2])
     centre = _frame(landmarks)[0]
