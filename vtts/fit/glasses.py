@@ -288,6 +288,10 @@ CELL = 2
 #: distance is about 6.3 cm: 0.05 is 3 mm), and how far its front bends back at one eye
 #: distance to either side of the bridge (a frame's front follows the face's curve a little).
 CLEAR, WRAP = 0.05, 0.08
+#: Beyond this (eye distances to either side of the bridge: a frame's hinges) what the photo
+#: shows of the frame is its temples' arms, which run back towards the ears: there the surface
+#: falls back this much in depth per unit across.
+HINGE, TEMPLE = 1.15, 2.0
 #: The alpha from which a texel of the part's texture shows (the renderer's cutoff).
 CUTOFF = 0.5
 
@@ -316,8 +320,9 @@ def glasses_part(photo: np.ndarray, rims: np.ndarray, camera, face: np.ndarray,
     frame; the head faces +z): the grid of :data:`CELL`-pixel cells that hold a rim pixel,
     each vertex lifted along its pixel's ray to the depth of the bridge over the nose (the
     skin's depth between the eyes ``landmarks (468, ≥2)``, pixels, and :data:`CLEAR` in front
-    of it), bent back by :data:`WRAP` towards the sides and never closer than :data:`CLEAR` to
-    the skin beneath; textured with the photo's pixels there (alpha: the rims), so that at the
+    of it), bent back by :data:`WRAP` towards the sides, falling back by :data:`TEMPLE` beyond
+    the :data:`HINGE` (the temples' arms) and never closer than :data:`CLEAR` to the skin
+    beneath; textured with the photo's pixels there (alpha: the rims), so that at the
     photo's view it draws the frame as the photo shows it. None where no rim was found."""
     from scipy.interpolate import LinearNDInterpolator
 
@@ -365,10 +370,11 @@ def glasses_part(photo: np.ndarray, rims: np.ndarray, camera, face: np.ndarray,
     ray = _ray(camera, centre[None])[0]
     mid_x = origin[0] + (bridge - origin[2]) / ray[2] * ray[0]
     depth = bridge + CLEAR * e
-    for _ in range(2):  # the bend depends on x, which depends on the depth: twice is plenty
+    for _ in range(4):  # the bend depends on x, which depends on the depth: a few times
         t = (depth - origin[2]) / d[:, 2]
-        x = origin[0] + t * d[:, 0]
-        depth = np.maximum(bridge + CLEAR * e - WRAP * ((x - mid_x) / e) ** 2, below + CLEAR * e)
+        u = np.abs(origin[0] + t * d[:, 0] - mid_x) / e
+        front = bridge + CLEAR * e - WRAP * e * u**2 - TEMPLE * e * np.maximum(u - HINGE, 0.0)
+        depth = np.maximum(front, below + CLEAR * e)
     t = (depth - origin[2]) / d[:, 2]
     points = origin + t[:, None] * d
     # the texture: the photo over the box, a power of two on each side (texels on pixels)
