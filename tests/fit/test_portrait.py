@@ -431,3 +431,17 @@ def test_a_photo_with_glasses_is_fitted_with_its_frame_as_a_part(astronaut, fitt
     under = LinearNDInterpolator(face[:, :2], face[:, 2])(part[:, :2])
     assert np.isfinite(under).mean() > 0.9
     assert (part[:, 2] > under)[np.isfinite(under)].all()
+    # the photo's view holds whatever depth the part takes: each point moves along its pixel's
+    # ray, and stays in front of what that view shows (here a wall through the frame)
+    from vtts.fit.glasses import glasses_part, rim_mask
+
+    camera, lm = head.shape.camera, head.face.landmarks
+    rims = rim_mask(image, lm)
+    free = glasses_part(image, rims, camera, face, lm)
+    origin = camera.pose[:3, 3]
+    dist = np.linalg.norm(free.points - origin, axis=1)
+    wall = np.full(image.shape[:2], float(np.median(dist)))
+    held = glasses_part(image, rims, camera, face, lm, wall)
+    near = np.linalg.norm(held.points - origin, axis=1)
+    assert (near < np.median(dist)).all() and (near <= dist + 1e-9).all()
+    assert np.allclose(camera.project(held.points), camera.project(free.points), atol=1e-6)

@@ -313,7 +313,8 @@ class GlassesPart:
 
 
 def glasses_part(photo: np.ndarray, rims: np.ndarray, camera, face: np.ndarray,
-                 landmarks: np.ndarray) -> GlassesPart | None:  # fmt: skip
+                 landmarks: np.ndarray, depth: np.ndarray | None = None
+                 ) -> GlassesPart | None:  # fmt: skip
     """The frame that ``photo (H, W, 3) uint8`` shows at ``rims (H, W) bool`` (:func:`rim_mask`)
     as a thin shape in front of the eyes of the fitted head whose neutral skin is ``face (p,
     3)`` (``FACE``'s points, model units), seen by ``camera`` (the photo's, in the model's
@@ -322,8 +323,10 @@ def glasses_part(photo: np.ndarray, rims: np.ndarray, camera, face: np.ndarray,
     skin's depth between the eyes ``landmarks (468, ≥2)``, pixels, and :data:`CLEAR` in front
     of it), bent back by :data:`WRAP` towards the sides, falling back by :data:`TEMPLE` beyond
     the :data:`HINGE` (the temples' arms) and never closer than :data:`CLEAR` to the skin
-    beneath; textured with the photo's pixels there (alpha: the rims), so that at the
-    photo's view it draws the frame as the photo shows it. None where no rim was found."""
+    beneath — nor to whatever else the photo's view shows there (hair, an ear), where ``depth
+    (H, W)`` gives its distance from the camera (:func:`vtts.fit.texture.depth_map`); textured
+    with the photo's pixels there (alpha: the rims), so that at the photo's view it draws the
+    frame as the photo shows it. None where no rim was found."""
     from scipy.interpolate import LinearNDInterpolator
 
     from vtts.fit.texture import pull_push
@@ -369,13 +372,19 @@ def glasses_part(photo: np.ndarray, rims: np.ndarray, camera, face: np.ndarray,
     # the bridge's point on its ray gives the part's middle across
     ray = _ray(camera, centre[None])[0]
     mid_x = origin[0] + (bridge - origin[2]) / ray[2] * ray[0]
-    depth = bridge + CLEAR * e
+    z = bridge + CLEAR * e
     for _ in range(4):  # the bend depends on x, which depends on the depth: a few times
-        t = (depth - origin[2]) / d[:, 2]
+        t = (z - origin[2]) / d[:, 2]
         u = np.abs(origin[0] + t * d[:, 0] - mid_x) / e
         front = bridge + CLEAR * e - WRAP * e * u**2 - TEMPLE * e * np.maximum(u - HINGE, 0.0)
-        depth = np.maximum(front, below + CLEAR * e)
-    t = (depth - origin[2]) / d[:, 2]
+        z = np.maximum(front, below + CLEAR * e)
+    t = (z - origin[2]) / d[:, 2]
+    if depth is not None:
+        # in front of what the photo's view shows at each corner's pixels (the nearest of them)
+        near_px = ndimage.minimum_filter(depth, size=3, mode="nearest")
+        col = np.clip(px[:, 0].astype(int), 0, w - 1)
+        row = np.clip(px[:, 1].astype(int), 0, h - 1)
+        t = np.minimum(t, (near_px[row, col] - CLEAR * e) / np.linalg.norm(d, axis=1))
     points = origin + t[:, None] * d
     # the texture: the photo over the box, a power of two on each side (texels on pixels)
     tw = 1 << max(nx * CELL - 1, 1).bit_length()

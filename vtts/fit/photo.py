@@ -541,7 +541,7 @@ def fit_photo(
             photo_parts = (*photo_parts, *(n for n in TEETH if n not in photo_parts))
         timings["hair"] = time.perf_counter() - t
     t = time.perf_counter()
-    atlas, seen = _texture(g, scene, tables, shape, painted, chosen, photo_parts, expression,
+    atlas, seen, depth = _texture(g, scene, tables, shape, painted, chosen, photo_parts, expression,
                            trust, skin)  # fmt: skip
     timings["texture"] = time.perf_counter() - t
     frame = None
@@ -549,7 +549,8 @@ def fit_photo(
         t = time.perf_counter()
         # the frame as a part of its own, added once the texture is painted (the probes must
         # see the skin behind it)
-        part = glasses_part(image, rims, shape.camera, geometry.points["FACE"], chosen.landmarks)
+        part = glasses_part(image, rims, shape.camera, geometry.points["FACE"], chosen.landmarks,
+                            depth)  # fmt: skip
         if part is not None:
             add_glasses(scene, part, f"{name}-glasses.png")
             frame = part.texture
@@ -654,7 +655,9 @@ def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.nd
     """The atlas: the generic tiles (upscaled; one eye tile per eye, in the photo's eye
     colours; the ear in its skin colour), painted from the photo where it sees the head —
     the head posed in the photo's ``expression``; ``trust`` and ``skin`` ``(H, W)`` weigh
-    the photo's pixels for every part and for the skin (:func:`~vtts.fit.texture.project_skin`)."""
+    the photo's pixels for every part and for the skin (:func:`~vtts.fit.texture.project_skin`).
+    Also returns the texels' share the photo saw and ``(H, W)`` the distance of what each pixel
+    shows at the photo's view (:func:`~vtts.fit.texture.depth_map`)."""
     from vtts.render import FaceRenderer
 
     with Image.open(models_dir() / f"{g.model.name}-face.png") as im:
@@ -731,7 +734,7 @@ def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.nd
     if not ears:
         # the ears keep the generic tile, in the photo's skin colour
         tint_tile(atlas, EAR_TILE, _skin_ratio(atlas, generic_atlas))
-    return (np.clip(atlas, 0, 1) * 255 + 0.5).astype(np.uint8), seen
+    return (np.clip(atlas, 0, 1) * 255 + 0.5).astype(np.uint8), seen, depth
 
 
 #: Photos up to this size (pixels, the longer side) get an atlas of half :data:`ATLAS_SIZE`:
