@@ -12,15 +12,18 @@ side (an edge, such as a fringe's, stands out of neither). Its largest size with
 :data:`SEARCH`, over the profile's median one (the skin's own texture and the photo's noise),
 is the score; a frame's bridge scores 5–130, bare skin under 4 (docs/fitting.md, "Glasses").
 
-A fitted head does not model glasses: :func:`vtts.fit.photo.fit_photo` warns when the photo
-shows them, and keeps their frame off the skin. The frame's pixels (:func:`rim_mask`) are thin
+A fitted head models the glasses' frame as a part of its own and not their lenses:
+:func:`vtts.fit.photo.fit_photo` warns when the photo shows them, and keeps their frame off the
+skin. The frame's pixels (:func:`rim_mask`) are thin
 lines, dark or light, around the eyes: where a pixel stands out of its neighbourhood (a grey
 closing or opening :data:`SCALE` ``e`` wide), inside the face's oval and off the eyes and the
 brows, in runs longer than a crease or the skin's grain; and, since a clear rim's contrast
 fades along it, each lens's rim is also followed as a smooth closed ring around its eye
 (:func:`rim_ring`). Those pixels are filled from the skin around them (:func:`without_rims`)
 before the texture is painted: turned, the head shows no frame on the cheeks and the nose. The
-lenses' tint and reflections stay, and so does what the frame hid.
+lenses' tint and reflections stay, and so does what the frame hid. The frame itself becomes a
+thin shape in front of the eyes, textured with the photo's frame pixels (:func:`glasses_part`,
+:func:`add_glasses`), which turns with the head.
 """
 
 from __future__ import annotations
@@ -32,6 +35,8 @@ from PIL import Image, ImageDraw
 from scipy import ndimage
 
 from vtts.fit.landmarks import FACE_OVAL, LEFT_EYE, LEFT_EYEBROW, RIGHT_EYE, RIGHT_EYEBROW
+from vtts.render.camera import Camera
+from vtts.vrml import Scene, parse
 
 #: The band's half width across the face (eye distances).
 BAND = 0.07
@@ -292,8 +297,6 @@ CLEAR, WRAP = 0.05, 0.08
 #: shows of the frame is its temples' arms, which run back towards the ears: there the surface
 #: falls back this much in depth per unit across.
 HINGE, TEMPLE = 1.15, 2.0
-#: The alpha from which a texel of the part's texture shows (the renderer's cutoff).
-CUTOFF = 0.5
 
 
 @dataclass
@@ -312,7 +315,7 @@ class GlassesPart:
     texture: np.ndarray
 
 
-def glasses_part(photo: np.ndarray, rims: np.ndarray, camera, face: np.ndarray,
+def glasses_part(photo: np.ndarray, rims: np.ndarray, camera: Camera, face: np.ndarray,
                  landmarks: np.ndarray, depth: np.ndarray | None = None
                  ) -> GlassesPart | None:  # fmt: skip
     """The frame that ``photo (H, W, 3) uint8`` shows at ``rims (H, W) bool`` (:func:`rim_mask`)
@@ -405,14 +408,14 @@ def glasses_part(photo: np.ndarray, rims: np.ndarray, camera, face: np.ndarray,
     return GlassesPart(points, texcoords, quads, texture)
 
 
-def _ray(camera, px: np.ndarray) -> np.ndarray:
+def _ray(camera: Camera, px: np.ndarray) -> np.ndarray:
     """``(n, 3)`` the directions (model frame) of the rays through pixels ``px (n, 2)``."""
     d = np.stack([(px[:, 0] - camera.cx) / camera.fx, -(px[:, 1] - camera.cy) / camera.fy,
                   -np.ones(len(px))], 1)  # fmt: skip
     return d @ camera.pose[:3, :3].T
 
 
-def _model_distance(camera, landmarks: np.ndarray, skin) -> float:
+def _model_distance(camera: Camera, landmarks: np.ndarray, skin) -> float:
     """The eye distance in model units: the eyes' centres lifted onto the skin's depth."""
     pts = np.asarray(landmarks, np.float64)[:, :2]
     eyes = np.stack([pts[[33, 133]].mean(axis=0), pts[[362, 263]].mean(axis=0)])
@@ -425,14 +428,12 @@ def _model_distance(camera, landmarks: np.ndarray, skin) -> float:
     return float(np.linalg.norm(p[0] - p[1]))
 
 
-def add_glasses(scene, part: GlassesPart, url: str) -> None:
+def add_glasses(scene: Scene, part: GlassesPart, url: str) -> None:
     """Put ``part`` into ``scene`` (changed in place) as ``DEF GLASSES`` IndexedFaceSet under
     the head's :data:`PARENT` Transform, drawn from both sides, unlit (an Appearance without a
     Material: the photo's pixels as they are), with its texture ``DEF GLASSES_TEXTURE``
     ImageTexture at ``url`` (an RGBA image: where its alpha is under :data:`CUTOFF` the part
     is not drawn)."""
-    from vtts.vrml import parse
-
     text = (
         "#VRML V2.0 utf8\nShape {\n"
         f"  appearance DEF {APPEARANCE} Appearance {{\n"
