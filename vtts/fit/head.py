@@ -29,6 +29,7 @@ from vtts.face.adt import Adt, AnimationTables, MeshTable, TransformTable
 from vtts.fap import Fapu, fap
 from vtts.fit.candide import refined_face
 from vtts.fit.generic import GenericHead
+from vtts.fit.glasses import TEXTURE as GLASSES_TEXTURE
 from vtts.vrml import Scene, standard_node_types
 
 #: FACE points the warp passes through (every k-th): plenty for a smooth field, fast to solve.
@@ -156,7 +157,7 @@ def fitted_geometry(head: GenericHead, control: np.ndarray) -> FittedGeometry:
 
 #: ImageTextures of a fitted head that are not the atlas (DEF names): the glasses' RGBA image
 #: (:mod:`vtts.fit.glasses`).
-OWN_TEXTURES = ("GLASSES_TEXTURE",)
+OWN_TEXTURES = (GLASSES_TEXTURE,)
 
 
 def set_texture_url(scene: Scene, url: str) -> None:
