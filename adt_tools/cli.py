@@ -167,7 +167,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
         echo(f"error: --focal is a 35 mm-equivalent focal length of {MIN_FOCAL_35MM:g} to "
              f"{MAX_FOCAL_35MM:g} mm, got {args.focal:g}", file=sys.stderr)  # fmt: skip
         return 1
-    # the four outputs and the report's files must not replace the photo (me-face.png -o
+    # the outputs and the report's files must not replace the photo (me-face.png -o
     # me.wrl would, --report shots on shots/landmarks.png too), each other, links or anything
     # but plain files
     from vtts.atomic import check_outputs
@@ -175,7 +175,8 @@ def cmd_fit(args: argparse.Namespace) -> int:
 
     photo = Path(args.photo)
     outputs = [out, out.with_suffix(".adt"), out.with_name(f"{out.stem}-face.png"),
-               out.with_name(f"{out.stem}-photo.png")]  # fmt: skip
+               out.with_name(f"{out.stem}-photo.png"),
+               out.with_name(f"{out.stem}-glasses.png")]  # fmt: skip
     report = [Path(args.report) / name for name in REPORT_FILES] if args.report else []
     for target in (*outputs, *report):
         if target.exists() and photo.exists() and os.path.samefile(target, photo):
@@ -274,8 +275,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="a personalized head from one photograph",
         description="Fit the generic head to the face in a photo: landmarks, pose, camera and "
         "shape, the photo as its texture, and the animation tables carried over. Writes "
-        "OUT.wrl (with the photo's camera as DEF photo Viewpoint), OUT.adt, OUT-face.png and "
-        "OUT-photo.png (the photo as fitted); vtts render --model OUT.wrl --viewpoint photo "
+        "OUT.wrl (with the photo's camera as DEF photo Viewpoint), OUT.adt, OUT-face.png, "
+        "OUT-photo.png (the photo as fitted) and, where the photo shows glasses, "
+        "OUT-glasses.png (their frame's texture); vtts render --model OUT.wrl --viewpoint photo "
         "--size WxH renders it over the photo, --background photo into it (a talking photo).",
     )
     f.add_argument("photo", metavar="PHOTO", help="a photo (PNG, JPEG, ...) showing a face")

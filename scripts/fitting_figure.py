@@ -1,7 +1,9 @@
 """The contact sheet of docs/fitting.md: each development photo, the head ``adi fit`` makes of
 it rendered at ``--viewpoint photo`` in the photo's expression over grey (everything the model
-draws), the neutral head turned 30° each way, with joy, and speaking viseme 10 ("A:").
-The set-aside photos (:data:`SET_ASIDE`) are never drawn.
+draws), the neutral head turned 30° each way, with joy, and speaking viseme 10 ("A:"); and
+the same of the first frame of :data:`CLIPS` (a development clip whose man wears glasses: the
+frame a part of the head, :mod:`vtts.fit.glasses`). The set-aside photos (:data:`SET_ASIDE`)
+are never drawn.
 
 usage: .venv/bin/python scripts/fitting_figure.py [OUT.png]   (default docs/fitting.png)
 """
@@ -25,6 +27,8 @@ ROOT = Path(__file__).resolve().parents[1]
 #: The development photos (tests/data/photos); lp_s9 and lp_s12 are set aside.
 PHOTOS = ("akiyo_frame0.png", "astronaut.png", "lp_s1.jpg", "lp_s2.jpg", "lp_s42.jpg", "lp_s7.jpg")
 SET_ASIDE = ("lp_s9.jpg", "lp_s12.jpg")
+#: Development clips (tests/data/video) whose first frame gets a row: glasses.
+CLIPS = ("lp_d13",)
 CELL = 200
 GREY = 128
 
@@ -44,7 +48,13 @@ def crop_to_face(image: np.ndarray, box, margin: float = 0.45) -> np.ndarray:
 
 
 def row(name: str, folder: Path) -> list[Image.Image]:
-    image, focal = load_photo(ROOT / "tests" / "data" / "photos" / name)
+    if name in CLIPS:
+        from vtts.analysis.video import read_video
+
+        video = ROOT / "tests" / "data" / "video" / f"{name}.mp4"
+        image, focal = next(iter(read_video(video).frames())), None
+    else:
+        image, focal = load_photo(ROOT / "tests" / "data" / "photos" / name)
     stem = Path(name).stem
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -73,7 +83,7 @@ def row(name: str, folder: Path) -> list[Image.Image]:
 def main(argv: list[str]) -> int:
     out = Path(argv[0]) if argv else ROOT / "docs" / "fitting.png"
     with tempfile.TemporaryDirectory() as tmp:
-        rows = [row(name, Path(tmp)) for name in PHOTOS]
+        rows = [row(name, Path(tmp)) for name in (*PHOTOS, *CLIPS)]
     sheet = Image.new("RGB", (CELL * len(rows[0]), CELL * len(rows)), (255, 255, 255))
     for i, cells in enumerate(rows):
         for j, c in enumerate(cells):

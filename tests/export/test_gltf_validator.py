@@ -73,3 +73,23 @@ def test_an_appearance_without_material_is_unlit_as_in_vrml97(tmp_path):
     assert unlit.extensions == {"KHR_materials_unlit": {}}
     assert unlit.pbrMetallicRoughness.baseColorFactor == [1.0, 1.0, 1.0, 1.0]  # the texture's
     assert not lit.extensions and lit.pbrMetallicRoughness.baseColorFactor == [0, 0, 1, 1]
+
+
+def test_a_texture_with_alpha_is_a_cutout_as_the_renderer_draws_it(tmp_path):
+    """An RGBA texture transparent somewhere (a fitted head's glasses) exports as ``alphaMode``
+    MASK at the renderer's cutoff; an opaque one stays OPAQUE."""
+    from vtts.render.scene import ALPHA_CUTOFF
+
+    wrl = tmp_path / "a.wrl"
+    shape = (
+        "Shape {{ appearance Appearance {{ texture PixelTexture {{ image 2 1 4 {} }} }}\n"
+        "  geometry IndexedFaceSet {{ coord Coordinate {{ point [0 0 0, 1 0 0, 0 1 0] }}\n"
+        "  coordIndex [0 1 2 -1] }} }}\n"
+    )
+    wrl.write_text("#VRML V2.0 utf8\n" + shape.format("0xff000000 0xff0000ff")
+                   + shape.format("0x00ff00ff 0x00ff00ff"), encoding="utf-8")  # fmt: skip
+    path = write_gltf(tmp_path / "a.glb", [load_model(wrl)], np.zeros((1, N_PARAMS)), 30.0)
+    assert problems(validate(path)) == []
+    cut, opaque = pygltflib.GLTF2.load(str(path)).materials
+    assert cut.alphaMode == "MASK" and cut.alphaCutoff == ALPHA_CUTOFF
+    assert opaque.alphaMode == "OPAQUE"

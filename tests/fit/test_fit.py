@@ -469,8 +469,10 @@ def test_large_photos_are_fitted_at_the_working_size():
     assert np.abs(full.project(pts) - scaled).max() < 0.25  # the working size is rounded
 
 
-def test_outputs_never_replace_the_photo(tmp_path):
-    photo_path = tmp_path / "me-face.png"
+@pytest.mark.parametrize("name", ["me-face.png", "me-glasses.png"])
+def test_outputs_never_replace_the_photo(tmp_path, name):
+    """Not the texture, nor the glasses' texture a photo with glasses gets."""
+    photo_path = tmp_path / name
     photo_path.write_bytes((PHOTOS / "akiyo_frame0.png").read_bytes())
     before = photo_path.read_bytes()
     r = in_process.adi("fit", photo_path, "-o", tmp_path / "me.wrl")

@@ -385,14 +385,19 @@ def test_the_frame_is_found_and_filled_from_the_skin_around_it(astronaut):
     assert off < 0.25 * np.abs(image.astype(int) - astronaut.astype(int))[frame].mean()
 
 
-def test_a_photo_with_glasses_is_fitted_with_a_warning_and_no_frame(astronaut, fitted,
-                                                                    tmp_path):  # fmt: skip
-    """Glasses drawn on the astronaut: the head is fitted, with a warning that they are not
-    modelled, and the report says so; its texture has no frame: at the photo's view the head
-    draws the skin where the photo shows the rims. The photo without them gives no
-    warning."""
-    from vtts.fit.glasses import GLASSES
+def test_a_photo_with_glasses_is_fitted_with_its_frame_as_a_part(astronaut, fitted, tmp_path):
+    """Glasses drawn on the astronaut: the head is fitted, with a warning that the lenses are
+    not modelled, and the report says so. The frame is a part of its own, written with its
+    RGBA texture and read back: at the photo's view the head draws the frame where the photo
+    shows it, and without that part the skin there (the texture has no frame); every point
+    of it lies in front of the skin. The photo without glasses gives no warning and no
+    part."""
+    from scipy.interpolate import LinearNDInterpolator
+
+    from vtts.face import load_model
+    from vtts.fit.glasses import GLASSES, PART
     from vtts.fit.report import photo_view
+    from vtts.render import FaceRenderer
 
     image = glasses(astronaut)
     with pytest.warns(Warning, match="glasses") as caught:
@@ -400,9 +405,43 @@ def test_a_photo_with_glasses_is_fitted_with_a_warning_and_no_frame(astronaut, f
     assert head.glasses >= GLASSES
     assert sum("glasses" in str(w.message) for w in caught) == 1
     assert fitted.glasses < GLASSES
-    drawn, masks = photo_view(head.model(tmp_path), image, head.expression)
-    frame = (np.abs(image.astype(int) - astronaut.astype(int)).sum(axis=2) > 60) & masks["skin"]
-    assert frame.sum() > 50
-    to_skin = np.abs(drawn.astype(int) - astronaut.astype(int))[frame].mean()
-    to_frame = np.abs(drawn.astype(int) - image.astype(int))[frame].mean()
+    assert PART not in fitted.scene.defs and fitted.glasses_texture is None
+    files = head.write(tmp_path / "g.wrl")
+    assert tmp_path / "g-glasses.png" in files
+    alpha = np.asarray(Image.open(tmp_path / "g-glasses.png"))[..., 3]
+    assert alpha.min() == 0 and alpha.max() == 255
+    model = load_model(tmp_path / "g.wrl")
+    assert PART in model.scene.defs
+    frame = np.abs(image.astype(int) - astronaut.astype(int)).sum(axis=2) > 60
+    drawn, masks = photo_view(model, image, head.expression)
+    shown = frame & masks["face"]
+    assert shown.sum() > 0.8 * frame.sum()
+    to_skin = np.abs(drawn.astype(int) - astronaut.astype(int))[shown].mean()
+    to_frame = np.abs(drawn.astype(int) - image.astype(int))[shown].mean()
+    assert to_frame < 0.3 * to_skin, (to_skin, to_frame)
+    h, w = image.shape[:2]
+    with FaceRenderer(model, size=(w, h), viewpoint="photo", hidden=(PART,)) as r:
+        bare, numbers = r.render(model.params(head.expression), triangles=True)
+    skin = frame & (numbers >= 0)
+    to_skin = np.abs(bare[..., :3].astype(int) - astronaut.astype(int))[skin].mean()
+    to_frame = np.abs(bare[..., :3].astype(int) - image.astype(int))[skin].mean()
     assert to_skin < 0.3 * to_frame, (to_skin, to_frame)
+    # in front of the skin: never on the cheeks when the head turns
+    face, part = model.neutral_points("FACE"), model.neutral_points(PART)
+    under = LinearNDInterpolator(face[:, :2], face[:, 2])(part[:, :2])
+    assert np.isfinite(under).mean() > 0.9
+    assert (part[:, 2] > under)[np.isfinite(under)].all()
+    # the photo's view holds whatever depth the part takes: each point moves along its pixel's
+    # ray, and stays in front of what that view shows (here a wall through the frame)
+    from vtts.fit.glasses import glasses_part, rim_mask
+
+    camera, lm = head.shape.camera, head.face.landmarks
+    rims = rim_mask(image, lm)
+    free = glasses_part(image, rims, camera, face, lm)
+    origin = camera.pose[:3, 3]
+    dist = np.linalg.norm(free.points - origin, axis=1)
+    wall = np.full(image.shape[:2], float(np.median(dist)))
+    held = glasses_part(image, rims, camera, face, lm, wall)
+    near = np.linalg.norm(held.points - origin, axis=1)
+    assert (near < np.median(dist)).all() and (near <= dist + 1e-9).all()
+    assert np.allclose(camera.project(held.points), camera.project(free.points), atol=1e-6)

@@ -57,6 +57,36 @@ def test_an_appearance_without_material_is_unlit(tmp_path):
         assert (tuple(centre) != (200, 30, 90)) == lit, (material, centre)
 
 
+def test_a_texture_with_alpha_draws_as_a_cutout(tmp_path):
+    """A texture whose alpha is 0 somewhere (a fitted head's glasses) is not drawn there: the
+    quad behind shows through its left half, the front quad's colour shows on its right."""
+    from PIL import Image
+
+    from vtts.face import load_model
+    from vtts.render import FaceRenderer
+
+    rgba = np.zeros((4, 4, 4), np.uint8)
+    rgba[..., :3] = (200, 30, 90)
+    rgba[:, 2:, 3] = 255  # the right half shows
+    Image.fromarray(rgba).save(tmp_path / "t.png")
+    Image.fromarray(np.full((4, 4, 3), (20, 200, 40), np.uint8)).save(tmp_path / "b.png")
+
+    def quad(z: float, url: str) -> str:
+        return (
+            f'Shape {{ appearance Appearance {{ texture ImageTexture {{ url "{url}" }} }} '
+            f"geometry IndexedFaceSet {{ coord Coordinate {{ point [-1 -1 {z}, 1 -1 {z}, "
+            f"1 1 {z}, -1 1 {z}] }} coordIndex [0 1 2 3 -1] "
+            "texCoord TextureCoordinate { point [0 0, 1 0, 1 1, 0 1] } } }\n"
+        )
+
+    (tmp_path / "m.wrl").write_text("#VRML V2.0 utf8\n" + quad(0.0, "b.png") + quad(0.3, "t.png"))
+    with FaceRenderer(load_model(str(tmp_path / "m.wrl")), size=(64, 64)) as r:
+        img, numbers = r.render(np.zeros(90), triangles=True)
+    assert tuple(img[32, 20]) == (20, 200, 40)  # the cut out half: the quad behind
+    assert tuple(img[32, 44]) == (200, 30, 90)  # the drawn half, unlit
+    assert numbers[32, 20] != numbers[32, 44]  # the triangle numbers see through it too
+
+
 def test_a_black_specular_colour_draws_no_highlight(tmp_path):
     """A Material that sets ``specularColor 0 0 0`` (a photo-textured head's skin) draws a
     black surface black; one that leaves it at its default keeps the renderer's highlight."""

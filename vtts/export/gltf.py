@@ -50,6 +50,7 @@ from vtts.gltf.writer import GLTF_SUFFIXES
 from vtts.limits import MAX_FPS, MAX_FRAMES, MIN_FPS
 from vtts.mesh import incidence
 from vtts.render.camera import Camera
+from vtts.render.scene import ALPHA_CUTOFF, has_alpha, load_image
 from vtts.vrml import Node, rotation_matrix
 
 #: The name of the camera node (the web player looks through it).
@@ -179,6 +180,7 @@ class _Exporter:
         self.samplers: list[gl.Sampler] = []
         self._mesh_cache: dict[tuple, _MeshEntry] = {}
         self._material_cache: dict[tuple, int] = {}
+        self._cutouts: set[int] = set()  # textures whose alpha cuts them out (the renderer's)
         self._image_cache: dict[object, int] = {}
         self._sampler_cache: dict[tuple, int] = {}
 
@@ -457,7 +459,9 @@ class _Exporter:
         """The renderer's mapping of a VRML Appearance: diffuseColor and 1 − transparency as the
         base color, emissiveColor, roughness 1 − 0.8·shininess, not metallic; a texture
         multiplies the base color (white when there is no Material). An Appearance without a
-        Material is not lit (VRML97): ``KHR_materials_unlit``."""  # fmt: skip
+        Material is not lit (VRML97): ``KHR_materials_unlit``. A texture with an alpha channel
+        that is under the cutoff somewhere is a cutout (``alphaMode`` MASK), as the renderer
+        draws it (:data:`vtts.render.scene.ALPHA_CUTOFF`)."""  # fmt: skip
         key = (id(appearance), double_sided, textured)
         if key in self._material_cache:
             return self._material_cache[key]
@@ -490,11 +494,15 @@ class _Exporter:
         )
         if texture is not None:
             pbr.baseColorTexture = gl.TextureInfo(index=texture)
+        mode = "BLEND" if base[3] < 1.0 else "OPAQUE"
+        if mode == "OPAQUE" and texture in self._cutouts:
+            mode = "MASK"
         material = gl.Material(
             name=name,
             pbrMetallicRoughness=pbr,
             emissiveFactor=[float(np.clip(v, 0.0, 1.0)) for v in emissive],
-            alphaMode="BLEND" if base[3] < 1.0 else "OPAQUE",
+            alphaMode=mode,
+            alphaCutoff=ALPHA_CUTOFF if mode == "MASK" else None,
             doubleSided=double_sided,
         )
         if unlit:
@@ -509,6 +517,7 @@ class _Exporter:
             if img.width == 0 or img.height == 0:
                 return None
             image = self._image(("pixel", id(tex)), lambda: (png_bytes(img.to_rgba()), "image/png"))
+            cutout = has_alpha(img.to_rgba())
         elif tex.type.name == "ImageTexture":
             path = model.texture_file(tex)
             if path is None:
@@ -516,6 +525,7 @@ class _Exporter:
                     warnings.warn(model.texture_warning(tex, list(tex["url"])), stacklevel=4)
                 return None
             image = self._image(path, lambda: image_file(path))
+            cutout = has_alpha(load_image(path))
         else:
             return None
         wrap = tuple(REPEAT if tex[f] else CLAMP_TO_EDGE for f in ("repeatS", "repeatT"))
@@ -528,6 +538,8 @@ class _Exporter:
             )
             sampler = self._sampler_cache[wrap] = len(self.samplers) - 1
         self.textures.append(gl.Texture(source=image, sampler=sampler))
+        if cutout:
+            self._cutouts.add(len(self.textures) - 1)
         return len(self.textures) - 1
 
     def _image(self, key, load) -> int:

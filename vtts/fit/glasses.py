@@ -12,24 +12,31 @@ side (an edge, such as a fringe's, stands out of neither). Its largest size with
 :data:`SEARCH`, over the profile's median one (the skin's own texture and the photo's noise),
 is the score; a frame's bridge scores 5–130, bare skin under 4 (docs/fitting.md, "Glasses").
 
-A fitted head does not model glasses: :func:`vtts.fit.photo.fit_photo` warns when the photo
-shows them, and keeps their frame off the skin. The frame's pixels (:func:`rim_mask`) are thin
+A fitted head models the glasses' frame as a part of its own and not their lenses:
+:func:`vtts.fit.photo.fit_photo` warns when the photo shows them, and keeps their frame off the
+skin. The frame's pixels (:func:`rim_mask`) are thin
 lines, dark or light, around the eyes: where a pixel stands out of its neighbourhood (a grey
 closing or opening :data:`SCALE` ``e`` wide), inside the face's oval and off the eyes and the
 brows, in runs longer than a crease or the skin's grain; and, since a clear rim's contrast
 fades along it, each lens's rim is also followed as a smooth closed ring around its eye
 (:func:`rim_ring`). Those pixels are filled from the skin around them (:func:`without_rims`)
 before the texture is painted: turned, the head shows no frame on the cheeks and the nose. The
-lenses' tint and reflections stay, and so does what the frame hid.
+lenses' tint and reflections stay, and so does what the frame hid. The frame itself becomes a
+thin shape in front of the eyes, textured with the photo's frame pixels (:func:`glasses_part`,
+:func:`add_glasses`), which turns with the head.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 from PIL import Image, ImageDraw
 from scipy import ndimage
 
 from vtts.fit.landmarks import FACE_OVAL, LEFT_EYE, LEFT_EYEBROW, RIGHT_EYE, RIGHT_EYEBROW
+from vtts.render.camera import Camera
+from vtts.vrml import Scene, parse
 
 #: The band's half width across the face (eye distances).
 BAND = 0.07
@@ -270,3 +277,183 @@ def without_rims(image: np.ndarray, rims: np.ndarray) -> np.ndarray:
     filled = pull_push(out[r0:r1, c0:c1].astype(np.float32), (~hole).astype(np.float32))
     out[r0:r1, c0:c1][hole] = np.clip(filled[hole] + 0.5, 0, 255).astype(np.uint8)
     return out
+
+
+# ---- the frame as a part of the head ----------------------------------------------------------
+
+#: The glasses' part: its IndexedFaceSet, its Appearance and its texture (an RGBA image of its
+#: own beside the atlas: the photo's frame pixels, transparent elsewhere).
+PART, APPEARANCE, TEXTURE = "GLASSES", "GLASSES_LOOK", "GLASSES_TEXTURE"
+#: The Transform the part hangs under: it turns and nods with the head, not with the jaw or
+#: the lids.
+PARENT = "HEAD_ROLL"
+#: The part's grid cells (photo pixels, square): a cell is kept where it holds a rim pixel.
+CELL = 2
+#: How far the frame stands in front of the skin beneath it, at least (eye distances; the eye
+#: distance is about 6.3 cm: 0.05 is 3 mm), and how far its front bends back at one eye
+#: distance to either side of the bridge (a frame's front follows the face's curve a little).
+CLEAR, WRAP = 0.05, 0.08
+#: Beyond this (eye distances to either side of the bridge: a frame's hinges) what the photo
+#: shows of the frame is its temples' arms, which run back towards the ears: there the surface
+#: falls back this much in depth per unit across.
+HINGE, TEMPLE = 1.15, 2.0
+
+
+@dataclass
+class GlassesPart:
+    """The glasses' frame as a part of the head (:func:`glasses_part`).
+
+    points     ``(n, 3)`` its vertices (model units, the head's frame)
+    texcoords  ``(n, 2)`` each vertex's texture coordinate in :attr:`texture`
+    quads      ``(m, 4)`` its faces, vertex indices counter-clockwise seen from the camera
+    texture    ``(h, w, 4) uint8`` RGBA: the photo's frame pixels, alpha 0 elsewhere
+    """
+
+    points: np.ndarray
+    texcoords: np.ndarray
+    quads: np.ndarray
+    texture: np.ndarray
+
+
+def glasses_part(photo: np.ndarray, rims: np.ndarray, camera: Camera, face: np.ndarray,
+                 landmarks: np.ndarray, depth: np.ndarray | None = None
+                 ) -> GlassesPart | None:  # fmt: skip
+    """The frame that ``photo (H, W, 3) uint8`` shows at ``rims (H, W) bool`` (:func:`rim_mask`)
+    as a thin shape in front of the eyes of the fitted head whose neutral skin is ``face (p,
+    3)`` (``FACE``'s points, model units), seen by ``camera`` (the photo's, in the model's
+    frame; the head faces +z): the grid of :data:`CELL`-pixel cells that hold a rim pixel,
+    each vertex lifted along its pixel's ray to the depth of the bridge over the nose (the
+    skin's depth between the eyes ``landmarks (468, ≥2)``, pixels, and :data:`CLEAR` in front
+    of it), bent back by :data:`WRAP` towards the sides, falling back by :data:`TEMPLE` beyond
+    the :data:`HINGE` (the temples' arms) and never closer than :data:`CLEAR` to the skin
+    beneath — nor to whatever else the photo's view shows there (hair, an ear), where ``depth
+    (H, W)`` gives its distance from the camera (:func:`vtts.fit.texture.depth_map`); textured
+    with the photo's pixels there (alpha: the rims), so that at the photo's view it draws the
+    frame as the photo shows it. None where no rim was found."""
+    from scipy.interpolate import LinearNDInterpolator
+
+    from vtts.fit.texture import pull_push
+
+    h, w = rims.shape
+    if not rims.any():
+        return None
+    rows, cols = np.nonzero(rims)
+    x0, x1 = max(int(cols.min()) - CELL, 0), min(int(cols.max()) + 2 * CELL, w)
+    y0, y1 = max(int(rows.min()) - CELL, 0), min(int(rows.max()) + 2 * CELL, h)
+    x0, y0 = x0 - x0 % CELL, y0 - y0 % CELL
+    nx, ny = -(-(x1 - x0) // CELL), -(-(y1 - y0) // CELL)
+    box = np.zeros((ny * CELL, nx * CELL), bool)
+    part = rims[y0 : y0 + ny * CELL, x0 : x0 + nx * CELL]
+    box[: part.shape[0], : part.shape[1]] = part
+    kept = box.reshape(ny, CELL, nx, CELL).any(axis=(1, 3))
+    cy, cx = np.nonzero(kept)
+    # the cells' corners, numbered once: (ny + 1, nx + 1) grid
+    corners = np.stack([cy * (nx + 1) + cx, cy * (nx + 1) + cx + 1,
+                        (cy + 1) * (nx + 1) + cx + 1, (cy + 1) * (nx + 1) + cx], 1)  # fmt: skip
+    used, quads = np.unique(corners, return_inverse=True)
+    quads = quads.reshape(-1, 4)
+    px = np.stack([x0 + (used % (nx + 1)) * CELL, y0 + (used // (nx + 1)) * CELL], 1).astype(float)
+    # each pixel's ray in the model's frame
+    origin, d = camera.pose[:3, 3], _ray(camera, px)
+    # the skin beneath: the face's points interpolated over where the photo sees them
+    xy = camera.project(face)
+    pad = 0.25 * max(x1 - x0, y1 - y0)  # the skin around the box (the triangulation's time)
+    near = (
+        (xy[:, 0] > x0 - pad)
+        & (xy[:, 0] < x1 + pad)
+        & (xy[:, 1] > y0 - pad)
+        & (xy[:, 1] < y1 + pad)
+    )
+    skin = LinearNDInterpolator(xy[near], face[near, 2])
+    centre = _frame(landmarks)[0]
+    bridge = np.asarray(skin(centre[None]), float)[0]
+    e = _model_distance(camera, landmarks, skin)
+    if not (np.isfinite(bridge) and np.isfinite(e) and e > 0):
+        return None
+    below = np.asarray(skin(px), float)
+    below = np.where(np.isfinite(below), below, -np.inf)
+    # the bridge's point on its ray gives the part's middle across
+    ray = _ray(camera, centre[None])[0]
+    mid_x = origin[0] + (bridge - origin[2]) / ray[2] * ray[0]
+    z = bridge + CLEAR * e
+    for _ in range(4):  # the bend depends on x, which depends on the depth: a few times
+        t = (z - origin[2]) / d[:, 2]
+        u = np.abs(origin[0] + t * d[:, 0] - mid_x) / e
+        front = bridge + CLEAR * e - WRAP * e * u**2 - TEMPLE * e * np.maximum(u - HINGE, 0.0)
+        z = np.maximum(front, below + CLEAR * e)
+    t = (z - origin[2]) / d[:, 2]
+    if depth is not None:
+        # in front of what the photo's view shows at each corner's pixels (the nearest of them)
+        near_px = ndimage.minimum_filter(depth, size=3, mode="nearest")
+        col = np.clip(px[:, 0].astype(int), 0, w - 1)
+        row = np.clip(px[:, 1].astype(int), 0, h - 1)
+        t = np.minimum(t, (near_px[row, col] - CLEAR * e) / np.linalg.norm(d, axis=1))
+    points = origin + t[:, None] * d
+    # the texture: the photo over the box, a power of two on each side (texels on pixels)
+    tw = 1 << max(nx * CELL - 1, 1).bit_length()
+    th = 1 << max(ny * CELL - 1, 1).bit_length()
+    crop = np.zeros((th, tw, 3), np.float32)
+    alpha = np.zeros((th, tw), bool)
+    src = photo[y0 : min(y0 + th, h), x0 : min(x0 + tw, w)]
+    crop[: src.shape[0], : src.shape[1]] = src
+    alpha[: src.shape[0], : src.shape[1]] = rims[y0 : y0 + src.shape[0], x0 : x0 + src.shape[1]]
+    # the texels around the frame take its colours (the texture's filtering mixes them in)
+    filled = pull_push(crop, alpha.astype(np.float32))
+    rgb = np.where(alpha[..., None], crop, filled)
+    texture = np.dstack([np.clip(rgb + 0.5, 0, 255).astype(np.uint8),
+                         np.where(alpha, 255, 0).astype(np.uint8)])  # fmt: skip
+    texcoords = np.stack([(px[:, 0] - x0) / tw, 1.0 - (px[:, 1] - y0) / th], 1)
+    # counter-clockwise seen from the camera: the image's rows run down
+    quads = quads[:, ::-1]
+    return GlassesPart(points, texcoords, quads, texture)
+
+
+def _ray(camera: Camera, px: np.ndarray) -> np.ndarray:
+    """``(n, 3)`` the directions (model frame) of the rays through pixels ``px (n, 2)``."""
+    d = np.stack([(px[:, 0] - camera.cx) / camera.fx, -(px[:, 1] - camera.cy) / camera.fy,
+                  -np.ones(len(px))], 1)  # fmt: skip
+    return d @ camera.pose[:3, :3].T
+
+
+def _model_distance(camera: Camera, landmarks: np.ndarray, skin) -> float:
+    """The eye distance in model units: the eyes' centres lifted onto the skin's depth."""
+    pts = np.asarray(landmarks, np.float64)[:, :2]
+    eyes = np.stack([pts[[33, 133]].mean(axis=0), pts[[362, 263]].mean(axis=0)])
+    z = np.asarray(skin(eyes), float)
+    if not np.isfinite(z).all():
+        return float("nan")
+    d = _ray(camera, eyes)
+    origin = camera.pose[:3, 3]
+    p = origin + ((z - origin[2]) / d[:, 2])[:, None] * d
+    return float(np.linalg.norm(p[0] - p[1]))
+
+
+def add_glasses(scene: Scene, part: GlassesPart, url: str) -> None:
+    """Put ``part`` into ``scene`` (changed in place) as ``DEF GLASSES`` IndexedFaceSet under
+    the head's :data:`PARENT` Transform, drawn from both sides, unlit (an Appearance without a
+    Material: the photo's pixels as they are), with its texture ``DEF GLASSES_TEXTURE``
+    ImageTexture at ``url`` (an RGBA image: where its alpha is under :data:`CUTOFF` the part
+    is not drawn)."""
+    text = (
+        "#VRML V2.0 utf8\nShape {\n"
+        f"  appearance DEF {APPEARANCE} Appearance {{\n"
+        f'    texture DEF {TEXTURE} ImageTexture {{ url "{url}" repeatS FALSE repeatT FALSE }}\n'
+        "  }\n"
+        f"  geometry DEF {PART} IndexedFaceSet {{\n    solid FALSE\n    creaseAngle 0\n"
+        "    coord Coordinate { point [ 0 0 0 ] }\n"
+        "    texCoord TextureCoordinate { point [ 0 0 ] }\n"
+        "    coordIndex [ 0 0 0 -1 ]\n  }\n}\n"
+    )
+    parsed = parse(text)
+    shape = parsed.roots[0]
+    ifs = shape["geometry"].expand()
+    ifs["coord"].expand().fields["point"] = np.round(part.points, 6) + 0.0
+    ifs["texCoord"].expand().fields["point"] = np.round(part.texcoords, 6) + 0.0
+    ifs.fields["coordIndex"] = (
+        np.c_[part.quads, -np.ones(len(part.quads), int)].ravel().astype(np.int32)
+    )
+    if PART in scene.defs:
+        raise ValueError(f"the scene has a {PART} already")
+    scene.node(PARENT).expand().fields["children"].append(shape)
+    for name in (PART, APPEARANCE, TEXTURE):
+        scene.defs[name] = parsed.defs[name]

@@ -29,6 +29,7 @@ from vtts.face.adt import Adt, AnimationTables, MeshTable, TransformTable
 from vtts.fap import Fapu, fap
 from vtts.fit.candide import refined_face
 from vtts.fit.generic import GenericHead
+from vtts.fit.glasses import TEXTURE as GLASSES_TEXTURE
 from vtts.vrml import Scene, standard_node_types
 
 #: FACE points the warp passes through (every k-th): plenty for a smooth field, fast to solve.
@@ -154,10 +155,17 @@ def fitted_geometry(head: GenericHead, control: np.ndarray) -> FittedGeometry:
     return FittedGeometry(points, centres)
 
 
+#: ImageTextures of a fitted head that are not the atlas (DEF names): the glasses' RGBA image
+#: (:mod:`vtts.fit.glasses`).
+OWN_TEXTURES = (GLASSES_TEXTURE,)
+
+
 def set_texture_url(scene: Scene, url: str) -> None:
-    """Point every ``ImageTexture`` of ``scene`` at ``url`` (the head has one atlas)."""
+    """Point every ``ImageTexture`` of ``scene`` at ``url`` (the head has one atlas), but for
+    the :data:`OWN_TEXTURES`."""
     for node in scene.find("ImageTexture"):
-        node.fields["url"] = [url]
+        if node.name not in OWN_TEXTURES:
+            node.fields["url"] = [url]
 
 
 def fitted_scene(model: FaceModel, geometry: FittedGeometry, texture_url: str,

@@ -38,7 +38,15 @@ from vtts.fit.expression import (
 )
 from vtts.fit.frame import FRAME_APPEARANCES, frame_texture, project_frame
 from vtts.fit.generic import GenericHead, generic_head, landmark_map
-from vtts.fit.glasses import GLASSES, glasses_score, rim_mask, without_rims
+from vtts.fit.glasses import (
+    GLASSES,
+    add_glasses,
+    glasses_part,
+    glasses_score,
+    rim_mask,
+    without_rims,
+)
+from vtts.fit.glasses import TEXTURE as GLASSES_TEXTURE
 from vtts.fit.hair import HairShell, fit_hair_shell
 from vtts.fit.head import (
     fitted_fapu,
@@ -154,6 +162,8 @@ class FittedHead:
     teeth      how far the upper teeth were moved up (model units, negative: down) to meet the
                teeth the photo's open mouth shows (:func:`~vtts.fit.teeth.place_teeth`), None
                where it shows none (or for a head made for a video)
+    glasses_texture ``(h, w, 4) uint8`` the RGBA texture of the glasses' frame, a part of
+               the head (:func:`~vtts.fit.glasses.glasses_part`), None where it has none
     """
 
     scene: Scene
@@ -171,12 +181,14 @@ class FittedHead:
     hair: HairShell | None = None
     glasses: float | None = None
     teeth: float | None = None
+    glasses_texture: np.ndarray | None = None
 
     def write(self, path: str | Path) -> list[Path]:
         """Write ``PATH.wrl`` (the scene), ``PATH.adt`` (its tables), ``PATH-face.png`` (its
-        texture) and ``PATH-photo.png`` (the photo: :mod:`vtts.face.source_photo`) — for a head
-        made for a video ``PATH-frame.png`` instead of the photo, which holds it — beside each
-        other, each renamed into place only when all are written. Returns the paths."""
+        texture; ``PATH-glasses.png`` the glasses' where the head has them) and
+        ``PATH-photo.png`` (the photo: :mod:`vtts.face.source_photo`) — for a head made for a
+        video ``PATH-frame.png`` instead of the photo, which holds it — beside each other, each
+        renamed into place only when all are written. Returns the paths."""
         wrl = Path(path)
         if wrl.suffix.lower() != ".wrl":
             raise FitError(f"the output must be a .wrl file, got {str(path)!r}")
@@ -212,10 +224,16 @@ class FittedHead:
 
     def _images(self, wrl: Path) -> tuple[list[np.ndarray], list[Path]]:
         """The images written beside ``wrl`` and their files, the scene's urls pointed at them:
-        the atlas, then the frame's texture for a head made for a video (which holds the photo),
-        else the photo (recorded: :mod:`vtts.face.source_photo`)."""
+        the atlas, the glasses' texture where the head has them, then the frame's texture for a
+        head made for a video (which holds the photo), else the photo (recorded:
+        :mod:`vtts.face.source_photo`)."""
         pngs = self._set_urls(wrl)
         images = [self.texture, self.frame] if self.frame is not None else [self.texture]
+        if self.glasses_texture is not None and GLASSES_TEXTURE in self.scene.defs:
+            png = wrl.with_name(glasses_texture_name(wrl))
+            self.scene.node(GLASSES_TEXTURE).expand().fields["url"] = [png.name]
+            pngs.insert(1, png)  # after the atlas: the last is the photo (or the frame)
+            images.insert(1, self.glasses_texture)
         if self.frame is None:
             pngs.append(wrl.with_name(photo_name(wrl)))
             images.append(self.photo)
@@ -307,6 +325,11 @@ def photo_name(wrl: Path) -> str:
     """The file of the photo a head was fitted to, beside it (``adi fit``; a head made for a
     video keeps its frame in :func:`frame_texture_name`)."""
     return f"{wrl.stem}-photo.png"
+
+
+def glasses_texture_name(wrl: Path) -> str:
+    """The file of the glasses' RGBA texture (:mod:`vtts.fit.glasses`), beside the head."""
+    return f"{wrl.stem}-glasses.png"
 
 
 def frame_texture_name(wrl: Path) -> str:
@@ -487,7 +510,7 @@ def fit_photo(
                                 expression)  # fmt: skip
     set_photo_expression(scene, expression)
     timings["head"] = time.perf_counter() - t
-    hair, trust, skin, glasses, teeth = None, None, None, None, None
+    hair, trust, skin, glasses, teeth, rims = None, None, None, None, None, None
     painted = image  # what the texture is painted from
     if portrait:
         t = time.perf_counter()
@@ -495,15 +518,17 @@ def fit_photo(
         if glasses >= GLASSES:
             warnings.warn(
                 VttsWarning(
-                    "the photo shows glasses: they are not modelled — the head's shape is fitted "
-                    "to the face and the frame is kept off the skin where it is found (the skin "
-                    "around it fills it), but the lenses' tint and reflections stay painted "
-                    "around the eyes; a photo without glasses gives a better head"
+                    "the photo shows glasses: their frame is a part of the head where it is "
+                    "found (a thin shape in front of the eyes, textured with the photo's frame, "
+                    "kept off the skin), but the lenses are not modelled: their tint and "
+                    "reflections stay painted around the eyes; a photo without glasses gives "
+                    "a better head"
                 ),
                 stacklevel=2,
             )
             # the texture is painted from the photo without the frame (vtts.fit.glasses)
-            painted = without_rims(image, rim_mask(image, chosen.landmarks))
+            rims = rim_mask(image, chosen.landmarks)
+            painted = without_rims(image, rims)
         matte(scene)
         trust = person_probability(image)
         hair = fit_hair_shell(scene, shape.camera, trust)
@@ -516,13 +541,24 @@ def fit_photo(
             photo_parts = (*photo_parts, *(n for n in TEETH if n not in photo_parts))
         timings["hair"] = time.perf_counter() - t
     t = time.perf_counter()
-    atlas, seen = _texture(g, scene, tables, shape, painted, chosen, photo_parts, expression,
+    atlas, seen, depth = _texture(g, scene, tables, shape, painted, chosen, photo_parts, expression,
                            trust, skin)  # fmt: skip
     timings["texture"] = time.perf_counter() - t
+    frame = None
+    if rims is not None:
+        t = time.perf_counter()
+        # the frame as a part of its own, added once the texture is painted (the probes must
+        # see the skin behind it)
+        part = glasses_part(image, rims, shape.camera, geometry.points["FACE"], chosen.landmarks,
+                            depth)  # fmt: skip
+        if part is not None:
+            add_glasses(scene, part, f"{name}-glasses.png")
+            frame = part.texture
+        timings["glasses"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t0
     return FittedHead(scene, tables, atlas, shape, chosen, image, len(faces), seen, personality,
                       timings, expression=expression, hair=hair, glasses=glasses,
-                      teeth=teeth)  # fmt: skip
+                      teeth=teeth, glasses_texture=frame)  # fmt: skip
 
 
 #: How the first WorldInfo's info line that holds the photo's expression begins.
@@ -619,7 +655,9 @@ def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.nd
     """The atlas: the generic tiles (upscaled; one eye tile per eye, in the photo's eye
     colours; the ear in its skin colour), painted from the photo where it sees the head —
     the head posed in the photo's ``expression``; ``trust`` and ``skin`` ``(H, W)`` weigh
-    the photo's pixels for every part and for the skin (:func:`~vtts.fit.texture.project_skin`)."""
+    the photo's pixels for every part and for the skin (:func:`~vtts.fit.texture.project_skin`).
+    Also returns the texels' share the photo saw and ``(H, W)`` the distance of what each pixel
+    shows at the photo's view (:func:`~vtts.fit.texture.depth_map`)."""
     from vtts.render import FaceRenderer
 
     with Image.open(models_dir() / f"{g.model.name}-face.png") as im:
@@ -696,7 +734,7 @@ def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.nd
     if not ears:
         # the ears keep the generic tile, in the photo's skin colour
         tint_tile(atlas, EAR_TILE, _skin_ratio(atlas, generic_atlas))
-    return (np.clip(atlas, 0, 1) * 255 + 0.5).astype(np.uint8), seen
+    return (np.clip(atlas, 0, 1) * 255 + 0.5).astype(np.uint8), seen, depth
 
 
 #: Photos up to this size (pixels, the longer side) get an atlas of half :data:`ATLAS_SIZE`:

@@ -25,8 +25,18 @@ from vtts.face import FaceModel
 from vtts.fit.generic import landmark_map
 from vtts.fit.glasses import GLASSES
 
-#: The parts whose pixels make "the face" for the PSNR: skin, eyes and mouth.
-FACE_PARTS = ("FACE", "L_EYEBALL", "R_EYEBALL", "MOUTH", "UPPER_TEETH", "LOWER_TEETH", "TONGUE")
+#: The parts whose pixels make "the face" for the PSNR: skin, eyes and mouth, and the glasses
+#: (:mod:`vtts.fit.glasses`) where the head has them.
+FACE_PARTS = (
+    "FACE",
+    "L_EYEBALL",
+    "R_EYEBALL",
+    "MOUTH",
+    "UPPER_TEETH",
+    "LOWER_TEETH",
+    "TONGUE",
+    "GLASSES",
+)
 #: The report's files, in the order they are written (checked against the photo and the model's
 #: files before the fit starts).
 LANDMARKS, OVERLAY, TURNED, FIGURES = "landmarks.png", "overlay.png", "turned.png", "figures.json"

@@ -222,6 +222,8 @@ class DeferredPass(ForwardPass):
         texture = material.baseColorTexture
         if texture is not None:
             self._texture(pid, "base_color_texture", 0, texture.tex_type, texture_id(texture))
+            cutoff = material.alphaCutoff if material.alphaMode == "MASK" else 0.0
+            self._uniform(pid, "alpha_cutoff", float(cutoff))
         self._set(GL.GL_CULL_FACE, not material.doubleSided, cull_back)
         self._draw_call(primitive)
 

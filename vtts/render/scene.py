@@ -46,6 +46,12 @@ UNLIT = "vtts_unlit"
 #: deferred pass; pyrender's own shader draws every material with the highlight.
 SPECULAR = "vtts_specular"
 
+#: The alpha (0–1) under which a texel of a texture with an alpha channel is not drawn: such a
+#: texture draws as a cutout (glTF's ``alphaMode`` MASK), opaque where it shows — the fitted
+#: heads' glasses (:mod:`vtts.fit.glasses`). VRML97 blends a four-component texture; a cutout
+#: keeps the part in the G-buffer (:mod:`vtts.render.deferred`), sorted by depth like the rest.
+ALPHA_CUTOFF = 0.5
+
 #: The scene's ambient light (RGB, 0–1).
 AMBIENT_LIGHT = (0.35, 0.35, 0.35)
 
@@ -309,13 +315,17 @@ class SceneBuilder:
                 texture = self._texture(model, tex.expand())
                 if texture is not None and mat is None:
                     base[:3] = 1.0
+        mode = "BLEND" if base[3] < 1.0 else "OPAQUE"
+        if mode == "OPAQUE" and texture is not None and has_alpha(texture.source):
+            mode = "MASK"
         material = pr.MetallicRoughnessMaterial(
             baseColorFactor=base,
             metallicFactor=0.0,
             roughnessFactor=roughness,
             emissiveFactor=emissive,
             baseColorTexture=texture,
-            alphaMode="BLEND" if base[3] < 1.0 else "OPAQUE",
+            alphaMode=mode,
+            alphaCutoff=ALPHA_CUTOFF,
             doubleSided=double_sided,
         )
         # VRML97: an Appearance without a Material is not lit; its texture shows as it is
@@ -441,6 +451,14 @@ DECODED_IMAGES = 8
 DECODED_MAX_BYTES = 64 << 20
 _decoded: OrderedDict[bytes, np.ndarray] = OrderedDict()
 _decoded_lock = threading.Lock()
+
+
+def has_alpha(rgba: np.ndarray | None) -> bool:
+    """Whether an ``(h, w, 4) uint8`` texture image has a texel under :data:`ALPHA_CUTOFF`
+    (drawn as a cutout; False for anything else)."""
+    if rgba is None or rgba.ndim != 3 or rgba.shape[2] != 4 or rgba.dtype != np.uint8:
+        return False
+    return bool(rgba[..., 3].min() < round(ALPHA_CUTOFF * 255))
 
 
 def load_image(path: Path) -> np.ndarray:

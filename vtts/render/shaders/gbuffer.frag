@@ -7,6 +7,7 @@ uniform float material_index;
 uniform vec3 cam_pos;
 #ifdef HAS_BASE_COLOR_TEX
 uniform sampler2D base_color_texture;
+uniform float alpha_cutoff;                // a cutout's texels under it are not drawn; 0: none
 #endif
 
 in vec3 frag_position;
@@ -44,6 +45,9 @@ void main()
 #ifdef HAS_BASE_COLOR_TEX
     g_normal = vec4(normal, 1.0);
     g_texel = texture(base_color_texture, uv_0);
+    if (g_texel.a < alpha_cutoff) {
+        discard;
+    }
 #else
     g_normal = vec4(normal, 0.0);
     g_texel = vec4(1.0);
