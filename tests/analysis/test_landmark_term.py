@@ -129,6 +129,72 @@ def test_the_landmarks_find_a_head_that_moved_further_than_the_solves_reach():
     assert fe.psnr > 40 and fe.landmark_px < 1.5, (fe.psnr, fe.landmark_px)
 
 
+def _turned_away(finish: bool) -> tuple[Tracker, np.ndarray, object]:
+    """A tracker of cybatt (the accurate mode's with ``finish``), the frame it renders with the
+    head turned and moved far, and that frame's face; the tracker left at neutral."""
+    tracker = Tracker(load_model("cybatt"), size=(352, 288),
+                      unknowns=(48, 49, 50, "tx", "ty", "tz", 3), finish=finish)  # fmt: skip
+    tracker.params[48] = 6000  # yaw, AU
+    tracker.translation[:] = (0.5, -0.3, 0.0)
+    frame = tracker.reconstruct()
+    (face,) = detect_faces(frame)
+    tracker.params[:] = 0
+    tracker.translation[:] = 0
+    tracker.observe(face)
+    return tracker, frame, face
+
+
+def test_the_accurate_mode_jumps_further_onto_far_landmarks():
+    """A frame that starts far from its landmarks (a head moving fast, every second frame): the
+    accurate mode's jump takes up to FAR_JUMP_STEPS steps and lands nearer them than the
+    tracking mode's JUMP_STEPS; both take the same steps from a near start."""
+    from vtts.analysis.estimator import JUMP_FAR_PX, JUMP_STEPS
+    from vtts.analysis.tracker import FAR_JUMP_STEPS
+
+    accurate, _, _ = _turned_away(finish=True)
+    tracking, _, face = _turned_away(finish=False)
+    assert (accurate.far_jump_steps, tracking.far_jump_steps) == (FAR_JUMP_STEPS, JUMP_STEPS)
+    assert accurate.landmark_error() > JUMP_FAR_PX
+    accurate._jump_to_landmarks()
+    tracking._jump_to_landmarks()
+    assert accurate.landmark_error() < 0.8 * tracking.landmark_error(), (
+        accurate.landmark_error(), tracking.landmark_error())  # fmt: skip
+    # from where the tracking mode's jump ended (near): the same steps, the same estimate
+    accurate.params[:], accurate.translation[:] = tracking.params, tracking.translation
+    accurate.observe(face)
+    tracking.observe(face)
+    assert tracking.landmark_error() < JUMP_FAR_PX
+    accurate._jump_to_landmarks()
+    tracking._jump_to_landmarks()
+    assert np.array_equal(unknown_values(accurate), unknown_values(tracking))
+
+
+@pytest.mark.parametrize("moving", [False, True])
+def test_the_accurate_mode_starts_a_far_frame_where_the_head_stood(moving):
+    """The head's motion between the last two estimates is carried on over the next frame,
+    unless (the accurate mode) that start lies far from the frame's landmarks and standing
+    still lies nearer: a jerky head that stopped. The tracking mode carries the motion on."""
+    from vtts.analysis.estimator import JUMP_FAR_PX
+
+    shown = np.array([0.5, -0.3, 0.0])  # where the frame shows the head
+    step = np.array([0.2, 0.0, 0.0])  # its motion between the last two estimates
+    last = shown - step if moving else shown  # moving: it goes on to the frame's place
+    for finish in (True, False):
+        tracker, _, face = _turned_away(finish)
+        tracker.params[48] = 6000
+        carried = last + step
+        tracker.translation[:] = carried
+        far = tracker.landmark_term().error(unknown_values(tracker))
+        assert (far > JUMP_FAR_PX) != moving  # the carried start: far where the head stopped
+        tracker.observe(face)
+        tracker._history = [(0, tracker.params.copy(), last - step),
+                            (2, tracker.params.copy(), last.copy())]  # fmt: skip
+        tracker.translation[:] = last
+        tracker._start_near_landmarks(4)
+        expected = last if finish and not moving else carried
+        assert tracker.translation == pytest.approx(expected), (finish, moving)
+
+
 def test_follow_finds_the_face_from_the_last_frames_landmarks_without_the_detector():
     first, second = _frames(AKIYO, 2)
     detector = default_detector()

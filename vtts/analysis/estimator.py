@@ -86,6 +86,13 @@ JUMP_DAMPING = 0.1
 #: this much (AU) costs the jump as much as every landmark a pixel off.
 JUMP_STOP_PX = 0.5
 JUMP_TURN_AU = 3000.0
+#: A frame whose estimate starts further than this (pixels, the median landmark) from its
+#: landmarks — a head moving fast, analyzed every second frame (the accurate mode's
+#: ``--step 2``) — may take up to the estimator's ``far_jump_steps`` instead of
+#: :data:`JUMP_STEPS`: three steps left lp_d12's fastest frames 2–2.5 pixels off, which the
+#: photometric solves, at 2 pixels a solve, did not make up (docs/analysis.md, "Measuring on
+#: people").
+JUMP_FAR_PX = 8.0
 
 #: Pixels next to the model's outline left out of the estimation.
 EDGE = 2
@@ -222,6 +229,9 @@ class Estimator:
     ``landmark_weight``: the weight of a frame's face-mesh landmarks, when :meth:`estimate` is
     given them, beside the photometric terms of every solve (:mod:`vtts.analysis.landmark_term`;
     0 leaves them out).
+    ``far_jump_steps``: the most steps of the jump onto a frame's landmarks when the frame
+    starts further than :data:`JUMP_FAR_PX` from them (default :data:`JUMP_STEPS`, as any
+    other frame; the accurate mode of :func:`~vtts.analysis.track.track` takes more).
     """
 
     def __init__(
@@ -244,6 +254,7 @@ class Estimator:
         bounds: dict[int, tuple[float, float]] | None = None,
         lit_refine: Iterable[int] = JAW_AND_CORNERS,
         landmark_weight: float = LANDMARK_WEIGHT,
+        far_jump_steps: int = JUMP_STEPS,
     ) -> None:
         self.unknowns = _check_unknowns(unknowns)
         alone = set(searched)
@@ -323,6 +334,9 @@ class Estimator:
         self.gain = np.ones(3)
         self.offset = np.zeros(3)
         self.landmark_weight = float(landmark_weight)
+        #: the most steps of the jump onto the landmarks (:meth:`_jump_to_landmarks`) for a frame
+        #: that starts further than :data:`JUMP_FAR_PX` from them
+        self.far_jump_steps = int(far_jump_steps)
         self._landmark_points: LandmarkPoints | None = None
         #: the frame's landmarks ``(468, 2)`` pixels and their crop's side, while it is estimated
         self._observed: tuple[np.ndarray, float] | None = None
@@ -574,17 +588,23 @@ class Estimator:
     def _jump_to_landmarks(self) -> None:
         """Move the estimate onto the frame's landmarks before the photometric solves: a few
         damped Gauss–Newton steps on the landmark term alone (:data:`JUMP_STEPS`, each change
-        damped by :data:`JUMP_DAMPING` of its own curvature). The photometric solves move each
-        unknown's pixels by a few pixels a solve at most; a head that moved further between two
-        frames would otherwise be followed over several frames, or lost."""
+        damped by :data:`JUMP_DAMPING` of its own curvature; :attr:`far_jump_steps` where the
+        frame starts further than :data:`JUMP_FAR_PX` from its landmarks). The photometric
+        solves move each unknown's pixels by a few pixels a solve at most; a head that moved
+        further between two frames would otherwise be followed over several frames, or lost."""
         k = len(self.unknowns)
         turns = np.array([u in HEAD_ROTATION for u in self.unknowns])
         start = unknown_values(self)
-        for _ in range(JUMP_STEPS):
+        steps = JUMP_STEPS
+        step = 0
+        while step < steps:
             term = self.landmark_term()
             if term is None:
                 return
             values = unknown_values(self)
+            if step == 0 and self.far_jump_steps > steps and term.error(values) > JUMP_FAR_PX:
+                steps = self.far_jump_steps  # a head that moved far since the last estimate
+            step += 1
             ata, atb = term.normal_equations(values, held=self._searched_columns)
             ata[np.diag_indices(k)] *= 1.0 + JUMP_DAMPING
             # the head's turns held near where the frame started: the face's points lie nearly

@@ -51,6 +51,7 @@ from scipy.ndimage import binary_erosion
 
 from vtts.analysis.estimator import (  # noqa: F401  (LIT_REFINE_STEPS: the tracker's too)
     EDGE,
+    JUMP_FAR_PX,
     LIT_REFINE_STEPS,
     LIT_SHARE,
     LUMA,
@@ -114,6 +115,13 @@ AHEAD_PX = 1.5
 #: "Measuring on people").
 AHEAD_LANDMARKS_PX = 3.0
 
+#: With ``finish`` (the accurate mode, every second frame of a file), a frame that starts far
+#: from its landmarks jumps onto them in up to this many steps (the estimator's
+#: ``far_jump_steps``, :data:`~vtts.analysis.estimator.JUMP_FAR_PX`). The tracking mode keeps
+#: :data:`~vtts.analysis.estimator.JUMP_STEPS`: on lp_d12, analyzed every frame, more steps cost
+#: 0.2 dB (docs/analysis.md, "Measuring on people").
+FAR_JUMP_STEPS = 8
+
 #: Pixels of the camera frame kept around the face's box (motion within a frame is smaller).
 MARGIN = 16
 
@@ -171,6 +179,8 @@ class Tracker(Estimator):
     def __init__(self, *args, stages=STAGES, rerender: float = RERENDER_PX,
                  polish: float = POLISH_PX, sample_step: int = SAMPLE_STEP,
                  finish: bool = False, **kwargs) -> None:  # fmt: skip
+        if finish:
+            kwargs.setdefault("far_jump_steps", FAR_JUMP_STEPS)
         super().__init__(*args, **kwargs)
         self.finish = bool(finish)
         # the eyelids by REFINE_STEPS: the first stage's wide smoothing follows a closing lid,
@@ -223,7 +233,7 @@ class Tracker(Estimator):
             raise VttsError(f"frame {index} is {frame.shape}, expected ({h}, {w}, 3)")
         self.observe(landmarks, eyes)
         if self.predicted:
-            self._extrapolate(index)
+            self._start_near_landmarks(index)
         self._jump_to_landmarks()
         self.renderings = 0
         samples, solves = self._stages(frame)
@@ -247,6 +257,25 @@ class Tracker(Estimator):
         self._samples = samples
         with self._refining(lit):  # the jaw and the lip corners searched too (``lit_refine``)
             return self._finish(frame, samples, index, time, solves)
+
+    def _start_near_landmarks(self, index: int) -> None:
+        """Start frame ``index`` where the head's motion carries it on
+        (:meth:`~vtts.analysis.estimator.Estimator._extrapolate`); with :attr:`finish` and the
+        frame's landmarks observed, where the last estimate left it instead when the carried-on
+        start lies further than :data:`~vtts.analysis.estimator.JUMP_FAR_PX` from the landmarks
+        and standing still lies nearer them: a jerky head moving fast, analyzed every second
+        frame, overshoots (lp_d12: 15 working pixels off its landmarks, the median frame)."""
+        if not (self.finish and self._observed is not None):
+            self._extrapolate(index)
+            return
+        still = self._state()
+        self._extrapolate(index)
+        carried = self._state()
+        far = self.landmark_term().error(unknown_values(self))
+        if far > JUMP_FAR_PX:
+            self._set_state(still)
+            if self.landmark_term().error(unknown_values(self)) >= far:
+                self._set_state(carried)
 
     def _stages(self, frame: np.ndarray) -> tuple[_Samples, int]:
         """The :attr:`stages`' solves on the samples against the camera ``frame`` ``(H, W, 3)
