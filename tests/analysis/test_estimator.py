@@ -362,6 +362,31 @@ def test_a_worse_step_after_one_that_gained_little_is_taken_back_and_ends_the_le
         assert est._last_step.halvings == 1
 
 
+@pytest.mark.parametrize("reach", [0.6, 1.6])
+def test_a_worse_step_is_halved_only_while_the_half_moves_the_image_enough(cybatt, reach):
+    """With robust matching, a step that made the match worse (after one that gained enough)
+    is halved while the half still moves some unknown's image by ``HALVED_STOP_PX`` or more;
+    below that it is taken back whole and the level ends, without a rendering of the half."""
+    import vtts.analysis.estimator as estimator_module
+    from vtts.analysis.estimator import _Step
+
+    frame = _noisy(cybatt, _params({3: 150, 48: 1000}), seed=3)
+    est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, robust=True)
+    est.params[:] = _params({3: 150, 48: 1000})
+    before = est.params.copy()
+    delta = np.zeros(len(est.unknowns) + 6)
+    delta[est.unknowns.index(48)] = 400.0  # far off: the match gets worse
+    est._apply(delta)
+    est._last_step = _Step(energy=0.0, delta=delta, halvings=0, reach=reach, gain=0.5)
+    moved = est._solve(smooth(frame, est.sigma), est.pyramid[-1])
+    if reach / 2 < estimator_module.HALVED_STOP_PX:
+        assert est._stalled and moved == 0.0 and est._last_step is None
+        assert np.allclose(est.params, before)
+    else:
+        assert not est._stalled and moved == reach / 2
+        assert np.allclose(est.params[47], before[47] + 200.0)
+
+
 def test_a_level_whose_last_step_gained_little_ends_without_another(cybatt):
     """With robust matching, a rendering that shows the last step lowered the match by less
     than ``SETTLED_GAIN`` ends the level there: no new step (nor its rendering)."""
@@ -407,6 +432,7 @@ def test_settled_levels_end_early_on_a_noisy_frame_at_the_same_estimate(cybatt, 
             if not settle:
                 monkeypatch.setattr(estimator_module, "STALL_GAIN", None)
                 monkeypatch.setattr(estimator_module, "SETTLED_GAIN", None)
+                monkeypatch.setattr(estimator_module, "HALVED_STOP_PX", None)
             else:
                 monkeypatch.undo()
             est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, lit_refine=(), robust=robust)

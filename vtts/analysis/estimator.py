@@ -87,6 +87,13 @@ JUMP_DAMPING = 0.1
 JUMP_STOP_PX = 0.5
 JUMP_TURN_AU = 3000.0
 
+#: With robust matching, a step that made the match worse is halved (:data:`STALL_GAIN`) only
+#: while the halved step still moves the image of some unknown by at least this many pixels
+#: (of the level); below that the step is taken back whole and the level ends, without the
+#: rendering that would judge so small a change (the camera's noise and what the model cannot
+#: show decide it more than the step does).
+HALVED_STOP_PX: float | None = 0.5
+
 #: Pixels next to the model's outline left out of the estimation.
 EDGE = 2
 
@@ -315,6 +322,10 @@ class Estimator:
         self._align = math.lcm(*(lv.factor for lv in self.pyramid))
         self._last_step: _Step | None = None
         self._stalled = False  # the level being solved ended on a step taken back
+        #: the full-size level's last two renderings, each as ``(params, translation, what
+        #: :meth:`_render_window` gave)``: a level that ends on a step taken back ends at the
+        #: one before the last
+        self._rendered: list[tuple[np.ndarray, np.ndarray, tuple]] = []
         #: the triangle indices of the last frame's final rendering (full size), or None
         self._shown: np.ndarray | None = None
         self._fewest = 4 * len(self.unknowns)  # face pixels a level needs for a solve
@@ -732,11 +743,16 @@ class Estimator:
             target[:] = value
 
     def _descend(
-        self, pyramid: dict[int, np.ndarray], levels: Sequence[Level] | None = None
+        self,
+        pyramid: dict[int, np.ndarray],
+        levels: Sequence[Level] | None = None,
+        tolerance: float | None = None,
     ) -> tuple[int, bool]:
         """One pass down the pyramid (or ``levels`` of it), coarse to fine, with the camera
         frame smoothed at each level's factor in ``pyramid``; returns the linear solves made and
-        whether the finest level's last one moved no unknown by :attr:`tolerance` or more."""
+        whether the finest level's last one moved no unknown by ``tolerance`` (pixels of the
+        level; default :attr:`tolerance`) or more."""
+        tolerance = self.tolerance if tolerance is None else tolerance
         solves, step = 0, math.inf
         for lv in self.pyramid if levels is None else levels:
             self._last_step = None  # energies of different levels do not compare
@@ -748,9 +764,9 @@ class Estimator:
             for _ in range(lv.iterations):
                 step = self._solve(pyramid[lv.factor], lv)
                 solves += 1
-                if step < self.tolerance or self._stalled:
+                if step < tolerance or self._stalled:
                     break
-        return solves, step < self.tolerance
+        return solves, step < tolerance
 
     def _extrapolate(self, index: int) -> None:
         """Start frame ``index`` with the unknowns :attr:`predicted` carried on at the speed
@@ -775,6 +791,9 @@ class Estimator:
         cam = self._levels[lv.factor][0]
         image, ids, (top, left) = self._render_window(lv.factor)
         self._last_faces = ids
+        if lv.factor == 1:
+            self._rendered = [*self._rendered[-1:], (self.params.copy(), self.translation.copy(),
+                                                     (image, ids, (top, left)))]  # fmt: skip
         camera_image = camera_image[top : top + ids.shape[0], left : left + ids.shape[1]]
         raw = smooth(image, self.sigma)
         gain, offset = self.gain.astype(np.float32), self.offset.astype(np.float32)
@@ -803,6 +822,10 @@ class Estimator:
             self._last_step, self._stalled = None, True
             return 0.0
         if last is not None and energy > last.energy and last.halvings < 3:
+            if self.robust and HALVED_STOP_PX is not None and last.reach / 2 < HALVED_STOP_PX:
+                self._apply(-last.delta)  # back where the match was best
+                self._last_step, self._stalled = None, True
+                return 0.0
             half = last.delta / 2
             self._apply(-half)
             self._last_step = replace(last, delta=half, halvings=last.halvings + 1,
