@@ -743,3 +743,14 @@ def test_the_window_around_the_face_holds_it_with_its_margin():
         assert 0 <= again[2] - ww < 4 and 0 <= again[3] - wh < 4  # kept while it fits
     assert not _clear(((10, 50), (5, 40)), (100, 80, 96, 96), size, 24)
     assert _clear(((10, 50), (5, 40)), (0, 0, 96, 96), size, 24)  # the frame's own sides
+
+
+def test_used_vertices_are_numpys_unique_with_its_inverse():
+    from vtts.analysis.estimator import _used_vertices
+
+    verts = np.random.default_rng(8).integers(0, 500, size=(300, 3)) * 3 % 997
+    uniq, inverse = _used_vertices(verts, 997)
+    want, want_inverse = np.unique(verts, return_inverse=True)
+    np.testing.assert_array_equal(uniq, want)
+    np.testing.assert_array_equal(inverse, want_inverse.reshape(verts.shape))
+    np.testing.assert_array_equal(uniq[inverse], verts)

@@ -33,6 +33,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.ndimage import binary_erosion
+from scipy.sparse import csr_matrix
 
 from vtts.analysis.geometry import HeadGeometry
 from vtts.analysis.landmark_pose import MIN_POINTS
@@ -908,13 +909,16 @@ class Estimator:
         positions = self.geometry.positions(self.params, self.translation)
         verts = self.geometry.faces[tri]  # (N, 3)
         lam, point = ray_barycentrics(pix, cam, positions[verts])
-        uniq, inverse = np.unique(verts, return_inverse=True)
+        uniq, inverse = _used_vertices(verts, len(positions))
         jac = self.geometry.jacobian(self.params, self.translation, uniq)  # (U, 3, K) world
         jac = np.linalg.inv(cam.pose)[:3, :3] @ jac  # camera axes (U, 3, K)
         jac = jac.astype(np.float32)
-        motion = np.einsum(
-            "nm,nmak->nak", lam.astype(np.float32), jac[inverse.reshape(verts.shape)]
-        )
+        # each pixel's three vertices weighted by its barycentric coordinates: a sparse (N, U)
+        # matrix times the vertices' motion (U, 3 K), without gathering (N, 3, 3, K)
+        n, u = len(verts), len(uniq)
+        weights = csr_matrix((lam.astype(np.float32).ravel(), inverse.ravel(),
+                              np.arange(0, 3 * n + 1, 3)), shape=(n, u))  # fmt: skip
+        motion = (weights @ jac.reshape(u, -1)).reshape(n, 3, -1)
         point = point.astype(np.float32)
         depth = -point[:, 2:3]  # distance along the view axis, > 0
         x_rel = (pix[:, 0:1] - cam.cx).astype(np.float32)
@@ -1162,6 +1166,16 @@ def _face_numbers(renderer: FaceRenderer, geometry: HeadGeometry) -> np.ndarray:
         start = s.first_face
         out[first : first + len(s.mesh.faces)] = np.arange(start, start + len(s.mesh.faces))
     return out
+
+
+def _used_vertices(verts: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(verts, return_inverse=True)`` for vertex indices ``verts`` (any shape) below
+    ``n_vertices``: the vertices used, ascending ``(U,)``, and where each entry of ``verts``
+    lies among them (``verts``' shape) — by marking, not sorting."""
+    used = np.zeros(n_vertices, dtype=bool)
+    used[verts] = True
+    rank = np.cumsum(used) - 1
+    return np.flatnonzero(used), rank[verts]
 
 
 def _overlap(a: tuple[slice, slice], b: tuple[slice, slice]) -> bool:
