@@ -88,12 +88,13 @@ JUMP_DAMPING = 0.1
 JUMP_STOP_PX = 0.5
 JUMP_TURN_AU = 3000.0
 
-#: With robust matching, a step that made the match worse is halved (:data:`STALL_GAIN`) only
-#: while the halved step still moves the image of some unknown by at least this many pixels
-#: (of the level); below that the step is taken back whole and the level ends, without the
-#: rendering that would judge so small a change (the camera's noise and what the model cannot
-#: show decide it more than the step does).
-HALVED_STOP_PX: float | None = 0.5
+#: Where asked for (``halved_stop`` of :meth:`Estimator._descend`: the accurate mode's finest
+#: level, :class:`~vtts.analysis.tracker.Tracker`), with robust matching, a step that made the
+#: match worse is halved (:data:`STALL_GAIN`) only while the halved step still moves the image
+#: of some unknown by at least this many pixels (of the level); below that the step is taken
+#: back whole and the level ends, without the rendering that would judge so small a change (the
+#: camera's noise and what the model cannot show decide it more than the step does).
+HALVED_STOP_PX = 0.5
 
 #: Pixels next to the model's outline left out of the estimation.
 EDGE = 2
@@ -323,6 +324,8 @@ class Estimator:
         self._align = math.lcm(*(lv.factor for lv in self.pyramid))
         self._last_step: _Step | None = None
         self._stalled = False  # the level being solved ended on a step taken back
+        # the smallest halved step (pixels of the level) rendered, while :meth:`_descend` asks
+        self._halved_stop: float | None = None
         #: the full-size level's last two renderings, each as ``(params, translation, what
         #: :meth:`_render_window` gave)``: a level that ends on a step taken back ends at the
         #: one before the last
@@ -748,12 +751,25 @@ class Estimator:
         pyramid: dict[int, np.ndarray],
         levels: Sequence[Level] | None = None,
         tolerance: float | None = None,
+        halved_stop: float | None = None,
     ) -> tuple[int, bool]:
         """One pass down the pyramid (or ``levels`` of it), coarse to fine, with the camera
         frame smoothed at each level's factor in ``pyramid``; returns the linear solves made and
         whether the finest level's last one moved no unknown by ``tolerance`` (pixels of the
-        level; default :attr:`tolerance`) or more."""
+        level; default :attr:`tolerance`) or more. ``halved_stop``: with robust matching, no
+        halved step that moves the image less than this (pixels of the level) is rendered
+        (:data:`HALVED_STOP_PX`; None: every halving is)."""
         tolerance = self.tolerance if tolerance is None else tolerance
+        self._halved_stop = halved_stop
+        try:
+            return self._levels_solved(pyramid, levels, tolerance)
+        finally:
+            self._halved_stop = None
+
+    def _levels_solved(
+        self, pyramid: dict[int, np.ndarray], levels: Sequence[Level] | None, tolerance: float
+    ) -> tuple[int, bool]:
+        """:meth:`_descend`'s solves."""
         solves, step = 0, math.inf
         for lv in self.pyramid if levels is None else levels:
             self._last_step = None  # energies of different levels do not compare
@@ -823,7 +839,8 @@ class Estimator:
             self._last_step, self._stalled = None, True
             return 0.0
         if last is not None and energy > last.energy and last.halvings < 3:
-            if self.robust and HALVED_STOP_PX is not None and last.reach / 2 < HALVED_STOP_PX:
+            stop = self._halved_stop
+            if self.robust and stop is not None and last.reach / 2 < stop:
                 self._apply(-last.delta)  # back where the match was best
                 self._last_step, self._stalled = None, True
                 return 0.0

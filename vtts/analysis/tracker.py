@@ -51,6 +51,7 @@ from scipy.ndimage import binary_erosion
 
 from vtts.analysis.estimator import (  # noqa: F401  (LIT_REFINE_STEPS: the tracker's too)
     EDGE,
+    HALVED_STOP_PX,
     LIT_REFINE_STEPS,
     LIT_SHARE,
     LUMA,
@@ -243,7 +244,8 @@ class Tracker(Estimator):
             full = frame.astype(np.float32)
             self._rendered = []
             more, _ = self._descend({1: smooth(full, self.sigma)}, self.pyramid[-1:],
-                                    max(self.tolerance, FINISH_TOLERANCE_PX))  # fmt: skip
+                                    max(self.tolerance, FINISH_TOLERANCE_PX),
+                                    HALVED_STOP_PX)  # fmt: skip
             self.renderings += more
             self._reuse = True
             try:
