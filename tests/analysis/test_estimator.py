@@ -362,6 +362,38 @@ def test_a_worse_step_after_one_that_gained_little_is_taken_back_and_ends_the_le
         assert est._last_step.halvings == 1
 
 
+@pytest.mark.parametrize("reach", [0.6, 1.6])
+def test_a_worse_step_is_halved_only_while_the_half_moves_the_image_enough(cybatt, reach):
+    """With robust matching, a step that made the match worse (after one that gained enough)
+    is halved while the half still moves some unknown's image by ``HALVED_STOP_PX`` or more
+    where that is asked for (the accurate mode's finest level); below that it is taken back
+    whole and the level ends, without a rendering of the half. Not asked for, it is halved."""
+    import vtts.analysis.estimator as estimator_module
+    from vtts.analysis.estimator import _Step
+
+    frame = _noisy(cybatt, _params({3: 150, 48: 1000}), seed=3)
+    est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, robust=True)
+    est.params[:] = _params({3: 150, 48: 1000})
+    before = est.params.copy()
+    delta = np.zeros(len(est.unknowns) + 6)
+    delta[est.unknowns.index(48)] = 400.0  # far off: the match gets worse
+    est._apply(delta)
+    est._last_step = _Step(energy=0.0, delta=delta, halvings=0, reach=reach, gain=0.5)
+    state = est._state()
+    est._solve(smooth(frame, est.sigma), est.pyramid[-1])  # not asked for: halved
+    assert not est._stalled and est._last_step.halvings == 1
+    est._set_state(state)
+    est._last_step = _Step(energy=0.0, delta=delta, halvings=0, reach=reach, gain=0.5)
+    est._halved_stop = estimator_module.HALVED_STOP_PX  # as the accurate mode's _descend sets it
+    moved = est._solve(smooth(frame, est.sigma), est.pyramid[-1])
+    if reach / 2 < estimator_module.HALVED_STOP_PX:
+        assert est._stalled and moved == 0.0 and est._last_step is None
+        assert np.allclose(est.params, before)
+    else:
+        assert not est._stalled and moved == reach / 2
+        assert np.allclose(est.params[47], before[47] + 200.0)
+
+
 def test_a_level_whose_last_step_gained_little_ends_without_another(cybatt):
     """With robust matching, a rendering that shows the last step lowered the match by less
     than ``SETTLED_GAIN`` ends the level there: no new step (nor its rendering)."""
@@ -717,3 +749,14 @@ def test_the_window_around_the_face_holds_it_with_its_margin():
         assert 0 <= again[2] - ww < 4 and 0 <= again[3] - wh < 4  # kept while it fits
     assert not _clear(((10, 50), (5, 40)), (100, 80, 96, 96), size, 24)
     assert _clear(((10, 50), (5, 40)), (0, 0, 96, 96), size, 24)  # the frame's own sides
+
+
+def test_used_vertices_are_numpys_unique_with_its_inverse():
+    from vtts.analysis.estimator import _used_vertices
+
+    verts = np.random.default_rng(8).integers(0, 500, size=(300, 3)) * 3 % 997
+    uniq, inverse = _used_vertices(verts, 997)
+    want, want_inverse = np.unique(verts, return_inverse=True)
+    np.testing.assert_array_equal(uniq, want)
+    np.testing.assert_array_equal(inverse, want_inverse.reshape(verts.shape))
+    np.testing.assert_array_equal(uniq[inverse], verts)

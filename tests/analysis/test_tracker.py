@@ -424,3 +424,72 @@ def test_the_accurate_mode_estimates_a_lit_face_with_the_whole_pyramid(cybatt):
         np.testing.assert_array_equal(a.params, b.params)
         np.testing.assert_array_equal(a.translation, b.translation)
         assert finish._samples is None  # none taken from a lit face's rendering
+
+
+def _finish_carphone(model, camera, frames, monkeypatch, tolerance=None, reuse=True, **options):
+    """Carphone's ``frames`` in the accurate mode, the finest level's stop rule at
+    ``tolerance`` (None: :data:`~vtts.analysis.tracker.FINISH_TOLERANCE_PX`), the final rendering
+    taken from the finest level's (``reuse``) or not, ``options`` for the :class:`Tracker`:
+    each frame after the first's estimate, renderings and finest-level steps (pixels)."""
+    with monkeypatch.context() as mp:
+        if tolerance is not None:
+            mp.setattr(tracker_module, "FINISH_TOLERANCE_PX", tolerance)
+        if not reuse:
+            mp.setattr(Tracker, "_rendered_at_estimate", lambda self: None)
+        steps: list[float] = []
+        solve = Tracker._solve
+
+        def spy(self, image, lv):
+            moved = solve(self, image, lv)
+            steps.append(moved)
+            return moved
+
+        mp.setattr(Tracker, "_solve", spy)
+        est = Tracker(model, size=(176, 144), camera=camera, ignore=FITTED_IGNORED, robust=True,
+                      finish=True, **options)  # fmt: skip
+        est.estimate(frames[0], 0)
+        out = []
+        for i, frame in enumerate(frames[1:], 1):
+            steps.clear()
+            found = est.estimate(frame, i, i / 30.0)
+            out.append((found, est.renderings, list(steps)))
+    return out
+
+
+def test_the_accurate_mode_stops_after_a_step_too_small_to_render(carphone_head, monkeypatch):
+    """The finest level of the accurate mode ends after a step that moved no unknown's image by
+    ``FINISH_TOLERANCE_PX``: kept without a rendering to judge it. A frame goes on while its
+    steps are larger (the head moving) and stops at the first that small (converged), where the
+    old rule (0.003 pixels) went on rendering steps of hundredths of a pixel; the estimates
+    match as well."""
+    model, camera = carphone_head
+    frames = _carphone(4)
+    now = _finish_carphone(model, camera, frames, monkeypatch)
+    before = _finish_carphone(model, camera, frames, monkeypatch, tolerance=0.0)
+    tolerance = tracker_module.FINISH_TOLERANCE_PX
+    fewer = 0
+    for (a, drawn_a, steps_a), (b, drawn_b, _) in zip(now, before, strict=True):
+        assert all(m >= tolerance for m in steps_a[:-1]), steps_a
+        assert steps_a[-1] < tolerance, steps_a  # it stopped on the small step
+        fewer += drawn_b - drawn_a
+        assert abs(a.psnr - b.psnr) < 0.1, (a.psnr, b.psnr)
+    assert fewer >= 1, (now, before)
+
+
+def test_the_accurate_mode_ends_on_the_finest_levels_last_rendering(carphone_head, monkeypatch):
+    """A frame whose finest level ended on a rendering (its last step settled, or taken back to
+    the one before) ends without drawing the face again: that rendering stands for the final
+    one (the FAPs half a unit from the integers the stream carries). The same estimate (the
+    next frames start from samples of that rendering), its face PSNR within hundredths of a
+    dB, a rendering fewer a frame."""
+    model, camera = carphone_head
+    frames = _carphone(4)
+    # the old stop rule: the level ends on a rendering on these frames; no search on the
+    # rendered image (the eyelids', which the iris model takes over on camera video) after it
+    options = dict(tolerance=0.0, refine=())
+    reused = _finish_carphone(model, camera, frames, monkeypatch, **options)
+    drawn = _finish_carphone(model, camera, frames, monkeypatch, reuse=False, **options)
+    np.testing.assert_array_equal(reused[0][0].params, drawn[0][0].params)
+    for (a, drawn_a, _), (b, drawn_b, _) in zip(reused, drawn, strict=True):
+        assert abs(a.psnr - b.psnr) < 0.05, (a.psnr, b.psnr)
+        assert drawn_a == drawn_b - 1, (drawn_a, drawn_b)

@@ -33,6 +33,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.ndimage import binary_erosion
+from scipy.sparse import csr_matrix
 
 from vtts.analysis.geometry import HeadGeometry
 from vtts.analysis.landmark_pose import MIN_POINTS
@@ -93,6 +94,14 @@ JUMP_TURN_AU = 3000.0
 #: photometric solves, at 2 pixels a solve, did not make up (docs/analysis.md, "Measuring on
 #: people").
 JUMP_FAR_PX = 8.0
+
+#: Where asked for (``halved_stop`` of :meth:`Estimator._descend`: the accurate mode's finest
+#: level, :class:`~vtts.analysis.tracker.Tracker`), with robust matching, a step that made the
+#: match worse is halved (:data:`STALL_GAIN`) only while the halved step still moves the image
+#: of some unknown by at least this many pixels (of the level); below that the step is taken
+#: back whole and the level ends, without the rendering that would judge so small a change (the
+#: camera's noise and what the model cannot show decide it more than the step does).
+HALVED_STOP_PX = 0.5
 
 #: Pixels next to the model's outline left out of the estimation.
 EDGE = 2
@@ -326,6 +335,12 @@ class Estimator:
         self._align = math.lcm(*(lv.factor for lv in self.pyramid))
         self._last_step: _Step | None = None
         self._stalled = False  # the level being solved ended on a step taken back
+        # the smallest halved step (pixels of the level) rendered, while :meth:`_descend` asks
+        self._halved_stop: float | None = None
+        #: the full-size level's last two renderings, each as ``(params, translation, what
+        #: :meth:`_render_window` gave)``: a level that ends on a step taken back ends at the
+        #: one before the last
+        self._rendered: list[tuple[np.ndarray, np.ndarray, tuple]] = []
         #: the triangle indices of the last frame's final rendering (full size), or None
         self._shown: np.ndarray | None = None
         self._fewest = 4 * len(self.unknowns)  # face pixels a level needs for a solve
@@ -752,11 +767,29 @@ class Estimator:
             target[:] = value
 
     def _descend(
-        self, pyramid: dict[int, np.ndarray], levels: Sequence[Level] | None = None
+        self,
+        pyramid: dict[int, np.ndarray],
+        levels: Sequence[Level] | None = None,
+        tolerance: float | None = None,
+        halved_stop: float | None = None,
     ) -> tuple[int, bool]:
         """One pass down the pyramid (or ``levels`` of it), coarse to fine, with the camera
         frame smoothed at each level's factor in ``pyramid``; returns the linear solves made and
-        whether the finest level's last one moved no unknown by :attr:`tolerance` or more."""
+        whether the finest level's last one moved no unknown by ``tolerance`` (pixels of the
+        level; default :attr:`tolerance`) or more. ``halved_stop``: with robust matching, no
+        halved step that moves the image less than this (pixels of the level) is rendered
+        (:data:`HALVED_STOP_PX`; None: every halving is)."""
+        tolerance = self.tolerance if tolerance is None else tolerance
+        self._halved_stop = halved_stop
+        try:
+            return self._levels_solved(pyramid, levels, tolerance)
+        finally:
+            self._halved_stop = None
+
+    def _levels_solved(
+        self, pyramid: dict[int, np.ndarray], levels: Sequence[Level] | None, tolerance: float
+    ) -> tuple[int, bool]:
+        """:meth:`_descend`'s solves."""
         solves, step = 0, math.inf
         for lv in self.pyramid if levels is None else levels:
             self._last_step = None  # energies of different levels do not compare
@@ -768,9 +801,9 @@ class Estimator:
             for _ in range(lv.iterations):
                 step = self._solve(pyramid[lv.factor], lv)
                 solves += 1
-                if step < self.tolerance or self._stalled:
+                if step < tolerance or self._stalled:
                     break
-        return solves, step < self.tolerance
+        return solves, step < tolerance
 
     def _extrapolate(self, index: int) -> None:
         """Start frame ``index`` with the unknowns :attr:`predicted` carried on at the speed
@@ -795,6 +828,9 @@ class Estimator:
         cam = self._levels[lv.factor][0]
         image, ids, (top, left) = self._render_window(lv.factor)
         self._last_faces = ids
+        if lv.factor == 1:
+            self._rendered = [*self._rendered[-1:], (self.params.copy(), self.translation.copy(),
+                                                     (image, ids, (top, left)))]  # fmt: skip
         camera_image = camera_image[top : top + ids.shape[0], left : left + ids.shape[1]]
         raw = smooth(image, self.sigma)
         gain, offset = self.gain.astype(np.float32), self.offset.astype(np.float32)
@@ -823,6 +859,11 @@ class Estimator:
             self._last_step, self._stalled = None, True
             return 0.0
         if last is not None and energy > last.energy and last.halvings < 3:
+            stop = self._halved_stop
+            if self.robust and stop is not None and last.reach / 2 < stop:
+                self._apply(-last.delta)  # back where the match was best
+                self._last_step, self._stalled = None, True
+                return 0.0
             half = last.delta / 2
             self._apply(-half)
             self._last_step = replace(last, delta=half, halvings=last.halvings + 1,
@@ -905,13 +946,16 @@ class Estimator:
         positions = self.geometry.positions(self.params, self.translation)
         verts = self.geometry.faces[tri]  # (N, 3)
         lam, point = ray_barycentrics(pix, cam, positions[verts])
-        uniq, inverse = np.unique(verts, return_inverse=True)
+        uniq, inverse = _used_vertices(verts, len(positions))
         jac = self.geometry.jacobian(self.params, self.translation, uniq)  # (U, 3, K) world
         jac = np.linalg.inv(cam.pose)[:3, :3] @ jac  # camera axes (U, 3, K)
         jac = jac.astype(np.float32)
-        motion = np.einsum(
-            "nm,nmak->nak", lam.astype(np.float32), jac[inverse.reshape(verts.shape)]
-        )
+        # each pixel's three vertices weighted by its barycentric coordinates: a sparse (N, U)
+        # matrix times the vertices' motion (U, 3 K), without gathering (N, 3, 3, K)
+        n, u = len(verts), len(uniq)
+        weights = csr_matrix((lam.astype(np.float32).ravel(), inverse.ravel(),
+                              np.arange(0, 3 * n + 1, 3)), shape=(n, u))  # fmt: skip
+        motion = (weights @ jac.reshape(u, -1)).reshape(n, 3, -1)
         point = point.astype(np.float32)
         depth = -point[:, 2:3]  # distance along the view axis, > 0
         x_rel = (pix[:, 0:1] - cam.cx).astype(np.float32)
@@ -1159,6 +1203,16 @@ def _face_numbers(renderer: FaceRenderer, geometry: HeadGeometry) -> np.ndarray:
         start = s.first_face
         out[first : first + len(s.mesh.faces)] = np.arange(start, start + len(s.mesh.faces))
     return out
+
+
+def _used_vertices(verts: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(verts, return_inverse=True)`` for vertex indices ``verts`` (any shape) below
+    ``n_vertices``: the vertices used, ascending ``(U,)``, and where each entry of ``verts``
+    lies among them (``verts``' shape) — by marking, not sorting."""
+    used = np.zeros(n_vertices, dtype=bool)
+    used[verts] = True
+    rank = np.cumsum(used) - 1
+    return np.flatnonzero(used), rank[verts]
 
 
 def _overlap(a: tuple[slice, slice], b: tuple[slice, slice]) -> bool:

@@ -51,6 +51,7 @@ from scipy.ndimage import binary_erosion
 
 from vtts.analysis.estimator import (  # noqa: F401  (LIT_REFINE_STEPS: the tracker's too)
     EDGE,
+    HALVED_STOP_PX,
     JUMP_FAR_PX,
     LIT_REFINE_STEPS,
     LIT_SHARE,
@@ -105,6 +106,12 @@ LIT_RERENDER_PX = 3.0
 #: level (a rendering after every solve, :meth:`Estimator._descend`): the samples' colors
 #: are the rendering's, and a lit face's shading changes with every move.
 POLISH_PX = 0.02
+
+#: In the accurate mode (``finish``) the finest level's solves end after a step that moved no
+#: unknown's image by this many pixels: the step is kept without the rendering that would judge
+#: it (the frame's final rendering shows it), as small a change as the camera's noise moves the
+#: match by.
+FINISH_TOLERANCE_PX = 0.1
 
 #: Between two frames, samples that moved this far (pixels) are rendered anew
 #: (:meth:`Tracker.between_frames`), …
@@ -205,6 +212,8 @@ class Tracker(Estimator):
         # with a margin; None for the whole frame
         self._box: tuple[int, int, int, int] | None = None
         self._samples: _Samples | None = None  # the last rendering's, while they serve
+        # the accurate mode's frame ends: its final rendering may be the finest level's last
+        self._reuse = False
         # whether the last frame's solves had to render (its head outran the samples)
         self._outrun = False
 
@@ -243,9 +252,16 @@ class Tracker(Estimator):
             # from where the samples left the estimate; the frame's final rendering gives the
             # next frame's samples (:meth:`_final_rendering`)
             full = frame.astype(np.float32)
-            more, _ = self._descend({1: smooth(full, self.sigma)}, self.pyramid[-1:])
-            self.renderings += more + 1
-            return self._final_estimate(full, index, time, solves + more, self._lit_frame())
+            self._rendered = []
+            more, _ = self._descend({1: smooth(full, self.sigma)}, self.pyramid[-1:],
+                                    max(self.tolerance, FINISH_TOLERANCE_PX),
+                                    HALVED_STOP_PX)  # fmt: skip
+            self.renderings += more
+            self._reuse = True
+            try:
+                return self._final_estimate(full, index, time, solves + more, self._lit_frame())
+            finally:
+                self._reuse = False
         lit = samples.lit >= LIT_SHARE
         if lit and self._shift(samples) > self.polish:
             # a lit face: the accurate estimator's finest level, a rendering after every solve
@@ -340,7 +356,12 @@ class Tracker(Estimator):
         """The frame's final rendering; with :attr:`finish`, its face also gives the samples for
         the next frame (none where it shows too little of the face: the next frame renders; none
         on a lit face, whose next frame takes the whole pyramid)."""
-        image, ids, (top, left) = super()._final_rendering()
+        shown = self._rendered_at_estimate() if self._reuse else None
+        if shown is None:
+            image, ids, (top, left) = super()._final_rendering()
+            self.renderings += self._reuse
+        else:
+            image, ids, (top, left) = shown
         if self.finish:
             self._samples = None
             rows, cols = np.nonzero(ids >= 0)
@@ -367,6 +388,23 @@ class Tracker(Estimator):
                 except VttsError:
                     pass
         return image, ids, (top, left)
+
+    def _rendered_at_estimate(self) -> tuple | None:
+        """One of the finest level's last two renderings (:attr:`_rendered`) made at the
+        estimate the frame ends with, up to the rounding of the unknown FAPs to the integers the
+        stream carries (half a unit at most: hundredths of a pixel), or None. The level's
+        solves end at a rendering (the last step settled) or at the one before it (the last step
+        taken back), and the frame's final rendering would draw the same face again."""
+        for params, translation, shown in reversed(self._rendered):
+            rounded = params.copy()
+            for u in self.unknowns:
+                if not isinstance(u, str):
+                    rounded[u - 1] = np.round(rounded[u - 1]) + 0.0
+            # a step taken back leaves the translation where it was but for the last bits
+            same_place = np.allclose(translation, self.translation, rtol=0.0, atol=1e-9)
+            if same_place and np.array_equal(rounded, self.params):
+                return shown
+        return None
 
     # ---- samples -------------------------------------------------------------------------------
 
