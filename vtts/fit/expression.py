@@ -4,7 +4,7 @@ expressive photo.
 A photo of a smiling, talking or frowning face is not a neutral face. Fitted as shape alone,
 its open jaw, stretched lips and raised brows become the head's neutral (a head that smiles
 under every viseme). Here the landmarks see the shape *and* a handful of FAPs — the jaw, the
-lips, the lip corners, the brows and the upper lids (:data:`EXPRESSION_FAPS`) — whose
+lips, the lip corners, the brows, the upper lids and the cheeks (:data:`EXPRESSION_FAPS`) — whose
 displacements the generic head's own tables give (:func:`expression_basis`): the shape fit
 (:func:`vtts.fit.shape.fit_shape`) solves for both, and the head keeps the shape without the
 FAPs as its neutral. The texture is painted with the head posed in the photo's expression
@@ -26,7 +26,8 @@ from vtts.fap import fap
 from vtts.fit.landmarks import LEFT_EYE, LIPS_INNER, RIGHT_EYE
 
 #: The FAPs a photo's expression is fitted with, and each one's prior width (in its FAPU
-#: units): the jaw, the lips' middles and corners, the upper lids and the brows.
+#: units): the jaw, the lips' middles and corners, the upper lids, the brows and the cheeks a smile
+#: lifts.
 EXPRESSION_FAPS = {
     3: 600.0,  # open_jaw
     4: 150.0,  # lower_t_midlip
@@ -43,6 +44,8 @@ EXPRESSION_FAPS = {
     34: 150.0,  # raise_r_m_eyebrow
     35: 150.0,  # raise_l_o_eyebrow
     36: 150.0,  # raise_r_o_eyebrow
+    41: 400.0,  # lift_l_cheek
+    42: 400.0,  # lift_r_cheek
 }
 #: The value at which each table's slope is read (FAPU units): within its first interval.
 PROBE = 100.0
@@ -52,6 +55,14 @@ ONE_WAY = 0.02
 #: The inner lips' gap (a share of the eye distance) from which the jaw's prior is its full
 #: width (:data:`EXPRESSION_FAPS`), and the least share of that width it keeps on a shut mouth.
 OPEN_GAP, SHUT_JAW = 0.15, 0.05
+#: The FAPs that lift the cheeks (lift_l_cheek, lift_r_cheek), and the mouth's widths between
+#: its outer corners (landmarks 61 and 291, a share of the eye distance) over which their prior
+#: grows to its full width (a smile's); on a narrower mouth they are not fitted at all (the
+#: development portraits at rest are 0.65–0.9 eye distances wide): a smile's raised cheeks
+#: face the light where the photo is bright, but on a face at rest even a few units of cheek
+#: lift cost (`lp_s42`: 5 units, −0.13 dB over the face).
+CHEEKS = (41, 42)
+REST_WIDTH, SMILE_WIDTH = 0.85, 1.0
 #: How far (pixels, as a share of the eye distance) beyond the photo's inner lip and eye
 #: contours the skin takes nothing from the photo.
 MARGIN = 0.01
@@ -151,13 +162,23 @@ def for_photo(basis: ExpressionBasis, landmarks: np.ndarray) -> ExpressionBasis:
     pixels) over :data:`OPEN_GAP` of the eye distance, at least :data:`SHUT_JAW`. Opening the
     jaw also lengthens the chin, which the shape can as well: on a shut mouth, and on a turned
     face whose chin the landmarks place less surely, a loose jaw took up what was the face's
-    length (a neutral head fitted at 20° of yaw opened it by 200–450 units)."""
+    length (a neutral head fitted at 20° of yaw opened it by 200–450 units). The cheeks' lift
+    (:data:`CHEEKS`) is narrowed likewise to the smile the mouth's width between its outer
+    corners shows (landmarks 61, 291: from :data:`REST_WIDTH` to :data:`SMILE_WIDTH` of the eye
+    distance), and left out of the basis on a mouth no wider than :data:`REST_WIDTH`."""
     pts = np.asarray(landmarks, np.float64)[:, :2]
-    eyes = float(np.linalg.norm(pts[[33, 133]].mean(axis=0) - pts[[263, 362]].mean(axis=0)))
-    gap = float(np.linalg.norm(pts[13] - pts[14])) / max(eyes, 1e-9)
+    eyes = max(float(np.linalg.norm(pts[[33, 133]].mean(axis=0) - pts[[263, 362]].mean(axis=0))),
+               1e-9)  # fmt: skip
+    gap = float(np.linalg.norm(pts[13] - pts[14])) / eyes
     share = float(np.clip(gap / OPEN_GAP, SHUT_JAW, 1.0))
+    width = float(np.linalg.norm(pts[61] - pts[291])) / eyes
+    smile = float(np.clip((width - REST_WIDTH) / (SMILE_WIDTH - REST_WIDTH), 0.0, 1.0))
+    cheeks = np.isin(basis.faps, CHEEKS)
     sigma = np.where(basis.faps == 3, basis.sigma * share, basis.sigma)
-    return replace(basis, sigma=sigma)
+    sigma = np.where(cheeks, sigma * smile, sigma)
+    keep = ~cheeks | (smile > 0)
+    return replace(basis, faps=basis.faps[keep], up=basis.up[keep], down=basis.down[keep],
+                   sigma=sigma[keep], one_way=basis.one_way[keep])  # fmt: skip
 
 
 def skin_trust(size: tuple[int, int], landmarks: np.ndarray, mouth: bool = True) -> np.ndarray:
