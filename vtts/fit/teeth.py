@@ -7,8 +7,7 @@ teeth where they were — shows its dark cavity (the fitted expression moves the
 jaw, never the upper teeth). So where the photo's open mouth shows teeth (bright, pale pixels
 inside the inner lip contour: :func:`teeth_mask`), the upper row moves up or down until its
 tips meet the lower edge of the photo's upper teeth at the photo's view, and widens to span
-the opening between the inner lip corners and a little beyond (:data:`BEYOND`: the row's ends
-curve back behind the corners; :func:`place_teeth`); the photo paints both rows
+the opening between the inner lip corners (:func:`place_teeth`); the photo paints both rows
 where it shows them (:func:`vtts.fit.photo.fit_photo`). The lower row stays with the jaw: in
 a smile it hides behind the lower lip, and moved with the upper row it would bare the tongue
 between them. The neutral head's lips close over the teeth; speaking, it shows its upper teeth
@@ -35,13 +34,9 @@ MIDDLE = 0.4
 #: How far the upper teeth may move (model units; the face is about 1.2 wide, a front tooth
 #: about 0.09 long).
 MOST = 0.12
-#: The upper row is widened (never narrowed) until, at the photo's view, it spans this share of
-#: the opening between the inner lip corners: its ends curve back and away, so a row only as wide
-#: as the opening leaves the dark cavity showing at the lips' corners where the photo's smile
-#: shows teeth or the lips' shade there (docs/fitting.md, "The astronaut's face").
-BEYOND = 1.25
-#: The most the upper row is widened (the mouth's cavity is not much wider).
-WIDEST = 1.5
+#: The upper row is widened (never narrowed) to span the opening between the inner lip
+#: corners at the photo's view, by at most this factor (the mouth's cavity is not much wider).
+WIDEST = 1.2
 
 
 def teeth_mask(photo: np.ndarray, landmarks: np.ndarray) -> np.ndarray | None:
@@ -82,9 +77,8 @@ def place_teeth(scene: Scene, camera: Camera, photo: np.ndarray,
     that, seen by ``camera`` (the photo's, in the model's frame), their tips meet the lower edge
     of the upper teeth ``photo (H, W, 3) uint8`` shows (:func:`teeth_mask` of the face's
     ``landmarks (468, ≥2)``, pixels), by at most :data:`MOST`, and widen them (by at most
-    :data:`WIDEST`) to span :data:`BEYOND` of the photo's opening between the inner lip
-    corners. Returns the shift (model units, + up), or None where the photo shows no teeth or
-    the head has none."""
+    :data:`WIDEST`) to span the photo's opening between the inner lip corners. Returns the
+    shift (model units, + up), or None where the photo shows no teeth or the head has none."""
     if not all(n in scene.defs for n in TEETH):
         return None
     teeth = teeth_mask(photo, landmarks)
@@ -112,9 +106,8 @@ def place_teeth(scene: Scene, camera: Camera, photo: np.ndarray,
         return None
     shift = float(np.clip((want - now) / per_unit, -MOST, MOST))
     moved = upper + [0.0, shift, 0.0]
-    # beyond the opening between the inner lip corners: a smile shows teeth to its corners
-    wide = BEYOND * (right - left) / max(float(np.ptp(xy[:, 0])), 1e-9)
-    widen = float(np.clip(wide, 1.0, WIDEST))
+    # as wide as the opening between the inner lip corners: a smile shows teeth to its corners
+    widen = float(np.clip((right - left) / max(float(np.ptp(xy[:, 0])), 1e-9), 1.0, WIDEST))
     middle = (moved[:, 0].min() + moved[:, 0].max()) / 2
     moved[:, 0] = middle + (moved[:, 0] - middle) * widen
     node = scene.node(UPPER).expand()["coord"].expand()
