@@ -44,6 +44,7 @@ or better (docs/analysis.md, "The accurate mode on samples").
 from __future__ import annotations
 
 import math
+import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 
@@ -86,16 +87,18 @@ class Stage:
     support: int = 4
 
 
-_SMOOTHING: ThreadPoolExecutor | None = None
+_SMOOTHING: tuple[int, ThreadPoolExecutor] | None = None
 
 
 def _smoothing() -> ThreadPoolExecutor:
     """The worker thread that smooths the accurate mode's frames (:meth:`Tracker.estimate`),
-    one for the process (made on first use)."""
+    one for the process (made on first use; made again in a forked child, which inherits the
+    executor but not its thread)."""
     global _SMOOTHING
-    if _SMOOTHING is None:
-        _SMOOTHING = ThreadPoolExecutor(max_workers=1, thread_name_prefix="vtts-smooth")
-    return _SMOOTHING
+    if _SMOOTHING is None or _SMOOTHING[0] != os.getpid():
+        pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="vtts-smooth")
+        _SMOOTHING = (os.getpid(), pool)
+    return _SMOOTHING[1]
 
 
 def _smoothed(frame: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray]:
