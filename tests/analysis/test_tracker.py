@@ -493,3 +493,38 @@ def test_the_accurate_mode_ends_on_the_finest_levels_last_rendering(carphone_hea
     for (a, drawn_a, _), (b, drawn_b, _) in zip(reused, drawn, strict=True):
         assert abs(a.psnr - b.psnr) < 0.05, (a.psnr, b.psnr)
         assert drawn_a == drawn_b - 1, (drawn_a, drawn_b)
+
+
+def test_the_accurate_mode_smooths_the_frame_in_a_worker_thread(carphone_head, monkeypatch):
+    """The accurate mode's whole frame, smoothed for its finest level, is made in a worker
+    thread while the stages run: the same estimates, to the bit, as made in the frame's own
+    thread."""
+    import threading
+    from concurrent.futures import Future
+
+    class InThread:
+        def submit(self, fn, *args):
+            done: Future = Future()
+            done.set_result(fn(*args))
+            return done
+
+    made_in = []
+    smoothed = tracker_module._smoothed
+
+    def spy(frame, sigma):
+        made_in.append(threading.current_thread() is threading.main_thread())
+        return smoothed(frame, sigma)
+
+    model, camera = carphone_head
+    frames = _carphone(3)
+    monkeypatch.setattr(tracker_module, "_smoothed", spy)
+    worker = _finish_carphone(model, camera, frames, monkeypatch)
+    assert made_in and not any(made_in)
+    monkeypatch.setattr(tracker_module, "_smoothing", InThread)
+    made_in.clear()
+    inline = _finish_carphone(model, camera, frames, monkeypatch)
+    assert made_in and all(made_in)
+    for (a, drawn_a, _), (b, drawn_b, _) in zip(worker, inline, strict=True):
+        np.testing.assert_array_equal(a.params, b.params)
+        np.testing.assert_array_equal(a.translation, b.translation)
+        assert a.psnr == b.psnr and drawn_a == drawn_b

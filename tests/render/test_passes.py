@@ -210,3 +210,25 @@ def test_vrml_primitives_render(tmp_path):
         img = r.render(np.zeros(N_PARAMS))
         assert np.array_equal(img, _pyrender_frame(r))
     assert (img != img[0, 0]).any(axis=2).mean() > 0.05
+
+
+def test_the_deferred_pass_draws_smaller_images_in_the_targets_it_has():
+    """Targets made for a larger image are kept for a smaller one (the analysis renders windows
+    of changing sizes): the same pixels and triangle numbers as targets of the image's own size."""
+    from vtts.render.deferred import DeferredPass
+
+    scene = _scene()
+    primitive = next(p for m in scene.meshes if not m.is_transparent for p in m.primitives)
+    fresh = DeferredPass(offscreen())
+    want, want_numbers = fresh.render(scene, W, H, triangles={primitive: 5})
+    assert np.array_equal(want, _pyrender(scene))
+    assert (want_numbers >= 5).any()
+    reused = DeferredPass(offscreen())
+    reused.render(scene, W + 90, H // 2)  # wider, lower: grows to hold both sides
+    reused.render(scene, W + 20, H + 40)
+    targets = reused._targets
+    assert targets.size[0] >= W + 90 and targets.size[1] >= H + 40
+    got, numbers = reused.render(scene, W, H, triangles={primitive: 5})
+    assert reused._targets is targets
+    assert np.array_equal(got, want) and np.array_equal(numbers, want_numbers)
+    assert np.array_equal(reused.render(scene, W, H, rgba=True), _pyrender(scene, rgba=True))

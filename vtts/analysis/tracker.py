@@ -44,6 +44,8 @@ or better (docs/analysis.md, "The accurate mode on samples").
 from __future__ import annotations
 
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -64,7 +66,7 @@ from vtts.analysis.result import FrameEstimate
 from vtts.analysis.solve import least_squares, smooth
 from vtts.analysis.unknowns import EYELIDS
 from vtts.errors import VttsError
-from vtts.threads import one_blas_thread
+from vtts.threads import one_blas_thread, result
 
 LUMA32 = LUMA.astype(np.float32)
 
@@ -83,6 +85,27 @@ class Stage:
     iterations: int
     limit: float = 2.0
     support: int = 4
+
+
+_SMOOTHING: tuple[int, ThreadPoolExecutor] | None = None
+
+
+def _smoothing() -> ThreadPoolExecutor:
+    """The worker thread that smooths the accurate mode's frames (:meth:`Tracker.estimate`),
+    one for the process (made on first use; made again in a forked child, which inherits the
+    executor but not its thread)."""
+    global _SMOOTHING
+    if _SMOOTHING is None or _SMOOTHING[0] != os.getpid():
+        pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="vtts-smooth")
+        _SMOOTHING = (os.getpid(), pool)
+    return _SMOOTHING[1]
+
+
+def _smoothed(frame: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray]:
+    """The camera ``frame`` ``(H, W, 3) uint8`` as ``float32`` and that smoothed by
+    :func:`~vtts.analysis.solve.smooth` with ``sigma`` (pixels)."""
+    full = frame.astype(np.float32)
+    return full, smooth(full, sigma)
 
 
 #: Wide smoothing first (motion of a few pixels), then the accurate estimator's own.
@@ -240,6 +263,11 @@ class Tracker(Estimator):
         w, h = self.size
         if frame.shape != (h, w, 3):
             raise VttsError(f"frame {index} is {frame.shape}, expected ({h}, {w}, 3)")
+        # the accurate mode's finest level reads the whole frame smoothed: a Gaussian filter of
+        # the frame that does not depend on the estimate (about a tenth of a 512² frame's time),
+        # made in a worker thread while this thread runs the stages (SciPy's filters release
+        # the GIL)
+        smoothed = _smoothing().submit(_smoothed, frame, self.sigma) if self.finish else None
         self.observe(landmarks, eyes)
         if self.predicted:
             self._start_near_landmarks(index)
@@ -251,9 +279,9 @@ class Tracker(Estimator):
             # the accurate mode: the finest level of the pyramid, a rendering after every solve,
             # from where the samples left the estimate; the frame's final rendering gives the
             # next frame's samples (:meth:`_final_rendering`)
-            full = frame.astype(np.float32)
+            full, smoothed_full = result(smoothed)
             self._rendered = []
-            more, _ = self._descend({1: smooth(full, self.sigma)}, self.pyramid[-1:],
+            more, _ = self._descend({1: smoothed_full}, self.pyramid[-1:],
                                     max(self.tolerance, FINISH_TOLERANCE_PX),
                                     HALVED_STOP_PX)  # fmt: skip
             self.renderings += more

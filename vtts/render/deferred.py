@@ -51,6 +51,9 @@ SHADER_DIR = Path(__file__).resolve().parent / "shaders"
 #: colors) is drawn only for scenes that have such colors.
 G_TARGETS = ("g_position", "g_normal", "g_texel", "g_color")
 
+#: The G-buffer's sides are whole multiples of this many pixels (:meth:`DeferredPass._targets_for`).
+TARGET_STEP = 64
+
 #: The G-buffer's attachment for triangle numbers (drawn only when asked for).
 TRIANGLE_ATTACHMENT = len(G_TARGETS)
 
@@ -162,7 +165,26 @@ class DeferredPass(ForwardPass):
                 raise RenderError("triangle numbers need pyrender's shader as vtts knows it")
             return super().render(scene, width, height, rgba)
         targets = self._targets_for(width, height)
+        # the targets may be larger than the image (:meth:`_targets_for`): clear and draw only
+        # its corner, the viewport (drawing is clipped to the viewport already; clears are not)
+        GL.glScissor(0, 0, width, height)
+        GL.glEnable(GL.GL_SCISSOR_TEST)
+        try:
+            self._draw_scene(scene, r, targets, resolve, opaque, transparent, colors, triangles)
+        finally:
+            GL.glDisable(GL.GL_SCISSOR_TEST)
+        self._end_frame()
+        image = read_color(targets.color_fb, width, height, rgba)
+        if triangles is None:
+            return image
+        return image, _read_triangles(targets.gbuffer, width, height)
 
+    # ---- G-buffer pass -----------------------------------------------------------------------
+
+    def _draw_scene(
+        self, scene, r, targets: _Targets, resolve, opaque, transparent, colors: bool, triangles
+    ) -> None:
+        """The G-buffer pass, the resolve pass and the transparent primitives of :meth:`render`."""
         GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, targets.gbuffer)
         buffers = [GL.GL_COLOR_ATTACHMENT0 + i for i in range(len(G_TARGETS))]
         if not colors:
@@ -196,13 +218,6 @@ class DeferredPass(ForwardPass):
             for node, pose in transparent:
                 for primitive in node.mesh.primitives:
                     self._draw(primitive, pose, r)
-        self._end_frame()
-        image = read_color(targets.color_fb, width, height, rgba)
-        if triangles is None:
-            return image
-        return image, _read_triangles(targets.gbuffer, width, height)
-
-    # ---- G-buffer pass -----------------------------------------------------------------------
 
     def _draw_gbuffer(
         self, primitive, pose: np.ndarray, r, materials: dict, colors: bool, triangles=None
@@ -355,11 +370,20 @@ class DeferredPass(ForwardPass):
     # ---- framebuffers ------------------------------------------------------------------------
 
     def _targets_for(self, width: int, height: int) -> _Targets:
-        """The G-buffer and color framebuffers for this size (made when the size changes)."""
-        if self._targets is not None and self._targets.size == (width, height):
-            return self._targets
+        """G-buffer and color framebuffers that hold a ``width`` × ``height`` image in their
+        lower left corner (the viewport): the last ones while they are large enough, else new
+        ones of the larger of each side, rounded up to :data:`TARGET_STEP` pixels. The analysis
+        renders windows around the face whose size changes from one rendering to the next;
+        making (and first touching) new targets for each was a noticeable part of its frame.
+        The pixels are the same in any size of target (``texelFetch`` at the fragment's own
+        pixel; clears under the scissor)."""
         if self._targets is not None:
+            have_w, have_h = self._targets.size
+            if have_w >= width and have_h >= height:
+                return self._targets
+            width, height = max(width, have_w), max(height, have_h)
             self._targets.delete()
+        width, height = (-(-n // TARGET_STEP) * TARGET_STEP for n in (width, height))
         textures = [int(t) for t in np.atleast_1d(GL.glGenTextures(len(G_TARGETS) + 1))]
         for i, t in enumerate(textures):
             fmt, channels = GL.GL_RGBA32F, GL.GL_RGBA
