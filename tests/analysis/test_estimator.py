@@ -751,6 +751,16 @@ def test_the_window_around_the_face_holds_it_with_its_margin():
     assert _clear(((10, 50), (5, 40)), (0, 0, 96, 96), size, 24)  # the frame's own sides
 
 
+def test_no_pixel_of_the_model_has_no_motion(estimator):
+    """A window that shows none of the model (a mutated video's frame) gives empty arrays of
+    the unknowns' width, not an error."""
+    cam = estimator.camera
+    point, motion, du, dv = estimator._image_motion(np.zeros((0, 2)), np.zeros(0, int), cam)
+    k = len(estimator.unknowns)
+    assert point.shape == (0, 3) and motion.shape == (0, 3, k)
+    assert du.shape == dv.shape == (0, k)
+
+
 def test_used_vertices_are_numpys_unique_with_its_inverse():
     from vtts.analysis.estimator import _used_vertices
 

@@ -952,10 +952,10 @@ class Estimator:
         jac = jac.astype(np.float32)
         # each pixel's three vertices weighted by its barycentric coordinates: a sparse (N, U)
         # matrix times the vertices' motion (U, 3 K), without gathering (N, 3, 3, K)
-        n, u = len(verts), len(uniq)
+        (n, u), k = (len(verts), len(uniq)), jac.shape[-1]  # no pixel: n = u = 0
         weights = csr_matrix((lam.astype(np.float32).ravel(), inverse.ravel(),
                               np.arange(0, 3 * n + 1, 3)), shape=(n, u))  # fmt: skip
-        motion = (weights @ jac.reshape(u, -1)).reshape(n, 3, -1)
+        motion = np.asarray(weights @ jac.reshape(u, 3 * k)).reshape(n, 3, k)
         point = point.astype(np.float32)
         depth = -point[:, 2:3]  # distance along the view axis, > 0
         x_rel = (pix[:, 0:1] - cam.cx).astype(np.float32)
