@@ -31,7 +31,6 @@ See docs/analysis.md, "Where Equation 18's error lies".
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import tempfile
@@ -41,6 +40,7 @@ import numpy as np
 from scipy import ndimage
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # mc_bound.measure_video
 
 #: The regions, in the order a pixel is given to the first that holds it.
 REGIONS = ("eyes", "brows", "mouth", "outline band", "rest")
@@ -192,20 +192,9 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("video", type=Path)
     ap.add_argument("--track", action="store_true", help="the tracking mode, every frame")
-    args = ap.parse_args(argv)
+    from mc_bound import measure_video
 
-    from vtts.analysis.video import read_video
-    from vtts.errors import VttsError
-
-    try:
-        video = read_video(args.video)
-        frames = list(video.frames())
-        result = _measure(args, video, frames)
-    except VttsError as e:  # a bad video, or one without a face: said, no traceback
-        print(f"eq18_regions: {args.video}: {e.message}", file=sys.stderr)
-        return 2
-    print(json.dumps(result, indent=1))
-    return 0
+    return measure_video("eq18_regions", ap.parse_args(argv), _measure)
 
 
 def _measure(args: argparse.Namespace, video, frames: list[np.ndarray]) -> dict:

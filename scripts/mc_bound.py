@@ -66,17 +66,21 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("video", type=Path)
     ap.add_argument("--block", type=int, default=8, help="block size, pixels (default 8)")
     ap.add_argument("--reach", type=int, default=3, help="largest shift, pixels (default 3)")
-    args = ap.parse_args(argv)
+    return measure_video("mc_bound", ap.parse_args(argv), _measure)
 
+
+def measure_video(tool: str, args: argparse.Namespace, measure) -> int:
+    """Read the video ``args.video``, print ``measure(args, video, frames)`` (a dict) as JSON;
+    a bad video, or one without a face, is said on stderr with ``tool``'s name (exit status 2),
+    never a traceback. Shared by the scripts that measure a video (``eq18_regions.py``)."""
     from vtts.analysis.video import read_video
     from vtts.errors import VttsError
 
     try:
         video = read_video(args.video)
-        frames = list(video.frames())
-        result = _measure(args, video, frames)
-    except VttsError as e:  # a bad video, or one without a face: said, no traceback
-        print(f"mc_bound: {args.video}: {e.message}", file=sys.stderr)
+        result = measure(args, video, list(video.frames()))
+    except VttsError as e:
+        print(f"{tool}: {args.video}: {e.message}", file=sys.stderr)
         return 2
     print(json.dumps(result, indent=1))
     return 0

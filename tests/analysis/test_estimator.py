@@ -335,13 +335,10 @@ def test_a_solve_on_the_window_around_the_face_is_the_solve_on_the_whole_image(
         assert n1 == (w // lv.factor) * (h // lv.factor) and n0 < n1 / 2, (n0, n1)
 
 
-@pytest.mark.parametrize("gain", [0.001, 0.5])
-def test_a_worse_step_after_one_that_gained_little_is_taken_back_and_ends_the_level(cybatt, gain):
-    """With robust matching, a step that made the match worse is halved (the linear model can
-    be wrong where shading or occlusion dominates) — unless the step before it gained less than
-    ``STALL_GAIN`` of the match: then what is left is noise (a camera frame's), the step is
-    taken back whole and the level ends there, instead of a rendering for every halving."""
-    import vtts.analysis.estimator as estimator_module
+def _after_a_step_too_far(cybatt, reach: float, gain: float):
+    """A robust estimator at the truth of a noisy frame, then moved by a step of FAP 48 too far
+    (the match gets worse), recorded as its last step (``reach`` pixels, ``gain``): ``(est,
+    frame, the parameters before the step)``."""
     from vtts.analysis.estimator import _Step
 
     frame = _noisy(cybatt, _params({3: 150, 48: 1000}), seed=3)
@@ -349,9 +346,21 @@ def test_a_worse_step_after_one_that_gained_little_is_taken_back_and_ends_the_le
     est.params[:] = _params({3: 150, 48: 1000})
     before = est.params.copy()
     delta = np.zeros(len(est.unknowns) + 6)
-    delta[est.unknowns.index(48)] = 400.0  # far off: the match gets worse
+    delta[est.unknowns.index(48)] = 400.0
     est._apply(delta)
-    est._last_step = _Step(energy=0.0, delta=delta, halvings=0, reach=1.0, gain=gain)
+    est._last_step = _Step(energy=0.0, delta=delta, halvings=0, reach=reach, gain=gain)
+    return est, frame, before
+
+
+@pytest.mark.parametrize("gain", [0.001, 0.5])
+def test_a_worse_step_after_one_that_gained_little_is_taken_back_and_ends_the_level(cybatt, gain):
+    """With robust matching, a step that made the match worse is halved (the linear model can
+    be wrong where shading or occlusion dominates) — unless the step before it gained less than
+    ``STALL_GAIN`` of the match: then what is left is noise (a camera frame's), the step is
+    taken back whole and the level ends there, instead of a rendering for every halving."""
+    import vtts.analysis.estimator as estimator_module
+
+    est, frame, before = _after_a_step_too_far(cybatt, reach=1.0, gain=gain)
     moved = est._solve(smooth(frame, est.sigma), est.pyramid[-1])
     if gain < estimator_module.STALL_GAIN:
         assert est._stalled and moved == 0.0 and est._last_step is None
@@ -369,21 +378,13 @@ def test_a_worse_step_is_halved_only_while_the_half_moves_the_image_enough(cybat
     where that is asked for (the accurate mode's finest level); below that it is taken back
     whole and the level ends, without a rendering of the half. Not asked for, it is halved."""
     import vtts.analysis.estimator as estimator_module
-    from vtts.analysis.estimator import _Step
 
-    frame = _noisy(cybatt, _params({3: 150, 48: 1000}), seed=3)
-    est = Estimator(cybatt, size=SIZE, unknowns=TABLE1_FAPS, robust=True)
-    est.params[:] = _params({3: 150, 48: 1000})
-    before = est.params.copy()
-    delta = np.zeros(len(est.unknowns) + 6)
-    delta[est.unknowns.index(48)] = 400.0  # far off: the match gets worse
-    est._apply(delta)
-    est._last_step = _Step(energy=0.0, delta=delta, halvings=0, reach=reach, gain=0.5)
-    state = est._state()
+    est, frame, before = _after_a_step_too_far(cybatt, reach=reach, gain=0.5)
+    state, last = est._state(), est._last_step
     est._solve(smooth(frame, est.sigma), est.pyramid[-1])  # not asked for: halved
     assert not est._stalled and est._last_step.halvings == 1
     est._set_state(state)
-    est._last_step = _Step(energy=0.0, delta=delta, halvings=0, reach=reach, gain=0.5)
+    est._last_step = last
     est._halved_stop = estimator_module.HALVED_STOP_PX  # as the accurate mode's _descend sets it
     moved = est._solve(smooth(frame, est.sigma), est.pyramid[-1])
     if reach / 2 < estimator_module.HALVED_STOP_PX:
