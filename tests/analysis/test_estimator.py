@@ -261,7 +261,7 @@ def _estimate_from(est, frame, index):
     """``est.estimate(frame, index)`` and the parameters its first solve started from."""
     starts = []
     solve = est._solve
-    est._solve = lambda image, lv: starts.append(est.params.copy()) or solve(image, lv)
+    est._solve = lambda image, lv, *a: starts.append(est.params.copy()) or solve(image, lv, *a)
     try:
         return est.estimate(frame, index), starts[0]
     finally:
@@ -385,8 +385,8 @@ def test_a_worse_step_is_halved_only_while_the_half_moves_the_image_enough(cybat
     assert not est._stalled and est._last_step.halvings == 1
     est._set_state(state)
     est._last_step = last
-    est._halved_stop = estimator_module.HALVED_STOP_PX  # as the accurate mode's _descend sets it
-    moved = est._solve(smooth(frame, est.sigma), est.pyramid[-1])
+    # as the accurate mode's _descend asks
+    moved = est._solve(smooth(frame, est.sigma), est.pyramid[-1], estimator_module.HALVED_STOP_PX)
     if reach / 2 < estimator_module.HALVED_STOP_PX:
         assert est._stalled and moved == 0.0 and est._last_step is None
         assert np.allclose(est.params, before)
@@ -678,10 +678,10 @@ def test_searched_eyelids_are_found_with_the_head_pose_held(cybatt):
     est._history = [(0, est.params.copy(), est.translation.copy())]
     moves = []  # how far each linear solve moved the lids
 
-    def solve(image, lv, solve=est._solve):
+    def solve(image, lv, *args, solve=est._solve):
         lids = est.params[18:20].copy()
         try:
-            return solve(image, lv)
+            return solve(image, lv, *args)
         finally:
             moves.append(np.abs(est.params[18:20] - lids).max())
 

@@ -439,8 +439,8 @@ def _finish_carphone(model, camera, frames, monkeypatch, tolerance=None, reuse=T
         steps: list[float] = []
         solve = Tracker._solve
 
-        def spy(self, image, lv):
-            moved = solve(self, image, lv)
+        def spy(self, image, lv, *args):
+            moved = solve(self, image, lv, *args)
             steps.append(moved)
             return moved
 

@@ -335,8 +335,6 @@ class Estimator:
         self._align = math.lcm(*(lv.factor for lv in self.pyramid))
         self._last_step: _Step | None = None
         self._stalled = False  # the level being solved ended on a step taken back
-        # the smallest halved step (pixels of the level) rendered, while :meth:`_descend` asks
-        self._halved_stop: float | None = None
         #: the full-size level's last two renderings, each as ``(params, translation, what
         #: :meth:`_render_window` gave)``: a level that ends on a step taken back ends at the
         #: one before the last
@@ -780,16 +778,6 @@ class Estimator:
         halved step that moves the image less than this (pixels of the level) is rendered
         (:data:`HALVED_STOP_PX`; None: every halving is)."""
         tolerance = self.tolerance if tolerance is None else tolerance
-        self._halved_stop = halved_stop
-        try:
-            return self._levels_solved(pyramid, levels, tolerance)
-        finally:
-            self._halved_stop = None
-
-    def _levels_solved(
-        self, pyramid: dict[int, np.ndarray], levels: Sequence[Level] | None, tolerance: float
-    ) -> tuple[int, bool]:
-        """:meth:`_descend`'s solves."""
         solves, step = 0, math.inf
         for lv in self.pyramid if levels is None else levels:
             self._last_step = None  # energies of different levels do not compare
@@ -799,7 +787,7 @@ class Estimator:
                 solves, step = solves + 1, 0.0
                 continue
             for _ in range(lv.iterations):
-                step = self._solve(pyramid[lv.factor], lv)
+                step = self._solve(pyramid[lv.factor], lv, halved_stop)
                 solves += 1
                 if step < tolerance or self._stalled:
                     break
@@ -822,9 +810,11 @@ class Estimator:
             else:
                 self.params[u - 1] += ratio * (p1[u - 1] - p0[u - 1])
 
-    def _solve(self, camera_image: np.ndarray, lv: Level) -> float:
+    def _solve(
+        self, camera_image: np.ndarray, lv: Level, halved_stop: float | None = None
+    ) -> float:
         """One Gauss–Newton step at one level; returns how far (pixels of that level) the step
-        moved the image of the unknown that moved most."""
+        moved the image of the unknown that moved most. ``halved_stop``: as :meth:`_descend`'s."""
         cam = self._levels[lv.factor][0]
         image, ids, (top, left) = self._render_window(lv.factor)
         self._last_faces = ids
@@ -859,8 +849,7 @@ class Estimator:
             self._last_step, self._stalled = None, True
             return 0.0
         if last is not None and energy > last.energy and last.halvings < 3:
-            stop = self._halved_stop
-            if self.robust and stop is not None and last.reach / 2 < stop:
+            if self.robust and halved_stop is not None and last.reach / 2 < halved_stop:
                 self._apply(-last.delta)  # back where the match was best
                 self._last_step, self._stalled = None, True
                 return 0.0
