@@ -23,7 +23,7 @@ from PIL import Image, ImageDraw
 
 from vtts.face import FaceModel
 from vtts.fap import fap
-from vtts.fit.landmarks import LEFT_EYE, LIPS_INNER, RIGHT_EYE
+from vtts.fit.landmarks import LEFT_EYE, LIPS_INNER, RIGHT_EYE, eye_distance
 
 #: The FAPs a photo's expression is fitted with, and each one's prior width (in its FAPU
 #: units): the jaw, the lips' middles and corners, the upper lids, the brows and the cheeks a smile
@@ -123,8 +123,7 @@ def lips_gap(landmarks: np.ndarray) -> float:
     """The gap between the inner lips' middles (landmarks 13 and 14 of ``landmarks (468,
     ≥2)``, pixels) as a share of the eye distance."""
     pts = np.asarray(landmarks, np.float64)[:, :2]
-    eyes = float(np.linalg.norm(pts[[33, 133]].mean(axis=0) - pts[[263, 362]].mean(axis=0)))
-    return float(np.linalg.norm(pts[13] - pts[14])) / max(eyes, 1e-9)
+    return float(np.linalg.norm(pts[13] - pts[14])) / max(eye_distance(pts), 1e-9)
 
 
 def close_lips(model: FaceModel, camera, expression: dict[int, float]) -> dict[int, float]:
@@ -167,8 +166,7 @@ def for_photo(basis: ExpressionBasis, landmarks: np.ndarray) -> ExpressionBasis:
     corners shows (landmarks 61, 291: from :data:`REST_WIDTH` to :data:`SMILE_WIDTH` of the eye
     distance), and left out of the basis on a mouth no wider than :data:`REST_WIDTH`."""
     pts = np.asarray(landmarks, np.float64)[:, :2]
-    eyes = max(float(np.linalg.norm(pts[[33, 133]].mean(axis=0) - pts[[263, 362]].mean(axis=0))),
-               1e-9)  # fmt: skip
+    eyes = max(eye_distance(pts), 1e-9)
     gap = float(np.linalg.norm(pts[13] - pts[14])) / eyes
     share = float(np.clip(gap / OPEN_GAP, SHUT_JAW, 1.0))
     width = float(np.linalg.norm(pts[61] - pts[291])) / eyes
@@ -188,7 +186,7 @@ def skin_trust(size: tuple[int, int], landmarks: np.ndarray, mouth: bool = True)
     may take from the photo (``landmarks (468, ≥2)`` pixels)."""
     w, h = size
     pts = np.asarray(landmarks, np.float64)[:, :2]
-    eyes = float(np.linalg.norm(pts[[33, 133]].mean(axis=0) - pts[[263, 362]].mean(axis=0)))
+    eyes = eye_distance(pts)
     grow = max(1, round(MARGIN * eyes))
     im = Image.new("L", (w, h), 255)
     draw = ImageDraw.Draw(im)

@@ -34,7 +34,14 @@ import numpy as np
 from PIL import Image, ImageDraw
 from scipy import ndimage
 
-from vtts.fit.landmarks import FACE_OVAL, LEFT_EYE, LEFT_EYEBROW, RIGHT_EYE, RIGHT_EYEBROW
+from vtts.fit.landmarks import (
+    FACE_OVAL,
+    LEFT_EYE,
+    LEFT_EYEBROW,
+    RIGHT_EYE,
+    RIGHT_EYEBROW,
+    eye_centres,
+)
 from vtts.render.camera import Camera
 from vtts.vrml import Scene, parse
 
@@ -58,8 +65,7 @@ GLASSES, LEAST = 4.5, 3.0
 def _frame(landmarks: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """The face's frame: the eyes' midpoint, the unit vector across (towards the face's left),
     the one down, and the eye distance (pixels)."""
-    pts = np.asarray(landmarks, np.float64)[:, :2]
-    right, left = pts[[33, 133]].mean(axis=0), pts[[362, 263]].mean(axis=0)
+    right, left = eye_centres(landmarks)
     e = float(np.linalg.norm(left - right))
     across = (left - right) / max(e, 1e-9)
     down = np.array([-across[1], across[0]])
@@ -248,7 +254,7 @@ def rim_mask(image: np.ndarray, landmarks: np.ndarray) -> np.ndarray:
     # each lens's rim as a closed curve around its eye, where the runs above leave gaps (a clear
     # rim's contrast fades along it): the likeliest smooth ring of line pixels
     score = np.clip((line - med) / max(spread, FLOOR), 0.0, 10.0) * region
-    for eye in (pts[[33, 133]].mean(axis=0), pts[[362, 263]].mean(axis=0)):
+    for eye in eye_centres(landmarks):
         ring = rim_ring(score, eye, e)
         if ring is None:
             continue
@@ -417,8 +423,7 @@ def _ray(camera: Camera, px: np.ndarray) -> np.ndarray:
 
 def _model_distance(camera: Camera, landmarks: np.ndarray, skin) -> float:
     """The eye distance in model units: the eyes' centres lifted onto the skin's depth."""
-    pts = np.asarray(landmarks, np.float64)[:, :2]
-    eyes = np.stack([pts[[33, 133]].mean(axis=0), pts[[362, 263]].mean(axis=0)])
+    eyes = eye_centres(landmarks)
     z = np.asarray(skin(eyes), float)
     if not np.isfinite(z).all():
         return float("nan")
@@ -432,8 +437,8 @@ def add_glasses(scene: Scene, part: GlassesPart, url: str) -> None:
     """Put ``part`` into ``scene`` (changed in place) as ``DEF GLASSES`` IndexedFaceSet under
     the head's :data:`PARENT` Transform, drawn from both sides, unlit (an Appearance without a
     Material: the photo's pixels as they are), with its texture ``DEF GLASSES_TEXTURE``
-    ImageTexture at ``url`` (an RGBA image: where its alpha is under :data:`CUTOFF` the part
-    is not drawn)."""
+    ImageTexture at ``url`` (an RGBA image: where its alpha is under the renderer's
+    :data:`~vtts.render.scene.ALPHA_CUTOFF` the part is not drawn)."""
     text = (
         "#VRML V2.0 utf8\nShape {\n"
         f"  appearance DEF {APPEARANCE} Appearance {{\n"

@@ -66,6 +66,21 @@ NOSE_TIP = 1
 EYE_CORNERS = {"right_outer": 33, "right_inner": 133, "left_inner": 362, "left_outer": 263}
 """The four eye corners; left to right in an unmirrored photo: 33, 133, 362, 263."""
 
+
+def eye_centres(landmarks: np.ndarray) -> np.ndarray:
+    """``(2, 2)`` float64: the right and the left eye's centres, the midpoints of each eye's
+    corners (:data:`EYE_CORNERS`) of ``landmarks (468, ≥2)`` (pixels)."""
+    pts = np.asarray(landmarks, np.float64)[:, :2]
+    return np.stack([pts[[33, 133]].mean(axis=0), pts[[362, 263]].mean(axis=0)])
+
+
+def eye_distance(landmarks: np.ndarray) -> float:
+    """The distance between the eyes' centres (:func:`eye_centres`) of ``landmarks (468, ≥2)``
+    (pixels)."""
+    right, left = eye_centres(landmarks)
+    return float(np.linalg.norm(right - left))
+
+
 LANDMARK_GROUPS: dict[str, tuple[int, ...]] = {
     "right_eye": RIGHT_EYE,
     "left_eye": LEFT_EYE,

@@ -544,7 +544,7 @@ def fit_photo(
     atlas, seen, depth = _texture(g, scene, tables, shape, painted, chosen, photo_parts, expression,
                            trust, skin)  # fmt: skip
     timings["texture"] = time.perf_counter() - t
-    frame = None
+    glasses_texture = None
     if rims is not None:
         t = time.perf_counter()
         # the frame as a part of its own, added once the texture is painted (the probes must
@@ -552,13 +552,13 @@ def fit_photo(
         part = glasses_part(image, rims, shape.camera, geometry.points["FACE"], chosen.landmarks,
                             depth)  # fmt: skip
         if part is not None:
-            add_glasses(scene, part, f"{name}-glasses.png")
-            frame = part.texture
+            add_glasses(scene, part, glasses_texture_name(Path(f"{name}.wrl")))
+            glasses_texture = part.texture
         timings["glasses"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t0
     return FittedHead(scene, tables, atlas, shape, chosen, image, len(faces), seen, personality,
                       timings, expression=expression, hair=hair, glasses=glasses,
-                      teeth=teeth, glasses_texture=frame)  # fmt: skip
+                      teeth=teeth, glasses_texture=glasses_texture)  # fmt: skip
 
 
 #: How the first WorldInfo's info line that holds the photo's expression begins.
