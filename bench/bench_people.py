@@ -2,11 +2,11 @@
 analyzed as ``vtts analyze VIDEO -o x.fbs --rate 12.5`` does (``--model auto``: a head fitted
 from the video's most typical frame, tracked from there backwards and forwards, then textured
 with what the tracked frames show), in the tracking mode (``--track``, every frame) and the
-accurate mode (the default for a file; every second frame, ``--step 2``: see
-:data:`ACCURATE_STEP`), the ``.fbs`` decoded on the fitted head through its camera
-(:func:`vtts.analysis.quality.decoded_frames`, as ``vtts play x.fbs --model x-model.wrl
---viewpoint photo``) and measured against the camera frames at the decoded frames' times
-(:mod:`vtts.analysis.landmark_quality`):
+accurate mode (the default for a file; the frames the 12.5 Hz stream shows, ``--at-rate``:
+every second frame of a 25 fps clip; see :data:`ACCURATE_STEP`), the ``.fbs`` decoded on the
+fitted head through its camera (:func:`vtts.analysis.quality.decoded_frames`, as ``vtts play
+x.fbs --model x-model.wrl --viewpoint photo``) and measured against the camera frames at the
+decoded frames' times (:mod:`vtts.analysis.landmark_quality`):
 
 * **Equation 18**: luminance PSNR over the camera face's oval, the camera frame against the
   decoded frame laid over it — the median over frames and the worst frame — with the share of
@@ -44,7 +44,8 @@ composite.
 Environment: ``VTTS_BENCH_FRAMES=N`` analyzes each clip's first N frames, ``VTTS_BENCH_CLIPS=a,b``
 only those clips (for a quick look: the figures are then not the benchmark's);
 ``VTTS_BENCH_ACCURATE_STEP=K`` analyzes every K-th frame in the accurate mode (default
-:data:`ACCURATE_STEP`); ``VTTS_BENCH_MODES=tracking`` (or ``accurate``) one mode only;
+:data:`ACCURATE_STEP`: the frames of the coded rate); ``VTTS_BENCH_MODES=tracking`` (or
+``accurate``) one mode only;
 ``VTTS_BENCH_FAPS=LIST`` estimates ``--faps LIST`` instead of the paper's 17;
 ``VTTS_BENCH_QUANTIZERS=1,2`` the quantizers measured beside the command's (the same estimates
 coded again: bit rate, Equation 18 and geometry medians).
@@ -74,10 +75,13 @@ PARTS = (("development", DEVELOPMENT), ("set-aside", SET_ASIDE))
 MODES = (("tracking", True), ("accurate", False))
 #: The coded rate (Hz), the paper's.
 RATE = 12.5
-#: Every how many frames the accurate mode analyzes (1: every frame, as ``vtts analyze``; 2:
-#: ``--step 2``, the paper's 12.5 Hz on the 25 fps clips): with every frame the whole benchmark
-#: took 23 minutes on the 2-core machine.
-ACCURATE_STEP = 2
+#: Every how many frames the accurate mode analyzes (1: every frame, as ``vtts analyze``; with
+#: every frame the whole benchmark took 23 minutes on the 2-core machine); None: the frames the
+#: stream coded at :data:`RATE` shows (``--at-rate``, :mod:`vtts.analysis.frame_times`): every
+#: second frame of a 25 fps clip, as ``--step 2``, and frames 0, 2, 5, 7, 10, … of a 30 fps one,
+#: where ``--step 2`` left two coded frames in five between two estimates (docs/analysis.md,
+#: "Carphone's accurate geometry").
+ACCURATE_STEP: int | None = None
 #: The largest frame (pixels) held to the CIF speed target.
 CIF_PIXELS = 352 * 288
 #: Frames per clip on the contact sheet, and the height (pixels) of each picture on it.
@@ -142,7 +146,8 @@ class Measured:
 def run() -> list[dict]:
     out = out_folder()
     limit, chosen = chosen_clips()
-    accurate_step = int(os.environ.get("VTTS_BENCH_ACCURATE_STEP", str(ACCURATE_STEP)))
+    named_step = os.environ.get("VTTS_BENCH_ACCURATE_STEP", "")
+    accurate_step = int(named_step) if named_step.strip() else ACCURATE_STEP
     modes = [m.strip() for m in os.environ.get("VTTS_BENCH_MODES", "").split(",") if m.strip()]
     unknowns = _unknowns(os.environ.get("VTTS_BENCH_FAPS", ""))
     clips = [c for c in (*DEVELOPMENT, *SET_ASIDE) if not chosen or c in chosen]
@@ -211,10 +216,11 @@ def _frames(clip: str, limit: int | None) -> tuple[list[np.ndarray], float]:
     return frames, video.fps
 
 
-def _clip(clip: str, mode: str, tracking: bool, step: int, limit: int | None,
+def _clip(clip: str, mode: str, tracking: bool, step: int | None, limit: int | None,
           out: Path, unknowns=None) -> Measured:  # fmt: skip
     """``clip`` analyzed in ``mode`` as ``vtts analyze CLIP.mp4 -o x.fbs --rate 12.5
-    [--track]`` does, decoded and measured."""
+    [--track]`` does, every ``step``-th frame (None: ``--at-rate``, the frames the 12.5 Hz
+    stream shows), decoded and measured."""
     from vtts.analysis.anchor import choose_anchor
     from vtts.analysis.landmark_quality import measure_frame
     from vtts.analysis.quality import coverage, decoded_frames, face_psnr_rgb
@@ -230,9 +236,10 @@ def _clip(clip: str, mode: str, tracking: bool, step: int, limit: int | None,
     cpu: list[float] = []
     with tempfile.TemporaryDirectory(prefix="vtts-bench-people-") as tmp:
         t0 = time.perf_counter()
-        anchor = choose_anchor(frames, fps, len(frames), step=step)
+        at = {"step": step} if step is not None else {"rate": RATE}
+        anchor = choose_anchor(frames, fps, len(frames), **at)
         options = {} if unknowns is None else {"unknowns": unknowns}
-        tracked = track(frames, fps=fps, model_path=Path(tmp) / f"{clip}-model.wrl", step=step,
+        tracked = track(frames, fps=fps, model_path=Path(tmp) / f"{clip}-model.wrl", **at,
                         tracking=tracking, anchor=anchor, **options,
                         on_estimate=lambda _fe: (stamps.append(time.perf_counter()),
                                                  cpu.append(time.process_time())))  # fmt: skip
@@ -316,9 +323,9 @@ def _sheet_indices(n_frames: int, fps: float) -> list[int]:
     return sorted({decoded[int(round(p))] for p in picks})
 
 
-def _clip_rows(r: Measured, step: int) -> list[dict]:
+def _clip_rows(r: Measured, step: int | None) -> list[dict]:
     w, h = r.size
-    every = "" if step == 1 else f" --step {step}"
+    every = " --at-rate" if step is None else "" if step == 1 else f" --step {step}"
     base = f"{r.clip} ({w}x{h}), {r.mode} mode{every}"
     eq18, geometry = r.eq18(), r.geometry()
     accurate = r.mode == "accurate"

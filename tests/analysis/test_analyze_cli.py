@@ -54,6 +54,8 @@ def _inputs(root: Path) -> None:
         (["{in}/ok", "--camera", "400,400,176"], ["--camera takes four numbers"]),
         (["{in}/ok", "--camera", "0,400,176,144"], ["camera fx must be a positive"]),
         (["{in}/ok", "--step", "0"], ["--step must be"]),
+        (["{in}/ok", "--at-rate"], ["--at-rate analyzes the frames of --rate"]),
+        (["{in}/ok", "--at-rate", "--rate", "5", "--step", "2"], ["and no --step"]),
         (["{in}/ok", "--fps", "0"], ["--fps must be"]),
         (["{in}/ok", "--quantizer", "0"], ["--quantizer must be a number within 0–1000"]),
         (["{in}/ok", "--model", HEAD, "--model", HEAD], ["one model"]),
@@ -210,10 +212,15 @@ def fake_estimator(monkeypatch):
         frames, *, fps, model, step=1, camera=None, unknowns=DEFAULT_UNKNOWNS, progress=None,
         **_options,
     ):  # fmt: skip
+        from vtts.analysis.frame_times import analysis_fps, analyzed
+
         calls.append({"fps": fps, "step": step, "camera": camera, "unknowns": tuple(unknowns)})
+        rate = _options.get("rate")
+        if rate is not None:
+            calls[-1]["rate"] = rate
         out = []
         for i, frame in enumerate(frames):
-            if i % step:
+            if not analyzed(i, fps, step, rate):
                 continue
             params = np.zeros(N_PARAMS)
             for u in unknowns:
@@ -228,7 +235,11 @@ def fake_estimator(monkeypatch):
 
             raise AnalysisError("the video has no frames")
         analysis = Analysis(
-            out, tuple(unknowns), fps / step, camera or Camera(1, 1, 0, 0), model.name
+            out,
+            tuple(unknowns),
+            analysis_fps(fps, step, rate),
+            camera or Camera(1, 1, 0, 0),
+            model.name,
         )
         return track.Tracked(analysis, model)
 
@@ -275,6 +286,24 @@ def test_outputs_of_a_run(tmp_path, five_frames, fake_estimator):
     assert len(text.splitlines()) == 1
     assert str(out) in text and str(out.with_suffix(".fbs")) in text and str(report) in text
     assert "3 frames at 5 fps" in text and "mean face PSNR 42.00 dB" in text
+
+
+def test_the_frames_of_the_coded_rate(tmp_path, five_frames, fake_estimator):
+    """``--at-rate`` analyzes the frames the coded stream shows, which it carries unresampled:
+    at 10 fps and 4 Hz the frames nearest 0, 0.25, 0.5 s — 0, 3 (2.5 rounded half up) and 5,
+    past the five frames: 0 and 3 (--step 2 would take 0, 2 and 4 and code them at 5 Hz)."""
+    from vtts.api.coding import read_stream
+
+    out = tmp_path / "est.fbs"
+    argv = ["analyze", str(five_frames), "--model", HEAD, "-o", str(out), "--fps", "10",
+            "--faps", "3", "--rate", "4", "--at-rate", "--quantizer", "1"]  # fmt: skip
+    r = in_process.vtts(*argv)
+    assert r.returncode == 0, r.stderr
+    (call,) = fake_estimator
+    assert call["rate"] == 4.0 and call["step"] == 1
+    coded = read_stream(out)
+    assert coded.fps == 4.0 and coded.n_frames == 2
+    np.testing.assert_allclose(coded.values[:, 2], [3, 33], atol=2)  # frames 0 and 3
 
 
 def test_fbs_output_and_camera(tmp_path, five_frames, fake_estimator):

@@ -54,6 +54,9 @@ def test_the_anchor_is_a_frame_analyzed_within_the_first_seconds(frames, monkeyp
     index = choose_anchor(counted(), 25.0, None, step=2)
     assert index is not None and index % 2 == 0 and index < 12
     assert len(seen) <= 12  # nothing read past the frames it looks at
+    # at a rate: a frame the rate analyzes (30 fps at 12.5 Hz: 0, 2, 5, 7, 10)
+    index = choose_anchor(frames, 30.0, len(frames), rate=12.5)
+    assert index in (0, 2, 5, 7, 10)
 
 
 def _render(model, size) -> np.ndarray:
@@ -89,6 +92,15 @@ def test_an_anchor_with_a_step_and_without_one(frames, tmp_path):
     # (the heads fitted to frame 4, as the test before fits it: a fit shared)
     tracked = track(frames[:7], fps=25.0, model_path=tmp_path / "a.wrl", step=2, anchor=4)
     assert [fe.index for fe in tracked.analysis.frames] == [0, 2, 4, 6]
+    # at 12.5 Hz of a 25 fps video: every second frame, the same estimates to the bit
+    at = track(frames[:7], fps=25.0, model_path=tmp_path / "r.wrl", rate=12.5, anchor=4)
+    assert at.analysis.fps == 12.5 == tracked.analysis.fps
+    for x, y in zip(at.analysis.frames, tracked.analysis.frames, strict=True):
+        assert x.index == y.index and np.array_equal(x.params, y.params)
+    # of a 30 fps one: the frames a 12.5 Hz stream shows, which it carries as they are
+    at = track(frames[:8], fps=30.0, model_path=tmp_path / "s.wrl", rate=12.5, anchor=2)
+    assert [fe.index for fe in at.analysis.frames] == [0, 2, 5, 7]
+    assert at.analysis.fps == 12.5 and at.analysis.stream().resample(12.5).n_frames == 4
     # an anchor at the first frame is the track without one (a clip that starts at frame 4)
     a = track(frames[4:7], fps=25.0, model_path=tmp_path / "b.wrl", anchor=0)
     b = track(frames[4:7], fps=25.0, model_path=tmp_path / "c.wrl")
@@ -100,6 +112,8 @@ def test_an_anchor_with_a_step_and_without_one(frames, tmp_path):
     "kwargs, fragment",
     [
         ({"anchor": 3, "step": 2}, "must be a frame analyzed"),
+        ({"anchor": 4, "rate": 12.5, "fps": 30.0}, "must be a frame analyzed"),
+        ({"rate": 12.5, "step": 2}, "not both"),
         ({"anchor": -2}, "must be a frame analyzed"),
         ({"anchor": 40}, "past the video's end"),
         ({"anchor": 2, "model": "head"}, "needs a head to fit"),
@@ -110,7 +124,7 @@ def test_bad_anchors_are_clear_errors(frames, tmp_path, kwargs, fragment):
         kwargs = {**kwargs, "model": load_model(str(Path(__file__).parents[1] / "data" /
                                                      "models" / "head.wrl"))}  # fmt: skip
     with pytest.raises(AnalysisError, match=fragment):
-        track(frames[:6], fps=25.0, model_path=tmp_path / "m.wrl", **kwargs)
+        track(frames[:6], model_path=tmp_path / "m.wrl", **{"fps": 25.0, **kwargs})
 
 
 def test_an_anchor_without_a_face_is_a_clear_error(frames, tmp_path):

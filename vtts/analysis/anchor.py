@@ -24,6 +24,8 @@ from collections.abc import Iterable
 import numpy as np
 from scipy.ndimage import map_coordinates
 
+from vtts.analysis.frame_times import analyzed
+
 #: Frames sampled, spread evenly over the part of the video looked at.
 SAMPLES = 30
 #: The head is made from a frame of the video's first this many seconds: the frames before the
@@ -34,16 +36,20 @@ GRID = 48
 
 
 def choose_anchor(frames: Iterable[np.ndarray], fps: float, n_frames: int | None = None, *,
-                  step: int = 1, detector=None) -> int | None:  # fmt: skip
+                  step: int = 1, detector=None,
+                  rate: float | None = None) -> int | None:  # fmt: skip
     """The index of the frame of a video file to make the head from (for
     :func:`vtts.analysis.track.track`'s ``anchor``): :func:`anchor_frame` over the frames
-    analyzed (every ``step``-th) of the first :data:`ANCHOR_SECONDS` of ``frames`` (``(H, W,
-    3) uint8``, ``n_frames`` of them when known, at ``fps``); None where none shows a face."""
+    analyzed (every ``step``-th, or those of ``rate`` Hz: :mod:`vtts.analysis.frame_times`) of
+    the first :data:`ANCHOR_SECONDS` of ``frames`` (``(H, W, 3) uint8``, ``n_frames`` of them
+    when known, at ``fps``); None where none shows a face."""
     span = max(1, int(ANCHOR_SECONDS * fps))
     count = span if n_frames is None else min(int(n_frames), span)
-    analyzed = itertools.islice(frames, 0, count, step)
-    found = anchor_frame(analyzed, -(-count // step), detector=detector)
-    return None if found is None else found[0] * step
+    indices = [i for i in range(count) if analyzed(i, fps, step, rate)]
+    chosen = (f for i, f in enumerate(itertools.islice(frames, count))
+              if analyzed(i, fps, step, rate))  # fmt: skip
+    found = anchor_frame(chosen, len(indices), detector=detector)
+    return None if found is None else indices[found[0]]
 
 
 def anchor_frame(

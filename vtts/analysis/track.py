@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from vtts.analysis.estimator import DEFAULT_UNKNOWNS, Estimator
+from vtts.analysis.frame_times import analysis_fps, analyzed, check_rate
 from vtts.analysis.landmark_pose import landmark_pose, placement_error
 from vtts.analysis.result import Analysis, FrameEstimate
 from vtts.analysis.solve import subsample
@@ -143,6 +144,7 @@ def track(
     anchor: int | None = None,
     landmarks: bool = True,
     scale: int | None = None,
+    rate: float | None = None,
     **options,
 ) -> Tracked:
     """Track the face in ``frames`` (each ``(H, W, 3) uint8`` RGB) of a video at ``fps``.
@@ -170,13 +172,18 @@ def track(
 
     ``scale``: estimate the frames subsampled by this whole factor (the landmarks are found at
     full size); None: the factor that brings the first face's eyes within
-    :data:`WORKING_EYES_PX` pixels."""
+    :data:`WORKING_EYES_PX` pixels.
+
+    ``rate``: analyze the frames a stream coded at ``rate`` Hz shows — the frame nearest each
+    time ``j / rate`` (:mod:`vtts.analysis.frame_times`) — instead of every ``step``-th (``step``
+    must then be 1); the analysis's rate is then ``rate``."""
     from vtts.fit.landmarks import detect_faces
 
     if not (math.isfinite(fps) and fps > 0):
         raise AnalysisError(f"fps must be a positive number, got {fps}")
     if step < 1:
         raise AnalysisError(f"step must be at least 1, got {step}")
+    check_rate(fps, step, rate)
     if scale is not None and not (isinstance(scale, int) and scale >= 1):
         raise AnalysisError(f"the working scale must be a whole factor of at least 1, got {scale}")
     if model is None and model_path is None:
@@ -185,18 +192,20 @@ def track(
         raise AnalysisError("a fitted head brings the video's camera: give no camera with it")
     if anchor is not None and model is not None:
         raise AnalysisError("a frame to fit the head on (anchor) needs a head to fit: no model")
-    if anchor is not None and (anchor < 0 or anchor % step):
+    if anchor is not None and (anchor < 0 or not analyzed(anchor, fps, step, rate)):
+        every = f"a multiple of the step {step}" if rate is None else f"a frame of {rate:g} Hz"
         raise AnalysisError(f"the frame to fit the head on ({anchor}) must be a frame analyzed "
-                            f"(0 or more, a multiple of the step {step})")  # fmt: skip
+                            f"(0 or more, {every})")  # fmt: skip
     options.setdefault("robust", True)
     estimator: Estimator | None = None
     out: list[FrameEstimate] = []
     waiting: list[tuple[int, float]] = []  # frames before the first face
     before: list[tuple[int, float, np.ndarray]] = []  # frames before the anchor
-    result = Tracked(Analysis([], (), fps / step, Camera(1, 1, 0, 0)), model)  # type: ignore
+    empty = Analysis([], (), analysis_fps(fps, step, rate), Camera(1, 1, 0, 0))  # type: ignore
+    result = Tracked(empty, model)
     run = _Run(follow=_Follower(detector) if landmarks else None)
     for i, frame in enumerate(frames):
-        if i % step:
+        if not analyzed(i, fps, step, rate):
             continue
         t = i / fps
         if estimator is None and anchor is not None and i < anchor:
@@ -238,7 +247,7 @@ def track(
         if not waiting:
             raise AnalysisError("the video has no frames")
         raise AnalysisError(f"no face found in any of the {len(waiting)} frames analyzed")
-    result.analysis = Analysis(out, estimator.unknowns, fps / step,
+    result.analysis = Analysis(out, estimator.unknowns, analysis_fps(fps, step, rate),
                                estimator.camera.scaled(1 / result.scale),
                                result.model.name)  # fmt: skip
     return result

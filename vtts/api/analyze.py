@@ -107,6 +107,8 @@ class AnalyzeOptions:
     (:data:`QUANTIZER`); ``faps``: what to estimate
     (:func:`vtts.analysis.unknowns.parse_unknowns`; None: paper17); ``camera``:
     ``"FX,FY,X0,Y0"`` in pixels (with a given model); ``step``: analyze every N-th frame;
+    ``at_rate``: analyze the frames the coded stream at ``rate`` shows instead (the frame nearest
+    each 1 / ``rate`` s, :mod:`vtts.analysis.frame_times`);
     ``track``: the fast tracking mode (False: accurate; None: tracking for stdin only);
     ``fps``: frame rate of a PNG folder or stdin (0–1000; None: 25, or the video's own);
     ``texture``: ``mean`` or ``anchor``; ``report``: a folder for frames.csv, psnr.png,
@@ -128,6 +130,7 @@ class AnalyzeOptions:
     faps: str | None = None
     camera: str | None = None
     step: int = 1
+    at_rate: bool = False
     track: bool | None = None
     fps: float | None = None
     texture: str | None = None
@@ -164,6 +167,9 @@ class AnalyzeOptions:
             raise AnalysisError(f"--rate must be within 0–1000 Hz, got {self.rate:g}")
         if self.step < 1:
             raise AnalysisError(f"--step must be a whole number ≥ 1, got {self.step}")
+        if self.at_rate and (self.rate is None or self.step != 1):
+            raise AnalysisError("--at-rate analyzes the frames of --rate: give --rate, "
+                                "and no --step")  # fmt: skip
         if self.fps is not None and not 0 < self.fps <= 1000:
             raise AnalysisError(f"--fps must be within 0–1000, got {self.fps:g}")
         check_choice(self.steps, "--steps", STEPS, AnalysisError)
@@ -338,6 +344,7 @@ def analyze(
 def estimate(o: AnalyzeOptions, stdin: BinaryIO, stdout: BinaryIO) -> Analyzed:
     """The work of :func:`analyze` once its outputs are known to be writable."""
     from vtts.analysis.estimator import DEFAULT_UNKNOWNS
+    from vtts.analysis.frame_times import analysis_fps, analyzed
     from vtts.analysis.report import write_report, write_side_by_side
     from vtts.analysis.video import read_pipe, read_video
     from vtts.atomic import atomic_path
@@ -353,7 +360,10 @@ def estimate(o: AnalyzeOptions, stdin: BinaryIO, stdout: BinaryIO) -> Analyzed:
     else:
         video = read_video(o.video, fps=o.fps)
     model = None if auto else load_model(o.model[0])
-    total = None if video.n_frames is None else -(-video.n_frames // o.step)
+    rate = o.rate if o.at_rate else None  # the frames of the coded rate analyzed
+    total = None
+    if video.n_frames is not None:
+        total = sum(analyzed(i, video.fps, o.step, rate) for i in range(video.n_frames))
     name = stream_name(o.video)
 
     with contextlib.ExitStack() as stack:
@@ -392,7 +402,7 @@ def estimate(o: AnalyzeOptions, stdin: BinaryIO, stdout: BinaryIO) -> Analyzed:
             sent = DEFAULT_UNKNOWNS if unknowns is None else unknowns
             sink = EstimateStream(
                 stdout,
-                fps=video.fps / o.step,
+                fps=analysis_fps(video.fps, o.step, rate),
                 unknowns=sent,
                 name=name,
                 fapu=lambda: head().fapu,
@@ -412,7 +422,7 @@ def estimate(o: AnalyzeOptions, stdin: BinaryIO, stdout: BinaryIO) -> Analyzed:
 
             again = read_video(o.video, fps=o.fps)
             options["anchor"] = choose_anchor(again.frames(), again.fps, again.n_frames,
-                                              step=o.step)  # fmt: skip
+                                              step=o.step, rate=rate)  # fmt: skip
         tracked = track(
             video.frames(),
             fps=video.fps,
@@ -421,6 +431,7 @@ def estimate(o: AnalyzeOptions, stdin: BinaryIO, stdout: BinaryIO) -> Analyzed:
             camera=camera,
             face=o.face,
             step=o.step,
+            rate=rate,
             progress=lambda _index: bar.advance(),
             on_estimate=sink,
             tracking=o.tracking,

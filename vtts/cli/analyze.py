@@ -93,6 +93,12 @@ def add_parser(sub) -> None:
         "vtts render for the video's size)",
     )
     an.add_argument("--step", type=int, default=1, metavar="N", help="analyze every N-th frame")
+    an.add_argument(
+        "--at-rate",
+        action="store_true",
+        help="analyze only the frames the coded stream shows: the frame nearest each 1/--rate "
+        "s (needs --rate; a 30 fps video at --rate 12.5: frames 0, 2, 5, 7, 10, ...)",
+    )
     mode = an.add_mutually_exclusive_group()
     mode.add_argument(
         "--track",
@@ -155,6 +161,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
         faps=args.faps,
         camera=args.camera,
         step=args.step,
+        at_rate=args.at_rate,
         track=args.track,
         fps=args.fps,
         texture=args.texture,
