@@ -4,10 +4,11 @@
     .venv/bin/python scripts/eq18_regions.py tests/data/video/akiyo_cif.mp4 --track
 
 Analyzes the video as ``bench/bench_people.py`` does (``--model auto``, the most typical frame as
-the anchor, the accurate mode every second frame or ``--track`` every frame, the mean texture,
-coded at 12.5 Hz with ``vtts analyze``'s quantizer), decodes the ``.fbs`` through the video's
-camera and measures Equation 18 (luminance over the camera face's oval, the decoded frame laid
-over the camera frame: :mod:`vtts.analysis.landmark_quality`), split, as JSON:
+the anchor, the accurate mode at the frames the 12.5 Hz stream shows — every second frame of a
+25 fps video — or ``--track`` every frame, the mean texture, coded at 12.5 Hz with ``vtts
+analyze``'s quantizer), decodes the ``.fbs`` through the video's camera and measures Equation
+18 (luminance over the camera face's oval, the decoded frame laid over the camera frame:
+:mod:`vtts.analysis.landmark_quality`), split, as JSON:
 
 * **by region** of the camera face (:func:`regions`, from its landmarks; each pixel of the oval
   in the first that holds it): the eyes (their contours grown by a tenth of the eye distance:
@@ -209,11 +210,11 @@ def _measure(args: argparse.Namespace, video, frames: list[np.ndarray]) -> dict:
     from vtts.fap.coding import decode, encode
 
     h, w = frames[0].shape[:2]
-    step = 1 if args.track else 2
-    anchor = choose_anchor(frames, video.fps, len(frames), step=step)
+    at = {"step": 1} if args.track else {"rate": RATE}  # bench_people's frames
+    anchor = choose_anchor(frames, video.fps, len(frames), **at)
     tally = Tally()
     with tempfile.TemporaryDirectory(prefix="vtts-eq18-") as tmp:
-        tracked = track(frames, fps=video.fps, model_path=Path(tmp) / "m.wrl", step=step,
+        tracked = track(frames, fps=video.fps, model_path=Path(tmp) / "m.wrl", **at,
                         tracking=args.track, anchor=anchor)  # fmt: skip
         model = retexture(tracked, frames, (w, h))
         stream = tracked.analysis.stream(args.video.stem, fapu=model.fapu)
