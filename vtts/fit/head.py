@@ -218,11 +218,12 @@ def skin_parts(scene: Scene) -> list[str]:
     return out
 
 
-def set_exposure(scene: Scene, exposure: float) -> None:
+def set_exposure(scene: Scene, exposure: np.ndarray | float) -> None:
     """Light the ``SKIN`` Appearance of ``scene`` (changed in place) ``exposure`` times as
-    brightly as the renderer's lights do (a factor ≥ 1: its Material's ``diffuseColor``, which
-    the renderer multiplies the texture by): the texture, divided by it, has room for a photo
-    lit more brightly than the renderer lights the head (:func:`vtts.fit.texture.skin_exposure`)."""
+    brightly as the renderer's lights do (factors ≥ 1, ``(3,)`` per RGB channel or one for all:
+    its Material's ``diffuseColor``, which the renderer multiplies the texture by): the texture,
+    divided by it, has room for a photo lit more brightly than the renderer lights the head
+    (:func:`vtts.fit.texture.skin_exposure`)."""
     material = scene.node(SKIN).expand()["material"] if SKIN in scene.defs else None
     if material is not None:
         material.expand().fields["diffuseColor"] = np.round(np.broadcast_to(exposure, 3), 4) + 0.0

@@ -81,9 +81,9 @@ PROBE_GREY = 0.5
 #: The share of the seen skin texels that the skin's exposure (:func:`skin_exposure`) lights
 #: brightly enough for the photo; the brightest rest stay clipped at texture 1.
 EXPOSURE_QUANTILE = 0.99
-#: The most the skin's exposure may brighten the renderer's shading: more, and a turned head
-#: shows the photo's highlights brighter than the photo did where the renderer's light falls
-#: more squarely than at the photo's view.
+#: The most the skin's exposure may brighten the renderer's shading (a guard: a turned head
+#: shows the photo's brightness times the ratio of the renderer's shading there to that at the
+#: photo's view, which the clipped texture used to bound).
 MAX_EXPOSURE = 1.5
 #: Texels the exposure counts: trusted at least this much (0–1).
 EXPOSURE_WEIGHT = 0.5
