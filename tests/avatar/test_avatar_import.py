@@ -225,3 +225,21 @@ def test_vrml_keywords_are_renamed_as_def_names(tmp_path, name):
     text = out.read_text()
     assert f"DEF {name} " not in text and f"DEF {name}_ Transform" in text
     load_model(out)
+
+
+def test_a_skin_lit_brighter_than_the_lights_exports_a_brighter_texture():
+    """A head whose skin is lit brighter than the renderer's lights (diffuseColor above 1: a
+    fitted head's, vtts.fit.head.set_exposure) exports factors of at most 1 and, for the skin,
+    its atlas that much brighter (an image of its own; the eyes and teeth keep the file)."""
+    from vtts.export.avatar import arkit_avatar_gltf
+
+    model = load_model("cybatt")
+    plain = arkit_avatar_gltf(model)
+    model.scene.node("SKIN").expand()["material"].expand().fields["diffuseColor"] = np.array(
+        [1.4, 1.0, 1.0]
+    )
+    lit = arkit_avatar_gltf(model)
+    assert len(lit.images) == len(plain.images) + 1
+    factors = [m.pbrMetallicRoughness.baseColorFactor for m in lit.materials]
+    assert max(max(f) for f in factors) <= 1.0
+    assert factors == [m.pbrMetallicRoughness.baseColorFactor for m in plain.materials]

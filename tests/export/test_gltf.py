@@ -424,3 +424,42 @@ def test_missing_texture_warns_as_the_renderer_does(tmp_path):
         doc = animation_gltf([model], np.zeros((1, N_PARAMS)), FPS)
     assert any("'gone.png' not found" in str(w.message) for w in caught)
     assert doc.images == [] and doc.animations == []
+
+
+def test_a_diffuse_colour_above_one_is_baked_into_its_own_texture(tmp_path):
+    """glTF's baseColorFactor stops at 1: a Material lit brighter than the renderer's lights (a
+    fitted head's skin, vtts.fit.head.set_exposure: diffuseColor above 1) exports its texture
+    that much brighter in linear light (clipped at white) and a factor of 1 there; a Material
+    sharing the file at diffuseColor ≤ 1 keeps the file as it is."""
+    import io
+
+    Image.new("RGB", (4, 4), (128, 200, 60)).save(tmp_path / "tex.png")
+    tri = (
+        "geometry IndexedFaceSet { coord Coordinate { point [0 0 0, 1 0 0, 0 1 0] } "
+        "coordIndex [0 1 2 -1] }"
+    )
+    wrl = tmp_path / "t.wrl"
+    wrl.write_text(
+        "#VRML V2.0 utf8\n"
+        "Shape { appearance Appearance { material Material { diffuseColor 1.5 1.2 1 } texture "
+        f'ImageTexture {{ url "tex.png" }} }} {tri} }}\n'
+        "Shape { appearance Appearance { material Material { diffuseColor 0.5 0.5 0.5 } texture "
+        f'ImageTexture {{ url "tex.png" }} }} {tri} }}\n',
+        encoding="utf-8",
+    )
+    model = load_model(wrl)
+    decoded = Decoded(write_gltf(tmp_path / "t.glb", [model], np.zeros((1, N_PARAMS)), FPS))
+    bright, plain = decoded.doc.materials
+    assert bright.pbrMetallicRoughness.baseColorFactor == [1.0, 1.0, 1.0, 1.0]
+    assert plain.pbrMetallicRoughness.baseColorFactor == [0.5, 0.5, 0.5, 1.0]
+
+    def pixel(material) -> list[int]:
+        texture = decoded.doc.textures[material.pbrMetallicRoughness.baseColorTexture.index]
+        data = decoded.view(decoded.doc.images[texture.source].bufferView)
+        return np.asarray(Image.open(io.BytesIO(data)).convert("RGB"))[0, 0].tolist()
+
+    assert pixel(plain) == [128, 200, 60]
+    lin = ((np.array([128, 200, 60]) / 255 + 0.055) / 1.055) ** 2.4 * [1.5, 1.2, 1.0]
+    srgb = 1.055 * np.minimum(lin, 1) ** (1 / 2.4) - 0.055
+    assert pixel(bright) == [round(v) for v in 255 * srgb]
+    assert pixel(bright)[0] > 128 and pixel(bright)[2] == 60

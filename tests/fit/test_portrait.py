@@ -473,3 +473,64 @@ def test_a_photo_with_glasses_is_fitted_with_its_frame_as_a_part(astronaut, fitt
     near = np.linalg.norm(held.points - origin, axis=1)
     assert (near < np.median(dist)).all() and (near <= dist + 1e-9).all()
     assert np.allclose(camera.project(held.points), camera.project(free.points), atol=1e-6)
+
+
+# ---- the skin's exposure ------------------------------------------------------------------------
+
+
+def brighter(image: np.ndarray, gain: float) -> np.ndarray:
+    """``image`` ``gain`` times brighter in linear light (about 2.2 gamma), clipped at white."""
+    lin = (image / 255.0) ** 2.2 * gain
+    return (np.clip(lin, 0, 1) ** (1 / 2.2) * 255 + 0.5).astype(np.uint8)
+
+
+def test_a_brightly_lit_photo_is_drawn_back_unclipped(astronaut, monkeypatch, tmp_path):
+    """A photo lit more brightly than the renderer lights the head: the skin's Material is lit
+    brighter (diffuseColor above 1, brightest in red, up to MAX_EXPOSURE), the texture divided
+    by it, and the face at the photo's view comes back closer than with the renderer's light,
+    where the texture clipped at white."""
+    import vtts
+    from vtts.fit import photo as fit_module
+    from vtts.fit.report import figures
+    from vtts.fit.texture import MAX_EXPOSURE
+
+    image = brighter(astronaut, 1.6)
+
+    def fit_and_measure(name: str) -> tuple[np.ndarray, dict]:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            head = fit_photo(image)
+        head.write(tmp_path / f"{name}.wrl")
+        model = vtts.load_model(tmp_path / f"{name}.wrl")
+        diffuse = model.scene.node("SKIN").expand()["material"].expand()["diffuseColor"]
+        return np.asarray(diffuse), figures(model, head, head.photo)["psnr_db"]
+
+    lit, lit_psnr = fit_and_measure("lit")
+    assert 1.1 < lit[0] <= MAX_EXPOSURE and lit[0] >= lit[2] >= 1.0, lit
+    monkeypatch.setattr(fit_module, "skin_exposure", lambda proj, target: np.ones(3))
+    plain, plain_psnr = fit_and_measure("plain")
+    assert (plain == 1.0).all()
+    assert lit_psnr["face"] > plain_psnr["face"] + 0.3, (lit_psnr, plain_psnr)
+
+
+def test_the_skin_is_lit_as_brightly_as_the_photo_asks_per_channel():
+    """The skin's exposure is 1 where the photo is darker than the renderer's shading, the
+    asked-for quantile of what the texels need (per channel) where it is brighter, at most the
+    limit; texels the photo is not trusted for ask for nothing."""
+    from vtts.fit.texture import Projection, SkinTexels, skin_exposure
+
+    n = 1000
+    texels = SkinTexels(rows=np.zeros(n), cols=np.zeros(n), points=np.zeros((n, 3)),
+                        normals=np.zeros((n, 3)), photo=np.ones(n, bool), skin=np.ones(n, bool),
+                        rim=np.zeros(n, bool))  # fmt: skip
+    target = np.full((1, n, 3), 0.25, np.float32)
+    target[0, :, 0] = np.linspace(0.0, 0.9, n)  # red: up to 1.8 times the shading's 0.5
+    xy = np.c_[np.arange(n) + 0.5, np.full(n, 0.5)]
+    gain = np.full((n, 3), 0.5)
+    proj = Projection(texels, np.arange(n), xy, np.ones(n), gain, np.zeros((n, 3)))
+    k = skin_exposure(proj, target, quantile=0.9, limit=2.0)
+    assert k[0] == pytest.approx(0.9 * 1.8, rel=0.01) and (k[1:] == 1.0).all()
+    assert skin_exposure(proj, target, quantile=0.99, limit=1.5)[0] == 1.5
+    assert (skin_exposure(proj, target * 0.5, quantile=0.9, limit=2.0) == 1.0).all()
+    proj.weight[:] = 0.1  # untrusted texels ask for nothing
+    assert (skin_exposure(proj, target, quantile=0.9, limit=2.0) == 1.0).all()

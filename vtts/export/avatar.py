@@ -29,6 +29,8 @@ from vtts.export.scene import SceneNode, ShapeItem, walk_head
 from vtts.face import N_PARAMS, FaceModel
 from vtts.face.miap import Miap
 from vtts.gltf import BufferBuilder, image_file, write_document
+from vtts.gltf.images import brightened, png_bytes
+from vtts.render.scene import load_image
 
 
 def arkit_targets(model: FaceModel, table: RecipeTable | None = None, *, oculus: bool = True):
@@ -67,7 +69,7 @@ def arkit_avatar_gltf(model: FaceModel, table: RecipeTable | None = None, *,
     materials: list[gl.Material] = []
     images: list[gl.Image] = []
     textures: list[gl.Texture] = []
-    image_cache: dict[Path, int] = {}
+    image_cache: dict[tuple[Path, tuple[float, ...]], int] = {}
 
     def material(item: ShapeItem) -> tuple[int, bool]:
         app = item.appearance.expand() if item.appearance is not None else None
@@ -85,15 +87,24 @@ def arkit_avatar_gltf(model: FaceModel, table: RecipeTable | None = None, *,
         if tex is not None and item.mesh is not None and tex.expand().type.name == "ImageTexture":
             path = model.texture_file(tex.expand())
             if path is not None:
-                if path not in image_cache:
-                    data, mime = image_file(path)
+                # a diffuseColor above 1 (glTF's factor stops at 1) brightens the texture itself
+                gain = tuple(max(v, 1.0) for v in base[:3]) if mat is not None else (1.0,) * 3
+                key = (path, gain)
+                if key not in image_cache:
+                    if gain == (1.0,) * 3:
+                        data, mime = image_file(path)
+                    else:
+                        data, mime = png_bytes(brightened(load_image(path), gain)), "image/png"
                     images.append(gl.Image(bufferView=blob.view(data), mimeType=mime))
                     textures.append(gl.Texture(source=len(images) - 1))
-                    image_cache[path] = len(textures) - 1
-                pbr.baseColorTexture = gl.TextureInfo(index=image_cache[path])
+                    image_cache[key] = len(textures) - 1
+                pbr.baseColorTexture = gl.TextureInfo(index=image_cache[key])
                 textured = True
                 if mat is None:
                     pbr.baseColorFactor = [1.0, 1.0, 1.0, 1.0]
+                else:
+                    scaled = np.asarray(base) / np.asarray([*gain, 1.0])
+                    pbr.baseColorFactor = [float(v) for v in np.clip(scaled, 0, 1)]
         materials.append(gl.Material(
             pbrMetallicRoughness=pbr, emissiveFactor=[float(np.clip(v, 0, 1)) for v in emissive],
             alphaMode="BLEND" if base[3] < 1 else "OPAQUE", doubleSided=item.double_sided,

@@ -43,7 +43,7 @@ from vtts.export.morph import (
 from vtts.export.scene import HeadScene, Placement, SceneNode, ShapeItem, place
 from vtts.face import N_PARAMS, FaceModel
 from vtts.gltf import BufferBuilder, image_file, write_document
-from vtts.gltf.images import png_bytes
+from vtts.gltf.images import brightened, png_bytes
 from vtts.gltf.spec import CLAMP_TO_EDGE, LINEAR, LINEAR_MIPMAP_LINEAR, REPEAT, UNLIT
 from vtts.gltf.uri import data_uri
 from vtts.gltf.writer import GLTF_SUFFIXES
@@ -485,9 +485,13 @@ class _Exporter:
                 roughness = float(np.clip(1.0 - 0.8 * mat["shininess"], 0.05, 1.0))
             tex = appearance["texture"]
             if tex is not None and textured:
-                texture = self._texture(model, tex.expand())
+                # a diffuseColor above 1 (glTF's factor stops at 1) brightens the texture itself
+                gain = tuple(max(v, 1.0) for v in base[:3])
+                texture = self._texture(model, tex.expand(), gain)
                 if texture is not None and mat is None:
                     base[:3] = [1.0, 1.0, 1.0]
+                elif texture is not None:
+                    base[:3] = [v / g for v, g in zip(base[:3], gain, strict=True)]
         base = [float(np.clip(v, 0.0, 1.0)) for v in base]
         pbr = gl.PbrMetallicRoughness(
             baseColorFactor=base, metallicFactor=0.0, roughnessFactor=roughness
@@ -511,7 +515,9 @@ class _Exporter:
         index = self._material_cache[key] = len(self.materials) - 1
         return index
 
-    def _texture(self, model: FaceModel, tex: Node) -> int | None:
+    def _texture(self, model: FaceModel, tex: Node, gain=(1.0, 1.0, 1.0)) -> int | None:
+        """The index of the glTF texture of ``tex``; an image texture ``gain (3,)`` times
+        brighter (linear light: :func:`~vtts.gltf.images.brightened`) where a gain is above 1."""
         if tex.type.name == "PixelTexture":
             img = tex["image"]
             if img.width == 0 or img.height == 0:
@@ -524,7 +530,11 @@ class _Exporter:
                 if list(tex["url"]):
                     warnings.warn(model.texture_warning(tex, list(tex["url"])), stacklevel=4)
                 return None
-            image = self._image(path, lambda: image_file(path))
+            if any(g != 1.0 for g in gain):
+                image = self._image((path, gain), lambda: (
+                    png_bytes(brightened(load_image(path), gain)), "image/png"))  # fmt: skip
+            else:
+                image = self._image(path, lambda: image_file(path))
             cutout = has_alpha(load_image(path))
         else:
             return None

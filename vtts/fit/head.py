@@ -41,6 +41,8 @@ EYE_SHININESS = 0.1
 #: brings its own — with it, no texture could give a pixel darker than the highlight's floor
 #: (about 30 of 255 at the photo's view), and dark hair rendered grey.
 MATTE_APPEARANCES = ("SKIN", "EYE")
+#: The Appearance of the parts the atlas's skin chart paints (skin, hair, neck, ears).
+SKIN = "SKIN"
 #: The eye Transforms whose ``center`` is the eyeball's centre.
 EYE_TRANSFORMS = {"L_EYEBALL": ("L_EYE_YAW", "L_EYE_PITCH"),
                   "R_EYEBALL": ("R_EYE_YAW", "R_EYE_PITCH")}  # fmt: skip
@@ -200,6 +202,31 @@ def matte(scene: Scene) -> None:
             material = scene.node(name).expand()["material"]
             if material is not None:
                 material.expand().fields["specularColor"] = np.zeros(3)
+
+
+def skin_parts(scene: Scene) -> list[str]:
+    """The DEF names of the IndexedFaceSets of ``scene`` drawn with the ``SKIN`` Appearance
+    (skin, hair, neck, ears: the painted atlas's chart), in file order; none without one."""
+    if SKIN not in scene.defs:
+        return []
+    skin = scene.node(SKIN).expand()
+    out = []
+    for shape in scene.find("Shape"):
+        app, geom = shape["appearance"], shape["geometry"]
+        if app is not None and geom is not None and app.expand() is skin and geom.expand().name:
+            out.append(geom.expand().name)
+    return out
+
+
+def set_exposure(scene: Scene, exposure: np.ndarray | float) -> None:
+    """Light the ``SKIN`` Appearance of ``scene`` (changed in place) ``exposure`` times as
+    brightly as the renderer's lights do (factors ≥ 1, ``(3,)`` per RGB channel or one for all:
+    its Material's ``diffuseColor``, which the renderer multiplies the texture by): the texture,
+    divided by it, has room for a photo lit more brightly than the renderer lights the head
+    (:func:`vtts.fit.texture.skin_exposure`)."""
+    material = scene.node(SKIN).expand()["material"] if SKIN in scene.defs else None
+    if material is not None:
+        material.expand().fields["diffuseColor"] = np.round(np.broadcast_to(exposure, 3), 4) + 0.0
 
 
 def transfer_tables(generic: AnimationTables, fapu0: Fapu, fapu: Fapu) -> AnimationTables:

@@ -53,7 +53,9 @@ from vtts.fit.head import (
     fitted_geometry,
     fitted_scene,
     matte,
+    set_exposure,
     set_texture_url,
+    skin_parts,
     transfer_tables,
 )
 from vtts.fit.landmarks import (
@@ -89,6 +91,7 @@ from vtts.fit.texture import (
     iris_colour,
     project_skin,
     rechart_skin,
+    skin_exposure,
     skin_texels,
     split_ear_tiles,
     split_eye_tiles,
@@ -542,7 +545,7 @@ def fit_photo(
         timings["hair"] = time.perf_counter() - t
     t = time.perf_counter()
     atlas, seen, depth = _texture(g, scene, tables, shape, painted, chosen, photo_parts, expression,
-                           trust, skin)  # fmt: skip
+                           trust, skin, photo_lit=portrait)  # fmt: skip
     timings["texture"] = time.perf_counter() - t
     glasses_texture = None
     if rims is not None:
@@ -651,13 +654,15 @@ def add_viewpoint(scene: Scene, shape: ShapeFit) -> None:
 def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.ndarray,
              face: Face, photo_parts: tuple[str, ...] = PHOTO_PARTS,
              expression: dict[int, float] | None = None, trust: np.ndarray | None = None,
-             skin: np.ndarray | None = None):  # fmt: skip
+             skin: np.ndarray | None = None, photo_lit: bool = False):  # fmt: skip
     """The atlas: the generic tiles (upscaled; one eye tile per eye, in the photo's eye
     colours; the ear in its skin colour), painted from the photo where it sees the head —
     the head posed in the photo's ``expression``; ``trust`` and ``skin`` ``(H, W)`` weigh
     the photo's pixels for every part and for the skin (:func:`~vtts.fit.texture.project_skin`).
     Also returns the texels' share the photo saw and ``(H, W)`` the distance of what each pixel
-    shows at the photo's view (:func:`~vtts.fit.texture.depth_map`)."""
+    shows at the photo's view (:func:`~vtts.fit.texture.depth_map`). With ``photo_lit`` the
+    skin is lit as brightly as the photo needs (:func:`~vtts.fit.texture.skin_exposure`,
+    :func:`~vtts.fit.head.set_exposure`), else as the renderer lights it."""
     from vtts.render import FaceRenderer
 
     with Image.open(models_dir() / f"{g.model.name}-face.png") as im:
@@ -686,6 +691,7 @@ def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.nd
                 if label == "grey":
                     frame, numbers = r.render(model.params(), triangles=True)
                     depth = depth_map(numbers, r.triangle_sets, r.camera, r.model_matrix(0))
+                    on_skin = _drawn_parts(numbers, r.triangle_sets, skin_parts(model.scene))
                 else:
                     frame = r.render(model.params())
             probes[label] = ((frame[..., :3] / 255.0) ** 2.2).astype(np.float32)
@@ -702,8 +708,17 @@ def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.nd
         names = [*PAINTED_PARTS, *(n for n in photo_parts if n not in PAINTED_PARTS)]
         parts = {n: model.scene.node(n).expand() for n in names if n in model.scene.defs}
         texels = skin_texels(parts, size, photo_parts)
-        painter = SkinPainter(project_skin(texels, shape.camera, (w, h), depth, gain, offset,
-                                           trust, skin), size)  # fmt: skip
+        proj = project_skin(texels, shape.camera, (w, h), depth, gain, offset, trust, skin)
+        if photo_lit:
+            # the skin lit as brightly as the photo needs (the shading scales with it: the
+            # Material's diffuseColor multiplies the texture), the texture divided by it
+            exposure = skin_exposure(proj, photo)
+            if np.any(exposure > 1.0):
+                for lit in (scene, model.scene):
+                    set_exposure(lit, exposure)
+                scale = np.where(on_skin[..., None], np.broadcast_to(exposure, 3), 1.0)
+                proj.gain = proj.gain * proj.taps(scale)
+        painter = SkinPainter(proj, size)
         target = photo
         for k in range(TEXTURE_PASSES):
             if k == 0 and ears:
@@ -735,6 +750,16 @@ def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.nd
         # the ears keep the generic tile, in the photo's skin colour
         tint_tile(atlas, EAR_TILE, _skin_ratio(atlas, generic_atlas))
     return (np.clip(atlas, 0, 1) * 255 + 0.5).astype(np.uint8), seen, depth
+
+
+def _drawn_parts(numbers: np.ndarray, sets, names: list[str]) -> np.ndarray:
+    """``(H, W)`` bool: where the renderer's triangle ``numbers`` show an IndexedFaceSet
+    DEFed with one of ``names`` (``sets``: its ``triangle_sets``)."""
+    out = np.zeros(numbers.shape, bool)
+    for node, first, count in sets:
+        if node.name in names:
+            out |= (numbers >= first) & (numbers < first + count)
+    return out
 
 
 #: Photos up to this size (pixels, the longer side) get an atlas of half :data:`ATLAS_SIZE`:

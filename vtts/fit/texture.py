@@ -78,6 +78,15 @@ GRAZING_DEPTH = 0.05
 #: The grey (sRGB) the shading is measured with: bright enough to be above the 8-bit floor
 #: everywhere, dark enough never to saturate.
 PROBE_GREY = 0.5
+#: The share of the seen skin texels that the skin's exposure (:func:`skin_exposure`) lights
+#: brightly enough for the photo; the brightest rest stay clipped at texture 1.
+EXPOSURE_QUANTILE = 0.99
+#: The most the skin's exposure may brighten the renderer's shading (a guard: a turned head
+#: shows the photo's brightness times the ratio of the renderer's shading there to that at the
+#: photo's view, which the clipped texture used to bound).
+MAX_EXPOSURE = 1.5
+#: Texels the exposure counts: trusted at least this much (0–1).
+EXPOSURE_WEIGHT = 0.5
 
 
 @dataclass
@@ -377,6 +386,24 @@ def project_skin(
     keep = weight > 0
     idx, a, taps = idx[keep], a[keep], taps.select(keep)
     return Projection(texels, idx, xy[idx], weight[keep], a, taps(offset), taps)
+
+
+def skin_exposure(proj: Projection, target: np.ndarray, quantile: float = EXPOSURE_QUANTILE,
+                  limit: float = MAX_EXPOSURE) -> np.ndarray:  # fmt: skip
+    """``(3,)`` how much brighter (a factor per RGB channel, 1 to ``limit``) the skin must be
+    lit than the renderer lights it for a texture of at most 1 to give ``target (H, W, 3)``
+    (the photo, linear light) on all but the brightest ``1 − quantile`` of the seen skin texels
+    of ``proj`` (those of :data:`SKIN_PARTS` the photo trusts at least
+    :data:`EXPOSURE_WEIGHT`): per channel, the ``quantile`` of the texture they ask for,
+    ``(target − offset) / gain``. 1 where the photo's light never outshines the renderer's —
+    per channel, since a channel lit more than it needs loses the texture's precision (8 bits):
+    a warm skin's red clips first."""
+    keep = proj.texels.skin[proj.index] & (proj.weight >= EXPOSURE_WEIGHT)
+    if not keep.any():
+        return np.ones(3)
+    taps = proj.taps if proj.taps is not None else Taps.at(target.shape[:2], proj.xy)
+    want = (taps.select(keep)(target) - proj.offset[keep]) / np.maximum(proj.gain[keep], 1e-6)
+    return np.clip(np.quantile(want, quantile, axis=0), 1.0, limit)
 
 
 def _select(texels: SkinTexels, keep: np.ndarray) -> SkinTexels:

@@ -27,6 +27,20 @@ def png_bytes(rgba: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
+def brightened(rgba: np.ndarray, gain) -> np.ndarray:
+    """``rgba (h, w, 4) uint8`` with its colour channels (sRGB) ``gain (3,)`` times brighter in
+    linear light, clipped at white: a VRML Material's ``diffuseColor`` above 1 (a fitted head's
+    skin lit more brightly than the renderer's lights, :func:`vtts.fit.head.set_exposure`) baked
+    into its texture, since glTF's ``baseColorFactor`` stops at 1."""
+    c = rgba[..., :3] / 255.0
+    lin = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+    lin = np.clip(lin * np.asarray(gain, dtype=np.float64), 0.0, 1.0)
+    srgb = np.where(lin <= 0.0031308, lin * 12.92, 1.055 * lin ** (1 / 2.4) - 0.055)
+    out = np.array(rgba, copy=True)
+    out[..., :3] = np.round(srgb * 255.0).astype(np.uint8)
+    return out
+
+
 def web_image(data: bytes, *, file: str | None, what: str) -> tuple[bytes, str]:
     """An image's bytes and format (``"png"`` or ``"jpeg"``): PNG and JPEG ``data`` as it is,
     any other format Pillow reads converted to PNG. Its size is checked
