@@ -193,14 +193,14 @@ def _points(scene: Scene, name: str) -> np.ndarray:
 
 
 def place_teeth(scene: Scene, camera: Camera, photo: np.ndarray, landmarks: np.ndarray,
-                skin_poses=(), triangles: np.ndarray | None = None) -> float | None:  # fmt: skip
+                skin_poses: list[np.ndarray], triangles: np.ndarray) -> float | None:  # fmt: skip
     """Move the upper teeth of ``scene`` (fitted, neutral; changed in place) up or down so
     that, seen by ``camera`` (the photo's, in the model's frame), their tips meet the lower edge
     of the upper teeth ``photo (H, W, 3) uint8`` shows (:func:`teeth_mask` of the face's
     ``landmarks (468, ≥2)``, pixels), by at most :data:`MOST`, and widen them (by at most
     :data:`WIDEST`) to span :data:`BEYOND` of the photo's opening between the inner lip
-    corners — given the head's ``skin_poses`` and ``triangles`` (:func:`skins`), each point
-    only as far as it stays behind them (:func:`behind_skin`). Returns the shift (model units,
+    corners, each point only as far as it stays behind the head's skin (``skin_poses`` and
+    ``triangles``: :func:`skins`; :func:`behind_skin`). Returns the shift (model units,
     + up), or None where the photo shows no teeth or the head has none."""
     if not all(n in scene.defs for n in TEETH):
         return None
@@ -233,10 +233,7 @@ def place_teeth(scene: Scene, camera: Camera, photo: np.ndarray, landmarks: np.n
     wide = BEYOND * (right - left) / max(float(np.ptp(xy[:, 0])), 1e-9)
     widen = float(np.clip(wide, 1.0, WIDEST))
     middle = (moved[:, 0].min() + moved[:, 0].max()) / 2
-    if len(skin_poses) and triangles is not None:
-        moved = behind_skin(moved, middle, widen, skin_poses, triangles)
-    else:
-        moved[:, 0] = middle + (moved[:, 0] - middle) * widen
+    moved = behind_skin(moved, middle, widen, skin_poses, triangles)
     node = scene.node(UPPER).expand()["coord"].expand()
     node.fields["point"] = np.round(moved, 6) + 0.0
     return shift
