@@ -129,9 +129,10 @@ def test_a_smile_lifts_the_cheeks_and_a_mouth_at_rest_does_not(fitted):
 
 def test_the_teeth_meet_the_teeth_the_photo_shows(fitted):
     """The astronaut shows her upper teeth: the model's are moved down until, at the photo's
-    view, their tips meet the lower edge of hers, and widened to her mouth's opening; a shut
+    view, their tips meet the lower edge of hers, and widened a little beyond her mouth's
+    opening; a shut
     mouth shows no teeth to place."""
-    from vtts.fit.teeth import MIDDLE, teeth_mask
+    from vtts.fit.teeth import BEYOND, MIDDLE, teeth_mask
 
     landmarks = fitted.face.landmarks
     teeth = teeth_mask(fitted.photo, landmarks)
@@ -145,13 +146,69 @@ def test_the_teeth_meet_the_teeth_the_photo_shows(fitted):
     xy = fitted.shape.camera.project(upper)
     tips = xy[np.abs(xy[:, 0] - mid) <= half, 1].max()
     assert abs(tips - edge) < 1.0, (tips, edge)
-    # and as wide as her mouth's opening between the inner lip corners
-    assert np.ptp(xy[:, 0]) == pytest.approx(np.ptp(inner[:, 0]), rel=0.03)
+    # and a little wider than her mouth's opening between the inner lip corners (its ends curve
+    # back behind them)
+    assert np.ptp(xy[:, 0]) == pytest.approx(BEYOND * np.ptp(inner[:, 0]), rel=0.03)
     # the lips drawn over the opening: no teeth
     shut = Image.fromarray(fitted.photo.copy())
     lip = tuple(int(v) for v in fitted.photo[int(landmarks[17, 1]), int(landmarks[17, 0])])
     ImageDraw.Draw(shut).polygon([tuple(p) for p in inner], fill=lip)
     assert teeth_mask(np.asarray(shut), landmarks) is None
+
+
+def test_the_widened_teeth_stay_behind_the_skin(fitted):
+    """Her upper row, widened towards her smile's corners, stays behind the skin at rest and
+    smiling (``joy``), seen from the front and turned 30° each way: widened as far as the
+    opening alone asks, its ends poked through the skin under the lips' corners when she
+    smiled (18 of its points), drawn as thin lines there when turned."""
+    from vtts.face import FaceModel
+    from vtts.fit.teeth import in_front, skins
+
+    model = FaceModel(fitted.scene, fitted.tables)
+    (neutral, photo, joy, _), triangles = skins(model, fitted.expression)
+    upper = np.asarray(fitted.scene.node("UPPER_TEETH").expand()["coord"].expand()["point"])
+    for skin in (neutral, joy):
+        assert not in_front(upper, skin, triangles).any()
+
+
+def _panels() -> tuple[np.ndarray, np.ndarray]:
+    """A skin of two upright panels at z = 0, |x| from 0.5 to 1, |y| ≤ 0.5, with an opening
+    between them: ``(8, 3)`` points and ``(4, 3)`` triangles."""
+    pts = np.array([[x, y, 0.0] for x in (-1.0, -0.5, 0.5, 1.0) for y in (-0.5, 0.5)])
+    tri = np.array([[0, 2, 3], [0, 3, 1], [4, 6, 7], [4, 7, 5]])
+    return pts, tri
+
+
+def test_in_front_of_the_skin():
+    """A point is in front of the skin where the skin lies behind it and not in front of it;
+    in the opening, or behind the skin, it is not; turned, the rays slant."""
+    from vtts.fit.teeth import in_front
+
+    skin, tri = _panels()
+    points = np.array([[0.7, 0.0, 0.1], [0.7, 0.0, -0.1], [0.0, 0.0, 0.1], [0.48, 0.0, 0.1]])
+    assert in_front(points, skin, tri, yaws=(0.0,)).tolist() == [True, False, False, False]
+    # seen from 30° to the left, the point just inside the opening has the panel behind it
+    assert in_front(points, skin, tri, yaws=(-30.0,)).tolist() == [True, False, False, True]
+
+
+def test_the_row_spreads_only_as_far_as_it_stays_behind_the_skin():
+    """Spread 1.5 times, a row in the opening between two panels would reach in front of them:
+    each point goes as far as it stays behind the skin (never narrower than it was), and the
+    row keeps its order across."""
+    from vtts.fit.teeth import behind_skin, in_front
+
+    skin, tri = _panels()
+    x = np.linspace(-0.45, 0.45, 19)
+    row = np.stack([x, np.zeros_like(x), np.full_like(x, 0.05)], axis=1)
+    out = behind_skin(row, 0.0, 1.5, [skin], tri)
+    assert not in_front(out, skin, tri).any()
+    assert np.all(np.abs(out[:, 0]) >= np.abs(x) - 1e-12)
+    assert np.all(np.diff(out[:, 0]) >= 0)
+    # the middle spreads in full, the ends stop short of the panels (0.45 × 1.5 = 0.675)
+    assert out[9, 0] == 0.0 and out[10, 0] == pytest.approx(1.5 * x[10])
+    assert 0.45 <= out[-1, 0] < 0.5 and 0.45 <= -out[0, 0] < 0.5
+    # with no skin in the way the row spreads as asked
+    assert np.allclose(behind_skin(row, 0.0, 1.5, [skin + [0, 5, 0]], tri)[:, 0], 1.5 * x)
 
 
 def test_the_hair_shell_grows_to_the_silhouette_and_keeps_the_seam(fitted):

@@ -77,7 +77,7 @@ from vtts.fit.shape import (
     fit_shape,
     focal_length,
 )
-from vtts.fit.teeth import TEETH, place_teeth
+from vtts.fit.teeth import TEETH, place_teeth, skins
 from vtts.fit.texture import (
     ATLAS_SIZE,
     EAR_TILES,
@@ -538,7 +538,11 @@ def fit_photo(
         if CUT_NECK and NECK in scene.defs and NECK in photo_parts:
             _cut_at_collar(scene, tables, shape, image, expression)
         skin = skin_trust((w, h), chosen.landmarks, mouth=not shut)
-        teeth = None if shut else place_teeth(scene, shape.camera, image, chosen.landmarks)
+        teeth = None
+        if not shut:
+            # widened only as far as the row stays behind the skin, here and turned
+            around = skins(FaceModel(scene, tables, Path("fitted.wrl")), expression)
+            teeth = place_teeth(scene, shape.camera, image, chosen.landmarks, *around)
         if teeth is not None:
             # the photo paints the teeth where they show, placed where it shows them
             photo_parts = (*photo_parts, *(n for n in TEETH if n not in photo_parts))
