@@ -9,7 +9,8 @@ and that was most of a frame's time.
 :class:`DeferredPass` draws the opaque geometry once with a cheap shader that only stores what
 pyrender's ``mesh.frag`` would read for the fragment — position, normal, texture sample,
 per-vertex color and which material — in float textures (the G-buffer), with pyrender's own
-vertex shader, drawing order and depth test. A second pass then runs pyrender's own fragment
+vertex shader, drawing order and depth test (an unlit material's pixels, which pyrender's
+lighting never sees, without position and normal). A second pass then runs pyrender's own fragment
 shader code (its ``mesh.frag``, with its inputs turned into globals loaded from the G-buffer) once
 per covered pixel. Same inputs, same code: the same pixels (``tests/render`` compares the two
 pixel for pixel). Transparent primitives are drawn afterwards as pyrender draws them, over the
@@ -47,9 +48,14 @@ from vtts.render.scene import SPECULAR, UNLIT
 SHADER_DIR = Path(__file__).resolve().parent / "shaders"
 
 #: The G-buffer's targets, in attachment order, as the resolve shader samples them (floats; the
-#: texture sample in 8 bits on llvmpipe: :func:`_filters_in_8_bits`); the last one (per-vertex
-#: colors) is drawn only for scenes that have such colors.
-G_TARGETS = ("g_position", "g_normal", "g_texel", "g_color")
+#: texture sample in 8 bits on llvmpipe: :func:`_filters_in_8_bits`; the material's index and
+#: whether it is textured in 8 bits); the last one (per-vertex colors) is drawn only for scenes
+#: that have such colors. Position and normal are stored for lit materials only
+#: (:func:`_lit_targets`).
+G_TARGETS = ("g_position", "g_normal", "g_texel", "g_material", "g_color")
+
+#: The targets that only a lit material's pixels need (the resolve pass reads them for those).
+LIT_TARGETS = (0, 1)
 
 #: The G-buffer's sides are whole multiples of this many pixels (:meth:`DeferredPass._targets_for`).
 TARGET_STEP = 64
@@ -93,7 +99,8 @@ class DeferredPass(ForwardPass):
     """Renders pyrender scenes with deferred shading (see the module's notes); same interface
     as :class:`~vtts.render.forward.ForwardPass`."""
 
-    #: Opaque materials the resolve shader's tables hold.
+    #: Opaque materials the resolve shader's tables hold (at most 32: the G-buffer's material
+    #: target holds the index plus 32 for a textured material in 8 bits).
     MAX_MATERIALS = 32
 
     def __init__(self, offscreen) -> None:
@@ -207,6 +214,7 @@ class DeferredPass(ForwardPass):
         for node, pose in opaque:
             for primitive in node.mesh.primitives:
                 self._draw_gbuffer(primitive, pose, r, materials, colors, triangles)
+        self._set(LIT_TARGETS, True, _lit_targets)  # the resolve pass writes attachment 0
 
         GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, targets.color_fb)
         GL.glClearColor(*scene.bg_color)
@@ -240,13 +248,16 @@ class DeferredPass(ForwardPass):
             cutoff = material.alphaCutoff if material.alphaMode == "MASK" else 0.0
             self._uniform(pid, "alpha_cutoff", float(cutoff))
         self._set(GL.GL_CULL_FACE, not material.doubleSided, cull_back)
+        self._set(LIT_TARGETS, not _unlit(material), _lit_targets)
         self._draw_call(primitive)
 
     def _gbuffer_program(self, primitive, r, colors: bool, triangles: bool = False):
         """pyrender's mesh.vert with the G-buffer shader, under the defines pyrender uses for
         ``primitive`` (so that the vertex stage is exactly pyrender's); ``colors``: with the
-        per-vertex color target; ``triangles``: with the triangle-number target."""
-        variant = (colors, triangles)
+        per-vertex color target; ``triangles``: with the triangle-number target. An unlit
+        material's program computes no position or normal (``VTTS_UNLIT``)."""
+        unlit = _unlit(primitive.material)
+        variant = (colors, triangles, unlit)
         known = self._gbuffer_of.get(primitive)
         if known is not None and known[0] == variant and program_id(known[1]) is not None:
             return known[1]
@@ -258,6 +269,8 @@ class DeferredPass(ForwardPass):
                 defines["VERTEX_COLORS"] = 1
             if triangles:
                 defines["TRIANGLE_NUMBERS"] = 1
+            if unlit:
+                defines["VTTS_UNLIT"] = 1
             program = compiled_program(
                 os.path.join(shader_dir(r), "mesh.vert"), str(SHADER_DIR / "gbuffer.frag"), defines
             )
@@ -391,6 +404,8 @@ class DeferredPass(ForwardPass):
                 fmt, channels = GL.GL_R32F, GL.GL_RED
             elif G_TARGETS[i] == "g_texel" and _filters_in_8_bits():
                 fmt = GL.GL_RGBA8  # the texture's samples are 8-bit already: same values
+            elif G_TARGETS[i] == "g_material":
+                fmt, channels = GL.GL_R8, GL.GL_RED  # (index + 32 if textured) / 255: exact
             GL.glBindTexture(GL.GL_TEXTURE_2D, t)
             GL.glTexImage2D(GL.GL_TEXTURE_2D, 0, fmt, width, height, 0, channels, GL.GL_FLOAT, None)
             GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_MIN_FILTER, GL.GL_NEAREST)
@@ -424,6 +439,20 @@ class DeferredPass(ForwardPass):
         self._state.clear()
         self._targets = _Targets((width, height), gbuffer, color_fb, textures, [color, depth])
         return self._targets
+
+
+def _unlit(material) -> bool:
+    """Whether the resolve pass shows ``material``'s pixels unlit
+    (:data:`~vtts.render.scene.UNLIT`), without their position and normal."""
+    return bool(getattr(material, UNLIT, False))
+
+
+def _lit_targets(on: bool) -> None:
+    """Store the G-buffer's position and normal (:data:`LIT_TARGETS`) of what is drawn next
+    (``on``), or leave them as they are: an unlit material's pixels do not need them, and
+    writing the two float targets was a fifth of the G-buffer pass's rasterizer time."""
+    for index in LIT_TARGETS:
+        GL.glColorMaski(index, on, on, on, on)
 
 
 def _filters_in_8_bits() -> bool:
