@@ -113,9 +113,9 @@ class DeferredPass(ForwardPass):
         # primitive -> the same
         self._gbuffer_programs: dict[tuple[frozenset, bool], object] = {}
         self._gbuffer_of: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-        # (vertex colors?, light counts) -> (resolve program, empty vertex array), or None if it
-        # cannot be made
-        self._resolve: dict[tuple[bool, tuple[int, int, int]], tuple[int, int] | None] = {}
+        # (vertex colors?, light counts) -> the resolve programs (lit, unlit only), each with an
+        # empty vertex array, or None if they cannot be made
+        self._resolve: dict[tuple[bool, tuple[int, int, int]], tuple | None] = {}
         self._targets: _Targets | None = None
 
     def deferrable(self, scene) -> bool:
@@ -206,7 +206,12 @@ class DeferredPass(ForwardPass):
         GL.glDepthFunc(GL.GL_LESS)
         GL.glDisable(GL.GL_BLEND)
         GL.glClearDepth(1.0)  # the far plane, where the resolve pass's triangle lies
-        GL.glClear(GL.GL_DEPTH_BUFFER_BIT)
+        GL.glClearStencil(0)
+        GL.glStencilMask(0xFF)
+        GL.glClear(GL.GL_DEPTH_BUFFER_BIT | GL.GL_STENCIL_BUFFER_BIT)
+        # the stencil marks the pixels a lit material shows (:func:`_lit_targets`)
+        GL.glEnable(GL.GL_STENCIL_TEST)
+        GL.glStencilOp(GL.GL_KEEP, GL.GL_KEEP, GL.GL_REPLACE)
         if triangles is not None:
             GL.glColorMask(GL.GL_TRUE, GL.GL_TRUE, GL.GL_TRUE, GL.GL_TRUE)
             GL.glClearBufferfv(GL.GL_COLOR, TRIANGLE_ATTACHMENT, np.zeros(4, np.float32))
@@ -219,7 +224,15 @@ class DeferredPass(ForwardPass):
         GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, targets.color_fb)
         GL.glClearColor(*scene.bg_color)
         GL.glClear(GL.GL_COLOR_BUFFER_BIT)
-        self._draw_resolve(resolve, targets, list(materials), colors)
+        GL.glStencilOp(GL.GL_KEEP, GL.GL_KEEP, GL.GL_KEEP)
+        lit = [not _unlit(m) for m in materials]
+        if not all(lit):  # the unlit materials' pixels, without pyrender's lighting code
+            GL.glStencilFunc(GL.GL_EQUAL, 0, 0xFF)
+            self._draw_resolve(resolve[1], targets, list(materials), colors)
+        if any(lit):
+            GL.glStencilFunc(GL.GL_EQUAL, 1, 0xFF)
+            self._draw_resolve(resolve[0], targets, list(materials), colors)
+        GL.glDisable(GL.GL_STENCIL_TEST)
 
         if transparent:
             self._forward_state()
@@ -284,7 +297,8 @@ class DeferredPass(ForwardPass):
     def _draw_resolve(
         self, resolve: tuple[int, int], targets: _Targets, materials: list, colors: bool
     ) -> None:
-        """Shade every pixel the G-buffer covers, once, with pyrender's lighting."""
+        """Shade every pixel the G-buffer covers and the stencil test lets through, once, with
+        pyrender's lighting (``resolve`` the lit program) or as unlit materials show."""
         pid, vertex_array = resolve
         GL.glDepthFunc(GL.GL_GREATER)  # the far-plane triangle passes where geometry was drawn
         GL.glDepthMask(GL.GL_FALSE)
@@ -311,12 +325,15 @@ class DeferredPass(ForwardPass):
 
     def _resolve_program(
         self, r, colors: bool, lights: tuple[int, int, int]
-    ) -> tuple[int, int] | None:
-        """The resolve program: pyrender's mesh.frag (as pyrender would compile it for an
-        untextured metallic-roughness material with normals, and with vertex colors if
-        ``colors``) with its inputs loaded from the G-buffer, made for ``lights`` (the scene's
-        directional, point and spot lights: :func:`light_counts`). None when this pyrender's
-        shader does not read as expected.
+    ) -> tuple[tuple[int, int], tuple[int, int]] | None:
+        """The resolve programs, each ``(program, empty vertex array)``: pyrender's mesh.frag
+        (as pyrender would compile it for an untextured metallic-roughness material with
+        normals, and with vertex colors if ``colors``) with its inputs loaded from the G-buffer,
+        made for ``lights`` (the scene's directional, point and spot lights:
+        :func:`light_counts`), and the same without pyrender's lighting code, for the unlit
+        materials' pixels (``VTTS_UNLIT_ONLY``: llvmpipe runs both sides of a branch, so the
+        lighting cost every pixel its time). None when this pyrender's shader does not read as
+        expected.
 
         The light counts, uniforms in pyrender's shader, are constants here: its light loops
         then have fixed bounds that the compiler unrolls, and the loops for kinds the scene
@@ -352,13 +369,20 @@ class DeferredPass(ForwardPass):
         vertex = (SHADER_DIR / "resolve.vert").read_text(encoding="utf-8")
         vertex_array = GL.glGenVertexArrays(1)
         GL.glBindVertexArray(vertex_array)  # core profile: validation needs a vertex array
-        pid = shaders.compileProgram(
-            shaders.compileShader(vertex, GL.GL_VERTEX_SHADER),
-            shaders.compileShader(source, GL.GL_FRAGMENT_SHADER),
-        )
+        programs = []
+        for unlit_only in (False, True):
+            head, rest = source.split("\n", 1)  # after the #version line
+            defined = f"{head}\n#define VTTS_UNLIT_ONLY 1\n{rest}" if unlit_only else source
+            pid = int(
+                shaders.compileProgram(
+                    shaders.compileShader(vertex, GL.GL_VERTEX_SHADER),
+                    shaders.compileShader(defined, GL.GL_FRAGMENT_SHADER),
+                )
+            )
+            self._private.add(pid)
+            programs.append((pid, vertex_array))
         GL.glBindVertexArray(0)
-        self._resolve[key] = (int(pid), vertex_array)
-        self._private.add(int(pid))
+        self._resolve[key] = (programs[0], programs[1])
         return self._resolve[key]
 
     def _uniform_array(self, pid: int, name: str, values: list) -> None:
@@ -412,7 +436,7 @@ class DeferredPass(ForwardPass):
             GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_MAG_FILTER, GL.GL_NEAREST)
         GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
         color, depth = (int(b) for b in GL.glGenRenderbuffers(2))
-        for rb, fmt in ((color, GL.GL_RGBA8), (depth, GL.GL_DEPTH_COMPONENT24)):
+        for rb, fmt in ((color, GL.GL_RGBA8), (depth, GL.GL_DEPTH24_STENCIL8)):
             GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, rb)
             GL.glRenderbufferStorage(GL.GL_RENDERBUFFER, fmt, width, height)
         GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, 0)
@@ -423,7 +447,7 @@ class DeferredPass(ForwardPass):
                 GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0 + i, GL.GL_TEXTURE_2D, t, 0
             )
         GL.glFramebufferRenderbuffer(
-            GL.GL_FRAMEBUFFER, GL.GL_DEPTH_ATTACHMENT, GL.GL_RENDERBUFFER, depth
+            GL.GL_FRAMEBUFFER, GL.GL_DEPTH_STENCIL_ATTACHMENT, GL.GL_RENDERBUFFER, depth
         )
         _check_complete("G-buffer", width, height)
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, color_fb)
@@ -431,7 +455,7 @@ class DeferredPass(ForwardPass):
             GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0, GL.GL_RENDERBUFFER, color
         )
         GL.glFramebufferRenderbuffer(
-            GL.GL_FRAMEBUFFER, GL.GL_DEPTH_ATTACHMENT, GL.GL_RENDERBUFFER, depth
+            GL.GL_FRAMEBUFFER, GL.GL_DEPTH_STENCIL_ATTACHMENT, GL.GL_RENDERBUFFER, depth
         )
         _check_complete("color", width, height)
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, 0)
@@ -450,9 +474,12 @@ def _unlit(material) -> bool:
 def _lit_targets(on: bool) -> None:
     """Store the G-buffer's position and normal (:data:`LIT_TARGETS`) of what is drawn next
     (``on``), or leave them as they are: an unlit material's pixels do not need them, and
-    writing the two float targets was a fifth of the G-buffer pass's rasterizer time."""
+    writing the two float targets was a fifth of the G-buffer pass's rasterizer time. The
+    stencil marks what is drawn next as lit (1) or unlit (0), so that the resolve pass runs
+    pyrender's lighting on the lit pixels only."""
     for index in LIT_TARGETS:
         GL.glColorMaski(index, on, on, on, on)
+    GL.glStencilFunc(GL.GL_ALWAYS, int(on), 0xFF)
 
 
 def _filters_in_8_bits() -> bool:

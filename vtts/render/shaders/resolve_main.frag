@@ -1,6 +1,7 @@
 // vtts resolve pass: appended to pyrender's mesh.frag, whose inputs and material became plain
 // globals and whose main() became pyrender_main(). Loads one pixel of the G-buffer into them and
-// runs pyrender's own lighting code once for the pixel.
+// runs pyrender's own lighting code once for the pixel. With VTTS_UNLIT_ONLY, for the pixels of
+// unlit materials only (the stencil test chooses them), without the lighting code.
 
 uniform sampler2D g_position;
 uniform sampler2D g_normal;
@@ -39,6 +40,7 @@ void main()
         frag_color = clamp(colour, 0.0, 1.0);
         return;
     }
+#ifndef VTTS_UNLIT_ONLY
     frag_position = texelFetch(g_position, pixel, 0).xyz;
     frag_normal = texelFetch(g_normal, pixel, 0).xyz;
     vec4 base_color = base_color_factors[m];
@@ -52,4 +54,5 @@ void main()
     material.roughness_factor = roughness_factors[m];
     specular_scale = specular_scales[m];
     pyrender_main();
+#endif
 }
