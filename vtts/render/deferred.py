@@ -180,6 +180,7 @@ class DeferredPass(ForwardPass):
             self._draw_scene(scene, r, targets, resolve, opaque, transparent, colors, triangles)
         finally:
             GL.glDisable(GL.GL_SCISSOR_TEST)
+            GL.glDisable(GL.GL_STENCIL_TEST)
         self._end_frame()
         image = read_color(targets.color_fb, width, height, rgba)
         if triangles is None:
@@ -220,10 +221,12 @@ class DeferredPass(ForwardPass):
             for primitive in node.mesh.primitives:
                 self._draw_gbuffer(primitive, pose, r, materials, colors, triangles)
         self._set(LIT_TARGETS, True, _lit_targets)  # the resolve pass writes attachment 0
+        GL.glDisable(GL.GL_STENCIL_TEST)
 
         GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, targets.color_fb)
         GL.glClearColor(*scene.bg_color)
         GL.glClear(GL.GL_COLOR_BUFFER_BIT)
+        GL.glEnable(GL.GL_STENCIL_TEST)
         GL.glStencilOp(GL.GL_KEEP, GL.GL_KEEP, GL.GL_KEEP)
         lit = [not _unlit(m) for m in materials]
         if not all(lit):  # the unlit materials' pixels, without pyrender's lighting code
