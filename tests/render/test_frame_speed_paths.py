@@ -185,3 +185,32 @@ def test_an_unlit_face_needs_no_normals_where_they_do_not_show(tmp_path, monkeyp
                 assert r._draws_unlit() == deferred
     assert all(np.array_equal(a, b) for a, b in zip(frames[True], frames[False], strict=True))
     assert not all(np.array_equal(frames[True][0], f) for f in frames[True][1:])  # it moves
+
+
+def test_a_mesh_left_as_it_was_is_not_uploaded_again(monkeypatch):
+    """A frame sends the GPU only the vertex buffers that changed since the last one it
+    drew; its pixels stay those of a fresh renderer posed for it."""
+    import vtts.render.renderer as renderer_module
+
+    model = load_model("cybatt")
+    sent: list[str] = []
+    rewrite = renderer_module.rewrite_vertex_buffer
+
+    def counting(primitive, data):
+        sent.append(primitive)
+        return rewrite(primitive, data)
+
+    monkeypatch.setattr(renderer_module, "rewrite_vertex_buffer", counting)
+    still = model.params({48: 4000})
+    moved = model.params({48: 4000, 3: 300})  # the jaw: some meshes move, others not
+    with FaceRenderer(model, size=(176, 144)) as r:
+        r.render(still)  # the first frame puts the meshes on the GPU
+        r.render(still)  # the second writes their buffers
+        first = len(sent)
+        again = r.render(still)
+        assert len(sent) == first  # nothing changed: nothing sent
+        frame = r.render(moved)
+        assert 0 < len(sent) - first < first / 2
+    for params, got in ((still, again), (moved, frame)):
+        with FaceRenderer(model, size=(176, 144)) as fresh:
+            assert np.array_equal(got, fresh.render(params))

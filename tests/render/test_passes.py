@@ -232,3 +232,41 @@ def test_the_deferred_pass_draws_smaller_images_in_the_targets_it_has():
     assert reused._targets is targets
     assert np.array_equal(got, want) and np.array_equal(numbers, want_numbers)
     assert np.array_equal(reused.render(scene, W, H, rgba=True), _pyrender(scene, rgba=True))
+
+
+def test_an_unlit_materials_pixels_store_no_position_or_normal():
+    """The G-buffer keeps position and normal for lit materials only: where an unlit primitive
+    lies in front, the position target still holds what lies behind it (the lit surface), and
+    the pixel shows the unlit colour as it is; the stencil tells the resolve pass's lit pixels
+    (1) from the unlit ones (0)."""
+    from OpenGL import GL
+
+    from vtts.render.deferred import G_TARGETS, DeferredPass
+    from vtts.render.pyrender_adapter import make_current
+    from vtts.render.scene import UNLIT
+
+    scene = _scene()
+    front = next(m for m in scene.meshes if m.primitives[0].material.doubleSided).primitives[0]
+    front.material.baseColorFactor = [0.2, 0.4, 0.8, 1.0]
+    setattr(front.material, UNLIT, True)
+    deferred = DeferredPass(offscreen())
+    back = next(m for m in scene.meshes if not m.primitives[0].material.doubleSided).primitives[0]
+    image, numbers = deferred.render(scene, W, H, triangles={front: 5000, back: 0})
+    shown = numbers >= 5000
+    assert shown.mean() > 0.05
+    assert (image[shown] == [51, 102, 204]).all()  # the factor in 8 bits, no light
+    make_current(offscreen())
+    GL.glBindTexture(GL.GL_TEXTURE_2D, deferred._targets.textures[G_TARGETS.index("g_position")])
+    stored = GL.glGetTexImage(GL.GL_TEXTURE_2D, 0, GL.GL_RGBA, GL.GL_FLOAT)
+    GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
+    tw, th = deferred._targets.size
+    position = np.frombuffer(stored, np.float32).reshape(th, tw, 4)[:H, :W][::-1]
+    # the front grid lies at z 0.4 ± 0.08, the lit one behind it at 0 ± 0.15
+    assert (position[shown][:, 2] < 0.2).all()
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, deferred._targets.gbuffer)
+    stencil = GL.glReadPixels(0, 0, W, H, GL.GL_STENCIL_INDEX, GL.GL_UNSIGNED_BYTE)
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, 0)
+    stencil = np.frombuffer(stencil, np.uint8).reshape(H, W)[::-1]
+    lit = (numbers >= 0) & ~shown
+    assert lit.mean() > 0.05
+    assert (stencil[shown] == 0).all() and (stencil[lit] == 1).all()

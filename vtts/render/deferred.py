@@ -9,7 +9,8 @@ and that was most of a frame's time.
 :class:`DeferredPass` draws the opaque geometry once with a cheap shader that only stores what
 pyrender's ``mesh.frag`` would read for the fragment — position, normal, texture sample,
 per-vertex color and which material — in float textures (the G-buffer), with pyrender's own
-vertex shader, drawing order and depth test. A second pass then runs pyrender's own fragment
+vertex shader, drawing order and depth test (an unlit material's pixels, which pyrender's
+lighting never sees, without position and normal). A second pass then runs pyrender's own fragment
 shader code (its ``mesh.frag``, with its inputs turned into globals loaded from the G-buffer) once
 per covered pixel. Same inputs, same code: the same pixels (``tests/render`` compares the two
 pixel for pixel). Transparent primitives are drawn afterwards as pyrender draws them, over the
@@ -47,9 +48,14 @@ from vtts.render.scene import SPECULAR, UNLIT
 SHADER_DIR = Path(__file__).resolve().parent / "shaders"
 
 #: The G-buffer's targets, in attachment order, as the resolve shader samples them (floats; the
-#: texture sample in 8 bits on llvmpipe: :func:`_filters_in_8_bits`); the last one (per-vertex
-#: colors) is drawn only for scenes that have such colors.
-G_TARGETS = ("g_position", "g_normal", "g_texel", "g_color")
+#: texture sample in 8 bits on llvmpipe: :func:`_filters_in_8_bits`; the material's index and
+#: whether it is textured in 8 bits); the last one (per-vertex colors) is drawn only for scenes
+#: that have such colors. Position and normal are stored for lit materials only
+#: (:func:`_lit_targets`).
+G_TARGETS = ("g_position", "g_normal", "g_texel", "g_material", "g_color")
+
+#: The targets that only a lit material's pixels need (the resolve pass reads them for those).
+LIT_TARGETS = (0, 1)
 
 #: The G-buffer's sides are whole multiples of this many pixels (:meth:`DeferredPass._targets_for`).
 TARGET_STEP = 64
@@ -93,7 +99,8 @@ class DeferredPass(ForwardPass):
     """Renders pyrender scenes with deferred shading (see the module's notes); same interface
     as :class:`~vtts.render.forward.ForwardPass`."""
 
-    #: Opaque materials the resolve shader's tables hold.
+    #: Opaque materials the resolve shader's tables hold (at most 32: the G-buffer's material
+    #: target holds the index plus 32 for a textured material in 8 bits).
     MAX_MATERIALS = 32
 
     def __init__(self, offscreen) -> None:
@@ -106,9 +113,9 @@ class DeferredPass(ForwardPass):
         # primitive -> the same
         self._gbuffer_programs: dict[tuple[frozenset, bool], object] = {}
         self._gbuffer_of: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-        # (vertex colors?, light counts) -> (resolve program, empty vertex array), or None if it
-        # cannot be made
-        self._resolve: dict[tuple[bool, tuple[int, int, int]], tuple[int, int] | None] = {}
+        # (vertex colors?, light counts) -> the resolve programs (lit, unlit only), each with an
+        # empty vertex array, or None if they cannot be made
+        self._resolve: dict[tuple[bool, tuple[int, int, int]], tuple | None] = {}
         self._targets: _Targets | None = None
 
     def deferrable(self, scene) -> bool:
@@ -173,6 +180,7 @@ class DeferredPass(ForwardPass):
             self._draw_scene(scene, r, targets, resolve, opaque, transparent, colors, triangles)
         finally:
             GL.glDisable(GL.GL_SCISSOR_TEST)
+            GL.glDisable(GL.GL_STENCIL_TEST)
         self._end_frame()
         image = read_color(targets.color_fb, width, height, rgba)
         if triangles is None:
@@ -199,7 +207,12 @@ class DeferredPass(ForwardPass):
         GL.glDepthFunc(GL.GL_LESS)
         GL.glDisable(GL.GL_BLEND)
         GL.glClearDepth(1.0)  # the far plane, where the resolve pass's triangle lies
-        GL.glClear(GL.GL_DEPTH_BUFFER_BIT)
+        GL.glClearStencil(0)
+        GL.glStencilMask(0xFF)
+        GL.glClear(GL.GL_DEPTH_BUFFER_BIT | GL.GL_STENCIL_BUFFER_BIT)
+        # the stencil marks the pixels a lit material shows (:func:`_lit_targets`)
+        GL.glEnable(GL.GL_STENCIL_TEST)
+        GL.glStencilOp(GL.GL_KEEP, GL.GL_KEEP, GL.GL_REPLACE)
         if triangles is not None:
             GL.glColorMask(GL.GL_TRUE, GL.GL_TRUE, GL.GL_TRUE, GL.GL_TRUE)
             GL.glClearBufferfv(GL.GL_COLOR, TRIANGLE_ATTACHMENT, np.zeros(4, np.float32))
@@ -207,11 +220,22 @@ class DeferredPass(ForwardPass):
         for node, pose in opaque:
             for primitive in node.mesh.primitives:
                 self._draw_gbuffer(primitive, pose, r, materials, colors, triangles)
+        self._set(LIT_TARGETS, True, _lit_targets)  # the resolve pass writes attachment 0
+        GL.glDisable(GL.GL_STENCIL_TEST)
 
         GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, targets.color_fb)
         GL.glClearColor(*scene.bg_color)
         GL.glClear(GL.GL_COLOR_BUFFER_BIT)
-        self._draw_resolve(resolve, targets, list(materials), colors)
+        GL.glEnable(GL.GL_STENCIL_TEST)
+        GL.glStencilOp(GL.GL_KEEP, GL.GL_KEEP, GL.GL_KEEP)
+        lit = [not _unlit(m) for m in materials]
+        if not all(lit):  # the unlit materials' pixels, without pyrender's lighting code
+            GL.glStencilFunc(GL.GL_EQUAL, 0, 0xFF)
+            self._draw_resolve(resolve[1], targets, list(materials), colors)
+        if any(lit):
+            GL.glStencilFunc(GL.GL_EQUAL, 1, 0xFF)
+            self._draw_resolve(resolve[0], targets, list(materials), colors)
+        GL.glDisable(GL.GL_STENCIL_TEST)
 
         if transparent:
             self._forward_state()
@@ -240,13 +264,16 @@ class DeferredPass(ForwardPass):
             cutoff = material.alphaCutoff if material.alphaMode == "MASK" else 0.0
             self._uniform(pid, "alpha_cutoff", float(cutoff))
         self._set(GL.GL_CULL_FACE, not material.doubleSided, cull_back)
+        self._set(LIT_TARGETS, not _unlit(material), _lit_targets)
         self._draw_call(primitive)
 
     def _gbuffer_program(self, primitive, r, colors: bool, triangles: bool = False):
         """pyrender's mesh.vert with the G-buffer shader, under the defines pyrender uses for
         ``primitive`` (so that the vertex stage is exactly pyrender's); ``colors``: with the
-        per-vertex color target; ``triangles``: with the triangle-number target."""
-        variant = (colors, triangles)
+        per-vertex color target; ``triangles``: with the triangle-number target. An unlit
+        material's program computes no position or normal (``VTTS_UNLIT``)."""
+        unlit = _unlit(primitive.material)
+        variant = (colors, triangles, unlit)
         known = self._gbuffer_of.get(primitive)
         if known is not None and known[0] == variant and program_id(known[1]) is not None:
             return known[1]
@@ -258,6 +285,8 @@ class DeferredPass(ForwardPass):
                 defines["VERTEX_COLORS"] = 1
             if triangles:
                 defines["TRIANGLE_NUMBERS"] = 1
+            if unlit:
+                defines["VTTS_UNLIT"] = 1
             program = compiled_program(
                 os.path.join(shader_dir(r), "mesh.vert"), str(SHADER_DIR / "gbuffer.frag"), defines
             )
@@ -271,7 +300,8 @@ class DeferredPass(ForwardPass):
     def _draw_resolve(
         self, resolve: tuple[int, int], targets: _Targets, materials: list, colors: bool
     ) -> None:
-        """Shade every pixel the G-buffer covers, once, with pyrender's lighting."""
+        """Shade every pixel the G-buffer covers and the stencil test lets through, once, with
+        pyrender's lighting (``resolve`` the lit program) or as unlit materials show."""
         pid, vertex_array = resolve
         GL.glDepthFunc(GL.GL_GREATER)  # the far-plane triangle passes where geometry was drawn
         GL.glDepthMask(GL.GL_FALSE)
@@ -298,12 +328,15 @@ class DeferredPass(ForwardPass):
 
     def _resolve_program(
         self, r, colors: bool, lights: tuple[int, int, int]
-    ) -> tuple[int, int] | None:
-        """The resolve program: pyrender's mesh.frag (as pyrender would compile it for an
-        untextured metallic-roughness material with normals, and with vertex colors if
-        ``colors``) with its inputs loaded from the G-buffer, made for ``lights`` (the scene's
-        directional, point and spot lights: :func:`light_counts`). None when this pyrender's
-        shader does not read as expected.
+    ) -> tuple[tuple[int, int], tuple[int, int]] | None:
+        """The resolve programs, each ``(program, empty vertex array)``: pyrender's mesh.frag
+        (as pyrender would compile it for an untextured metallic-roughness material with
+        normals, and with vertex colors if ``colors``) with its inputs loaded from the G-buffer,
+        made for ``lights`` (the scene's directional, point and spot lights:
+        :func:`light_counts`), and the same without pyrender's lighting code, for the unlit
+        materials' pixels (``VTTS_UNLIT_ONLY``: llvmpipe runs both sides of a branch, so the
+        lighting cost every pixel its time). None when this pyrender's shader does not read as
+        expected.
 
         The light counts, uniforms in pyrender's shader, are constants here: its light loops
         then have fixed bounds that the compiler unrolls, and the loops for kinds the scene
@@ -339,13 +372,20 @@ class DeferredPass(ForwardPass):
         vertex = (SHADER_DIR / "resolve.vert").read_text(encoding="utf-8")
         vertex_array = GL.glGenVertexArrays(1)
         GL.glBindVertexArray(vertex_array)  # core profile: validation needs a vertex array
-        pid = shaders.compileProgram(
-            shaders.compileShader(vertex, GL.GL_VERTEX_SHADER),
-            shaders.compileShader(source, GL.GL_FRAGMENT_SHADER),
-        )
+        programs = []
+        for unlit_only in (False, True):
+            head, rest = source.split("\n", 1)  # after the #version line
+            defined = f"{head}\n#define VTTS_UNLIT_ONLY 1\n{rest}" if unlit_only else source
+            pid = int(
+                shaders.compileProgram(
+                    shaders.compileShader(vertex, GL.GL_VERTEX_SHADER),
+                    shaders.compileShader(defined, GL.GL_FRAGMENT_SHADER),
+                )
+            )
+            self._private.add(pid)
+            programs.append((pid, vertex_array))
         GL.glBindVertexArray(0)
-        self._resolve[key] = (int(pid), vertex_array)
-        self._private.add(int(pid))
+        self._resolve[key] = (programs[0], programs[1])
         return self._resolve[key]
 
     def _uniform_array(self, pid: int, name: str, values: list) -> None:
@@ -391,13 +431,15 @@ class DeferredPass(ForwardPass):
                 fmt, channels = GL.GL_R32F, GL.GL_RED
             elif G_TARGETS[i] == "g_texel" and _filters_in_8_bits():
                 fmt = GL.GL_RGBA8  # the texture's samples are 8-bit already: same values
+            elif G_TARGETS[i] == "g_material":
+                fmt, channels = GL.GL_R8, GL.GL_RED  # (index + 32 if textured) / 255: exact
             GL.glBindTexture(GL.GL_TEXTURE_2D, t)
             GL.glTexImage2D(GL.GL_TEXTURE_2D, 0, fmt, width, height, 0, channels, GL.GL_FLOAT, None)
             GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_MIN_FILTER, GL.GL_NEAREST)
             GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_MAG_FILTER, GL.GL_NEAREST)
         GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
         color, depth = (int(b) for b in GL.glGenRenderbuffers(2))
-        for rb, fmt in ((color, GL.GL_RGBA8), (depth, GL.GL_DEPTH_COMPONENT24)):
+        for rb, fmt in ((color, GL.GL_RGBA8), (depth, GL.GL_DEPTH24_STENCIL8)):
             GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, rb)
             GL.glRenderbufferStorage(GL.GL_RENDERBUFFER, fmt, width, height)
         GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, 0)
@@ -408,7 +450,7 @@ class DeferredPass(ForwardPass):
                 GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0 + i, GL.GL_TEXTURE_2D, t, 0
             )
         GL.glFramebufferRenderbuffer(
-            GL.GL_FRAMEBUFFER, GL.GL_DEPTH_ATTACHMENT, GL.GL_RENDERBUFFER, depth
+            GL.GL_FRAMEBUFFER, GL.GL_DEPTH_STENCIL_ATTACHMENT, GL.GL_RENDERBUFFER, depth
         )
         _check_complete("G-buffer", width, height)
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, color_fb)
@@ -416,7 +458,7 @@ class DeferredPass(ForwardPass):
             GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0, GL.GL_RENDERBUFFER, color
         )
         GL.glFramebufferRenderbuffer(
-            GL.GL_FRAMEBUFFER, GL.GL_DEPTH_ATTACHMENT, GL.GL_RENDERBUFFER, depth
+            GL.GL_FRAMEBUFFER, GL.GL_DEPTH_STENCIL_ATTACHMENT, GL.GL_RENDERBUFFER, depth
         )
         _check_complete("color", width, height)
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, 0)
@@ -424,6 +466,23 @@ class DeferredPass(ForwardPass):
         self._state.clear()
         self._targets = _Targets((width, height), gbuffer, color_fb, textures, [color, depth])
         return self._targets
+
+
+def _unlit(material) -> bool:
+    """Whether the resolve pass shows ``material``'s pixels unlit
+    (:data:`~vtts.render.scene.UNLIT`), without their position and normal."""
+    return bool(getattr(material, UNLIT, False))
+
+
+def _lit_targets(on: bool) -> None:
+    """Store the G-buffer's position and normal (:data:`LIT_TARGETS`) of what is drawn next
+    (``on``), or leave them as they are: an unlit material's pixels do not need them, and
+    writing the two float targets was a fifth of the G-buffer pass's rasterizer time. The
+    stencil marks what is drawn next as lit (1) or unlit (0), so that the resolve pass runs
+    pyrender's lighting on the lit pixels only."""
+    for index in LIT_TARGETS:
+        GL.glColorMaski(index, on, on, on, on)
+    GL.glStencilFunc(GL.GL_ALWAYS, int(on), 0xFF)
 
 
 def _filters_in_8_bits() -> bool:

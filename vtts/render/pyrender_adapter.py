@@ -309,6 +309,13 @@ def rewrite_vertex_buffer(primitive, vertex_data: np.ndarray | None) -> bool:
     return True
 
 
+def gpu_buffers(primitive) -> object:
+    """What stays the same object while ``primitive`` keeps the GL buffers it has on the GPU:
+    pyrender's list of them, which it replaces when it takes the primitive off the GPU (a
+    primitive put on again has new buffers, filled from its own arrays)."""
+    return getattr(primitive, "_buffers", None)
+
+
 def texture_id(texture) -> int:
     """The GL name of a pyrender ``Texture`` on the GPU."""
     return texture._texid

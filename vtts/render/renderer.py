@@ -24,7 +24,7 @@ from vtts.render import lod
 from vtts.render.camera import Camera, find_viewpoint, frame_bounds
 from vtts.render.color import TRANSPARENT, parse_background
 from vtts.render.lod import Collapses, present, progressive_mesh, simplified_faces
-from vtts.render.pyrender_adapter import offscreen, on_gpu, rewrite_vertex_buffer
+from vtts.render.pyrender_adapter import gpu_buffers, offscreen, on_gpu, rewrite_vertex_buffer
 from vtts.render.scene import AnimatedMesh, ModelInstance, SceneBuilder
 from vtts.vrml.transform import compose_transform
 
@@ -352,7 +352,16 @@ class FaceRenderer:
                     else:
                         normals = am.normals(positions)
                         vertex_data = am.vertex_data(positions, normals)
-                if not rewrite_vertex_buffer(am.node.mesh.primitives[0], vertex_data):
+                primitive = am.node.mesh.primitives[0]
+                uploaded = (primitive, gpu_buffers(primitive), vertex_data)
+                if am.uploaded is not None and all(
+                    a is b for a, b in zip(am.uploaded, uploaded, strict=True)
+                ):
+                    continue  # its GPU buffer holds this vertex buffer already
+                if rewrite_vertex_buffer(primitive, vertex_data):
+                    am.uploaded = uploaded
+                else:
+                    am.uploaded = None
                     self._builder.replace_mesh(am, positions, normals)
             for at, m in matrices:
                 if m is at.applied:  # the same array: the same pose (pyrender's set_pose is slow)

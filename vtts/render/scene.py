@@ -86,6 +86,9 @@ class AnimatedMesh:
     collapses: Collapses | None = None
     # the vertex positions of the frame on the GPU (FaceRenderer.apply), None: the template's
     applied: np.ndarray | None = None
+    # (primitive, its GPU buffers, vertex buffer) last written by FaceRenderer.apply: the same
+    # vertex buffer object again (a frame that leaves the mesh as it was) is not sent again
+    uploaded: tuple | None = None
 
     def normals(self, positions: np.ndarray) -> np.ndarray:
         """The vertex normals for ``positions`` (``(n, 3)`` or ``(T, n, 3)``, as
