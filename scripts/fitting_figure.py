@@ -2,8 +2,8 @@
 it rendered at ``--viewpoint photo`` in the photo's expression over grey (everything the model
 draws), the neutral head turned 30° each way, with joy, and speaking viseme 10 ("A:"); and
 the same of the first frame of :data:`CLIPS` (a development clip whose man wears glasses: the
-frame a part of the head, :mod:`vtts.fit.glasses`). The set-aside photos (:data:`SET_ASIDE`)
-are never drawn.
+frame a part of the head, :mod:`vtts.fit.glasses`). ``lp_s9`` and ``lp_s12``, set aside until
+stop 54, are development photos since stop 55.
 
 usage: .venv/bin/python scripts/fitting_figure.py [OUT.png]   (default docs/fitting.png)
 """
@@ -24,9 +24,9 @@ from vtts.fit import fit_photo, load_photo
 from vtts.render import FaceRenderer
 
 ROOT = Path(__file__).resolve().parents[1]
-#: The development photos (tests/data/photos); lp_s9 and lp_s12 are set aside.
-PHOTOS = ("akiyo_frame0.png", "astronaut.png", "lp_s1.jpg", "lp_s2.jpg", "lp_s42.jpg", "lp_s7.jpg")
-SET_ASIDE = ("lp_s9.jpg", "lp_s12.jpg")
+#: The development photos (tests/data/photos).
+PHOTOS = ("akiyo_frame0.png", "astronaut.png", "lp_s1.jpg", "lp_s2.jpg", "lp_s42.jpg", "lp_s7.jpg",
+          "lp_s9.jpg", "lp_s12.jpg")  # fmt: skip
 #: Development clips (tests/data/video) whose first frame gets a row: glasses.
 CLIPS = ("lp_d13",)
 CELL = 200

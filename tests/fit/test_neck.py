@@ -194,8 +194,22 @@ def test_a_neck_that_shows_skin_to_its_bottom_is_not_cut():
     rows = [SKIN] * 12 + [np.array([235.0, 200, 40])] * 2 + [SKIN] * 16
     photo, neck, face = _picture(rows)
     assert collar_row(photo, neck, face) is None
-    # a neck drawn over no skin at all is left alone (nothing tells where it ends)
+    # a neck of rows too short to tell skin from clothes is left alone
+    photo, neck, face = _picture([SKIN] * 2)
+    assert collar_row(photo, neck, face) is None
+
+
+def test_a_neck_covered_from_under_the_chin_ends_at_its_top():
+    """A high collar (or a scarf) right under the chin: the neck shows no skin at all, and
+    ends where it first shows (before stop 55 it was left whole, the collar painted on it)."""
+    rows = [np.array([235.0, 235, 230])] * 10 + [np.array([40.0, 30, 35])] * 20
+    photo, neck, face = _picture(rows)
+    assert collar_row(photo, neck, face) == 20
     photo, neck, face = _picture([np.array([30.0, 30, 90])] * 30)
+    assert collar_row(photo, neck, face) == 20
+    # skin in no row on half of the neck, but on a third of each row: left whole
+    photo, neck, face = _picture([np.array([30.0, 30, 90])] * 30)
+    photo[20:50, 10:17] = SKIN
     assert collar_row(photo, neck, face) is None
 
 

@@ -579,7 +579,7 @@ def test_the_skin_is_lit_as_brightly_as_the_photo_asks_per_channel():
     n = 1000
     texels = SkinTexels(rows=np.zeros(n), cols=np.zeros(n), points=np.zeros((n, 3)),
                         normals=np.zeros((n, 3)), photo=np.ones(n, bool), skin=np.ones(n, bool),
-                        rim=np.zeros(n, bool))  # fmt: skip
+                        rim=np.zeros(n, bool), face=np.zeros(n, bool))  # fmt: skip
     target = np.full((1, n, 3), 0.25, np.float32)
     target[0, :, 0] = np.linspace(0.0, 0.9, n)  # red: up to 1.8 times the shading's 0.5
     xy = np.c_[np.arange(n) + 0.5, np.full(n, 0.5)]
@@ -591,3 +591,62 @@ def test_the_skin_is_lit_as_brightly_as_the_photo_asks_per_channel():
     assert (skin_exposure(proj, target * 0.5, quantile=0.9, limit=2.0) == 1.0).all()
     proj.weight[:] = 0.1  # untrusted texels ask for nothing
     assert (skin_exposure(proj, target, quantile=0.9, limit=2.0) == 1.0).all()
+
+
+def _oval_landmarks(centre=(50.0, 50.0), radius=30.0, eyes=40.0) -> np.ndarray:
+    """``(468, 2)`` landmarks: the face outline a circle, the eyes ``eyes`` pixels apart."""
+    from vtts.fit.landmarks import FACE_OVAL
+
+    pts = np.zeros((468, 2))
+    angles = np.linspace(0, 2 * np.pi, len(FACE_OVAL), endpoint=False)
+    pts[list(FACE_OVAL)] = np.c_[np.sin(angles), -np.cos(angles)] * radius + centre
+    pts[[33, 133]] = (centre[0] - eyes / 2, centre[1])
+    pts[[362, 263]] = (centre[0] + eyes / 2, centre[1])
+    return pts
+
+
+def test_beyond_the_face_is_the_outside_of_its_outline_and_a_band_within():
+    from vtts.fit.expression import OUTLINE_BAND, beyond_face
+
+    b = beyond_face((100, 100), _oval_landmarks())
+    assert b.shape == (100, 100) and b.dtype == np.float32
+    assert b[50, 50] == 0 and b[2, 2] == 1 and b[50, 95] == 1
+    band = OUTLINE_BAND * 40  # 8 pixels
+    inner = b[50, 21 : 21 + round(band) + 2]  # from the outline (x = 20) inwards
+    assert 0 < inner[1] < 1 and inner[-1] == 0 and np.all(np.diff(inner) <= 0)
+    assert b[50, 20] > 0.5 and b[50, 79] > 0.5  # the band on both sides
+    # with the photo: within the band only where it is darker than the face (a sideburn)
+    image = np.full((100, 100, 3), 200, np.uint8)
+    image[:, :25] = 40  # a dark strip over the left edge
+    b = beyond_face((100, 100), _oval_landmarks(), image)
+    assert b[50, 20] > 0.5 and b[50, 79] == 0  # just inside the outline: dark, lit
+    assert b[50, 95] == 1 and b[50, 50] == 0  # outside whatever its colour; the middle
+
+
+def test_a_grazing_face_texel_beyond_the_face_outline_takes_the_photo():
+    """At a grazing view (cosine 0.1) a face texel inside the photo's face outline is left to
+    the mirror (weight 0), one beyond it takes the photo's pixel, as the hair shell's does."""
+    from vtts.fit.texture import RIM_GRAZING, SkinTexels, grazing_weight, project_skin
+    from vtts.render.camera import Camera, look_at
+
+    cam = Camera(100.0, 100.0, 50.0, 50.0, look_at(np.array([0.0, 0, 10]), np.zeros(3)))
+    points = np.array([[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])  # left and right of the centre
+    normals = []
+    for p in points:
+        ray = (cam.pose[:3, 3] - p) / np.linalg.norm(cam.pose[:3, 3] - p)
+        side = np.cross(ray, [0.0, 1.0, 0.0])
+        side /= np.linalg.norm(side)
+        normals.append(0.1 * ray + np.sqrt(1 - 0.01) * side)  # cosine 0.1 with the view
+    n = 2
+    texels = SkinTexels(rows=np.zeros(n), cols=np.arange(n), points=points,
+                        normals=np.array(normals), photo=np.ones(n, bool),
+                        skin=np.ones(n, bool), rim=np.zeros(n, bool),
+                        face=np.ones(n, bool))  # fmt: skip
+    depth = np.full((100, 100), np.inf)
+    gain, offset = np.full((100, 100, 3), 0.5), np.zeros((100, 100, 3))
+    beyond = np.zeros((100, 100), np.float32)
+    beyond[:, 50:] = 1.0  # the right half shows no face
+    assert project_skin(texels, cam, (100, 100), depth, gain, offset).index.size == 0
+    proj = project_skin(texels, cam, (100, 100), depth, gain, offset, beyond=beyond)
+    assert list(proj.index) == [1]
+    assert proj.weight[0] == pytest.approx(float(grazing_weight(np.array(0.1), RIM_GRAZING)))

@@ -20,10 +20,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from PIL import Image, ImageDraw
+from scipy import ndimage
 
 from vtts.face import FaceModel
 from vtts.fap import fap
-from vtts.fit.landmarks import LEFT_EYE, LIPS_INNER, RIGHT_EYE, eye_distance
+from vtts.fit.landmarks import FACE_OVAL, LEFT_EYE, LIPS_INNER, RIGHT_EYE, eye_distance
 
 #: The FAPs a photo's expression is fitted with, and each one's prior width (in its FAPU
 #: units): the jaw, the lips' middles and corners, the upper lids, the brows and the cheeks a smile
@@ -66,6 +67,12 @@ REST_WIDTH, SMILE_WIDTH = 0.85, 1.0
 #: How far (pixels, as a share of the eye distance) beyond the photo's inner lip and eye
 #: contours the skin takes nothing from the photo.
 MARGIN = 0.01
+#: How far inside the photo's face outline (a share of the eye distance) what the photo shows
+#: still counts as beyond the face, fading to nothing (:func:`beyond_face`).
+OUTLINE_BAND = 0.2
+#: Inside that band, a pixel counts as not the face's lit skin from this share of the face's
+#: median luminance down (fully at the first, not at all at the second).
+DARKER = (0.5, 0.7)
 #: Lips parted by less than this share of the eye distance (the inner lips' middles, landmarks
 #: 13 and 14) show a dark seam, not the teeth: the head at the photo's view draws them shut
 #: (:func:`close_lips`), and the seam is painted on the lips (:func:`skin_trust`).
@@ -195,3 +202,28 @@ def skin_trust(size: tuple[int, int], landmarks: np.ndarray, mouth: bool = True)
         draw.polygon(poly, fill=0, outline=0, width=grow)
         draw.line([*poly, poly[0]], fill=0, width=2 * grow + 1)
     return np.asarray(im, np.float32) / 255.0
+
+
+def beyond_face(size: tuple[int, int], landmarks: np.ndarray,
+                image: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
+    """``(H, W) float32`` for a photo of ``size`` (W, H): how far each pixel shows something
+    else than the face's lit skin near its outline — 1 outside the photo's face outline (the
+    landmarks' :data:`~vtts.fit.landmarks.FACE_OVAL`, ``landmarks (468, ≥2)`` pixels: hair, an
+    ear, the background), falling to 0 over :data:`OUTLINE_BAND` of the eye distance inside it
+    (the outline's landmarks lie on the skin's last pixels), and there, with ``image (H, W, 3)``
+    (uint8), only where the pixel is darker than the face (:data:`DARKER`: a sideburn, hair
+    over the temple, the shadowed side of the face). Whatever of the head's face is drawn there
+    takes what the photo shows, not the mirrored skin (:func:`vtts.fit.texture.project_skin`)."""
+    w, h = size
+    pts = np.asarray(landmarks, np.float64)[:, :2]
+    im = Image.new("L", (w, h), 255)
+    ImageDraw.Draw(im).polygon([tuple(p) for p in pts[list(FACE_OVAL)] - 0.5], fill=0)
+    inside = np.asarray(im) == 0
+    depth = ndimage.distance_transform_edt(inside) / max(OUTLINE_BAND * eye_distance(pts), 1.0)
+    out = np.clip(1.0 - depth, 0.0, 1.0)
+    if image is not None and inside.any():
+        lum = np.asarray(image, np.float64)[..., :3] @ np.array([0.299, 0.587, 0.114])
+        share = lum / max(float(np.median(lum[inside])), 1.0)
+        dark, lit = DARKER
+        out = np.where(inside, out * np.clip((lit - share) / (lit - dark), 0.0, 1.0), out)
+    return out.astype(np.float32)

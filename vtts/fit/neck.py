@@ -156,6 +156,10 @@ SKIN_SHARE = 0.5
 #: bow tie), as a share of the neck's height in the frame; at least :data:`MIN_COLLAR_ROWS`.
 COLLAR_SHARE = 0.1
 MIN_COLLAR_ROWS = 3
+#: A neck with skin on fewer than this share of its pixels (and no run of rows that show it) is
+#: covered from under the chin; one with more, but in no row on half of it (a neck in shadow
+#: in a grey photo), is left whole.
+COVERED_SHARE = 0.1
 #: Points in each ring of the generic heads' neck.
 RING_POINTS = 32
 
@@ -198,7 +202,9 @@ def collar_row(photo: np.ndarray, neck: np.ndarray, face: np.ndarray) -> int | N
     :data:`SKIN_SHARE` of its neck pixels are skin; from the first run of such rows down (as
     many rows as :data:`COLLAR_SHARE` of the neck's height, at least :data:`MIN_COLLAR_ROWS`),
     the neck ends at the first run of rows as long that are not (rows of fewer than 3 neck
-    pixels count as neither)."""
+    pixels count as neither). A neck that shows no such run of skin at all, and skin on fewer
+    than :data:`COVERED_SHARE` of its pixels, is covered from under the chin (a high collar, a
+    scarf): it ends at the first run of rows that are not skin."""
     skin = skin_chroma(photo[face])
     if len(skin) < 10 or not neck.any():
         return None
@@ -220,9 +226,10 @@ def collar_row(photo: np.ndarray, neck: np.ndarray, face: np.ndarray) -> int | N
     if len(share) < run:
         return None
     starts = np.flatnonzero(windows(skin_row, run).all(axis=1))  # the neck seen for a while
-    if starts.size == 0:
-        return None
     ends = np.flatnonzero(windows(bare, run).all(axis=1))
+    if starts.size == 0:  # no skin under the chin: covered from the top, or nothing to tell
+        covered = is_skin.mean() < COVERED_SHARE and ends.size
+        return top + int(ends[0]) if covered else None
     ends = ends[ends > starts[0]]
     return top + int(ends[0]) if ends.size else None
 

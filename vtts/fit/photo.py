@@ -30,6 +30,7 @@ from vtts.face.atlas import EAR_TILE
 from vtts.face.source_photo import record_photo
 from vtts.fit.expression import (
     SHUT_LIPS,
+    beyond_face,
     close_lips,
     expression_basis,
     for_photo,
@@ -712,7 +713,9 @@ def _texture(g: GenericHead, scene: Scene, tables, shape: ShapeFit, image: np.nd
         names = [*PAINTED_PARTS, *(n for n in photo_parts if n not in PAINTED_PARTS)]
         parts = {n: model.scene.node(n).expand() for n in names if n in model.scene.defs}
         texels = skin_texels(parts, size, photo_parts)
-        proj = project_skin(texels, shape.camera, (w, h), depth, gain, offset, trust, skin)
+        beyond = beyond_face((w, h), face.landmarks, image)
+        proj = project_skin(texels, shape.camera, (w, h), depth, gain, offset, trust, skin,
+                            beyond)  # fmt: skip
         if photo_lit:
             # the skin lit as brightly as the photo needs (the shading scales with it: the
             # Material's diffuseColor multiplies the texture), the texture divided by it

@@ -69,6 +69,10 @@ GRAZING = (0.2, 0.5)
 #: :data:`RIM_GRAZING`.
 RIM_PARTS = ("HAIR", "L_EAR", "R_EAR")
 RIM_GRAZING = (0.0, 0.02)
+#: The face's part: where the photo shows no face (outside its face outline, hair over the
+#: temples, a sideburn) a face texel the photo sees is painted up to the edge as well, with
+#: what the photo shows there, not the mirrored skin of the other side.
+FACE_PART = "FACE"
 #: How far behind the surface the photo's pixel shows may be for the texel to be seen (model
 #: units; the face is about 1.2 wide).
 DEPTH_TOLERANCE = 0.01
@@ -101,6 +105,7 @@ class SkinTexels:
     skin        ``(N,)`` bool: the texel is of a skin part (:data:`SKIN_PARTS`)
     rim         ``(N,)`` bool: the texel is of a part whose outline the photo paints up to its
                 edge (:data:`RIM_PARTS`)
+    face        ``(N,)`` bool: the texel is of the face (:data:`FACE_PART`)
     """
 
     rows: np.ndarray
@@ -110,6 +115,7 @@ class SkinTexels:
     photo: np.ndarray
     skin: np.ndarray
     rim: np.ndarray
+    face: np.ndarray
 
 
 def skin_texels(
@@ -118,7 +124,7 @@ def skin_texels(
     """Rasterize the painted ``parts`` (IndexedFaceSet nodes by DEF name, already fitted) in
     texture space: texel centres inside a triangle's texture coordinates; those of
     ``photo_parts`` are the photo's to paint."""
-    rows, cols, pts, nrm, photo, skin, rim = [], [], [], [], [], [], []
+    rows, cols, pts, nrm, photo, skin, rim, face = [], [], [], [], [], [], [], []
     for name in parts:
         tm = triangulate(parts[name])
         uv = tm.texcoords
@@ -163,7 +169,9 @@ def skin_texels(
         photo.append(np.full(len(p), name in photo_parts))
         skin.append(np.full(len(p), name in SKIN_PARTS))
         rim.append(np.full(len(p), name in RIM_PARTS))
-    return SkinTexels(*(np.concatenate(a) for a in (rows, cols, pts, nrm, photo, skin, rim)))
+        face.append(np.full(len(p), name == FACE_PART))
+    parts_of = (rows, cols, pts, nrm, photo, skin, rim, face)
+    return SkinTexels(*(np.concatenate(a) for a in parts_of))
 
 
 def depth_map(numbers: np.ndarray, sets, camera: Camera, world: np.ndarray) -> np.ndarray:
@@ -348,6 +356,7 @@ def project_skin(
     offset: np.ndarray,
     trust: np.ndarray | None = None,
     skin_trust: np.ndarray | None = None,
+    beyond: np.ndarray | None = None,
 ) -> Projection:
     """Which skin texels a photo of ``size`` (W, H) taken by ``camera`` (in the model's frame)
     sees: in the picture, facing the camera, and what the pixel shows (``depth``: the distance
@@ -356,7 +365,10 @@ def project_skin(
     optional) weighs what each pixel may give the texture: the person's probability, so that
     the background never becomes hair or neck; ``skin_trust (H, W)`` the same for the skin
     parts' texels alone: 0 on the photo's open mouth and eyes
-    (:func:`vtts.fit.expression.skin_trust`)."""
+    (:func:`vtts.fit.expression.skin_trust`). ``beyond (H, W)`` (0–1, optional) is 1 where
+    the photo shows no face (:func:`vtts.fit.expression.beyond_face`): a face texel seen there
+    trusts the photo up to the outline (:data:`RIM_GRAZING`), as the hair does — at a grazing
+    view the mirrored texel of the other side would draw skin where the photo shows hair."""
     w, h = size
     if not texels.photo.all():
         texels = _select(texels, texels.photo)
@@ -376,7 +388,10 @@ def project_skin(
     taps = Taps.at((h, w), xy[idx])
     a = taps(gain)
     cos = cosine[idx]
-    graze = np.where(texels.rim[idx], grazing_weight(cos, RIM_GRAZING), grazing_weight(cos))
+    rim = texels.rim[idx].astype(np.float64)
+    if beyond is not None:
+        rim = np.where(texels.face[idx], taps(beyond[..., None])[:, 0], rim)
+    graze = rim * grazing_weight(cos, RIM_GRAZING) + (1 - rim) * grazing_weight(cos)
     weight = np.where(a.min(axis=1) > 0.02, graze, 0.0)
     if trust is not None:
         weight = weight * taps(trust[..., None])[:, 0]
