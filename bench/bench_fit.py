@@ -21,8 +21,8 @@ without a value.
 
 Portraits (issue 41): the development photos and the first frames of the development clips,
 and apart the set-aside ones (:data:`SET_ASIDE_PHOTOS`, :data:`SET_ASIDE_CLIPS`, chosen before
-any was looked at; the photos ``lp_s9`` and ``lp_s12`` were set aside until stop 54 and are
-development photos since stop 55, 2026-11-29): each fitted, written, loaded back and rendered
+any was looked at; the photos ``lp_s9`` and ``lp_s12`` were set aside until stop 53 and are
+development photos since stop 54, 2026-11-29): each fitted, written, loaded back and rendered
 at its ``photo`` Viewpoint in the photo's expression; the PSNR over every pixel the model draws
 (target ≥ 28 dB) and over the face (≥ 30 dB), per photo and as median and worst of each part.
 
@@ -63,8 +63,8 @@ PAIRS = (("lotta", "cybatt"), ("cybatt", "lotta"))
 HELD_OUT = (("akiyo", "akiyo_cif.mp4", (100, 250)), ("carphone", "carphone_qcif.mp4", (0, 60)))
 #: Portraits (issue 41): the development photos and clips (whose first frame is fitted), and the
 #: set-aside ones, chosen before any was looked at, never looked at while tuning, reported apart.
-#: ``lp_s9`` and ``lp_s12`` were set aside until stop 54 (their untuned figures recorded at stops
-#: 51-54) and are development photos since stop 55: the issue names all of its photos as the
+#: ``lp_s9`` and ``lp_s12`` were set aside until stop 53 (their untuned figures recorded at stops
+#: 51-54) and are development photos since stop 54: the issue names all of its photos as the
 #: development set.
 DEV_PHOTOS = ("akiyo_frame0.png", "astronaut.png", "lp_s1.jpg", "lp_s2.jpg", "lp_s42.jpg",
               "lp_s7.jpg", "lp_s9.jpg", "lp_s12.jpg")  # fmt: skip

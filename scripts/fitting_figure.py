@@ -3,7 +3,7 @@ it rendered at ``--viewpoint photo`` in the photo's expression over grey (everyt
 draws), the neutral head turned 30° each way, with joy, and speaking viseme 10 ("A:"); and
 the same of the first frame of :data:`CLIPS` (a development clip whose man wears glasses: the
 frame a part of the head, :mod:`vtts.fit.glasses`). ``lp_s9`` and ``lp_s12``, set aside until
-stop 54, are development photos since stop 55.
+stop 54, are development photos since stop 54.
 
 usage: .venv/bin/python scripts/fitting_figure.py [OUT.png]   (default docs/fitting.png)
 """

@@ -201,7 +201,7 @@ def test_a_neck_that_shows_skin_to_its_bottom_is_not_cut():
 
 def test_a_neck_covered_from_under_the_chin_ends_at_its_top():
     """A high collar (or a scarf) right under the chin: the neck shows no skin at all, and
-    ends where it first shows (before stop 55 it was left whole, the collar painted on it)."""
+    ends where it first shows (before stop 54 it was left whole, the collar painted on it)."""
     rows = [np.array([235.0, 235, 230])] * 10 + [np.array([40.0, 30, 35])] * 20
     photo, neck, face = _picture(rows)
     assert collar_row(photo, neck, face) == 20
