@@ -322,7 +322,7 @@ def _project(estimator, vertices: np.ndarray, weights: np.ndarray):
     params, translation = estimator.params, estimator.translation
     uniq, inverse = np.unique(vertices, return_inverse=True)
     inverse = inverse.reshape(vertices.shape)
-    world = geometry.positions(params, translation)[uniq]
+    world = geometry.positions_of(params, translation, uniq)
     motion = geometry.jacobian(params, translation, uniq)  # (U, 3, K)
     p = np.einsum("nm,nma->na", weights, world[inverse])
     dp = np.einsum("nm,nmak->nak", weights, motion[inverse])
@@ -331,8 +331,8 @@ def _project(estimator, vertices: np.ndarray, weights: np.ndarray):
 
 def _depth(estimator, vertices: np.ndarray, weights: np.ndarray) -> np.ndarray:
     """``(n,)`` the points' distance from the camera along its axis (model units)."""
-    world = estimator.geometry.positions(estimator.params, estimator.translation)
-    p = np.einsum("nm,nma->na", weights, world[vertices])
+    world = estimator.geometry.positions_of(estimator.params, estimator.translation, vertices)
+    p = np.einsum("nm,nma->na", weights, world)
     pose = np.asarray(estimator.camera.pose)
     return np.abs((p - pose[:3, 3]) @ pose[:3, 2])
 

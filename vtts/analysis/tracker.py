@@ -239,6 +239,9 @@ class Tracker(Estimator):
         self._reuse = False
         # whether the last frame's solves had to render (its head outran the samples)
         self._outrun = False
+        # the last samples projected, the unknowns' values they were projected at, and where
+        # they lie then (:meth:`_project`)
+        self._projected: tuple[_Samples, bytes, tuple[np.ndarray, np.ndarray]] | None = None
 
     def forget_motion(self) -> None:
         super().forget_motion()
@@ -562,13 +565,18 @@ class Tracker(Estimator):
     def _project(self, s: _Samples) -> tuple[np.ndarray, np.ndarray]:
         """Where the samples lie in their window at the current estimate (moved linearly by the
         unknowns' change since the rendering): X and Y ``(N,)`` (pixel centres at +0.5)."""
+        values = self._values()
+        kept = self._projected
+        if kept is not None and kept[0] is s and kept[1] == values.tobytes():
+            return kept[2]  # the stages' check of the shift, then the solve: the same estimate
         cam = self.camera
         y0, x0 = s.box[0].start, s.box[1].start
-        since = (self._values() - s.at).astype(np.float32)
+        since = (values - s.at).astype(np.float32)
         p = s.point + s.motion @ since  # (N, 3)
         depth = -p[:, 2]
         u = (cam.cx - x0) + np.float32(cam.fx) * p[:, 0] / depth
         v = (cam.cy - y0) - np.float32(cam.fy) * p[:, 1] / depth
+        self._projected = (s, values.tobytes(), (u, v))
         return u, v
 
     def _psnr(self, frame: np.ndarray, s: _Samples) -> float:
