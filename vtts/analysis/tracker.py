@@ -604,14 +604,31 @@ class _Model:
     smoothed with ``sigma``."""
 
     def __init__(self, s: _Samples, sigma: float) -> None:
-        grads = _with_gradients(smooth(s.raw, sigma))
-        at = grads[s.rows, s.cols]
-        self.color, self.gx, self.gy = at[:, 0:3], at[:, 3:6], at[:, 6:9]
+        smoothed = smooth(s.raw, sigma)
+        self.color = smoothed[s.rows, s.cols]
+        self.gx, self.gy = _gradients_at(smoothed, s.rows, s.cols)
+        other = next(iter(s.models.values()), None)  # the same samples' motion, another sigma
+        if other is not None:
+            self.speed, self.support = other.speed, other.support
+            return
         #: the most (pixels) a unit of each unknown moves any sample ``(K,)``
         speed = np.hypot(s.du, s.dv)
         self.speed = speed.max(axis=0, initial=0.0)
         #: how many samples each unknown moves by more than a fifth of its most ``(K,)``
         self.support = (speed > 0.2 * self.speed).sum(axis=0)
+
+
+def _gradients_at(image: np.ndarray, rows: np.ndarray, cols: np.ndarray):
+    """The central differences ``(d/dX, d/dY)``, each ``(N, C)``, of ``image`` ``(H, W, C)``
+    at the pixels ``rows``, ``cols`` ``(N,)``: one-sided at the border, the same numbers as
+    :func:`_with_gradients` (``np.gradient``) there, without differencing the whole image."""
+    h, w = image.shape[:2]
+    up, down = np.maximum(rows - 1, 0), np.minimum(rows + 1, h - 1)
+    left, right = np.maximum(cols - 1, 0), np.minimum(cols + 1, w - 1)
+    # np.gradient divides by 2 inside and by 1 at the border: exact, as these products are
+    sy = (1.0 / (down - up)).astype(image.dtype)[:, None]
+    sx = (1.0 / (right - left)).astype(image.dtype)[:, None]
+    return (image[rows, right] - image[rows, left]) * sx, (image[down, cols] - image[up, cols]) * sy
 
 
 def _with_gradients(image: np.ndarray) -> np.ndarray:
