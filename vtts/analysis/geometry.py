@@ -376,7 +376,8 @@ class HeadGeometry:
         # by shape, each shape's vertices one contiguous block (a view, not a gather)
         order = np.argsort(vertices, kind="stable")
         ordered = vertices[order]
-        out = np.zeros((len(vertices), 3, k_count))
+        # unknown-major while it is filled (each unknown's rows contiguous), (n, 3, K) at the end
+        out = np.zeros((k_count, len(vertices), 3))
         shape_ids = self.shape_of_vertex[ordered]
         params = np.asarray(params, np.float64)
         # Transform chains: the derivative of each shape's world matrix (kept for the last pose:
@@ -392,11 +393,11 @@ class HeadGeometry:
         d_mats: dict[int, list[np.ndarray | None]] = self._derivatives[1]
         for j, u in enumerate(self.unknowns):
             if isinstance(u, str):
-                out[:, "xyz".index(u[1]), j] = 1.0
+                out[j, :, "xyz".index(u[1])] = 1.0
         starts = np.flatnonzero(np.diff(shape_ids, prepend=-1))
         for start, stop in zip(starts, [*starts[1:], len(ordered)], strict=True):
             si = int(shape_ids[start])
-            block = out[start:stop]
+            block = out[:, start:stop]
             s = self.shapes[si]
             lv = ordered[start:stop] - s.first_vertex
             pts = self._local_of(si, params, lv)
@@ -404,15 +405,16 @@ class HeadGeometry:
             for j, dm in d_mats.items():
                 d = dm[si]
                 if d is not None:
-                    block[:, :, j] += pts @ d[:3, :3].T + d[:3, 3]
+                    block[j] += pts @ d[:3, :3].T + d[:3, 3]
             if s.name is None or s.name not in self.engine.meshes:
                 continue
             slopes = self._slopes(s.name, params, s.mesh.coord_index[lv])
             for j, sl in slopes.items():
-                block[:, :, j] += sl @ rot.T
+                block[j] += sl @ rot.T
+        out = out.transpose(1, 2, 0)
         if np.all(order[:-1] < order[1:]):
-            return out  # asked in order (np.unique's)
-        result = np.empty_like(out)
+            return np.ascontiguousarray(out)  # asked in order (np.unique's)
+        result = np.empty(out.shape)
         result[order] = out
         return result
 
