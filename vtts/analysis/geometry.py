@@ -30,6 +30,9 @@ from vtts.vrml.transform import compose_transform
 #: 1e-5 rad, so this is exact to far below the estimator's resolution.
 _H = 1.0
 
+#: The fields of a Transform that place its children.
+_TRANSFORM_FIELDS = ("translation", "rotation", "scale", "scaleOrientation", "center")
+
 #: How many point sets' gathered table columns :meth:`HeadGeometry._slopes` keeps (the
 #: landmarks', the eyes', a rendering's vertices) before it starts again.
 GATHERED_SETS = 8
@@ -84,6 +87,8 @@ class HeadGeometry:
         self._pose: tuple[bytes, Pose] | None = None
         self._columns: dict[tuple[str, int], np.ndarray] = {}
         self._driven_by: dict[int, tuple[set[str], list[bool]]] = {}
+        #: each posed Transform's own field values, by id of its node
+        self._own_fields: dict[int, dict[str, object]] = {}
         #: table columns gathered at a set of points, by (mesh DEF name, the points' bytes)
         self._gathered: dict[tuple[str, bytes], dict[int, np.ndarray]] = {}
         #: mesh DEF name -> (unknown's column, parameter index, its table columns) per FAP
@@ -128,12 +133,15 @@ class HeadGeometry:
         fields = posed.get(node.name)
         if not fields:
             return self._static(node)
+        own = self._own_fields.get(id(node))
+        if own is None:  # the scene's own values do not change while a geometry poses it
+            own = self._own_fields[id(node)] = {f: node[f] for f in _TRANSFORM_FIELDS}
         return compose_transform(
-            fields.get("translation", node["translation"]),
-            fields.get("rotation", node["rotation"]),
-            fields.get("scale", node["scale"]),
-            node["scaleOrientation"],
-            node["center"],
+            fields.get("translation", own["translation"]),
+            fields.get("rotation", own["rotation"]),
+            fields.get("scale", own["scale"]),
+            own["scaleOrientation"],
+            own["center"],
         )
 
     def _top(self, translation: np.ndarray) -> np.ndarray:
