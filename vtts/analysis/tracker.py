@@ -448,7 +448,7 @@ class Tracker(Estimator):
             cam = replace(self.camera, cx=self.camera.cx - x0, cy=self.camera.cy - y0)
             image, numbers = self._synthesize(cam, (ww, wh), triangles=True)
             self.renderings += 1
-            ids = np.where(numbers >= 0, self._faces[numbers], -1)
+            ids = self._face_indices(numbers)
             covered = ids >= 0
             whole = (ww, wh) == (w, h)
             edge = covered[[0, -1]].any() or covered[:, [0, -1]].any()
