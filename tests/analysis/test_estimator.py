@@ -155,6 +155,13 @@ def test_a_pose_posed_in_parts_gives_the_whole_poses_numbers(cybatt):
     assert any(third[name] is not first[name] for name in first)
 
 
+def test_the_renderers_triangle_numbers_become_face_indices_or_none(estimator):
+    _, numbers = estimator._synthesize(estimator.camera, estimator.size, triangles=True)
+    assert (numbers == -1).any() and (numbers >= 0).any()
+    expected = np.where(numbers >= 0, estimator._faces[numbers], -1)
+    assert np.array_equal(estimator._face_indices(numbers), expected)
+
+
 def test_subsampling_8_bit_images_sums_them_as_floats_would():
     rng = np.random.default_rng(3)
     for factor, shape in ((2, (37, 51, 3)), (3, (64, 47, 3)), (4, (36, 36, 3))):
