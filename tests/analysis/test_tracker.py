@@ -557,9 +557,9 @@ def test_the_accurate_mode_smooths_the_frame_in_a_worker_thread(carphone_head, m
     made_in = []
     smoothed = tracker_module._smoothed
 
-    def spy(frame, sigma, box=None):
+    def spy(frame, sigma):
         made_in.append(threading.current_thread() is threading.main_thread())
-        return smoothed(frame, sigma, box)
+        return smoothed(frame, sigma)
 
     model, camera = carphone_head
     frames = _carphone(3)

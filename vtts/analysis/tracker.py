@@ -63,7 +63,7 @@ from vtts.analysis.estimator import (  # noqa: F401  (LIT_REFINE_STEPS: the trac
 )
 from vtts.analysis.landmark_term import unknown_values
 from vtts.analysis.result import FrameEstimate
-from vtts.analysis.solve import SMOOTH_REACH, least_squares, smooth
+from vtts.analysis.solve import least_squares, smooth
 from vtts.analysis.unknowns import EYELIDS
 from vtts.errors import VttsError
 from vtts.threads import one_blas_thread, result
@@ -101,59 +101,11 @@ def _smoothing() -> ThreadPoolExecutor:
     return _SMOOTHING[1]
 
 
-def _smoothed(
-    frame: np.ndarray, sigma: float, box: tuple[int, int, int, int] | None = None
-) -> tuple[np.ndarray, _SmoothedFrame]:
+def _smoothed(frame: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray]:
     """The camera ``frame`` ``(H, W, 3) uint8`` as ``float32`` and that smoothed by
-    :func:`~vtts.analysis.solve.smooth` with ``sigma`` (pixels), first within ``box``
-    (:class:`_SmoothedFrame`)."""
+    :func:`~vtts.analysis.solve.smooth` with ``sigma`` (pixels)."""
     full = frame.astype(np.float32)
-    return full, _SmoothedFrame(full, sigma, box)
-
-
-#: Pixels on each side of the window of the last rendering near the face that the accurate
-#: mode smooths of the next frame beforehand (:class:`_SmoothedFrame`); a solve that reads
-#: beyond has more smoothed then.
-SMOOTH_SLACK = 16
-
-
-class _SmoothedFrame:
-    """The camera frame ``full`` ``(H, W, 3) float32`` smoothed by
-    :func:`~vtts.analysis.solve.smooth` with ``sigma``, where the finest level's solves read
-    it: ``image[rows, cols]`` (two slices) gives the numbers of the whole frame smoothed, for
-    the smoothing of a region around them. The filter reads :attr:`reach` pixels each way, so
-    a region smoothed with that much of the frame around it (or up to the frame's border) holds
-    the whole frame's numbers. ``box`` ``(y0, y1, x0, x1)``: the region smoothed first (None:
-    the whole frame); one read beyond the region smooths the box around both."""
-
-    def __init__(self, full: np.ndarray, sigma: float,
-                 box: tuple[int, int, int, int] | None = None) -> None:  # fmt: skip
-        self.full, self.sigma = full, sigma
-        self.shape = full.shape
-        #: pixels of the frame each smoothed pixel depends on, each way (and one more)
-        self.reach = int(SMOOTH_REACH * sigma + 0.5) + 1
-        h, w = full.shape[:2]
-        self._smooth(*(box or (0, h, 0, w)))
-
-    def _smooth(self, y0: int, y1: int, x0: int, x1: int) -> None:
-        h, w = self.shape[:2]
-        m = self.reach
-        cy0, cy1, cx0, cx1 = max(0, y0 - m), min(h, y1 + m), max(0, x0 - m), min(w, x1 + m)
-        pixels = smooth(self.full[cy0:cy1, cx0:cx1], self.sigma)
-        self.region = (y0, y1, x0, x1)
-        self._pixels = pixels[y0 - cy0 : y1 - cy0, x0 - cx0 : x1 - cx0]
-
-    def __getitem__(self, key: tuple[slice, slice]) -> np.ndarray:
-        rows, cols = key
-        h, w = self.shape[:2]
-        y0, y1, _ = rows.indices(h)
-        x0, x1, _ = cols.indices(w)
-        y1, x1 = max(y0, y1), max(x0, x1)
-        ry0, ry1, rx0, rx1 = self.region
-        if not (ry0 <= y0 and y1 <= ry1 and rx0 <= x0 and x1 <= rx1):
-            self._smooth(min(ry0, y0), max(ry1, y1), min(rx0, x0), max(rx1, x1))
-            ry0, ry1, rx0, rx1 = self.region
-        return self._pixels[y0 - ry0 : y1 - ry0, x0 - rx0 : x1 - rx0]
+    return full, smooth(full, sigma)
 
 
 #: Wide smoothing first (motion of a few pixels), then the accurate estimator's own.
@@ -314,18 +266,11 @@ class Tracker(Estimator):
         w, h = self.size
         if frame.shape != (h, w, 3):
             raise VttsError(f"frame {index} is {frame.shape}, expected ({h}, {w}, 3)")
-        # the accurate mode's finest level reads the frame smoothed around the face: a Gaussian
-        # filter that does not depend on the estimate, made in a worker thread while this thread
-        # runs the stages (SciPy's filters release the GIL), of the window the last rendering
-        # near the face drew and SMOOTH_SLACK pixels around it (:class:`_SmoothedFrame`)
-        smoothed = None
-        if self.finish:
-            box = self._render_box
-            if box is not None:
-                x0, y0, ww, wh = box
-                box = (max(0, y0 - SMOOTH_SLACK), min(h, y0 + wh + SMOOTH_SLACK),
-                       max(0, x0 - SMOOTH_SLACK), min(w, x0 + ww + SMOOTH_SLACK))  # fmt: skip
-            smoothed = _smoothing().submit(_smoothed, frame, self.sigma, box)
+        # the accurate mode's finest level reads the whole frame smoothed: a Gaussian filter of
+        # the frame that does not depend on the estimate (about a tenth of a 512² frame's time),
+        # made in a worker thread while this thread runs the stages (SciPy's filters release
+        # the GIL)
+        smoothed = _smoothing().submit(_smoothed, frame, self.sigma) if self.finish else None
         self.observe(landmarks, eyes)
         if self.predicted:
             self._start_near_landmarks(index)
