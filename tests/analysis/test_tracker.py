@@ -18,7 +18,7 @@ import vtts
 import vtts.analysis.tracker as tracker_module
 from vtts.analysis import DEFAULT_UNKNOWNS, PYRAMID, TABLE1_FAPS, Analysis, Estimator
 from vtts.analysis.quality import sequence_psnr, stream_psnr
-from vtts.analysis.solve import normal_equations, smooth
+from vtts.analysis.solve import normal_equations
 from vtts.analysis.synthetic import random_truth, render_sequence, table1_truth
 from vtts.analysis.track import FITTED_IGNORED, Tracked, track
 from vtts.analysis.tracker import (
@@ -26,7 +26,6 @@ from vtts.analysis.tracker import (
     Tracker,
     _bilinear,
     _gradients_at,
-    _SmoothedFrame,
     _system,
     _window_around,
     _with_gradients,
@@ -77,24 +76,6 @@ def test_the_gradients_at_the_samples_are_those_of_the_whole_image():
     gx, gy = _gradients_at(image, rows, cols)
     assert gx.dtype == gy.dtype == np.float32
     assert np.array_equal(gx, whole[:, 3:6]) and np.array_equal(gy, whole[:, 6:9])
-
-
-def test_the_frame_smoothed_around_the_face_has_the_whole_frames_numbers():
-    rng = np.random.default_rng(6)
-    full = (rng.random((60, 80, 3)) * 255).astype(np.float32)
-    whole = smooth(full, 0.6)
-    frame = _SmoothedFrame(full, 0.6, (20, 40, 30, 50))
-    reads = [
-        (slice(22, 38), slice(31, 49)),  # within the region smoothed first
-        (slice(0, 25), slice(30, 50)),  # beyond it, to the frame's border: more is smoothed
-        (slice(10, 60), slice(0, 80)),
-    ]
-    for rows, cols in reads:
-        assert np.array_equal(frame[rows, cols], whole[rows, cols])
-    assert frame.region == (0, 60, 0, 80)
-    small = _SmoothedFrame(full, 0.6, (20, 40, 30, 50))
-    small[22:38, 31:49]
-    assert small.region == (20, 40, 30, 50)  # no more smoothed than the first region
 
 
 def test_the_samples_are_projected_once_for_an_estimate(cybatt):
