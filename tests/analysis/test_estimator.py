@@ -117,6 +117,51 @@ def test_a_geometry_posed_again_and_again_gives_a_fresh_ones_numbers(cybatt):
         assert np.array_equal(kept.jacobian(p, t, verts), fresh.jacobian(p, t, verts))
 
 
+def test_a_pose_posed_in_parts_gives_the_whole_poses_numbers(cybatt):
+    """The landmarks' vertices posed alone (their shapes only), a mesh whose parameters a pose
+    leaves kept, the table columns gathered once per point set: the numbers of a geometry that
+    posed everything, and of the engine's own deformation."""
+    r = FaceRenderer(cybatt, size=SIZE)
+    root = r.scene.get_pose(r.instances[0].root)
+    unknowns = (3, 19, 35, 48, 49, 50, "tx", "tz")
+    t = np.array([0.01, -0.02, 0.03])
+    some = np.array([5, 17, 300, 301, 2, 1200])
+    some = some[some < HeadGeometry(cybatt, unknowns, root).n_vertices]
+    poses = [
+        _params({3: 120, 19: 300, 48: 2000, 49: -3000}),
+        _params({3: 120, 19: 300, 48: 2100, 49: -3000}),  # the meshes' parameters as before
+        _params({3: 200, 35: 80, 48: 2100, 50: 1000}),
+    ]
+    parts = HeadGeometry(cybatt, unknowns, root)
+    for p in poses:
+        whole = HeadGeometry(cybatt, unknowns, root)
+        # asked for before the whole pose is made: only the shapes that hold them are posed
+        assert np.array_equal(parts.positions_of(p, t, some), whole.positions(p, t)[some])
+        pairs = some.reshape(-1, 2)
+        assert np.array_equal(parts.positions_of(p, t, pairs), whole.positions(p, t)[pairs])
+        for _ in range(2):  # the second time from the gathered columns
+            assert np.array_equal(parts.jacobian(p, t, some), whole.jacobian(p, t, some))
+        assert np.array_equal(parts.positions(p, t), whole.positions(p, t))
+        posed = parts.pose(p).points
+        engine = cybatt.engine.deform(p).points
+        assert posed.keys() == engine.keys()
+        assert all(np.array_equal(posed[name], engine[name]) for name in engine)
+    # the second pose turned the head only: no mesh was deformed again for it
+    kept = HeadGeometry(cybatt, unknowns, root)
+    first = dict(kept.pose(poses[0]).points)
+    second = kept.pose(poses[1]).points
+    assert all(second[name] is first[name] for name in first)
+    third = kept.pose(poses[2]).points
+    assert any(third[name] is not first[name] for name in first)
+
+
+def test_the_renderers_triangle_numbers_become_face_indices_or_none(estimator):
+    _, numbers = estimator._synthesize(estimator.camera, estimator.size, triangles=True)
+    assert (numbers == -1).any() and (numbers >= 0).any()
+    expected = np.where(numbers >= 0, estimator._faces[numbers], -1)
+    assert np.array_equal(estimator._face_indices(numbers), expected)
+
+
 def test_subsampling_8_bit_images_sums_them_as_floats_would():
     rng = np.random.default_rng(3)
     for factor, shape in ((2, (37, 51, 3)), (3, (64, 47, 3)), (4, (36, 36, 3))):

@@ -25,8 +25,10 @@ from vtts.analysis.tracker import (
     STAGES,
     Tracker,
     _bilinear,
+    _gradients_at,
     _system,
     _window_around,
+    _with_gradients,
 )
 from vtts.analysis.unknowns import JAW_AND_CORNERS
 from vtts.analysis.video import read_video
@@ -63,6 +65,31 @@ def test_bilinear_samples_as_scipy_does_and_clamps_outside():
     # outside: the border pixel
     out = _bilinear(image, np.array([-3.0, 40.0]), np.array([-1.0, 25.0]))
     np.testing.assert_allclose(out, [image[0, 0], image[19, 29]])
+
+
+def test_the_gradients_at_the_samples_are_those_of_the_whole_image():
+    rng = np.random.default_rng(5)
+    image = (rng.random((9, 13, 3)) * 255).astype(np.float32)
+    rows, cols = np.meshgrid(np.arange(9), np.arange(13), indexing="ij")
+    rows, cols = rows.ravel(), cols.ravel()  # the border's pixels among them
+    whole = _with_gradients(image)[rows, cols]
+    gx, gy = _gradients_at(image, rows, cols)
+    assert gx.dtype == gy.dtype == np.float32
+    assert np.array_equal(gx, whole[:, 3:6]) and np.array_equal(gy, whole[:, 6:9])
+
+
+def test_the_samples_are_projected_once_for_an_estimate(cybatt):
+    tracker = _tracked_to_frame_1(Tracker(cybatt, size=(176, 144), unknowns=TABLE1_FAPS))
+    samples = tracker._samples
+    u, v = tracker._project(samples)
+    again = tracker._project(samples)
+    assert again[0] is u and again[1] is v  # the stages' shift, then the solve
+    tracker.params[48] += 2000
+    moved = tracker._project(samples)
+    assert not np.array_equal(moved[0], u)
+    tracker.params[48] -= 2000
+    back = tracker._project(samples)
+    assert back[0] is not u and np.array_equal(back[0], u)
 
 
 def test_the_window_keeps_its_size_while_the_face_fits():

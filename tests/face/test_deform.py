@@ -113,6 +113,42 @@ def test_engine_equals_the_sum_of_table_integrals(active, split, monkeypatch):
     assert np.allclose(engine.deform(params).points["F"], expected, atol=1e-12)
 
 
+def test_the_gathered_entries_of_the_active_columns_serve_while_they_stay_active():
+    """A pose after another with the same active columns (other values) takes the entries
+    gathered for the first: the sums of a fresh engine, to the bit; other columns gather anew."""
+    rng = np.random.default_rng(4)
+    pts = rng.normal(size=(300, 3))
+    adts = [
+        Adt(
+            Miap("fap", number),
+            meshes=[
+                MeshTable(
+                    "F",
+                    [-300, 0, 200, 900],
+                    rng.choice(300, size=30, replace=False),
+                    rng.normal(size=(3, 30, 3)) * 1e-4,
+                )
+            ],
+        )
+        for number in range(3, 40)
+    ]
+    kept = _engine_with(adts, pts)
+    poses = []
+    for values in ({3: 120.0, 5: -40.0}, {3: 150.0, 5: -10.0}, {3: 150.0, 7: 600.0}):
+        params = np.zeros(N_PARAMS)
+        for number, value in values.items():
+            params[number - 1] = value
+        poses.append(params)
+    gathered = []
+    for params in poses:
+        fresh = _engine_with(adts, pts)
+        assert np.array_equal(kept.deform(params).points["F"], fresh.deform(params).points["F"])
+        (entry,) = kept._gathered.values()
+        gathered.append(entry)
+    assert gathered[1] is gathered[0]  # the same columns active: gathered once
+    assert gathered[2] is not gathered[1]
+
+
 def test_rotations_about_one_axis_add_and_about_others_compose():
     parallel = _engine_with(
         [

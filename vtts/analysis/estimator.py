@@ -328,6 +328,8 @@ class Estimator:
         for node, first, count in self._renderer.triangle_sets:
             if node.name in self.ignored:  # drawn (they hide what is behind them), not matched
                 self._faces[first : first + count] = -1
+        # the same with a last entry −1 for the renderer's −1 (no triangle): one lookup a pixel
+        self._faces_or_none = np.append(self._faces, np.array([-1], self._faces.dtype))
         #: the window ``(x0, y0, width, height)`` of the frame that the next rendering near the
         #: face draws (:meth:`_render_near_face`; None: the whole frame), its corner a multiple
         #: of every pyramid factor
@@ -466,7 +468,7 @@ class Estimator:
     def _face_indices(self, numbers: np.ndarray) -> np.ndarray:
         """The renderer's triangle ``numbers`` ``(h, w)`` as indices into ``geometry.faces``
         (−1: none, or a part left out of the match)."""
-        return np.where(numbers >= 0, self._faces[numbers], -1)
+        return self._faces_or_none[numbers]  # numbers ≥ −1
 
     def _synthesize(self, camera: Camera, size: tuple[int, int], triangles: bool = False):
         """The model at the current estimate through ``camera`` at ``size``: the image ``(h, w,

@@ -137,7 +137,7 @@ class SurfacePoints:
 
     def positions(self, geometry, params: np.ndarray, translation: np.ndarray) -> np.ndarray:
         """``(n, 3)`` world positions for ``params`` and the head ``translation``."""
-        points = geometry.positions(params, translation)[self.vertices]
+        points = geometry.positions_of(params, translation, self.vertices)
         return np.einsum("nk,nkd->nd", self.weights, points)
 
     def motion(self, geometry, params: np.ndarray, translation: np.ndarray) -> np.ndarray:

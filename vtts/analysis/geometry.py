@@ -30,6 +30,13 @@ from vtts.vrml.transform import compose_transform
 #: 1e-5 rad, so this is exact to far below the estimator's resolution.
 _H = 1.0
 
+#: The fields of a Transform that place its children.
+_TRANSFORM_FIELDS = ("translation", "rotation", "scale", "scaleOrientation", "center")
+
+#: How many point sets' gathered table columns :meth:`HeadGeometry._slopes` keeps (the
+#: landmarks', the eyes', a rendering's vertices) before it starts again.
+GATHERED_SETS = 8
+
 
 @dataclass
 class _Shape:
@@ -68,11 +75,22 @@ class HeadGeometry:
         # the last posed matrix of each animated Transform, by id of its node, with its fields
         self._posed: dict[int, tuple[tuple, np.ndarray]] = {}
         self._last = None
+        # the posed Coordinate points of each mesh, by DEF name, with the values of the
+        # parameters that drive it (a mesh whose parameters did not change is not deformed again)
+        self._mesh_points: dict[str, tuple[bytes, np.ndarray]] = {}
+        # each shape's local and world points at the last pose asked for, made when asked
+        self._local_shapes: tuple[bytes, dict[int, np.ndarray]] | None = None
+        self._world_shapes: tuple[tuple[bytes, bytes], list, dict[int, np.ndarray]] | None = None
         # the derivatives of the world matrices at the last pose asked for, by unknown
         self._derivatives: tuple[tuple[bytes, bytes], dict] | None = None
         self._local: tuple[bytes, dict[int, np.ndarray]] | None = None
         self._pose: tuple[bytes, Pose] | None = None
         self._columns: dict[tuple[str, int], np.ndarray] = {}
+        self._driven_by: dict[int, tuple[set[str], list[bool]]] = {}
+        #: each posed Transform's own field values, by id of its node
+        self._own_fields: dict[int, dict[str, object]] = {}
+        #: table columns gathered at a set of points, by (mesh DEF name, the points' bytes)
+        self._gathered: dict[tuple[str, bytes], dict[int, np.ndarray]] = {}
         #: mesh DEF name -> (unknown's column, parameter index, its table columns) per FAP
         self._tables: dict[str, list[tuple[int, int, np.ndarray]]] = {}
         #: parameter indices that drive a Transform (the head and eye rotations)
@@ -115,12 +133,15 @@ class HeadGeometry:
         fields = posed.get(node.name)
         if not fields:
             return self._static(node)
+        own = self._own_fields.get(id(node))
+        if own is None:  # the scene's own values do not change while a geometry poses it
+            own = self._own_fields[id(node)] = {f: node[f] for f in _TRANSFORM_FIELDS}
         return compose_transform(
-            fields.get("translation", node["translation"]),
-            fields.get("rotation", node["rotation"]),
-            fields.get("scale", node["scale"]),
-            node["scaleOrientation"],
-            node["center"],
+            fields.get("translation", own["translation"]),
+            fields.get("rotation", own["rotation"]),
+            fields.get("scale", own["scale"]),
+            own["scaleOrientation"],
+            own["center"],
         )
 
     def _top(self, translation: np.ndarray) -> np.ndarray:
@@ -177,7 +198,7 @@ class HeadGeometry:
         it): the product rule over the shape's Transform chain, with each driven Transform's own
         derivative by central differences of its posed fields (exact for the tables' linear
         angles)."""
-        names = {node for (node, _), t in self.engine.transforms.items() if pi in t.param}
+        names, driven = self._driven(pi)
         local = self._locals(params)
         up, down = params.copy(), params.copy()
         up[pi] += _H
@@ -190,8 +211,8 @@ class HeadGeometry:
         slope: dict[int, np.ndarray] = {}
         out: list[np.ndarray | None] = []
         done: dict[tuple[int, ...], np.ndarray] = {}  # shapes under the same Transforms share it
-        for s in self.shapes:
-            if not any(n.name in names for n in s.chain):
+        for s, moves in zip(self.shapes, driven, strict=True):
+            if not moves:
                 out.append(None)
                 continue
             key = s.chain_key
@@ -215,6 +236,15 @@ class HeadGeometry:
             out.append(total)
         return out
 
+    def _driven(self, pi: int) -> tuple[set[str], list[bool]]:
+        """The DEF names of the Transforms parameter ``pi`` drives, and whether each shape lies
+        below one of them (kept by parameter)."""
+        if pi not in self._driven_by:
+            names = {node for (node, _), t in self.engine.transforms.items() if pi in t.param}
+            self._driven_by[pi] = (names, [any(n.name in names for n in s.chain)
+                                           for s in self.shapes])  # fmt: skip
+        return self._driven_by[pi]
+
     def _static(self, node: Node) -> np.ndarray:
         key = id(node)
         if key not in self._static_cache:
@@ -223,40 +253,122 @@ class HeadGeometry:
 
     def pose(self, params: np.ndarray) -> Pose:
         """The model's :class:`~vtts.face.deform.Pose` for ``params`` (the last one is kept: the
-        renderer draws the same pose that the geometry is computed from)."""
+        renderer draws the same pose that the geometry is computed from); the same numbers as
+        ``engine.deform(params)``, each mesh's points those of :meth:`mesh_points`."""
         key = np.asarray(params, np.float64).tobytes()
         if self._pose is None or self._pose[0] != key:
-            self._pose = (key, self.engine.deform(params))
+            params = np.asarray(params, np.float64)
+            points = {name: self.mesh_points(name, params) for name in self.engine.meshes}
+            self._pose = (key, Pose(points=points, transforms=self.engine.transform_values(params)))
         return self._pose[1]
+
+    def mesh_points(self, name: str, params: np.ndarray) -> np.ndarray:
+        """The posed Coordinate points ``(p, 3)`` of mesh ``name`` for ``params`` (the engine's
+        arithmetic, :meth:`~vtts.face.deform.DeformationEngine.points`); kept with the values of
+        the parameters that drive the mesh, so that a pose that leaves them (the hair's, the
+        ears' while the lips move) does not deform it again."""
+        b = self.engine.meshes[name]
+        params = np.asarray(params, np.float64)
+        key = params[b.param].tobytes()
+        kept = self._mesh_points.get(name)
+        if kept is None or kept[0] != key:
+            moved = self.engine.displacement(b, params).reshape(-1, 3)
+            kept = self._mesh_points[name] = (key, b.neutral + moved)
+        return kept[1]
+
+    def _shape_local(self, si: int, params: np.ndarray) -> np.ndarray:
+        """Shape ``si``'s vertex positions ``(n_s, 3)`` in its own coordinates for ``params``
+        (the last pose's are kept)."""
+        key = params.tobytes()
+        if self._local_shapes is None or self._local_shapes[0] != key:
+            self._local_shapes = (key, {})
+        done = self._local_shapes[1]
+        if si not in done:
+            s = self.shapes[si]
+            if s.name is not None and s.name in self.engine.meshes:
+                done[si] = self.mesh_points(s.name, params)[s.mesh.coord_index]
+            else:
+                done[si] = s.mesh.positions
+        return done[si]
+
+    def _local_of(self, si: int, params: np.ndarray, lv: np.ndarray) -> np.ndarray:
+        """``_shape_local(si, params)[lv]`` ``(len(lv), 3)`` for the shape's vertices ``lv``,
+        gathered from the mesh's points when the shape's own were not made for this pose."""
+        kept = self._local_shapes
+        if kept is not None and kept[0] == params.tobytes() and si in kept[1]:
+            return kept[1][si][lv]
+        s = self.shapes[si]
+        if s.name is not None and s.name in self.engine.meshes:
+            return self.mesh_points(s.name, params)[s.mesh.coord_index[lv]]
+        return s.mesh.positions[lv]
 
     def local_points(self, params: np.ndarray) -> list[np.ndarray]:
         """Each shape's vertex positions ``(n_s, 3)`` in its own coordinates."""
-        pose = self.pose(params)
-        out = []
-        for s in self.shapes:
-            if s.name is not None and s.name in pose.points:
-                out.append(pose.points[s.name][s.mesh.coord_index])
-            else:
-                out.append(s.mesh.positions)
-        return out
+        params = np.asarray(params, np.float64)
+        return [self._shape_local(si, params) for si in range(len(self.shapes))]
+
+    def _world_matrices(self, params: np.ndarray, translation: np.ndarray) -> list[np.ndarray]:
+        """:meth:`_matrices` of the pose (the last pose's are kept, with its shapes' world
+        positions as :meth:`_shape_world` makes them)."""
+        key = (params.tobytes(), np.asarray(translation, np.float64).tobytes())
+        if self._world_shapes is None or self._world_shapes[0] != key:
+            self._world_shapes = (key, self._matrices(params, translation), {})
+        return self._world_shapes[1]
+
+    def _shape_world(self, si: int, params: np.ndarray, translation: np.ndarray):
+        """Shape ``si``'s world positions ``(n_s, 3)``, with the world matrices of every shape
+        (the last pose's are kept; a shape's positions are made when first asked for)."""
+        mats = self._world_matrices(params, translation)
+        done = self._world_shapes[2]
+        if si not in done:
+            m = mats[si]
+            done[si] = self._shape_local(si, params) @ m[:3, :3].T + m[:3, 3]
+        return done[si], mats
 
     def _state(self, params: np.ndarray, translation: np.ndarray):
         """Local points, world matrices and world positions for the given pose (the last one is
         kept: the estimator asks for the same pose several times per solve)."""
         key = (params.tobytes(), np.asarray(translation, np.float64).tobytes())
         if self._last is None or self._last[0] != key:
+            params = np.asarray(params, np.float64)
+            blocks = [self._shape_world(si, params, translation)[0]
+                      for si in range(len(self.shapes))]  # fmt: skip
             local = self.local_points(params)
-            mats = self._matrices(params, translation)
-            world = np.concatenate(
-                [p @ m[:3, :3].T + m[:3, 3] for p, m in zip(local, mats, strict=True)]
-            )
-            self._last = (key, local, mats, world)
+            mats = self._world_shapes[1]
+            self._last = (key, local, mats, np.concatenate(blocks))
         return self._last[1:]
 
     def positions(self, params: np.ndarray, translation: np.ndarray) -> np.ndarray:
         """World positions ``(n_vertices, 3)`` for ``params`` ``(N_PARAMS,)`` and the head
         ``translation`` ``(3,)``."""
         return self._state(params, translation)[2]
+
+    def positions_of(
+        self, params: np.ndarray, translation: np.ndarray, vertices: np.ndarray
+    ) -> np.ndarray:
+        """``positions(params, translation)[vertices]`` ``(*vertices.shape, 3)`` for global
+        ``vertices`` (any shape), the same numbers, with only the shapes that hold them posed
+        (the landmarks lie on the face's shape and the eyes')."""
+        vertices = np.asarray(vertices, dtype=np.int64)
+        params = np.asarray(params, np.float64)
+        if self._last is not None and self._last[0] == (
+            params.tobytes(),
+            np.asarray(translation, np.float64).tobytes(),
+        ):
+            return self._last[3][vertices]
+        out = np.empty((*vertices.shape, 3))
+        shape_ids = self.shape_of_vertex[vertices]
+        mats = self._world_matrices(params, translation)
+        done = self._world_shapes[2]
+        for si in np.unique(shape_ids).tolist():
+            mine = shape_ids == si
+            lv = vertices[mine] - self.shapes[si].first_vertex
+            if si in done:
+                out[mine] = done[si][lv]
+            else:  # these vertices only: each row's product is the whole shape's row's
+                m = mats[si]
+                out[mine] = self._local_of(si, params, lv) @ m[:3, :3].T + m[:3, 3]
+        return out
 
     # ---- linear motion -------------------------------------------------------------------------
 
@@ -272,9 +384,10 @@ class HeadGeometry:
         # by shape, each shape's vertices one contiguous block (a view, not a gather)
         order = np.argsort(vertices, kind="stable")
         ordered = vertices[order]
-        out = np.zeros((len(vertices), 3, k_count))
+        # unknown-major while it is filled (each unknown's rows contiguous), (n, 3, K) at the end
+        out = np.zeros((k_count, len(vertices), 3))
         shape_ids = self.shape_of_vertex[ordered]
-        local, mats, _ = self._state(params, translation)
+        params = np.asarray(params, np.float64)
         # Transform chains: the derivative of each shape's world matrix (kept for the last pose:
         # a solve asks for the pixels' and the landmarks' motion at the same one)
         key = (np.asarray(params, np.float64).tobytes(),
@@ -288,27 +401,28 @@ class HeadGeometry:
         d_mats: dict[int, list[np.ndarray | None]] = self._derivatives[1]
         for j, u in enumerate(self.unknowns):
             if isinstance(u, str):
-                out[:, "xyz".index(u[1]), j] = 1.0
+                out[j, :, "xyz".index(u[1])] = 1.0
         starts = np.flatnonzero(np.diff(shape_ids, prepend=-1))
         for start, stop in zip(starts, [*starts[1:], len(ordered)], strict=True):
             si = int(shape_ids[start])
-            block = out[start:stop]
+            block = out[:, start:stop]
             s = self.shapes[si]
             lv = ordered[start:stop] - s.first_vertex
-            pts = local[si][lv]
-            rot = mats[si][:3, :3]
+            pts = self._local_of(si, params, lv)
+            rot = self._world_matrices(params, translation)[si][:3, :3]
             for j, dm in d_mats.items():
                 d = dm[si]
                 if d is not None:
-                    block[:, :, j] += pts @ d[:3, :3].T + d[:3, 3]
+                    block[j] += pts @ d[:3, :3].T + d[:3, 3]
             if s.name is None or s.name not in self.engine.meshes:
                 continue
             slopes = self._slopes(s.name, params, s.mesh.coord_index[lv])
             for j, sl in slopes.items():
-                block[:, :, j] += sl @ rot.T
+                block[j] += sl @ rot.T
+        out = out.transpose(1, 2, 0)
         if np.all(order[:-1] < order[1:]):
-            return out  # asked in order (np.unique's)
-        result = np.empty_like(out)
+            return np.ascontiguousarray(out)  # asked in order (np.unique's)
+        result = np.empty(out.shape)
         result[order] = out
         return result
 
@@ -324,13 +438,22 @@ class HeadGeometry:
                 if not isinstance(u, str)
             ]
             self._tables[name] = tables = [t for t in tables if t[2].size]
+        # the columns gathered at these points, kept for the few point sets a frame asks for
+        # again (the landmarks' at every relinearization)
+        gathered = self._gathered.setdefault((name, points.tobytes()), {})
+        if len(self._gathered) > GATHERED_SETS:
+            self._gathered.clear()
+            self._gathered[(name, points.tobytes())] = gathered
         out = {}
         for j, pi, cols in tables:
             v = params[pi]
             cols = cols[(b.lo[cols] <= v) & (v < b.hi[cols])]
             if cols.size == 0:
                 continue
-            out[j] = self._column(name, int(cols[0]))[points]
+            col = int(cols[0])
+            if col not in gathered:
+                gathered[col] = self._column(name, col)[points]
+            out[j] = gathered[col]
         return out
 
     def _column(self, name: str, col: int) -> np.ndarray:

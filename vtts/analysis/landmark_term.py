@@ -245,8 +245,8 @@ def project_points(estimator, points: LandmarkPoints, values: np.ndarray,
     (:func:`vtts.analysis.eyes.eye_points`), the face mesh's lid landmarks left out and the
     pupils and lid points added."""
     keep = _kept(points, eye_points is not None)
-    xy, jac = _project(estimator, points.vertices[keep], points.weights[keep])
-    depth = _depth(estimator, points.vertices[keep], points.weights[keep])
+    xy, jac, world = _project(estimator, points.vertices[keep], points.weights[keep])
+    depth = _depth(estimator, world)
     spread_px = points.spread[keep] * estimator.camera.fx / np.maximum(depth, 1e-9)
     if eye_points is not None:
         xy_p, jac_p = eye_points.pupils.project(estimator)
@@ -316,23 +316,22 @@ def eye_rows(points, eyes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def _project(estimator, vertices: np.ndarray, weights: np.ndarray):
     """Where points given as barycentric combinations of the estimator's ``vertices`` ``(n,
-    3)`` (``weights`` ``(n, 3)``) lie in its image ``(n, 2)``, and their image motion per unit
-    of each unknown ``(2n, K)``."""
+    3)`` (``weights`` ``(n, 3)``) lie in its image ``(n, 2)``, their image motion per unit
+    of each unknown ``(2n, K)``, and where they lie in the world ``(n, 3)``."""
     geometry = estimator.geometry
     params, translation = estimator.params, estimator.translation
     uniq, inverse = np.unique(vertices, return_inverse=True)
     inverse = inverse.reshape(vertices.shape)
-    world = geometry.positions(params, translation)[uniq]
+    world = geometry.positions_of(params, translation, uniq)
     motion = geometry.jacobian(params, translation, uniq)  # (U, 3, K)
     p = np.einsum("nm,nma->na", weights, world[inverse])
     dp = np.einsum("nm,nmak->nak", weights, motion[inverse])
-    return projection_jacobian(p, dp, estimator.camera)
+    return (*projection_jacobian(p, dp, estimator.camera), p)
 
 
-def _depth(estimator, vertices: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """``(n,)`` the points' distance from the camera along its axis (model units)."""
-    world = estimator.geometry.positions(estimator.params, estimator.translation)
-    p = np.einsum("nm,nma->na", weights, world[vertices])
+def _depth(estimator, p: np.ndarray) -> np.ndarray:
+    """``(n,)`` the world points ``p`` ``(n, 3)``' distance from ``estimator``'s camera along
+    its axis (model units)."""
     pose = np.asarray(estimator.camera.pose)
     return np.abs((p - pose[:3, 3]) @ pose[:3, 2])
 

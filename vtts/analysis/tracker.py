@@ -239,6 +239,9 @@ class Tracker(Estimator):
         self._reuse = False
         # whether the last frame's solves had to render (its head outran the samples)
         self._outrun = False
+        # the last samples projected, the unknowns' values they were projected at, and where
+        # they lie then (:meth:`_project`)
+        self._projected: tuple[_Samples, bytes, tuple[np.ndarray, np.ndarray]] | None = None
 
     def forget_motion(self) -> None:
         super().forget_motion()
@@ -445,7 +448,7 @@ class Tracker(Estimator):
             cam = replace(self.camera, cx=self.camera.cx - x0, cy=self.camera.cy - y0)
             image, numbers = self._synthesize(cam, (ww, wh), triangles=True)
             self.renderings += 1
-            ids = np.where(numbers >= 0, self._faces[numbers], -1)
+            ids = self._face_indices(numbers)
             covered = ids >= 0
             whole = (ww, wh) == (w, h)
             edge = covered[[0, -1]].any() or covered[:, [0, -1]].any()
@@ -562,13 +565,18 @@ class Tracker(Estimator):
     def _project(self, s: _Samples) -> tuple[np.ndarray, np.ndarray]:
         """Where the samples lie in their window at the current estimate (moved linearly by the
         unknowns' change since the rendering): X and Y ``(N,)`` (pixel centres at +0.5)."""
+        values = self._values()
+        kept = self._projected
+        if kept is not None and kept[0] is s and kept[1] == values.tobytes():
+            return kept[2]  # the stages' check of the shift, then the solve: the same estimate
         cam = self.camera
         y0, x0 = s.box[0].start, s.box[1].start
-        since = (self._values() - s.at).astype(np.float32)
+        since = (values - s.at).astype(np.float32)
         p = s.point + s.motion @ since  # (N, 3)
         depth = -p[:, 2]
         u = (cam.cx - x0) + np.float32(cam.fx) * p[:, 0] / depth
         v = (cam.cy - y0) - np.float32(cam.fy) * p[:, 1] / depth
+        self._projected = (s, values.tobytes(), (u, v))
         return u, v
 
     def _psnr(self, frame: np.ndarray, s: _Samples) -> float:
@@ -596,14 +604,31 @@ class _Model:
     smoothed with ``sigma``."""
 
     def __init__(self, s: _Samples, sigma: float) -> None:
-        grads = _with_gradients(smooth(s.raw, sigma))
-        at = grads[s.rows, s.cols]
-        self.color, self.gx, self.gy = at[:, 0:3], at[:, 3:6], at[:, 6:9]
+        smoothed = smooth(s.raw, sigma)
+        self.color = smoothed[s.rows, s.cols]
+        self.gx, self.gy = _gradients_at(smoothed, s.rows, s.cols)
+        other = next(iter(s.models.values()), None)  # the same samples' motion, another sigma
+        if other is not None:
+            self.speed, self.support = other.speed, other.support
+            return
         #: the most (pixels) a unit of each unknown moves any sample ``(K,)``
         speed = np.hypot(s.du, s.dv)
         self.speed = speed.max(axis=0, initial=0.0)
         #: how many samples each unknown moves by more than a fifth of its most ``(K,)``
         self.support = (speed > 0.2 * self.speed).sum(axis=0)
+
+
+def _gradients_at(image: np.ndarray, rows: np.ndarray, cols: np.ndarray):
+    """The central differences ``(d/dX, d/dY)``, each ``(N, C)``, of ``image`` ``(H, W, C)``
+    at the pixels ``rows``, ``cols`` ``(N,)``: one-sided at the border, the same numbers as
+    :func:`_with_gradients` (``np.gradient``) there, without differencing the whole image."""
+    h, w = image.shape[:2]
+    up, down = np.maximum(rows - 1, 0), np.minimum(rows + 1, h - 1)
+    left, right = np.maximum(cols - 1, 0), np.minimum(cols + 1, w - 1)
+    # np.gradient divides by 2 inside and by 1 at the border: exact, as these products are
+    sy = (1.0 / (down - up)).astype(image.dtype)[:, None]
+    sx = (1.0 / (right - left)).astype(image.dtype)[:, None]
+    return (image[rows, right] - image[rows, left]) * sx, (image[down, cols] - image[up, cols]) * sy
 
 
 def _with_gradients(image: np.ndarray) -> np.ndarray:

@@ -97,6 +97,9 @@ class DeformationEngine:
         neutral_transforms: dict[str, dict[str, np.ndarray]],
     ) -> None:
         self.meshes: dict[str, _MeshBlock] = {}
+        #: the entries of the last active columns gathered from each mesh's table, by id of its
+        #: block: (the columns, their lengths, the entries' rows and values)
+        self._gathered: dict[int, tuple[bytes, np.ndarray, np.ndarray, np.ndarray]] = {}
         self.transforms: dict[tuple[str, str], _TransformBlock] = {}
         self._compile_meshes(tables, neutral_points)
         self._compile_transforms(tables, neutral_transforms)
@@ -255,12 +258,18 @@ class DeformationEngine:
             upper = _pool().submit(top.__matmul__, w)
             lower = bottom @ w
             return np.concatenate([upper.result(), lower])
-        ptr, ind, val = b.csc.indptr, b.csc.indices, b.csc.data
-        starts, ends = ptr[active], ptr[active + 1]
-        lengths = ends - starts
-        idx = np.repeat(starts - np.cumsum(lengths) + lengths, lengths) + np.arange(lengths.sum())
-        weights = np.repeat(w[active], lengths) * val[idx]
-        return np.bincount(ind[idx], weights=weights, minlength=b.csr.shape[0])
+        key = active.tobytes()
+        kept = self._gathered.get(id(b))
+        if kept is None or kept[0] != key:  # the active columns' entries (a pose's stay active)
+            ptr, ind, val = b.csc.indptr, b.csc.indices, b.csc.data
+            starts, ends = ptr[active], ptr[active + 1]
+            lengths = ends - starts
+            idx = np.repeat(starts - np.cumsum(lengths) + lengths, lengths)
+            idx += np.arange(lengths.sum())
+            kept = self._gathered[id(b)] = (key, lengths, ind[idx], val[idx])
+        _, lengths, rows, values = kept
+        weights = np.repeat(w[active], lengths) * values
+        return np.bincount(rows, weights=weights, minlength=b.csr.shape[0])
 
 
 def _weights(b: _MeshBlock, values: np.ndarray) -> np.ndarray:
