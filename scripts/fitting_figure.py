@@ -39,12 +39,14 @@ def cell(image: np.ndarray) -> Image.Image:
 
 
 def crop_to_face(image: np.ndarray, box, margin: float = 0.45) -> np.ndarray:
-    """A square crop around a face box, ``margin`` of its size on each side."""
+    """A square crop around a face box, ``margin`` of its size on each side, moved (and, for a
+    face that fills the photo, shrunk) to lie within the image, so that every cell is square."""
     x0, y0, x1, y1 = box
-    cx, cy, s = (x0 + x1) / 2, (y0 + y1) / 2, max(x1 - x0, y1 - y0) * (1 + 2 * margin)
     h, w = image.shape[:2]
-    a, b = int(max(cx - s / 2, 0)), int(max(cy - s / 2, 0))
-    return image[b : int(min(b + s, h)), a : int(min(a + s, w))]
+    s = min(max(x1 - x0, y1 - y0) * (1 + 2 * margin), w, h)
+    a = int(round(min(max((x0 + x1) / 2 - s / 2, 0), w - s)))
+    b = int(round(min(max((y0 + y1) / 2 - s / 2, 0), h - s)))
+    return image[b : b + int(s), a : a + int(s)]
 
 
 def row(name: str, folder: Path) -> list[Image.Image]:
