@@ -250,7 +250,7 @@ def held_track(tmp_path_factory, fits) -> tuple[Tracked, dict[int, int]]:
     folder = tmp_path_factory.mktemp("held")
     with fits.sharing(), pytest.MonkeyPatch.context() as mp:
         mp.setattr(Tracker, "estimate", estimate)
-        mp.setattr(track_module, "_restart", lambda *a, **k: None)
+        mp.setattr(track_module, "_restart", lambda *a, **k: (None, False))
         tracked = track(_frames(4), fps=25.0, model_path=folder / "m.wrl")
     return tracked, history_at_start
 

@@ -555,3 +555,47 @@ def test_the_accurate_mode_smooths_the_frame_in_a_worker_thread(carphone_head, m
         np.testing.assert_array_equal(a.params, b.params)
         np.testing.assert_array_equal(a.translation, b.translation)
         assert a.psnr == b.psnr and drawn_a == drawn_b
+
+
+class _Falls:
+    """An estimator whose frames match at the face PSNRs given (dB), the head where it started."""
+
+    unknowns = ()
+    distance = 1.0
+
+    def __init__(self, psnrs):
+        self.psnrs = psnrs
+        self.params = np.zeros(68)
+        self.translation = np.zeros(3)
+
+    def estimate(self, frame, index, time, *observed):
+        from vtts.analysis.result import FrameEstimate
+
+        return FrameEstimate(index, time, self.params.copy(), psnr=self.psnrs[index])
+
+    def snapshot(self):
+        return ()
+
+
+def test_a_fall_that_the_landmarks_confirm_becomes_the_reference(monkeypatch):
+    """A frame lost on its PSNR whose estimate from its landmarks does no better is not lost:
+    the fall is the frame's (the face's look changed), and the frames after it at the same level
+    are not re-initialized each in turn (fails with the reference kept: every frame restarts)."""
+    from types import SimpleNamespace
+
+    import vtts.analysis.track as track_module
+
+    psnrs = [30.0] * 5 + [22.0] * 5  # a 8 dB fall that lasts
+    tried = []
+
+    def restart(estimator, frame, index, *args, **kwargs):
+        tried.append(index)
+        return None, True  # an estimate was made, no better than the frame's own
+
+    monkeypatch.setattr(track_module, "_restart", restart)
+    estimator, run = _Falls(psnrs), track_module._Run()
+    result = SimpleNamespace(scale=1, restarts=[], held=[], unseen=[])
+    for i in range(len(psnrs)):
+        track_module._follow(estimator, run, None, i, i / 25, None, False, result)
+    assert tried == [5]
+    assert result.restarts == [] and result.held == []

@@ -329,8 +329,8 @@ def _follow(estimator: Estimator, run: _Run, frame, i: int, t: float, detector, 
     try:
         fe = estimator.estimate(shrink(frame, scale), i, t, seen, eyes)
     except VttsError as e:  # the model left the view: start again from the landmarks
-        fe = _restart(estimator, frame, i, t, None, detector, kept=run.kept,
-                      observe=run.follow is not None, scale=scale)  # fmt: skip
+        fe, _ = _restart(estimator, frame, i, t, None, detector, kept=run.kept,
+                         observe=run.follow is not None, scale=scale)  # fmt: skip
         if fe is not None:
             result.restarts.append(i)
         elif run.kept is None or run.last is None:
@@ -341,15 +341,17 @@ def _follow(estimator: Estimator, run: _Run, frame, i: int, t: float, detector, 
     else:
         away = _run_away(estimator)
         if away or _lost(fe.psnr, run.recent, LOST_REFERENCE_CAP_DB if tracking else math.inf):
-            again = _restart(estimator, frame, i, t, None if away else fe, detector,
-                             kept=run.kept if away else None, neutral=away,
-                             observe=run.follow is not None, scale=scale)  # fmt: skip
+            again, tried = _restart(estimator, frame, i, t, None if away else fe, detector,
+                                    kept=run.kept if away else None, neutral=away,
+                                    observe=run.follow is not None, scale=scale)  # fmt: skip
             if again is not None:
                 fe = again
                 result.restarts.append(i)
             elif away and run.kept is not None and run.last is not None:
                 fe = _hold(estimator, run.kept, run.last, i, t)
                 result.held.append(i)
+            elif tried:  # placed on its landmarks it does no better: the fall is the frame's
+                run.recent = []
     run.kept = estimator.snapshot()
     if math.isfinite(fe.psnr):
         run.recent = [*run.recent[-(RECENT - 1) :], fe.psnr]
@@ -487,19 +489,22 @@ def _lost(psnr: float, recent: list[float], cap: float = math.inf) -> bool:
 
 def _restart(estimator: Estimator, frame, index: int, time: float, fe: FrameEstimate | None,
              detector, kept: tuple | None = None, neutral: bool = False,
-             observe: bool = True, scale: int = 1) -> FrameEstimate | None:  # fmt: skip
-    """Estimate frame ``index`` again from the head placed on its landmarks; the new estimate
+             observe: bool = True,
+             scale: int = 1) -> tuple[FrameEstimate | None, bool]:  # fmt: skip
+    """Estimate frame ``index`` again from the head placed on its landmarks: the new estimate
     when it matches better than ``fe`` (None: an estimate that failed), else None (the
-    estimator is left as ``fe`` left it). ``kept``: the state to place from, when the failed
-    estimate left the estimator elsewhere (the last good frame's); ``neutral``: from the neutral
-    face and pose (the head ran away; its FAPs too, which may have run away with it). An
-    estimate that ran away too is no better. ``observe``: the landmarks are observations of the
-    new estimate too. ``scale``: the working size's factor (``frame`` is full size)."""
+    estimator is left as ``fe`` left it), and whether a new estimate was made at all (a face
+    found, its estimate neither failed nor ran away). ``kept``: the state to place from, when
+    the failed estimate left the estimator elsewhere (the last good frame's); ``neutral``: from
+    the neutral face and pose (the head ran away; its FAPs too, which may have run away with
+    it). An estimate that ran away too is no better. ``observe``: the landmarks are
+    observations of the new estimate too. ``scale``: the working size's factor (``frame`` is
+    full size)."""
     from vtts.fit.landmarks import detect_faces
 
     faces = [scaled_face(f, scale) for f in detect_faces(frame, detector)]
     if not faces:
-        return None
+        return None, False
     after = estimator.snapshot()
     if kept is not None:
         estimator.restore(kept)
@@ -513,11 +518,14 @@ def _restart(estimator: Estimator, frame, index: int, time: float, fe: FrameEsti
         again = estimator.estimate(shrink(frame, scale), index, time, near if observe else None)
     except VttsError:
         estimator.restore(after)
-        return None
-    if not _run_away(estimator) and (fe is None or again.psnr > fe.psnr):
-        return again
+        return None, False
+    if _run_away(estimator):
+        estimator.restore(after)
+        return None, False
+    if fe is None or again.psnr > fe.psnr:
+        return again, True
     estimator.restore(after)
-    return None
+    return None, True
 
 
 def _hold(estimator: Estimator, kept: tuple, last: FrameEstimate, index: int,
