@@ -27,9 +27,12 @@ Girod's "Camera sequences"):
    last good frames (in the tracking mode, that median capped at
    :data:`LOST_REFERENCE_CAP_DB`), or under :data:`LOST_FLOOR_DB`, is re-initialized from its
    landmarks — the head rotation and translation placed on them — and estimated again; the
-   better of the two estimates is kept. So is a frame whose head ran away (turned or moved
-   beyond :data:`MAX_TURN_AU`, :data:`MAX_SHIFT`), placed from the neutral face and pose. A
-   frame where that fails too holds the last good estimate.
+   better of the two estimates is kept. When the frame's own estimate is the better, the fall
+   is the frame's (the face's look changed, the landmarks confirm the track): the recent
+   frames start again from it, and the frames after it at that level are not lost. A frame
+   whose head ran away (turned or moved beyond :data:`MAX_TURN_AU`, :data:`MAX_SHIFT`) is
+   re-initialized too, placed from the neutral face and pose. A frame where that fails too
+   holds the last good estimate.
 4. **Several faces.** ``face`` picks one (1 = the largest, as ``adi fit --face``); later
    re-initializations take the face nearest to where the tracked head was.
 """
