@@ -96,11 +96,11 @@ from vtts.fit.texture import (
     skin_texels,
     split_ear_tiles,
     split_eye_tiles,
-    srgb_to_linear,
     tint_eye,
     tint_tile,
     upscale,
 )
+from vtts.gltf.images import srgb_to_linear
 from vtts.limits import MAX_PHOTO_PIXELS
 from vtts.render.camera import viewpoint_fields
 from vtts.resources import models_dir

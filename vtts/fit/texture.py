@@ -31,6 +31,7 @@ from PIL import Image
 from scipy import ndimage
 
 from vtts.face.atlas import EAR_TILE, EYE_TILE, GAMMA, INSET, SKIN_TILE
+from vtts.gltf.images import linear_to_srgb
 from vtts.mesh import ray_barycentrics
 from vtts.render.camera import Camera
 from vtts.vrml import triangulate
@@ -193,17 +194,6 @@ def depth_map(numbers: np.ndarray, sets, camera: Camera, world: np.ndarray) -> n
         _, cam_pts = ray_barycentrics(pixels[sel], camera, corners)
         out[rows[sel], cols[sel]] = np.linalg.norm(cam_pts, axis=1)
     return out
-
-
-def srgb_to_linear(c: np.ndarray) -> np.ndarray:
-    """The sRGB curve pyrender applies to textures."""
-    c = np.asarray(c, dtype=np.float64)
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
-
-
-def linear_to_srgb(c: np.ndarray) -> np.ndarray:
-    c = np.clip(np.asarray(c, dtype=np.float64), 0.0, 1.0)
-    return np.where(c <= 0.0031308, c * 12.92, 1.055 * c ** (1 / 2.4) - 0.055)
 
 
 def sample(image: np.ndarray, xy: np.ndarray) -> np.ndarray:

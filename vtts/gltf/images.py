@@ -27,15 +27,25 @@ def png_bytes(rgba: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
+def srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    """The sRGB curve (0–1) undone: linear light, as pyrender and glTF read a texture."""
+    c = np.asarray(c, dtype=np.float64)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def linear_to_srgb(c: np.ndarray) -> np.ndarray:
+    """Linear light (clipped to 0–1) on the sRGB curve."""
+    c = np.clip(np.asarray(c, dtype=np.float64), 0.0, 1.0)
+    return np.where(c <= 0.0031308, c * 12.92, 1.055 * c ** (1 / 2.4) - 0.055)
+
+
 def brightened(rgba: np.ndarray, gain) -> np.ndarray:
     """``rgba (h, w, 4) uint8`` with its colour channels (sRGB) ``gain (3,)`` times brighter in
     linear light, clipped at white: a VRML Material's ``diffuseColor`` above 1 (a fitted head's
     skin lit more brightly than the renderer's lights, :func:`vtts.fit.head.set_exposure`) baked
     into its texture, since glTF's ``baseColorFactor`` stops at 1."""
-    c = rgba[..., :3] / 255.0
-    lin = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
-    lin = np.clip(lin * np.asarray(gain, dtype=np.float64), 0.0, 1.0)
-    srgb = np.where(lin <= 0.0031308, lin * 12.92, 1.055 * lin ** (1 / 2.4) - 0.055)
+    lin = srgb_to_linear(rgba[..., :3] / 255.0) * np.asarray(gain, dtype=np.float64)
+    srgb = linear_to_srgb(lin)
     out = np.array(rgba, copy=True)
     out[..., :3] = np.round(srgb * 255.0).astype(np.uint8)
     return out
