@@ -28,6 +28,9 @@ draws at the same surface points, averaged per texel with the bilinear weights):
   appearance numbers per frame in the stream could at most give.
 
 Prints JSON: per variant the median and worst frame's Equation 18 (dB) and the frames measured.
+``--picture OUT.png`` writes one frame of the second half (its middle) as each variant draws it,
+laid over the camera frame and cropped to the face: camera | robust | own | regressed |
+regressed, half 1 | pca 6, each with its Equation 18.
 See docs/analysis.md, "Appearance that changes with the frame (stop 55)".
 """
 
@@ -144,17 +147,48 @@ def _upload(renderer, name: str, rgb: np.ndarray) -> None:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("video", type=Path)
+    ap.add_argument("--picture", type=Path, default=None)
     args = ap.parse_args(argv)
-    print(json.dumps(measure(args.video), indent=1))
+    print(json.dumps(measure(args.video, args.picture), indent=1))
     return 0
 
 
-def measure(video: Path) -> dict:
+#: The variants on ``--picture``'s row, after the camera frame.
+PICTURED = ("robust", "own", "regressed", "regressed_half1", f"pca_{PCA_KS[-1]}")
+#: The height (pixels) of each face on the picture.
+PICTURE_HEIGHT = 240
+
+
+def _picture(path: Path, camera: np.ndarray, drawn: dict, landmarks: np.ndarray) -> None:
+    """``path``: the camera frame and each variant's ``(composite, Eq. 18 dB)`` in ``drawn``,
+    cropped to the face's landmarks (a fifth of its size around), side by side, labelled."""
+    from PIL import Image, ImageDraw
+
+    from vtts.atomic import atomic_path
+
+    (x0, y0), (x1, y1) = landmarks[:, :2].min(0), landmarks[:, :2].max(0)
+    pad = 0.2 * max(x1 - x0, y1 - y0)
+    h, w = camera.shape[:2]
+    box = (max(int(x0 - pad), 0), max(int(y0 - pad), 0),
+           min(int(x1 + pad), w), min(int(y1 + pad), h))  # fmt: skip
+    panels = [("camera", camera, None)] + [(v, *drawn[v]) for v in PICTURED if v in drawn]
+    size = (round(PICTURE_HEIGHT * (box[2] - box[0]) / (box[3] - box[1])), PICTURE_HEIGHT)
+    sheet = Image.new("RGB", (size[0] * len(panels), size[1] + 16), "white")
+    draw = ImageDraw.Draw(sheet)
+    for j, (name, image, db) in enumerate(panels):
+        face = Image.fromarray(np.ascontiguousarray(image[..., :3])).crop(box).resize(size)
+        sheet.paste(face, (j * size[0], 16))
+        draw.text((j * size[0] + 3, 2), name if db is None else f"{name} {db:.1f} dB", fill="black")
+    with atomic_path(path) as tmp:
+        sheet.save(tmp, format="PNG")
+
+
+def measure(video: Path, picture: Path | None = None) -> dict:
     from PIL import Image
 
     from vtts.analysis import texture as tx
     from vtts.analysis.anchor import choose_anchor
-    from vtts.analysis.landmark_quality import camera_landmarks, measure_frame
+    from vtts.analysis.landmark_quality import camera_landmarks, lay_over, measure_frame
     from vtts.analysis.steps import analysis_steps
     from vtts.analysis.track import track
     from vtts.analysis.video import read_video
@@ -214,6 +248,9 @@ def measure(video: Path) -> dict:
         residual_of[f"pca_{k_pca}"] = dict(zip(shown, through, strict=True))
         measured_on[f"pca_{k_pca}"] = set(shown)
 
+    second = sorted(shown[t] for t in halves["regressed_half1"][1])
+    pick = second[len(second) // 2]
+    drawn: dict[str, tuple[np.ndarray, float]] = {}
     landmarks = {}
     out: dict = {"video": video.name, "frames_analyzed": len(shown), "variants": {}}
     per_frame: dict[str, dict[int, float]] = {}
@@ -242,7 +279,12 @@ def measure(video: Path) -> dict:
                 m = measure_frame(frames[k], rgba, landmarks[k])
                 if m.camera_face:
                     eq18[i] = m.eq18_db
+                    if k == pick and variant not in drawn:
+                        drawn[variant] = (lay_over(frames[k], rgba), m.eq18_db)
         per_frame[variant] = eq18
+    if picture is not None and landmarks.get(pick) is not None:
+        _picture(picture, frames[pick], drawn, landmarks[pick])
+        out["picture"] = {"path": str(picture), "camera_frame": pick}
     for variant, eq18 in per_frame.items():
         values = np.array(list(eq18.values()))
         robust_same = np.array([per_frame["robust"][i] for i in eq18 if i in per_frame["robust"]])
