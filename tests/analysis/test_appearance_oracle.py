@@ -3,15 +3,11 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 
-SCRIPT = Path(__file__).parents[2] / "scripts" / "appearance_oracle.py"
-spec = importlib.util.spec_from_file_location("appearance_oracle", SCRIPT)
-oracle = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(oracle)
+from ..scripts import load_script
+
+oracle = load_script("scripts/appearance_oracle.py")
 
 
 def test_a_frames_residual_is_what_the_camera_shows_beyond_the_texture():

@@ -3,17 +3,15 @@
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
 import numpy as np
 import pytest
 from PIL import Image
 
-SCRIPT = Path(__file__).parents[2] / "scripts" / "eq18_regions.py"
-spec = importlib.util.spec_from_file_location("eq18_regions", SCRIPT)
-eq18_regions = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(eq18_regions)
+from ..scripts import load_script
+
+eq18_regions = load_script("scripts/eq18_regions.py")
 
 PHOTO = Path(__file__).parents[1] / "data" / "photos" / "akiyo_frame0.png"
 

@@ -2,15 +2,11 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 
-SCRIPT = Path(__file__).parents[2] / "scripts" / "mc_bound.py"
-spec = importlib.util.spec_from_file_location("mc_bound", SCRIPT)
-mc_bound = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(mc_bound)
+from ..scripts import load_script
+
+mc_bound = load_script("scripts/mc_bound.py")
 
 
 def test_blocks_moved_within_reach_are_found_and_beyond_it_are_not():

@@ -24,6 +24,8 @@ from vtts.errors import AvatarError
 from vtts.face.miap import EXPRESSION_BASE, N_PARAMS, VISEME_BASE
 from vtts.speech.timings import TimedPhone, TimedWord
 
+from ..scripts import load_script
+
 FPS = 25.0
 
 
@@ -243,16 +245,7 @@ def test_formats_and_errors():
 def _personalities():
     """The bundled heads' recipes (models/src/personalities.py): visemes and expressions as FAP
     values, what the modeler dialled in."""
-    import importlib.util
-    import sys
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[2] / "models" / "src" / "personalities.py"
-    spec = importlib.util.spec_from_file_location("_vtts_personalities", path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # as an import would: its dataclasses look it up
-    spec.loader.exec_module(module)
-    return module
+    return load_script("models/src/personalities.py", "_vtts_personalities")
 
 
 @pytest.mark.parametrize("head", ["cybatt", "lotta"])

@@ -27,6 +27,7 @@ from vtts.render.camera import Camera, find_viewpoint, look_at
 from vtts.vrml import triangulate
 
 from .. import in_process
+from ..scripts import load_script
 
 DATA = Path(__file__).parents[1] / "data"
 PHOTOS = DATA / "photos"
@@ -441,14 +442,9 @@ def test_several_faces_take_the_largest_and_say_so(tmp_path):
 def test_landmark_table_is_what_the_script_makes(tmp_path):
     """The shipped table is a rebuild of models/src/landmark_map.py (deterministic). The script's
     ``main`` runs in this process: its work is its renderings and the detector's, not its start."""
-    import importlib.util
-
     root = Path(__file__).parents[2]
     out = tmp_path / "face_landmarks.tsv"
-    script = root / "models" / "src" / "landmark_map.py"
-    spec = importlib.util.spec_from_file_location("landmark_map_script", script)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = load_script("models/src/landmark_map.py", "landmark_map_script")
     assert module.main(["--out", str(out)]) == 0
     shipped = root / "vtts" / "data" / "fit" / "face_landmarks.tsv"
     assert out.read_text() == shipped.read_text()

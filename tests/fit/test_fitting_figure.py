@@ -2,16 +2,12 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-SCRIPT = Path(__file__).parents[2] / "scripts" / "fitting_figure.py"
-spec = importlib.util.spec_from_file_location("fitting_figure", SCRIPT)
-fitting_figure = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(fitting_figure)
+from ..scripts import load_script
+
+fitting_figure = load_script("scripts/fitting_figure.py")
 
 
 @pytest.mark.parametrize(
