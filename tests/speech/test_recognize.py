@@ -196,6 +196,28 @@ def test_rates_below_8_khz_are_refused(rate: int) -> None:
         LiveRecognizer(rate)
 
 
+def test_other_weights_for_the_classifier(speech, recognized, tmp_path: Path) -> None:
+    """``RecognizerOptions(weights=FILE)`` takes the classifier from ``FILE`` (the lip-sync
+    bench's ``VTTS_BENCH_CLASSIFIER``): the package's weights with the first layer's inputs
+    scrambled recognize other visemes; a missing file is a clear error naming it."""
+    from vtts.resources import package_data
+    from vtts.speech.viseme_classifier import WEIGHTS
+
+    x, rate, _ = speech
+    with np.load(package_data(WEIGHTS)) as z:
+        arrays = dict(z)
+    arrays["w0"] = np.random.default_rng(0).permutation(arrays["w0"])
+    other = tmp_path / "other.npz"
+    np.savez(other, **arrays)
+    rec = recognize(x, rate, RecognizerOptions(weights=other))
+    n = min(rec.visemes.size, recognized.visemes.size)
+    assert np.mean(rec.visemes[:n] != recognized.visemes[:n]) > 0.2
+    same = recognize(x, rate, RecognizerOptions(weights=package_data(WEIGHTS)))
+    assert np.array_equal(same.visemes, recognized.visemes)
+    with pytest.raises(SpeechError, match="missing.npz: not a viseme classifier's weights"):
+        recognize(x, rate, RecognizerOptions(weights=tmp_path / "missing.npz"))
+
+
 def test_options_are_checked() -> None:
     with pytest.raises(SpeechError, match="beam must be in"):
         RecognizerOptions(beam=2.0)
