@@ -36,6 +36,10 @@ and the rendering together).
 Sentences: :data:`TUNING` and :data:`HELD_OUT`, written and committed before any tuning; the held
 out ones (and the real speech's :data:`REAL_HELD_OUT`) are kept out of every tuning run and
 reported apart. ``VTTS_BENCH_QUICK=1``: two sentences and two voices.
+``VTTS_BENCH_PARTS=tuning`` (or ``held out``): that part alone (synthetic and real speech; the
+speed and live rows still run); default both. ``VTTS_BENCH_CLASSIFIER=FILE``: path (a) with the
+viseme classifier's weights in ``FILE`` (``RecognizerOptions(weights=FILE)``, e.g. a network of
+``scripts/train_viseme_classifier.py --out FILE``) instead of the package's.
 Targets (issue 43): (a) within 15 points of (b) and far above (c); bilabials >= 85 %; speed <=
 0.1 of the duration; live latency p95 <= 150 ms.
 """
@@ -99,6 +103,10 @@ REAL_HELD_OUT = [
 FRAME = 0.010
 FPS = 30.0
 QUICK = bool(os.environ.get("VTTS_BENCH_QUICK"))
+PARTS = [p.strip() for p in os.environ.get("VTTS_BENCH_PARTS", "tuning,held out").split(",")]
+CLASSIFIER = (
+    Path(os.environ["VTTS_BENCH_CLASSIFIER"]) if os.environ.get("VTTS_BENCH_CLASSIFIER") else None
+)
 
 
 def _speak(engine: str, text: str, voice, rate, pitch):
@@ -210,7 +218,7 @@ def _paths(samples: np.ndarray, rate: int, ssml: str | None, truth_phones) -> di
     from vtts.speech.recognize import RecognizerOptions, recognize
 
     n = int(np.ceil(len(samples) / rate / FRAME))
-    rec = recognize(samples, rate)
+    rec = recognize(samples, rate, RecognizerOptions(weights=CLASSIFIER))
     out = {"recognized": (frames_of(rec.phones, n), rec.phones)}
     ps = recognize(samples, rate, RecognizerOptions(classifier=False))
     out["pocketsphinx"] = (frames_of(ps.phones, n), ps.phones)
@@ -445,6 +453,8 @@ def run() -> list[dict]:
     rows: list[dict] = []
     voices = VOICES[:1] + VOICES[3:4] if QUICK else VOICES
     for label, texts in (("tuning", TUNING), ("held out", HELD_OUT)):
+        if label not in PARTS:
+            continue
         texts = texts[:2] if QUICK else texts
         every: dict = {}
         for voice in voices:
@@ -458,6 +468,8 @@ def run() -> list[dict]:
         rows += _agreement_rows(f"{label}, all synthetic voices", every)
     if REAL_DIR.is_dir():
         for label, items in (("tuning", REAL_TUNING), ("held out", REAL_HELD_OUT)):
+            if label not in PARTS:
+                continue
             tallies = {}
             _real(items[:2] if QUICK else items, tallies)
             rows += _agreement_rows(

@@ -17,11 +17,15 @@ the file as they are; they were chosen on the lip-sync bench's tuning part.
    a voice of :data:`ESPEAK_VOICES` and a variant of :data:`ESPEAK_VARIANTS` — never ``+f3``,
    which the bench's held-out voice uses — at a random rate and pitch, twice; and every
    :data:`FESTIVAL_EVERY`-th by festival's HTS voice (its segment times) at a random rate and
-   pitch, and every :data:`FESTIVAL_EVERY`-th from the second by Piper's joe voice (the
-   network's own durations; needs the ``piper`` extra) at a random rate. The truth per 10 ms
-   frame is the viseme of the phone covering the frame's middle.
-3. **Augmentation**: resampled to 16 kHz, a random level (−30…0 dB), half of them with white or
-   pink noise at 8–35 dB SNR, the rest with a faint hiss (so that digital silence is rare).
+   pitch — with :data:`FESTIVAL_ALL` every other sentence too (:func:`speak_festival_more`,
+   its own seeded rates and pitches) — and every :data:`FESTIVAL_EVERY`-th from the second by
+   Piper's joe voice (the network's own durations; needs the ``piper`` extra) at a random
+   rate. The truth per 10 ms frame is the viseme of the phone covering the frame's middle.
+3. **Augmentation**: every utterance once per entry of :data:`AUGMENTATIONS`, each copy with
+   its own draws: resampled to 16 kHz with its formants and tempo scaled (:data:`ALPHA`), a
+   random level (−30…0 dB), a fifth low-passed, and for the entry's share of them white or pink
+   noise at an SNR in the entry's range, the rest a faint hiss (so that digital silence is
+   rare): the first copy half of them at 8–35 dB, the second 60 % at 10–25 dB.
 4. **Training**: a multilayer perceptron (scikit-learn's ``MLPClassifier``, Adam, a fixed
    number of passes) on the stacked features; its weights, the standardization,
    the training frames' viseme shares and the smoothing's parameters go to the ``.npz``.
@@ -44,6 +48,9 @@ sys.path.insert(0, str(ROOT))
 from vtts.speech import viseme_classifier as vc  # noqa: E402
 
 SEED = 43
+#: The network's seed (its initial weights and the order of the frames in each pass): of three
+#: (43, 44, 45) trained on the same frames, the one best on the lip-sync bench's tuning part.
+NET_SEED = 45
 #: espeak-ng's English voices and variants used in training (the bench speaks en-us, en-gb and
 #: en-us+f3: the first two take part with other rates, pitches and sentences, +f3 never).
 ESPEAK_VOICES = ["en-us", "en-gb", "en-gb-x-rp", "en-gb-scotland", "en-029", "en-gb-x-gbclan",
@@ -51,8 +58,16 @@ ESPEAK_VOICES = ["en-us", "en-gb", "en-gb-x-rp", "en-gb-scotland", "en-029", "en
 ESPEAK_VARIANTS = [None, "m1", "m2", "m3", "m4", "m5", "m6", "m7", "f1", "f2", "f4", "f5",
                    "klatt", "klatt2", "iven", "steph", "Andy", "Mike"]  # fmt: skip
 FESTIVAL_EVERY = 3
+#: Festival also speaks the sentences that are not every FESTIVAL_EVERY-th (its own seeded
+#: rates and pitches: :func:`speak_festival_more`).
+FESTIVAL_ALL = True
 #: The range of the formant and tempo scale of the augmentation.
 ALPHA = (0.88, 1.12)
+#: The augmented copies of every utterance, each with its own random draws: per copy the share
+#: of the utterances with added noise (the rest: a faint hiss) and the range of its SNR, dB.
+AUGMENTATIONS = ((0.5, (8.0, 35.0)), (0.6, (10.0, 25.0)))
+#: Share of the added noise that is white (the rest pink).
+WHITE_SHARE = 0.5
 #: Passes over the training frames.
 EPOCHS = 7
 #: The smoothing's parameters and PocketSphinx's weight (chosen on the bench's tuning part,
@@ -233,11 +248,40 @@ def speak_piper(texts: list[str], seed: int = SEED) -> list[tuple[np.ndarray, in
     return out
 
 
-def augment(x: np.ndarray, rate: int, rng: np.random.Generator) -> tuple[np.ndarray, float]:
+def speak_festival_more(
+    texts: list[str], seed: int = SEED
+) -> list[tuple[np.ndarray, int, list, str]]:
+    """Festival's HTS voice on every sentence that :func:`speak_all` does not give it (not a
+    :data:`FESTIVAL_EVERY`-th), at a random rate and pitch from its own seeded generator."""
+    from vtts.speech import festival
+
+    rng = np.random.default_rng(seed + 4)
+    out = []
+    for k, text in enumerate(texts):
+        if k % FESTIVAL_EVERY == 0:
+            continue
+        rate, pitch = int(rng.integers(140, 235)), int(rng.integers(30, 70))
+        sp = festival.synthesize(text, rate=rate, pitch=pitch)
+        out.append((sp.audio.astype(np.float32) / 32768, int(sp.rate), list(sp.phonemes),
+                    f"festival {rate} {pitch}"))  # fmt: skip
+        if k % 50 == 1:
+            print(f"  festival spoke {k + 1}/{len(texts)} sentences", file=sys.stderr, flush=True)
+    return out
+
+
+def augment(
+    x: np.ndarray,
+    rate: int,
+    rng: np.random.Generator,
+    noise_share: float = 0.5,
+    snr_db: tuple[float, float] = (8.0, 35.0),
+) -> tuple[np.ndarray, float]:
     """Step 3: at 16 kHz, a random level, noise or a faint hiss; the formants and tempo scaled
     by a random ``alpha`` (the samples taken for ``alpha`` times their rate: a shorter or
-    longer vocal tract), and a fifth of them low-passed (3.5–7.5 kHz). Returns the samples and
-    ``alpha`` (the phones' times are divided by it)."""
+    longer vocal tract), and a fifth of them low-passed (3.5–7.5 kHz). Noise (for a share
+    ``noise_share``) is white or pink (white a share :data:`WHITE_SHARE`) at an SNR (dB) drawn
+    from ``snr_db``. Returns the samples and ``alpha`` (the phones' times are divided by
+    it)."""
     from scipy.signal import butter, sosfilt
 
     from vtts.speech.audio import resample
@@ -251,10 +295,10 @@ def augment(x: np.ndarray, rate: int, rng: np.random.Generator) -> tuple[np.ndar
         y = sosfilt(sos, y).astype(np.float32)
     y *= np.float32(10 ** (rng.uniform(-30, 0) / 20))
     power = float(np.mean(y[np.abs(y) > 0.01 * np.abs(y).max()] ** 2)) if y.size else 0.0
-    if rng.random() < 0.5:
-        snr = rng.uniform(8, 35)
+    if rng.random() < noise_share:
+        snr = rng.uniform(*snr_db)
         noise = rng.normal(0, 1, y.size)
-        if rng.random() < 0.5:  # pink: white through a first-order low-pass
+        if rng.random() < 1.0 - WHITE_SHARE:  # pink: white through a first-order low-pass
             from scipy.signal import lfilter
 
             noise = lfilter([1.0], [1.0, -0.95], noise)
@@ -273,18 +317,20 @@ def dataset(utterances, seed: int = SEED) -> tuple[list[np.ndarray], list[np.nda
 
     rng = np.random.default_rng(seed + 2)
     feats, truths = [], []
-    for x, rate, phones, _ in utterances:
-        y, alpha = augment(x, rate, rng)
-        f = vc.frame_features(y)
-        feats.append(f)
-        scaled = [Phone(p.start / alpha, p.end / alpha, "", p.viseme or 0) for p in phones]
-        truths.append(frame_truth(scaled, f.shape[0]))
+    for noise_share, snr_db in AUGMENTATIONS:
+        for x, rate, phones, _ in utterances:
+            y, alpha = augment(x, rate, rng, noise_share, snr_db)
+            f = vc.frame_features(y)
+            feats.append(f)
+            scaled = [Phone(p.start / alpha, p.end / alpha, "", p.viseme or 0) for p in phones]
+            truths.append(frame_truth(scaled, f.shape[0]))
     return feats, truths
 
 
-def train(feats, truths, seed: int = SEED, hidden=(256, 128), snapshot=None) -> dict:
+def train(feats, truths, seed: int = NET_SEED, hidden=(256, 128), snapshot=None) -> dict:
     """Fit the network (step 4): :data:`EPOCHS` passes of Adam over the frames in a seeded
-    order; the arrays of the ``.npz`` (``snapshot(arrays)`` after each pass, when given)."""
+    order (``seed``: also the initial weights); the arrays of the ``.npz``
+    (``snapshot(arrays)`` after each pass, when given)."""
     from sklearn.neural_network import MLPClassifier
 
     X = np.concatenate([vc.stack(f, 0, f.shape[0]) for f in feats]).astype(np.float32)
@@ -362,7 +408,10 @@ def main() -> None:
     args = ap.parse_args()
     t0 = time.perf_counter()
     utterances = []
-    for name, speak in (("speech", speak_all), ("piper", speak_piper)):
+    sources = [("speech", speak_all), ("piper", speak_piper)]
+    if FESTIVAL_ALL:
+        sources.append(("festival-more", speak_festival_more))
+    for name, speak in sources:
         cached = args.cache / f"{name}-{args.sentences}.npz" if args.cache else None
         if cached is not None and cached.exists():
             utterances += _load_speech(cached)

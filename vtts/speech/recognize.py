@@ -36,6 +36,7 @@ from __future__ import annotations
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -104,7 +105,8 @@ class RecognizerOptions:
     recognizer said); ``classifier``: :func:`recognize` takes each frame's viseme from the
     viseme classifier (:mod:`vtts.speech.viseme_classifier`) instead of PocketSphinx's phones
     (False: PocketSphinx's, as before the classifier; :class:`LiveRecognizer` always uses
-    PocketSphinx)."""
+    PocketSphinx); ``weights``: the classifier's ``.npz`` file (one written by
+    ``scripts/train_viseme_classifier.py``; None: the package's ``viseme_classifier.npz``)."""
 
     language_weight: float = 0.8
     beam: float = 1e-20
@@ -112,6 +114,7 @@ class RecognizerOptions:
     dither: bool = True
     fill: bool = True
     classifier: bool = True
+    weights: Path | None = None
 
     def __post_init__(self) -> None:
         if not (0.0 < self.language_weight <= 100.0):
@@ -388,7 +391,7 @@ def recognize(
     if options.classifier and heard and not lv.steady:
         from vtts.speech.viseme_classifier import load_classifier
 
-        classifier = load_classifier()
+        classifier = load_classifier(None if options.weights is None else Path(options.weights))
         closure = np.zeros(n, np.float32)
     use_decoder = heard and (
         classifier is None or classifier.evidence > 0 or classifier.evidence_per_nat > 0
