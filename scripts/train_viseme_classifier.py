@@ -48,9 +48,9 @@ sys.path.insert(0, str(ROOT))
 from vtts.speech import viseme_classifier as vc  # noqa: E402
 
 SEED = 43
-#: The network's seed (its initial weights and the order of the frames in each pass): of three
-#: (43, 44, 45) trained on the same frames, the one best on the lip-sync bench's tuning part.
-NET_SEED = 45
+#: The networks' seeds (each one's initial weights and the order of the frames in each pass): an
+#: ensemble of three trained on the same frames, whose log probabilities are averaged at run time.
+NET_SEEDS = (43, 44, 45)
 #: espeak-ng's English voices and variants used in training (the bench speaks en-us, en-gb and
 #: en-us+f3: the first two take part with other rates, pitches and sentences, +f3 never).
 ESPEAK_VOICES = ["en-us", "en-gb", "en-gb-x-rp", "en-gb-scotland", "en-029", "en-gb-x-gbclan",
@@ -327,10 +327,11 @@ def dataset(utterances, seed: int = SEED) -> tuple[list[np.ndarray], list[np.nda
     return feats, truths
 
 
-def train(feats, truths, seed: int = NET_SEED, hidden=(256, 128), snapshot=None) -> dict:
-    """Fit the network (step 4): :data:`EPOCHS` passes of Adam over the frames in a seeded
-    order (``seed``: also the initial weights); the arrays of the ``.npz``
-    (``snapshot(arrays)`` after each pass, when given)."""
+def train(feats, truths, seeds=NET_SEEDS, hidden=(256, 128), snapshot=None) -> dict:
+    """Fit one network per seed of ``seeds`` (step 4): :data:`EPOCHS` passes of Adam over the
+    frames in a seeded order (the seed also draws the initial weights); the arrays of the
+    ``.npz``, the networks in the order of ``seeds`` (``snapshot(arrays, "SEED.PASS")`` with one
+    network's arrays after each of its passes, when given)."""
     from sklearn.neural_network import MLPClassifier
 
     X = np.concatenate([vc.stack(f, 0, f.shape[0]) for f in feats]).astype(np.float32)
@@ -338,15 +339,27 @@ def train(feats, truths, seed: int = NET_SEED, hidden=(256, 128), snapshot=None)
     mean, scale = X.mean(axis=0), X.std(axis=0) + 1e-3
     X = (X - mean) / scale
     print(f"  {X.shape[0]} frames, {X.shape[1]} features", file=sys.stderr, flush=True)
-    net = MLPClassifier(hidden_layer_sizes=hidden, activation="relu", solver="adam",
-                        alpha=1e-4, batch_size=512, learning_rate_init=1e-3,
-                        random_state=seed)  # fmt: skip
-    for epoch in range(EPOCHS):
-        net.partial_fit(X, y, classes=np.arange(15))
-        print(f"  epoch {epoch + 1}: loss {net.loss_:.4f}", file=sys.stderr, flush=True)
-        if snapshot is not None:
-            snapshot(_arrays(net, mean, scale, y), epoch + 1)
-    return _arrays(net, mean, scale, y)
+    arrays: dict = {}
+    for j, seed in enumerate(seeds):
+        net = MLPClassifier(hidden_layer_sizes=hidden, activation="relu", solver="adam",
+                            alpha=1e-4, batch_size=512, learning_rate_init=1e-3,
+                            random_state=seed)  # fmt: skip
+        for epoch in range(EPOCHS):
+            net.partial_fit(X, y, classes=np.arange(15))
+            print(f"  seed {seed}, epoch {epoch + 1}: loss {net.loss_:.4f}", file=sys.stderr,
+                  flush=True)  # fmt: skip
+            if snapshot is not None:
+                snapshot(_arrays(net, mean, scale, y), f"{seed}.{epoch + 1}")
+        one = _arrays(net, mean, scale, y)
+        if j == 0:
+            arrays = one
+        else:  # the other networks' own arrays under "n{j}_" (vc.load_classifier)
+            arrays.update({f"n{j}_{k}": one[k] for k in ("mean", "scale")})
+            arrays.update(
+                {f"n{j}_{k}": v for k, v in one.items() if k[0] in "wb" and k[1:].isdigit()}
+            )
+    arrays["networks"] = np.int64(len(seeds))
+    return arrays
 
 
 def _arrays(net, mean: np.ndarray, scale: np.ndarray, y: np.ndarray) -> dict:

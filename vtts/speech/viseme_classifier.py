@@ -7,7 +7,9 @@ at :data:`FLOOR_DB` below the loud frames (their 90th percentile), then each ban
 audible frames (within :data:`AUDIBLE_DB` of the loud ones) subtracted, with one more feature,
 the frame's level against the loud frames. The features of the frames at :data:`OFFSETS` around
 each frame are stacked (the ends repeat the first and last frame) and a multilayer perceptron
-(ReLU hidden layers, softmax out) gives the frame's probability of each of the 15 visemes.
+(ReLU hidden layers, softmax out) gives the frame's probability of each of the 15 visemes; where
+the file holds several such networks (the same data, other seeds: an ensemble), their log
+probabilities are averaged and normalized again (the geometric mean of their probabilities).
 A recording's features are made with the mel filters' edges scaled by each of :data:`WARPS`
 (vocal tract length normalisation, no retraining), with the band levels as they are and with
 each band's noise floor subtracted, and those the network is surest of are kept
@@ -36,6 +38,7 @@ __all__ = [
     "OFFSETS",
     "RATE",
     "WARPS",
+    "Network",
     "VisemeClassifier",
     "frame_features",
     "load_classifier",
@@ -183,11 +186,45 @@ def stack(features: np.ndarray, a: int, b: int) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class VisemeClassifier:
-    """The trained network and its smoothing (see the module docstring).
+class Network:
+    """One trained perceptron.
 
     mean, scale   ``(d,)`` float32 standardization of the stacked features
     weights       per layer ``(d_in, d_out)`` float32; ``biases`` per layer ``(d_out,)``
+    """
+
+    mean: np.ndarray
+    scale: np.ndarray
+    weights: tuple[np.ndarray, ...]
+    biases: tuple[np.ndarray, ...]
+
+    def log_posteriors(self, features: np.ndarray) -> np.ndarray:
+        """``(frames, 15)`` float32 log probabilities of each viseme from :func:`frame_features`
+        ``(frames, d)``."""
+        n = features.shape[0]
+        out = np.empty((n, 15), np.float32)
+        for a in range(0, n, BLOCK):
+            b = min(a + BLOCK, n)
+            h = (stack(features, a, b) - self.mean) / self.scale
+            for k, (w, c) in enumerate(zip(self.weights, self.biases, strict=True)):
+                h = h @ w + c
+                if k < len(self.weights) - 1:
+                    np.maximum(h, 0.0, out=h)
+            out[a:b] = _normalized(h)
+        return out
+
+
+def _normalized(scores: np.ndarray) -> np.ndarray:
+    """``(frames, 15)`` scores as log probabilities (log-softmax per frame)."""
+    h = scores - scores.max(axis=1, keepdims=True)
+    return h - np.log(np.exp(h).sum(axis=1, keepdims=True))
+
+
+@dataclass(frozen=True)
+class VisemeClassifier:
+    """The trained network and its smoothing (see the module docstring).
+
+    networks      the trained :class:`Network` s (one, or several of an ensemble)
     log_prior     ``(15,)`` float32 log share of each viseme in the training frames
     prior_weight  how much of the log prior is taken from the log posteriors (scaled
                   likelihoods: 1 removes it whole)
@@ -205,10 +242,7 @@ class VisemeClassifier:
                   where the network is unsure (natural speech, noise), less where it is sure
     """
 
-    mean: np.ndarray
-    scale: np.ndarray
-    weights: tuple[np.ndarray, ...]
-    biases: tuple[np.ndarray, ...]
+    networks: tuple[Network, ...]
     log_prior: np.ndarray
     prior_weight: float
     min_frames: np.ndarray
@@ -220,19 +254,11 @@ class VisemeClassifier:
 
     def log_posteriors(self, features: np.ndarray) -> np.ndarray:
         """``(frames, 15)`` float32 log probabilities of each viseme from :func:`frame_features`
-        ``(frames, d)``."""
-        n = features.shape[0]
-        out = np.empty((n, 15), np.float32)
-        for a in range(0, n, BLOCK):
-            b = min(a + BLOCK, n)
-            h = (stack(features, a, b) - self.mean) / self.scale
-            for k, (w, c) in enumerate(zip(self.weights, self.biases, strict=True)):
-                h = h @ w + c
-                if k < len(self.weights) - 1:
-                    np.maximum(h, 0.0, out=h)
-            h -= h.max(axis=1, keepdims=True)
-            out[a:b] = h - np.log(np.exp(h).sum(axis=1, keepdims=True))
-        return out
+        ``(frames, d)``: the network's, or the normalized mean of the ensemble's."""
+        if len(self.networks) == 1:
+            return self.networks[0].log_posteriors(features)
+        mean = np.mean([n.log_posteriors(features) for n in self.networks], axis=0)
+        return _normalized(mean).astype(np.float32)
 
     def warped_log_posteriors(self, samples: np.ndarray) -> tuple[np.ndarray, float, bool]:
         """``(ceil(n / HOP), 15)`` float32 log probabilities of ``(n,)`` float32 samples at
@@ -358,11 +384,19 @@ def load_classifier(path: Path | None = None) -> VisemeClassifier:
     try:
         with np.load(path) as z:
             layers = int(z["layers"])
+            count = int(z["networks"]) if "networks" in z.files else 1
+
+            def network(j: int) -> Network:
+                key = "" if j == 0 else f"n{j}_"  # the first network's keys are unprefixed
+                return Network(
+                    mean=z[f"{key}mean"].astype(np.float32),
+                    scale=z[f"{key}scale"].astype(np.float32),
+                    weights=tuple(z[f"{key}w{i}"].astype(np.float32) for i in range(layers)),
+                    biases=tuple(z[f"{key}b{i}"].astype(np.float32) for i in range(layers)),
+                )
+
             return VisemeClassifier(
-                mean=z["mean"].astype(np.float32),
-                scale=z["scale"].astype(np.float32),
-                weights=tuple(z[f"w{i}"].astype(np.float32) for i in range(layers)),
-                biases=tuple(z[f"b{i}"].astype(np.float32) for i in range(layers)),
+                networks=tuple(network(j) for j in range(count)),
                 log_prior=z["log_prior"].astype(np.float32),
                 prior_weight=float(z["prior_weight"]),
                 min_frames=z["min_frames"].astype(int),
