@@ -27,8 +27,9 @@ the file as they are; they were chosen on the lip-sync bench's tuning part.
    noise at an SNR in the entry's range, the rest a faint hiss (so that digital silence is
    rare): the first copy half of them at 8–35 dB, the second 60 % at 10–25 dB.
 4. **Training**: a multilayer perceptron (scikit-learn's ``MLPClassifier``, Adam, a fixed
-   number of passes) on the stacked features; its weights, the standardization,
-   the training frames' viseme shares and the smoothing's parameters go to the ``.npz``.
+   number of passes) on the stacked features for each seed of :data:`NET_SEEDS` (an ensemble:
+   ``vtts`` averages their log probabilities); their weights and standardizations, the
+   training frames' viseme shares and the smoothing's parameters go to the ``.npz``.
 """
 
 from __future__ import annotations
