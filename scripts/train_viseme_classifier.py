@@ -217,15 +217,33 @@ def speak_all(texts: list[str], seed: int = SEED) -> list[tuple[np.ndarray, int,
             name = voice if variant is None else f"{voice}+{variant}"
             rate, pitch = int(rng.integers(120, 260)), int(rng.integers(15, 85))
             sp = synthesize(f"<speak>{escape(text)}</speak>", voice=name, rate=rate, pitch=pitch)
-            out.append((sp.audio.astype(np.float32) / 32768, int(sp.rate), list(sp.phonemes),
-                        f"espeak {name} {rate} {pitch}"))  # fmt: skip
+            out.append(_utterance(sp, f"espeak {name} {rate} {pitch}"))
         if k % FESTIVAL_EVERY == 0:
             rate, pitch = int(rng.integers(140, 235)), int(rng.integers(30, 70))
             sp = festival.synthesize(text, rate=rate, pitch=pitch)
-            out.append((sp.audio.astype(np.float32) / 32768, int(sp.rate), list(sp.phonemes),
-                        f"festival {rate} {pitch}"))  # fmt: skip
+            out.append(_utterance(sp, f"festival {rate} {pitch}"))
         if k % 50 == 0:
             print(f"  spoken {k + 1}/{len(texts)} sentences", file=sys.stderr, flush=True)
+    return out
+
+
+def _utterance(sp, label: str) -> tuple[np.ndarray, int, list, str]:
+    """A synthesized ``Speech`` as ``(samples float32, rate, phones, label)``."""
+    return sp.audio.astype(np.float32) / 32768, int(sp.rate), list(sp.phonemes), label
+
+
+def _speak_every(
+    texts: list[str], wanted, say, who: str
+) -> list[tuple[np.ndarray, int, list, str]]:
+    """``say(text)`` → ``(Speech, label)`` for each sentence whose index ``wanted(k)`` takes, in
+    order (so each speaker's seeded draws come in the same order), with a progress line."""
+    out = []
+    for k, text in enumerate(texts):
+        if not wanted(k):
+            continue
+        out.append(_utterance(*say(text)))
+        if k % 50 == 1:
+            print(f"  {who} spoke {k + 1}/{len(texts)} sentences", file=sys.stderr, flush=True)
     return out
 
 
@@ -236,17 +254,13 @@ def speak_piper(texts: list[str], seed: int = SEED) -> list[tuple[np.ndarray, in
     from vtts.speech.piper import PiperEngine
 
     rng = np.random.default_rng(seed + 3)
-    engine, out = PiperEngine(), []
-    for k, text in enumerate(texts):
-        if k % FESTIVAL_EVERY != 1:
-            continue
+    engine = PiperEngine()
+
+    def say(text: str):
         rate = int(rng.integers(130, 230))
-        sp = engine.speak(parse_bookmarks(text), rate=rate).speech
-        out.append((sp.audio.astype(np.float32) / 32768, int(sp.rate), list(sp.phonemes),
-                    f"piper {rate}"))  # fmt: skip
-        if k % 50 == 1:
-            print(f"  Piper spoke {k + 1}/{len(texts)} sentences", file=sys.stderr, flush=True)
-    return out
+        return engine.speak(parse_bookmarks(text), rate=rate).speech, f"piper {rate}"
+
+    return _speak_every(texts, lambda k: k % FESTIVAL_EVERY == 1, say, "Piper")
 
 
 def speak_festival_more(
@@ -257,17 +271,12 @@ def speak_festival_more(
     from vtts.speech import festival
 
     rng = np.random.default_rng(seed + 4)
-    out = []
-    for k, text in enumerate(texts):
-        if k % FESTIVAL_EVERY == 0:
-            continue
+
+    def say(text: str):
         rate, pitch = int(rng.integers(140, 235)), int(rng.integers(30, 70))
-        sp = festival.synthesize(text, rate=rate, pitch=pitch)
-        out.append((sp.audio.astype(np.float32) / 32768, int(sp.rate), list(sp.phonemes),
-                    f"festival {rate} {pitch}"))  # fmt: skip
-        if k % 50 == 1:
-            print(f"  festival spoke {k + 1}/{len(texts)} sentences", file=sys.stderr, flush=True)
-    return out
+        return festival.synthesize(text, rate=rate, pitch=pitch), f"festival {rate} {pitch}"
+
+    return _speak_every(texts, lambda k: k % FESTIVAL_EVERY != 0, say, "festival")
 
 
 def augment(
