@@ -198,20 +198,34 @@ class Network:
     weights: tuple[np.ndarray, ...]
     biases: tuple[np.ndarray, ...]
 
+    def scores(self, stacked: np.ndarray) -> np.ndarray:
+        """``(frames, 15)`` float32 output scores (before the softmax) of :func:`stack`'s
+        ``(frames, d)`` stacked features."""
+        h = (stacked - self.mean) / self.scale
+        for k, (w, c) in enumerate(zip(self.weights, self.biases, strict=True)):
+            h = h @ w + c
+            if k < len(self.weights) - 1:
+                np.maximum(h, 0.0, out=h)
+        return h
+
     def log_posteriors(self, features: np.ndarray) -> np.ndarray:
         """``(frames, 15)`` float32 log probabilities of each viseme from :func:`frame_features`
         ``(frames, d)``."""
-        n = features.shape[0]
-        out = np.empty((n, 15), np.float32)
-        for a in range(0, n, BLOCK):
-            b = min(a + BLOCK, n)
-            h = (stack(features, a, b) - self.mean) / self.scale
-            for k, (w, c) in enumerate(zip(self.weights, self.biases, strict=True)):
-                h = h @ w + c
-                if k < len(self.weights) - 1:
-                    np.maximum(h, 0.0, out=h)
-            out[a:b] = _normalized(h)
-        return out
+        return _log_posteriors((self,), features)
+
+
+def _log_posteriors(networks: tuple[Network, ...], features: np.ndarray) -> np.ndarray:
+    """``(frames, 15)`` float32 log probabilities from ``(frames, d)`` features: the network's,
+    or the normalized mean of several networks' (an ensemble), in blocks of :data:`BLOCK`
+    frames, each block's features stacked once for all the networks."""
+    n = features.shape[0]
+    out = np.empty((n, 15), np.float32)
+    for a in range(0, n, BLOCK):
+        b = min(a + BLOCK, n)
+        stacked = stack(features, a, b)
+        each = [_normalized(net.scores(stacked)) for net in networks]
+        out[a:b] = each[0] if len(each) == 1 else _normalized(np.mean(each, axis=0))
+    return out
 
 
 def _normalized(scores: np.ndarray) -> np.ndarray:
@@ -255,10 +269,7 @@ class VisemeClassifier:
     def log_posteriors(self, features: np.ndarray) -> np.ndarray:
         """``(frames, 15)`` float32 log probabilities of each viseme from :func:`frame_features`
         ``(frames, d)``: the network's, or the normalized mean of the ensemble's."""
-        if len(self.networks) == 1:
-            return self.networks[0].log_posteriors(features)
-        mean = np.mean([n.log_posteriors(features) for n in self.networks], axis=0)
-        return _normalized(mean).astype(np.float32)
+        return _log_posteriors(self.networks, features)
 
     def warped_log_posteriors(self, samples: np.ndarray) -> tuple[np.ndarray, float, bool]:
         """``(ceil(n / HOP), 15)`` float32 log probabilities of ``(n,)`` float32 samples at
