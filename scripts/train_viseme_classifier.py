@@ -364,10 +364,8 @@ def train(feats, truths, seeds=NET_SEEDS, hidden=(256, 128), snapshot=None) -> d
         if j == 0:
             arrays = one
         else:  # the other networks' own arrays under "n{j}_" (vc.load_classifier)
-            arrays.update({f"n{j}_{k}": one[k] for k in ("mean", "scale")})
-            arrays.update(
-                {f"n{j}_{k}": v for k, v in one.items() if k[0] in "wb" and k[1:].isdigit()}
-            )
+            own = ["mean", "scale", *(f"{p}{i}" for i in range(int(one["layers"])) for p in "wb")]
+            arrays.update({f"n{j}_{k}": one[k] for k in own})
     arrays["networks"] = np.int64(len(seeds))
     return arrays
 
