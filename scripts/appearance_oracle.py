@@ -149,7 +149,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("video", type=Path)
     ap.add_argument("--picture", type=Path, default=None)
     args = ap.parse_args(argv)
-    print(json.dumps(measure(args.video, args.picture), indent=1))
+    from vtts.errors import VttsError
+
+    try:
+        print(json.dumps(measure(args.video, args.picture), indent=1))
+    except VttsError as e:  # a video that cannot be read or analyzed: said, no traceback
+        print(f"appearance_oracle: {e}", file=sys.stderr)
+        return 2
     return 0
 
 

@@ -52,3 +52,12 @@ def test_principal_components_keep_what_k_numbers_per_frame_can_say():
     assert np.allclose(two, np.stack(residuals), atol=1e-4)
     one = oracle.principal(residuals, weights, 1)
     assert np.abs(one - np.stack(residuals)).max() > 0.1
+
+
+def test_a_video_that_cannot_be_read_is_said_without_a_traceback(tmp_path, capsys):
+    bad = tmp_path / "clip.mp4"
+    bad.write_bytes(b"not a video")
+    assert oracle.main([str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("appearance_oracle: ") and "clip.mp4" in err
+    assert "Traceback" not in err
