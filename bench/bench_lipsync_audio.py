@@ -23,7 +23,8 @@ the frames where the truth speaks); **bilabial closures**: of the truth's p, b, 
 centre has a bilabial of the path within one 30 Hz frame (1/30 s); **closures**: the same with
 adjacent p b m (of the truth and of the path) one closure each; **false closures**: the path's
 closures that overlap none of the truth's p b m widened by 1/30 s; **speed**: recognition's wall
-and CPU time as a fraction of the audio's duration (60 s of festival's speech in one file);
+and CPU time as a fraction of the audio's duration (60 s of festival's speech in one file, and
+60 s of the real read speech with its words recognized, the default, and without);
 **live latency**: :class:`~vtts.speech.recognize.LiveRecognizer` fed 20 ms chunks in real time
 (simulated: each chunk arrives when its last sample would, is processed once it has arrived and
 the one before is done, the measured wall time of each ``feed``); a frame's latency is from its
@@ -40,6 +41,8 @@ reported apart. ``VTTS_BENCH_QUICK=1``: two sentences and two voices.
 speed and live rows still run); default both. ``VTTS_BENCH_CLASSIFIER=FILE``: path (a) with the
 viseme classifier's weights in ``FILE`` (``RecognizerOptions(weights=FILE)``, e.g. a network of
 ``scripts/train_viseme_classifier.py --out FILE``) instead of the package's.
+``VTTS_BENCH_WORDS=always`` (or ``never``): path (a) recognizes words everywhere (nowhere)
+instead of where the classifier is unsure (``RecognizerOptions(words=…)``).
 Targets (issue 43): (a) within 15 points of (b) and far above (c); bilabials >= 85 %; speed <=
 0.1 of the duration; live latency p95 <= 150 ms.
 """
@@ -104,6 +107,7 @@ FRAME = 0.010
 FPS = 30.0
 QUICK = bool(os.environ.get("VTTS_BENCH_QUICK"))
 PARTS = [p.strip() for p in os.environ.get("VTTS_BENCH_PARTS", "tuning,held out").split(",")]
+WORDS = os.environ.get("VTTS_BENCH_WORDS", "auto")
 CLASSIFIER = (
     Path(os.environ["VTTS_BENCH_CLASSIFIER"]) if os.environ.get("VTTS_BENCH_CLASSIFIER") else None
 )
@@ -218,7 +222,7 @@ def _paths(samples: np.ndarray, rate: int, ssml: str | None, truth_phones) -> di
     from vtts.speech.recognize import RecognizerOptions, recognize
 
     n = int(np.ceil(len(samples) / rate / FRAME))
-    rec = recognize(samples, rate, RecognizerOptions(weights=CLASSIFIER))
+    rec = recognize(samples, rate, RecognizerOptions(weights=CLASSIFIER, words=WORDS))
     out = {"recognized": (frames_of(rec.phones, n), rec.phones)}
     ps = recognize(samples, rate, RecognizerOptions(classifier=False))
     out["pocketsphinx"] = (frames_of(ps.phones, n), ps.phones)
@@ -315,11 +319,22 @@ def _speed_audio(seconds: float) -> tuple[np.ndarray, int]:
     return np.tile(x, reps)[: int(seconds * sp.rate)], int(sp.rate)
 
 
-def _speed(x: np.ndarray, rate: int) -> tuple[float, float]:
-    from vtts.speech.recognize import recognize
+def _real_speed_audio(seconds: float) -> np.ndarray:
+    """About ``seconds`` of the real read speech (all ten recordings, repeated) at 16 kHz."""
+    import soundfile as sf
+
+    x = np.concatenate([
+        sf.read(str(REAL_DIR / folder / f"{name}.wav"), dtype="float32")[0]
+        for folder, name in REAL_TUNING + REAL_HELD_OUT
+    ])  # fmt: skip
+    return np.tile(x, int(np.ceil(seconds * 16000 / len(x))))[: int(seconds * 16000)]
+
+
+def _speed(x: np.ndarray, rate: int, words: str = "auto") -> tuple[float, float]:
+    from vtts.speech.recognize import RecognizerOptions, recognize
 
     w, c = time.perf_counter(), time.process_time()
-    recognize(x, rate)
+    recognize(x, rate, RecognizerOptions(words=words))
     d = len(x) / rate
     return (time.perf_counter() - w) / d, (time.process_time() - c) / d
 
@@ -484,6 +499,13 @@ def run() -> list[dict]:
     rows.append(_row(f"speed: recognize {d:.0f} s of speech, wall", wall, "× duration"))
     rows.append(_row(f"speed: recognize {d:.0f} s of speech, CPU", cpu, "× duration", "≤ 0.1",
                      cpu <= 0.1))  # fmt: skip
+    if REAL_DIR.is_dir():  # the word search runs where the classifier is unsure: real speech
+        real = _real_speed_audio(20.0 if QUICK else 60.0)
+        for words in ("auto", "never"):
+            wall, cpu = _speed(real, 16000, words)
+            case = f"speed: recognize {len(real) / 16000:.0f} s of real speech, words {words}"
+            rows.append(_row(f"{case}, wall", wall, "× duration"))
+            rows.append(_row(f"{case}, CPU", cpu, "× duration", "≤ 0.1", cpu <= 0.1))
     lat = live_latency(x, rate)
     rows.append(_row("live: latency p50 (20 ms chunks)", 1000 * lat["p50"], "ms"))
     rows.append(_row("live: latency p95 (20 ms chunks)", 1000 * lat["p95"], "ms", "≤ 150",

@@ -61,6 +61,7 @@ def prepare_utterance(
     phonemes: str | Path | None = None,
     audio: str | Path | None = None,
     known: set[str] | None = None,
+    words: str = "auto",
     progress: Callable[[float, float], None] | None = None,
 ) -> Utterance:
     """Parse ``text`` and synthesize it with ``engine`` (:data:`vtts.speech.engine.ENGINES`:
@@ -71,13 +72,19 @@ def prepare_utterance(
     (its ``default_voice`` when None); ``rate`` in words per minute and
     ``pitch`` 0–99 as for espeak-ng. ``known``: the expressions the models have tables for
     (for the unknown-name message). ``audio`` with an empty ``text`` (and no ``phonemes``): the
-    phones are recognized from the recording (:mod:`vtts.speech.recognize`), no bookmarks;
-    ``progress(done_s, total_s)`` is then called as the recognition goes."""
+    phones are recognized from the recording (:mod:`vtts.speech.recognize`; and its words,
+    :data:`~vtts.speech.recognize.WORD_MODES`: ``words``), no bookmarks; ``progress(done_s,
+    total_s)`` is then called as the recognition goes."""
     from vtts.speech.phonemes import read_phoneme_file
 
     if audio is not None and phonemes is None and not text.strip():
         _only_recording(engine, voice, rate, pitch)
-        return recognized(Path(audio), progress=progress)
+        return recognized(Path(audio), words=words, progress=progress)
+    if words != "auto":
+        raise SpeechError(
+            f"--words {words} applies to a recording without its text (its words are "
+            "recognized); with a text, the text's words are the ones spoken"
+        )
     found_engine = load_engine(engine)
     bt = parse_bookmarks(text, known)
     if phonemes is not None:
@@ -162,23 +169,25 @@ def _only_recording(engine: str, voice: str | None, rate: int | None, pitch: int
         )
 
 
-def recognized(audio: Path, *, progress: Callable[[float, float], None] | None = None) -> Utterance:
+def recognized(
+    audio: Path, *, words: str = "auto", progress: Callable[[float, float], None] | None = None
+) -> Utterance:
     """``--audio`` without a text: the phones recognized from the recording
-    (:func:`vtts.speech.recognize.recognize`; where none is, the energy's mouth shapes), no
-    words and no bookmarks."""
-    from vtts.speech.recognize import check_rate, recognize
+    (:func:`vtts.speech.recognize.recognize`; where none is, the energy's mouth shapes), the
+    words where they are recognized (``words``: ``RecognizerOptions.words``), no bookmarks."""
+    from vtts.speech.recognize import RecognizerOptions, check_rate, recognize
 
     try:
         samples, sr = read_audio(audio)  # the file's own rate and length
         check_rate(sr)
-        found = recognize(samples, sr, progress=progress)
+        found = recognize(samples, sr, RecognizerOptions(words=words), progress=progress)
         samples, sr = mp4_samples(samples, sr)
     except SpeechError as e:
         if e.file is None:
             e.file = str(audio)
         raise
     phones = [TimedPhone(p.start, p.end, p.viseme or 0, p.phoneme) for p in found.phones]
-    return Utterance(parse_bookmarks(""), samples, sr, phones, [], [])
+    return Utterance(parse_bookmarks(""), samples, sr, phones, [], found.words)
 
 
 def write_utterance_timings(path: str | Path, utt: Utterance) -> None:

@@ -54,7 +54,9 @@ class SayOptions(Heads, Curves, View):
     ``rate``: words per minute; ``pitch``: 0–99; ``phonemes``: timings from another engine
     (Polly speech marks or a ``start end phoneme`` table; with ``audio``); ``audio``: recorded
     speech of the text, which it is aligned to (without a text, its phones are recognized from
-    the sound: :mod:`vtts.speech.recognize`); ``seed``: of the autonomous behaviour (blinks,
+    the sound: :mod:`vtts.speech.recognize`); ``words``: then, where words are recognized too
+    (``auto``: where the phones are uncertain, ``always``, ``never``;
+    :data:`~vtts.speech.recognize.WORD_MODES`); ``seed``: of the autonomous behaviour (blinks,
     nods, head motion, gaze), 0 to 2**63 - 1; ``no_autonomous``: none of it; ``fps``: frame
     rate in Hz, within 0–240.
 
@@ -74,6 +76,7 @@ class SayOptions(Heads, Curves, View):
     pitch: int | None = None
     phonemes: str | None = None
     audio: str | None = None
+    words: str = "auto"
     seed: int = 0
     no_autonomous: bool = False
     fps: float = 30.0
@@ -102,6 +105,10 @@ class SayOptions(Heads, Curves, View):
         check_web(self.web)
         self.check_curves()
         check_choice(self.engine, "--engine", ENGINES)
+        if self.words != "auto":  # the default needs no look at the recognizer
+            from vtts.speech.recognize import WORD_MODES
+
+            check_choice(self.words, "--words", WORD_MODES)
         check_seed(self.seed)
         for name, value in (("--rate", self.rate), ("--pitch", self.pitch)):
             if value is not None and (isinstance(value, bool) or not isinstance(value, int)):
@@ -181,6 +188,7 @@ def speak_and_set_up(o: SayOptions, text: str, models: list, known: set[str]):
                 pitch=o.pitch,
                 phonemes=o.phonemes,
                 audio=o.audio,
+                words=o.words,
                 progress=tick,
             )
         # the MP4's sound is encoded now, on a core the renderer's set-up leaves idle

@@ -50,6 +50,13 @@ def add_parser(sub) -> None:
         "a text its phones are recognized from the sound (US English); with --phonemes, the "
         "speech they describe",
     )
+    sy.add_argument(
+        "--words",
+        choices=("auto", "always", "never"),
+        default="auto",
+        help="with --audio and no text: also recognize words (a language model) where the "
+        "phones are uncertain, as in real speech (auto, the default), always, or never (faster)",
+    )
     sy.add_argument("--seed", type=seed_type, default=0, help="seed of the autonomous behaviour")
     sy.add_argument(
         "--no-autonomous",
@@ -88,6 +95,7 @@ def cmd_say(args: argparse.Namespace) -> int:
         pitch=args.pitch,
         phonemes=args.phonemes,
         audio=args.audio,
+        words=args.words,
         seed=args.seed,
         no_autonomous=args.no_autonomous,
         fps=args.fps,

@@ -6,6 +6,12 @@
 PocketSphinx's phone where the two agree, else by the classifier's class (:data:`CLASS_NAMES`),
 and a bilabial run whose level steps (a nasal's murmur, then a stop's closure) is two phones
 (:func:`split_closures`).
+Where the classifier is unsure of a piece (real speech, speech in loud noise: the mean entropy of
+its probabilities at least :data:`WORDS_ENTROPY`), PocketSphinx also recognizes its **words**
+with the wheel's US-English language model and dictionary (:func:`make_word_decoder`), aligns
+their phones to the audio (:func:`decode_words`), and those phones take the phone loop's place
+as the evidence, weighing :data:`WORD_EVIDENCE`; the words are in :attr:`Recognition.words`
+(``RecognizerOptions(words="always" | "never")`` to choose otherwise).
 With ``RecognizerOptions(classifier=False)``, and for a steady loud sound (music, loud noise),
 PocketSphinx's phones alone. :class:`LiveRecognizer` uses PocketSphinx alone.
 
@@ -34,6 +40,7 @@ it.
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -50,12 +57,16 @@ from vtts.speech.energy import (
     levels,
 )
 from vtts.speech.phonemes import Phone, viseme_of
+from vtts.speech.timings import TimedWord
 
 __all__ = [
     "DECODER_RATE",
+    "WORD_MODES",
     "LiveRecognizer",
     "Recognition",
     "RecognizerOptions",
+    "decode_words",
+    "make_word_decoder",
     "recognize",
     "segments_to_phones",
     "split_closures",
@@ -87,6 +98,22 @@ SPLIT_DB = 6.0
 #: CLOSURE_P, is kept (a stop's silent closure), not made a pause.
 CLOSURE_FRAMES = 20
 CLOSURE_P = 0.5
+#: ``RecognizerOptions.words``: recognize words where the classifier is unsure, always, never.
+WORD_MODES = ("auto", "always", "never")
+#: With ``words="auto"``, a piece's words are recognized where the mean entropy (nats) of the
+#: classifier's probabilities over its audible frames is at least WORDS_ENTROPY (real speech
+#: and speech in loud noise; a speech engine's clean voice stays below it).
+WORDS_ENTROPY = 0.5
+#: What a word-aligned phone's viseme adds to a frame's score in the smoothing, in place of
+#: the classifier's ``evidence`` for PocketSphinx's phone loop (the entropy's share the same).
+WORD_EVIDENCE = 6.0
+#: The word search's cap on the HMMs active per frame (``-maxhmmpf``): half its time, and on
+#: the bench's tuning part the same agreement and closures as with no cap.
+WORD_MAX_HMMS = 1500
+#: A dictionary word's alternative pronunciation: ``read(2)``.
+_VARIANT = re.compile(r"\(\d+\)$")
+#: A recognized word or phone: its name and its first and last 10 ms frames (inclusive).
+Segment = tuple[str, int, int]
 #: Names of the phones filled in from the energy (:mod:`vtts.speech.energy`), by viseme.
 ENERGY_NAMES = {0: "SIL", 7: "~hiss", 10: "~wide", 11: "~half", 12: "~slight"}
 
@@ -106,7 +133,11 @@ class RecognizerOptions:
     viseme classifier (:mod:`vtts.speech.viseme_classifier`) instead of PocketSphinx's phones
     (False: PocketSphinx's, as before the classifier; :class:`LiveRecognizer` always uses
     PocketSphinx); ``weights``: the classifier's ``.npz`` file (one written by
-    ``scripts/train_viseme_classifier.py``; None: the package's ``viseme_classifier.npz``)."""
+    ``scripts/train_viseme_classifier.py``; None: the package's ``viseme_classifier.npz``);
+    ``words`` (:data:`WORD_MODES`): where :func:`recognize` also recognizes words — PocketSphinx
+    with its US-English language model and dictionary, the words' phones aligned to the audio
+    in place of the phone loop's — ``"auto"`` in the pieces where the classifier is unsure
+    (:data:`WORDS_ENTROPY`: real speech, speech in noise), ``"always"`` or ``"never"``."""
 
     language_weight: float = 0.8
     beam: float = 1e-20
@@ -115,8 +146,11 @@ class RecognizerOptions:
     fill: bool = True
     classifier: bool = True
     weights: Path | None = None
+    words: str = "auto"
 
     def __post_init__(self) -> None:
+        if self.words not in WORD_MODES:
+            raise SpeechError(f"words must be one of {', '.join(WORD_MODES)}, got {self.words!r}")
         if not (0.0 < self.language_weight <= 100.0):
             raise SpeechError(f"language_weight must be in (0, 100], got {self.language_weight}")
         for name in ("beam", "phone_beam"):
@@ -138,6 +172,8 @@ class Recognition:
     filled      seconds of audible frames that took their viseme from the energy
     visemes     ``(n,)`` int8, the viseme of each 10 ms frame (frame ``k`` spans ``[k, k + 1) *
                 FRAME_S`` s), what ``phones`` are made of
+    words       the words recognized (``RecognizerOptions.words``), in the audio's clock (s);
+                none where only phones were
     """
 
     phones: list[Phone]
@@ -145,6 +181,7 @@ class Recognition:
     recognized: float = 0.0
     filled: float = 0.0
     visemes: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int8), repr=False)
+    words: list[TimedWord] = field(default_factory=list)
 
 
 def model_paths() -> tuple[str, str]:
@@ -179,6 +216,72 @@ def make_decoder(options: RecognizerOptions):
         loglevel="FATAL",
         logfn=os.devnull,
     )
+
+
+def make_word_decoder(options: RecognizerOptions):
+    """A ``pocketsphinx.Decoder`` recognizing words: the wheel's US-English acoustic model,
+    language model (``en-us.lm.bin``) and dictionary (``cmudict-en-us.dict``), one pass of the
+    tree search (no flat or lattice pass) capped at :data:`WORD_MAX_HMMS` active HMMs, the
+    phone loop's dither; its log silenced."""
+    from pocketsphinx import Decoder
+
+    hmm, _ = model_paths()
+    root = os.path.dirname(hmm)
+    lm, dic = os.path.join(root, "en-us.lm.bin"), os.path.join(root, "cmudict-en-us.dict")
+    if not (os.path.isfile(lm) and os.path.isfile(dic)):
+        raise SpeechError(f"the pocketsphinx wheel lacks its en-us language model ({root})")
+    return Decoder(
+        hmm=hmm,
+        lm=lm,
+        dict=dic,
+        fwdflat=False,
+        bestpath=False,
+        maxhmmpf=WORD_MAX_HMMS,
+        dither=options.dither,
+        loglevel="FATAL",
+        logfn=os.devnull,
+    )
+
+
+def decode_words(decoder, pcm: bytes) -> tuple[list[Segment], list[Segment]]:
+    """The words of one utterance, ``pcm`` (16 kHz mono int16 bytes), recognized by
+    ``decoder`` (:func:`make_word_decoder`), and their phones aligned to it (a second,
+    forced pass over the words): ``(words, phones)``, each ``(name, first, last)`` with frames
+    of 10 ms, inclusive. Words are the dictionary's (``read(2)`` named ``read``), without
+    silences and fillers; phones are ARPAbet, ``SIL`` between words. Both empty where no
+    word was recognized."""
+    decoder.activate_search()  # the language model's, after the last utterance's alignment
+    decoder.start_utt()
+    decoder.process_raw(pcm, full_utt=True)
+    decoder.end_utt()
+    hyp = decoder.hyp()
+    if hyp is None or not hyp.hypstr.strip():
+        return [], []
+    decoder.set_alignment()
+    decoder.start_utt()
+    decoder.process_raw(pcm, full_utt=True)
+    decoder.end_utt()
+    words: list[Segment] = []
+    phones: list[Segment] = []
+    for w in decoder.get_alignment():
+        if not (w.name in NOT_PHONES or w.name.startswith(("<", "[", "+"))):
+            words.append((_VARIANT.sub("", w.name), w.start, w.start + w.duration - 1))
+        phones += [(p.name, p.start, p.start + p.duration - 1) for p in w]
+    return words, phones
+
+
+def _wants_words(mode: str, log_p: np.ndarray | None, audible: np.ndarray) -> bool:
+    """Whether a piece's words are recognized (``RecognizerOptions.words``, ``mode``): with
+    ``"auto"``, where the classifier is unsure of it — the mean entropy of its ``(frames, 15)``
+    ``log_p`` over the ``(frames,)`` ``audible`` frames at least :data:`WORDS_ENTROPY` (no
+    classifier, no words)."""
+    from vtts.speech.viseme_classifier import entropies
+
+    if mode != "auto" or log_p is None:
+        return mode == "always"
+    m = min(log_p.shape[0], audible.size)
+    heard = audible[:m]
+    return bool(heard.any()) and float(entropies(log_p[:m])[heard].mean()) >= WORDS_ENTROPY
 
 
 def segments_to_phones(
@@ -396,35 +499,45 @@ def recognize(
     use_decoder = heard and (
         classifier is None or classifier.evidence > 0 or classifier.evidence_per_nat > 0
     )
-    decoder = make_decoder(options) if use_decoder else None
+    decoder = word_decoder = None  # made when first needed
+    audible = frames.db > lv.audible
+    words: list[TimedWord] = []
     for a, b in bounds:
-        p_names: list[str] = []
-        p_first: list[int] = []
-        p_last: list[int] = []
-        if decoder is not None:
-            pcm = np.round(x[a * hop : b * hop] * 32767.0).astype(np.int16)
+        pcm = np.round(x[a * hop : b * hop] * 32767.0).astype(np.int16).tobytes()
+        log_p = None if classifier is None else classifier.warped_log_posteriors(
+            x[a * hop : b * hop])[0]  # fmt: skip
+        # PocketSphinx's phones: the words' where they are recognized, else the phone loop's
+        segments: list[Segment] = []
+        evidence = None
+        if use_decoder and _wants_words(options.words, log_p, audible[a:b]):
+            word_decoder = word_decoder or make_word_decoder(options)
+            found, segments = decode_words(word_decoder, pcm)
+            words += [TimedWord((a + f) * FRAME_S, (a + e + 1) * FRAME_S, w) for w, f, e in found]
+            evidence = WORD_EVIDENCE if segments else None
+        if use_decoder and not segments:
+            decoder = decoder or make_decoder(options)
             decoder.start_utt()
-            decoder.process_raw(pcm.tobytes(), no_search=False, full_utt=True)
+            decoder.process_raw(pcm, no_search=False, full_utt=True)
             decoder.end_utt()
-            for s in decoder.seg() or ():
-                p_names.append(s.word)
-                p_first.append(s.start_frame)
-                p_last.append(s.end_frame)
-        if classifier is None:
+            segments = [(s.word, s.start_frame, s.end_frame) for s in decoder.seg() or ()]
+        p_names = [name for name, _, _ in segments]
+        if log_p is None:
             names += p_names
-            first += [a + f for f in p_first]
-            last += [a + f for f in p_last]
+            first += [a + f for _, f, _ in segments]
+            last += [a + e for _, _, e in segments]
         else:
             # PocketSphinx's visemes are evidence for the classifier; its phones name the
             # classifier's runs where they agree
-            p_index, p_vis = segments_to_phones(p_names, np.array(p_first), np.array(p_last), b - a)
-            log_p = classifier.warped_log_posteriors(x[a * hop : b * hop])[0]
-            piece = classifier.smoothed(log_p, p_vis if decoder else None)[: b - a]
+            p_first = np.array([f for _, f, _ in segments], int)
+            p_last = np.array([e for _, _, e in segments], int)
+            p_index, p_vis = segments_to_phones(p_names, p_first, p_last, b - a)
+            piece = classifier.smoothed(log_p, p_vis if use_decoder else None, evidence)
+            piece = piece[: b - a]
             closure[a : a + piece.size] = np.exp(log_p[: piece.size, 1])
             edges = np.concatenate([[0], np.flatnonzero(np.diff(piece)) + 1, [piece.size]])
             for s, e in zip(edges[:-1], edges[1:], strict=True):
                 v, mid = int(piece[s]), (s + e) // 2
-                agree = decoder is not None and p_vis[mid] == v and p_index[mid] >= 0
+                agree = use_decoder and p_vis[mid] == v and p_index[mid] >= 0
                 names.append(p_names[p_index[mid]] if agree else CLASS_NAMES[v])
                 first.append(a + int(s))
                 last.append(a + int(e) - 1)
@@ -435,13 +548,13 @@ def recognize(
     if classifier is not None:
         index, names = split_closures(vis, index, names, frames.db)
     phones = frames_to_phones(vis, index, names, filled, duration)
-    audible = frames.db > lv.audible
     return Recognition(
         phones,
         duration,
         recognized=float(np.sum(audible & (vis != 0) & ~filled) * FRAME_S),
         filled=float(np.sum(filled) * FRAME_S),
         visemes=vis,
+        words=[TimedWord(w.start, min(w.end, duration), w.label) for w in words],
     )
 
 

@@ -40,6 +40,7 @@ __all__ = [
     "WARPS",
     "Network",
     "VisemeClassifier",
+    "entropies",
     "frame_features",
     "load_classifier",
     "noise_subtracted",
@@ -314,28 +315,39 @@ class VisemeClassifier:
         ``other``: as :meth:`smoothed`'s."""
         return self.smoothed(self.warped_log_posteriors(samples)[0], other)
 
-    def smoothed(self, log_p: np.ndarray, other: np.ndarray | None = None) -> np.ndarray:
+    def smoothed(
+        self, log_p: np.ndarray, other: np.ndarray | None = None, evidence: float | None = None
+    ) -> np.ndarray:
         """``(frames,)`` int8 visemes smoothed (:func:`smooth`) from the network's ``(frames,
         15)`` log probabilities; ``other``: ``(frames,)`` int visemes another recognizer gave
-        the frames (each adds :attr:`evidence` to its viseme's score)."""
+        the frames (each adds :meth:`evidence_weights` to its viseme's score, with
+        ``evidence`` in place of :attr:`evidence` when given)."""
         scores = log_p + self.bias - self.prior_weight * self.log_prior
         scores += self.boost * np.exp(log_p)
         if other is not None:
             m = min(other.size, scores.shape[0])
-            scores[np.arange(m), np.asarray(other[:m], int)] += self.evidence_weights(log_p)[:m]
+            weights = self.evidence_weights(log_p, evidence)[:m]
+            scores[np.arange(m), np.asarray(other[:m], int)] += weights
         return smooth(scores, self.min_frames, self.switch)
 
-    def evidence_weights(self, log_p: np.ndarray) -> np.ndarray:
+    def evidence_weights(self, log_p: np.ndarray, evidence: float | None = None) -> np.ndarray:
         """``(frames,)`` what another recognizer's viseme adds to a frame's score:
-        :attr:`evidence` plus :attr:`evidence_per_nat` times the entropy (nats) of the
-        network's probabilities from ``(frames, 15)`` ``log_p``, averaged over the
-        :data:`ENTROPY_FRAMES` frames around each."""
+        :attr:`evidence` (or ``evidence``) plus :attr:`evidence_per_nat` times the entropy
+        (nats) of the network's probabilities from ``(frames, 15)`` ``log_p``, averaged over
+        the :data:`ENTROPY_FRAMES` frames around each."""
         from scipy.ndimage import uniform_filter1d
 
-        entropy = -(np.exp(log_p) * log_p).sum(axis=1)
+        entropy = entropies(log_p)
         if entropy.size:
             entropy = uniform_filter1d(entropy, ENTROPY_FRAMES)
-        return self.evidence + self.evidence_per_nat * entropy
+        base = self.evidence if evidence is None else evidence
+        return base + self.evidence_per_nat * entropy
+
+
+def entropies(log_p: np.ndarray) -> np.ndarray:
+    """``(frames,)`` the entropy (nats) of each frame's probabilities, from ``(frames, 15)``
+    log probabilities."""
+    return -(np.exp(log_p) * log_p).sum(axis=1)
 
 
 def smooth(scores: np.ndarray, min_frames: np.ndarray, switch: float) -> np.ndarray:
