@@ -28,7 +28,10 @@ and CPU time as a fraction of the audio's duration (60 s of festival's speech in
 **live latency**: :class:`~vtts.speech.recognize.LiveRecognizer` fed 20 ms chunks in real time
 (simulated: each chunk arrives when its last sample would, is processed once it has arrived and
 the one before is done, the measured wall time of each ``feed``); a frame's latency is from its
-last sample's arrival to the ``feed`` that gives its viseme; p50, p95 and the share of real time
+last sample's arrival to the ``feed`` that gives its viseme; for the real speech also (a)
+**against (b)'s phones** (vtts's aligner with the transcript, a truth independent of
+PocketSphinx's search, which the real speech's truth and the word pass share): agreement and
+(b)'s bilabials found; p50, p95 and the share of real time
 the processing took. **End to end**: ``vtts play --audio - -o -`` (cybatt, 176×144) in its own
 process, fed 30 s of the voice at the pace of real time; a frame's latency is from the writing
 of the sound of its time to its arrival on stdout (the recognizer, the voice track's 40 ms lead
@@ -108,6 +111,8 @@ FPS = 30.0
 QUICK = bool(os.environ.get("VTTS_BENCH_QUICK"))
 PARTS = [p.strip() for p in os.environ.get("VTTS_BENCH_PARTS", "tuning,held out").split(",")]
 WORDS = os.environ.get("VTTS_BENCH_WORDS", "auto")
+#: The tally of path (a) scored against path (b)'s phones instead of the truth's
+AGAINST_ALIGNED = "recognized against aligned"
 CLASSIFIER = (
     Path(os.environ["VTTS_BENCH_CLASSIFIER"]) if os.environ.get("VTTS_BENCH_CLASSIFIER") else None
 )
@@ -251,9 +256,13 @@ def _tally(tallies: dict, samples: np.ndarray, rate: int, text: str, truth_phone
     """Each path's agreement, bilabials and false closures on ``samples`` ``(n,)`` float32 at
     ``rate`` Hz, of ``text``, against ``truth_phones``, added to ``tallies`` (by path)."""
     truth = frames_of(truth_phones, int(np.ceil(len(samples) / rate / FRAME)))
-    for path, (got, phones) in _paths(
-        samples, rate, f"<speak>{escape(text)}</speak>", truth_phones
-    ).items():
+    paths = _paths(samples, rate, f"<speak>{escape(text)}</speak>", truth_phones)
+    if "aligned" in paths:  # (a) against (b): a second truth, independent of PocketSphinx's
+        (b_frames, b_phones), (got, phones) = paths["aligned"], paths["recognized"]
+        tallies.setdefault(AGAINST_ALIGNED, Tally()).add(
+            b_frames, got, _bilabials(b_phones, phones), (0, 0), _false_closures(b_phones, phones)
+        )
+    for path, (got, phones) in paths.items():
         tallies.setdefault(path, Tally()).add(
             truth,
             got,
@@ -418,6 +427,13 @@ def _row(case: str, value, unit: str, target: str = "", ok=None) -> dict:
 
 def _agreement_rows(label: str, tallies: dict) -> list[dict]:
     rows = []
+    t = tallies.get(AGAINST_ALIGNED)
+    if t is not None and "real" in label:
+        case = f"{label}: recognized against (b)'s phones"
+        rows.append(_row(f"{case}: agreement, all frames ({t.n})", 100.0 * t.same / max(t.n, 1),
+                         "%"))  # fmt: skip
+        rows.append(_row(f"{case}: (b)'s bilabials within 1/30 s (of {t.bil_total})",
+                         100.0 * t.bil / max(t.bil_total, 1), "%"))  # fmt: skip
     b = tallies.get("aligned")
     for path in ("recognized", "pocketsphinx", "aligned", "energy only"):
         t = tallies.get(path)
