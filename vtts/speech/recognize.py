@@ -12,6 +12,8 @@ with the wheel's US-English language model and dictionary (:func:`make_word_deco
 their phones to the audio (:func:`decode_words`), and those phones take the phone loop's place
 as the evidence, weighing :data:`WORD_EVIDENCE`; the words are in :attr:`Recognition.words`
 (``RecognizerOptions(words="always" | "never")`` to choose otherwise).
+Where the classifier hears a piece better with the noise taken out (speech in loud noise), the
+phone loop is not consulted: it decodes noisy speech poorly and misled the smoothing there.
 With ``RecognizerOptions(classifier=False)``, and for a steady loud sound (music, loud noise),
 PocketSphinx's phones alone. :class:`LiveRecognizer` uses PocketSphinx alone.
 
@@ -504,22 +506,28 @@ def recognize(
     words: list[TimedWord] = []
     for a, b in bounds:
         pcm = np.round(x[a * hop : b * hop] * 32767.0).astype(np.int16).tobytes()
-        log_p = None if classifier is None else classifier.warped_log_posteriors(
-            x[a * hop : b * hop])[0]  # fmt: skip
-        # PocketSphinx's phones: the words' where they are recognized, else the phone loop's
+        log_p, denoised = None, False
+        if classifier is not None:
+            log_p, _, denoised = classifier.warped_log_posteriors(x[a * hop : b * hop])
+        # PocketSphinx's phones: the words' where they are recognized, else the phone loop's —
+        # but not in noise (the classifier hears the piece better with the noise taken out),
+        # where the phone loop's phones mislead the classifier more than they help it
         segments: list[Segment] = []
         evidence = None
+        decoded = False
         if use_decoder and _wants_words(options.words, log_p, audible[a:b]):
             word_decoder = word_decoder or make_word_decoder(options)
             found, segments = decode_words(word_decoder, pcm)
             words += [TimedWord((a + f) * FRAME_S, (a + e + 1) * FRAME_S, w) for w, f, e in found]
             evidence = WORD_EVIDENCE if segments else None
-        if use_decoder and not segments:
+            decoded = bool(segments)
+        if use_decoder and not decoded and not denoised:
             decoder = decoder or make_decoder(options)
             decoder.start_utt()
             decoder.process_raw(pcm, no_search=False, full_utt=True)
             decoder.end_utt()
             segments = [(s.word, s.start_frame, s.end_frame) for s in decoder.seg() or ()]
+            decoded = True
         p_names = [name for name, _, _ in segments]
         if log_p is None:
             names += p_names
@@ -531,13 +539,13 @@ def recognize(
             p_first = np.array([f for _, f, _ in segments], int)
             p_last = np.array([e for _, _, e in segments], int)
             p_index, p_vis = segments_to_phones(p_names, p_first, p_last, b - a)
-            piece = classifier.smoothed(log_p, p_vis if use_decoder else None, evidence)
+            piece = classifier.smoothed(log_p, p_vis if decoded else None, evidence)
             piece = piece[: b - a]
             closure[a : a + piece.size] = np.exp(log_p[: piece.size, 1])
             edges = np.concatenate([[0], np.flatnonzero(np.diff(piece)) + 1, [piece.size]])
             for s, e in zip(edges[:-1], edges[1:], strict=True):
                 v, mid = int(piece[s]), (s + e) // 2
-                agree = use_decoder and p_vis[mid] == v and p_index[mid] >= 0
+                agree = decoded and p_vis[mid] == v and p_index[mid] >= 0
                 names.append(p_names[p_index[mid]] if agree else CLASS_NAMES[v])
                 first.append(a + int(s))
                 last.append(a + int(e) - 1)
