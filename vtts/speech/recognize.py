@@ -103,9 +103,11 @@ CLOSURE_P = 0.5
 #: ``RecognizerOptions.words``: recognize words where the classifier is unsure, always, never.
 WORD_MODES = ("auto", "always", "never")
 #: With ``words="auto"``, a piece's words are recognized where the mean entropy (nats) of the
-#: classifier's probabilities over its audible frames is at least WORDS_ENTROPY (real speech
-#: and speech in loud noise; a speech engine's clean voice stays below it).
-WORDS_ENTROPY = 0.5
+#: classifier's probabilities over its audible frames is at least WORDS_ENTROPY (real speech;
+#: a speech engine's clean voice stays below it), or in noise (the noise subtracted from the
+#: classifier's features) at least WORDS_ENTROPY_IN_NOISE (noise itself makes it unsure).
+WORDS_ENTROPY = 0.45
+WORDS_ENTROPY_IN_NOISE = 0.5
 #: What a word-aligned phone's viseme adds to a frame's score in the smoothing, in place of
 #: the classifier's ``evidence`` for PocketSphinx's phone loop (the entropy's share the same).
 WORD_EVIDENCE = 6.0
@@ -272,10 +274,13 @@ def decode_words(decoder, pcm: bytes) -> tuple[list[Segment], list[Segment]]:
     return words, phones
 
 
-def _wants_words(mode: str, log_p: np.ndarray | None, audible: np.ndarray) -> bool:
+def _wants_words(
+    mode: str, log_p: np.ndarray | None, audible: np.ndarray, denoised: bool = False
+) -> bool:
     """Whether a piece's words are recognized (``RecognizerOptions.words``, ``mode``): with
     ``"auto"``, where the classifier is unsure of it — the mean entropy of its ``(frames, 15)``
-    ``log_p`` over the ``(frames,)`` ``audible`` frames at least :data:`WORDS_ENTROPY` (no
+    ``log_p`` over the ``(frames,)`` ``audible`` frames at least :data:`WORDS_ENTROPY`, or
+    :data:`WORDS_ENTROPY_IN_NOISE` where its features had the noise ``denoised`` (no
     classifier, no words)."""
     from vtts.speech.viseme_classifier import entropies
 
@@ -283,7 +288,8 @@ def _wants_words(mode: str, log_p: np.ndarray | None, audible: np.ndarray) -> bo
         return mode == "always"
     m = min(log_p.shape[0], audible.size)
     heard = audible[:m]
-    return bool(heard.any()) and float(entropies(log_p[:m])[heard].mean()) >= WORDS_ENTROPY
+    least = WORDS_ENTROPY_IN_NOISE if denoised else WORDS_ENTROPY
+    return bool(heard.any()) and float(entropies(log_p[:m])[heard].mean()) >= least
 
 
 def segments_to_phones(
@@ -515,7 +521,7 @@ def recognize(
         segments: list[Segment] = []
         evidence = None
         decoded = False
-        if use_decoder and _wants_words(options.words, log_p, audible[a:b]):
+        if use_decoder and _wants_words(options.words, log_p, audible[a:b], denoised):
             word_decoder = word_decoder or make_word_decoder(options)
             found, segments = decode_words(word_decoder, pcm)
             words += [TimedWord((a + f) * FRAME_S, (a + e + 1) * FRAME_S, w) for w, f, e in found]
