@@ -268,7 +268,7 @@ def decode_words(decoder, pcm: bytes) -> tuple[list[Segment], list[Segment]]:
     words: list[Segment] = []
     phones: list[Segment] = []
     for w in decoder.get_alignment():
-        if not (w.name in NOT_PHONES or w.name.startswith(("<", "[", "+"))):
+        if not _filler(w.name):
             words.append((_VARIANT.sub("", w.name), w.start, w.start + w.duration - 1))
         phones += [(p.name, p.start, p.start + p.duration - 1) for p in w]
     return words, phones
@@ -309,12 +309,17 @@ def segments_to_phones(
     return index, vis
 
 
+def _filler(name: str) -> bool:
+    """Whether a decoder's word or phone name is silence or a filler, not speech."""
+    return name in NOT_PHONES or name.startswith(("<", "[", "+"))
+
+
 def phone_viseme(name: str) -> int:
     """The viseme of a decoder's phone name (0 for silence and fillers), or of a classifier's
     (:data:`CLASS_NAMES`)."""
     if name in _CLASS_VISEMES:
         return _CLASS_VISEMES[name]
-    if name in NOT_PHONES or name.startswith("+") or name.startswith("["):
+    if _filler(name):
         return 0
     try:
         return viseme_of(name, alphabet="arpabet")
@@ -511,7 +516,11 @@ def recognize(
     audible = frames.db > lv.audible
     words: list[TimedWord] = []
     for a, b in bounds:
-        pcm = np.round(x[a * hop : b * hop] * 32767.0).astype(np.int16).tobytes()
+        pcm = (
+            np.round(x[a * hop : b * hop] * 32767.0).astype(np.int16).tobytes()
+            if use_decoder
+            else b""
+        )
         log_p, denoised = None, False
         if classifier is not None:
             log_p, _, denoised = classifier.warped_log_posteriors(x[a * hop : b * hop])
