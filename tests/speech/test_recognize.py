@@ -4,6 +4,7 @@ input of every kind (silence, noise, music, clipping, rates, channels, NaN, a 2-
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -251,6 +252,9 @@ def test_options_are_checked() -> None:
         RecognizerOptions(language_weight=0)
     with pytest.raises(SpeechError, match="words must be one of auto, always, never, got 'yes'"):
         RecognizerOptions(words="yes")
+    for bad in (0, -1, True, 1.5, "2"):
+        with pytest.raises(SpeechError, match="workers must be a whole number of at least 1"):
+            RecognizerOptions(workers=bad)
 
 
 #: pocketsphinx-testdata's real read speech (scripts/setup.sh installs it)
@@ -308,13 +312,84 @@ def test_words_auto_always_and_never(speech, recognized) -> None:
 
 def test_long_audio_in_pieces_cut_at_quiet_frames_with_progress() -> None:
     db = np.zeros(9500)
-    db[2800] = db[5700] = -90  # the quietest frames in each piece's last 5 s
-    # the third piece has no quieter frame: it is cut where its last 5 s begin
-    assert _cuts(db, 3000, 500) == [2800, 5700, 8200]
+    db[2400] = db[4900] = -90  # the quietest frames around the ends of the four even shares
+    # the third share has no quieter frame: it is cut where its 5 s begin (7125 - 250)
+    assert _cuts(db, 3000, 500) == [2400, 4900, 6875]
+    # for two processes, an even number of pieces where each is long enough, else as few
+    assert len(_cuts(db[:6000], 3000, 500)) + 1 == 3
+    assert len(_cuts(db[:6000], 3000, 500, least=1000)) + 1 == 4
+    assert len(_cuts(db[:6000], 3000, 500, least=2000)) + 1 == 3
+    assert len(_cuts(db[:2500], 3000, 500, least=1000)) + 1 == 2
+    assert _cuts(db[:1500], 3000, 500, least=1000) == []
     seen = []
     recognize(np.zeros(65 * 8000, np.float32), 8000, progress=lambda d, t: seen.append((d, t)))
-    assert len(seen) == 3 and seen[-1] == (65.0, 65.0)
+    assert len(seen) == 4 and seen[-1] == (65.0, 65.0)  # an even number of pieces
     assert [d for d, _ in seen] == sorted(d for d, _ in seen)
+
+
+@pytest.fixture
+def four_pieces(monkeypatch):
+    """Two real recordings one after the other, 6.1 s, cut into four pieces (pieces of at
+    most 3 s for the test, of at least 1 s for the workers): ``(float32 samples at 16 kHz,
+    what recognize found in one process)``."""
+    from vtts.speech import recognize as module
+
+    monkeypatch.setattr(module, "PIECE_S", 3.0)
+    monkeypatch.setattr(module, "CUT_WINDOW_S", 1.0)
+    monkeypatch.setattr(module, "MIN_PIECE_S", 1.0)
+    x = np.concatenate([_real("librivox/sense_and_sensibility_01_austen_64kb-0930.wav")[0],
+                        _real("goforward.raw")[0]])  # fmt: skip
+    return x, recognize(x, 16000, RecognizerOptions(workers=1))
+
+
+def test_pieces_in_two_processes(four_pieces) -> None:
+    """With two workers, every other piece is decoded in a second process (its CPU time
+    shows among this process's children), and what is found is what one process finds, frame
+    for frame and word for word: each piece's decoders start anew."""
+    import resource
+
+    from vtts.speech import recognize as module
+
+    x, alone = four_pieces
+    least = 2 * module.MIN_PIECE_S  # two pieces of MIN_PIECE_S (1 s in this test)
+    assert module.workers(RecognizerOptions(), least - 0.1) == 1
+    assert module.workers(RecognizerOptions(workers=3), 1.0) == 3
+    assert module.workers(RecognizerOptions(), least) == min(2, len(os.sched_getaffinity(0)))
+    seen = []
+    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_utime
+    two = recognize(x, 16000, RecognizerOptions(workers=2), progress=lambda d, t: seen.append(d))
+    assert resource.getrusage(resource.RUSAGE_CHILDREN).ru_utime - before > 0.2
+    assert len(seen) == 4 and seen == sorted(seen) and seen[-1] == len(x) / 16000
+    assert np.array_equal(two.visemes, alone.visemes)
+    assert two.phones == alone.phones and two.words == alone.words
+    assert {"go", "forward"} <= {w.label for w in two.words if w.start >= 3.3}
+
+
+def test_a_worker_that_cannot_start_or_dies_leaves_its_pieces_here(four_pieces, monkeypatch):
+    """No worker process (the interpreter missing) or one that died: this process decodes
+    the worker's pieces too, and finds what it finds with the worker."""
+    import sys
+
+    from vtts.speech import recognize as module
+
+    x, alone = four_pieces
+    with monkeypatch.context() as m:
+        m.setattr(sys, "executable", "/nonexistent/python3")
+        rec = recognize(x, 16000, RecognizerOptions(workers=2))
+    assert np.array_equal(rec.visemes, alone.visemes) and rec.words == alone.words
+    options = RecognizerOptions()
+    jobs = [(x[a:b], np.ones((b - a) // 160, bool)) for a, b in ((0, 48000), (48000, 97000))]
+    found = {}
+    for dies in (False, True):
+        with module._Workers(2, options) as pool:
+            if dies:
+                proc = pool._links[0][0]
+                proc.kill()
+                proc.wait()
+            found[dies] = list(pool.map(module._Pieces(options, True, True), jobs))
+    assert [f.names for f in found[True]] == [f.names for f in found[False]]
+    assert [f.words for f in found[True]] == [f.words for f in found[False]]
+    assert {"go", "forward"} <= {w for w, _, _ in found[True][1].words}
 
 
 def test_stream_resampler_has_no_seams() -> None:

@@ -31,7 +31,9 @@ as silence or fillers) takes its mouth shapes from the voice's energy and spectr
 wholly in inaudible frames is a pause (viseme 0).
 
 :func:`recognize` decodes a whole recording in pieces of at most :data:`PIECE_S` cut at quiet
-frames (bounded memory; a ``progress`` callback after each); :class:`LiveRecognizer` takes
+frames (bounded memory; a ``progress`` callback after each), from 20 s on in two processes
+(:func:`workers`: every other piece in a worker; each piece's decoders start anew, so the result
+is the same in one process or two); :class:`LiveRecognizer` takes
 chunks of PCM as they arrive and gives each 10 ms frame's viseme as soon as the decoder has one
 (what ``vtts play --audio -`` uses, and what a server can feed).
 
@@ -41,6 +43,7 @@ it.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 from collections.abc import Callable
@@ -80,8 +83,11 @@ DECODER_RATE = 16000
 MIN_RATE = 8000
 #: Longest piece decoded as one utterance, s (the decoder's memory grows with an utterance).
 PIECE_S = 30.0
-#: A piece is cut at the quietest frame of its last CUT_WINDOW_S.
+#: A piece is cut at the quietest frame of the CUT_WINDOW_S around its even share's end.
 CUT_WINDOW_S = 5.0
+#: Shortest piece made for two processes (:func:`workers`): a recording of less than two of
+#: them is one piece, in one process; a longer one an even number of pieces.
+MIN_PIECE_S = 10.0
 #: Names the decoder gives to what is not a phone.
 NOT_PHONES = frozenset({"SIL", "<sil>", "<s>", "</s>", "(NULL)", "+SPN+", "+NSN+", "[NOISE]"})
 #: Names of the classifier's phones, by viseme: the ARPAbet phones of its class.
@@ -141,7 +147,9 @@ class RecognizerOptions:
     ``words`` (:data:`WORD_MODES`): where :func:`recognize` also recognizes words — PocketSphinx
     with its US-English language model and dictionary, the words' phones aligned to the audio
     in place of the phone loop's — ``"auto"`` in the pieces where the classifier is unsure
-    (:data:`WORDS_ENTROPY`: real speech, speech in noise), ``"always"`` or ``"never"``."""
+    (:data:`WORDS_ENTROPY`: real speech, speech in noise), ``"always"`` or ``"never"``;
+    ``workers``: how many processes :func:`recognize` decodes a recording's pieces in (None:
+    :func:`workers` chooses, two for a recording of two pieces or more on two CPUs or more)."""
 
     language_weight: float = 0.8
     beam: float = 1e-20
@@ -151,8 +159,12 @@ class RecognizerOptions:
     classifier: bool = True
     weights: Path | None = None
     words: str = "auto"
+    workers: int | None = None
 
     def __post_init__(self) -> None:
+        w = self.workers
+        if w is not None and (isinstance(w, bool) or not isinstance(w, int) or w < 1):
+            raise SpeechError(f"workers must be a whole number of at least 1, got {w!r}")
         if self.words not in WORD_MODES:
             raise SpeechError(f"words must be one of {', '.join(WORD_MODES)}, got {self.words!r}")
         if not (0.0 < self.language_weight <= 100.0):
@@ -448,14 +460,19 @@ def split_closures(
     return index, names
 
 
-def _cuts(db: np.ndarray, piece: int, window: int) -> list[int]:
-    """Frame indices where the audio is cut into pieces of at most ``piece`` frames: the
-    quietest frame of the last ``window`` frames of each."""
-    cuts, at, n = [], 0, db.size
-    while n - at > piece:
-        lo = at + piece - window
-        at = lo + int(np.argmin(db[lo : at + piece]))
-        cuts.append(at)
+def _cuts(db: np.ndarray, piece: int, window: int, least: int = 0) -> list[int]:
+    """Frame indices where the ``(n,)`` frames of ``db`` are cut into pieces of at most
+    ``piece`` frames, as few as may be — but an even number (for two processes) where each is
+    still at least ``least`` frames (two where the frames are at least ``2 * least``): each
+    cut at the quietest frame of the ``window`` frames around the end of its even share."""
+    n = db.size
+    count = 1 if n <= piece else int(np.ceil(n / (piece - window)))
+    if least > 0 and count % 2 and n >= (count + 1) * least:
+        count += 1
+    cuts = []
+    for k in range(1, count):
+        lo = round(k * n / count) - window // 2
+        cuts.append(lo + int(np.argmin(db[lo : lo + window])))
     return cuts
 
 
@@ -478,7 +495,11 @@ def recognize(
     :data:`MIN_RATE`), recognized by PocketSphinx (see the module docstring).
 
     The audio is resampled to :data:`DECODER_RATE` and decoded in pieces of at most
-    :data:`PIECE_S` cut at quiet frames, one utterance each (each its own cepstral mean);
+    :data:`PIECE_S` cut at quiet frames, one utterance each (each its own cepstral mean), in
+    :func:`workers` processes (``RecognizerOptions.workers``; an even number of pieces of
+    :data:`MIN_PIECE_S` at least, for two): piece ``i`` in process ``i % workers``, this one
+    first; each piece's result is its own (:class:`_Pieces`), the same in any process and
+    whatever the number of workers;
     ``progress(done_s, total_s)`` is called after each piece. Raises :class:`SpeechError` for a
     rate below :data:`MIN_RATE`; silence gives one pause."""
     # in 30 s blocks: resample_poly works in float64, and 30 minutes at 48 kHz whole would
@@ -489,86 +510,42 @@ def recognize(
     check_rate(rate)
     x = np.nan_to_num(np.asarray(samples, dtype=np.float32), nan=0.0)
     duration = len(x) / rate
-    x = resample(np.clip(x, -1.0, 1.0), int(rate), DECODER_RATE)
-    frames = energy_frames(x, DECODER_RATE)
-    n = frames.db.size
-    lv = levels(frames.db)
-    hop = int(DECODER_RATE * FRAME_S)
-    cuts = _cuts(frames.db, int(PIECE_S / FRAME_S), int(CUT_WINDOW_S / FRAME_S))
-    bounds = list(zip([0, *cuts], [*cuts, n], strict=True))
-    names: list[str] = []
-    first: list[int] = []
-    last: list[int] = []
-    heard = bool(np.any(frames.db > lv.audible))
-    classifier = None
-    closure = None  # the classifier's probability of p b m per frame
-    # a steady loud sound (music, loud noise) lacks speech's rise and fall: the classifier,
-    # trained on speech, would see visemes in it; PocketSphinx and the energy judge it alone
-    if options.classifier and heard and not lv.steady:
-        from vtts.speech.viseme_classifier import load_classifier
-
-        classifier = load_classifier(None if options.weights is None else Path(options.weights))
-        closure = np.zeros(n, np.float32)
-    use_decoder = heard and (
-        classifier is None or classifier.evidence > 0 or classifier.evidence_per_nat > 0
-    )
-    decoder = word_decoder = None  # made when first needed
-    audible = frames.db > lv.audible
-    words: list[TimedWord] = []
-    for a, b in bounds:
-        pcm = (
-            np.round(x[a * hop : b * hop] * 32767.0).astype(np.int16).tobytes()
-            if use_decoder
-            else b""
-        )
-        log_p, denoised = None, False
-        if classifier is not None:
-            log_p, _, denoised = classifier.warped_log_posteriors(x[a * hop : b * hop])
-        # PocketSphinx's phones: the words' where they are recognized, else the phone loop's —
-        # but not in noise (the classifier hears the piece better with the noise taken out),
-        # where the phone loop's phones mislead the classifier more than they help it
-        segments: list[Segment] = []
-        evidence = None
-        decoded = False
-        if use_decoder and _wants_words(options.words, log_p, audible[a:b], denoised):
-            word_decoder = word_decoder or make_word_decoder(options)
-            found, segments = decode_words(word_decoder, pcm)
-            words += [TimedWord((a + f) * FRAME_S, (a + e + 1) * FRAME_S, w) for w, f, e in found]
-            evidence = WORD_EVIDENCE if segments else None
-            decoded = bool(segments)
-        if use_decoder and not decoded and not denoised:
-            decoder = decoder or make_decoder(options)
-            decoder.start_utt()
-            decoder.process_raw(pcm, no_search=False, full_utt=True)
-            decoder.end_utt()
-            segments = [(s.word, s.start_frame, s.end_frame) for s in decoder.seg() or ()]
-            decoded = True
-        p_names = [name for name, _, _ in segments]
-        if log_p is None:
-            names += p_names
-            first += [a + f for _, f, _ in segments]
-            last += [a + e for _, _, e in segments]
-        else:
-            # PocketSphinx's visemes are evidence for the classifier; its phones name the
-            # classifier's runs where they agree
-            p_first = np.array([f for _, f, _ in segments], int)
-            p_last = np.array([e for _, _, e in segments], int)
-            p_index, p_vis = segments_to_phones(p_names, p_first, p_last, b - a)
-            piece = classifier.smoothed(log_p, p_vis if decoded else None, evidence)
-            piece = piece[: b - a]
-            closure[a : a + piece.size] = np.exp(log_p[: piece.size, 1])
-            edges = np.concatenate([[0], np.flatnonzero(np.diff(piece)) + 1, [piece.size]])
-            for s, e in zip(edges[:-1], edges[1:], strict=True):
-                v, mid = int(piece[s]), (s + e) // 2
-                agree = decoded and p_vis[mid] == v and p_index[mid] >= 0
-                names.append(p_names[p_index[mid]] if agree else CLASS_NAMES[v])
-                first.append(a + int(s))
-                last.append(a + int(e) - 1)
-        if progress is not None:
-            progress(min(b * FRAME_S, duration), duration)
+    count = workers(options, duration)
+    # the workers start first: they start Python and load the classifier meanwhile
+    with _Workers(count, options) as pool:
+        x = resample(np.clip(x, -1.0, 1.0), int(rate), DECODER_RATE)
+        frames = energy_frames(x, DECODER_RATE)
+        n = frames.db.size
+        lv = levels(frames.db)
+        hop = int(DECODER_RATE * FRAME_S)
+        audible = frames.db > lv.audible
+        heard = bool(np.any(audible))
+        cuts = _cuts(frames.db, int(PIECE_S / FRAME_S), int(CUT_WINDOW_S / FRAME_S),
+                     int(MIN_PIECE_S / FRAME_S))  # fmt: skip
+        bounds = list(zip([0, *cuts], [*cuts, n], strict=True))
+        # a steady loud sound (music, loud noise) lacks speech's rise and fall: the
+        # classifier, trained on speech, would see visemes in it; PocketSphinx and the energy
+        # judge it alone
+        pieces = _Pieces(options, options.classifier and heard and not lv.steady, heard)
+        names: list[str] = []
+        first: list[int] = []
+        last: list[int] = []
+        closure = np.zeros(n, np.float32) if pieces.classifier is not None else None
+        words: list[TimedWord] = []
+        jobs = [(x[a * hop : b * hop], audible[a:b]) for a, b in bounds]  # views
+        for (a, b), found in zip(bounds, pool.map(pieces, jobs), strict=True):
+            names += found.names
+            first += [a + f for f in found.first]
+            last += [a + e for e in found.last]
+            if closure is not None:
+                closure[a : a + found.closure.size] = found.closure
+            words += [TimedWord((a + f) * FRAME_S, (a + e + 1) * FRAME_S, w)
+                      for w, f, e in found.words]  # fmt: skip
+            if progress is not None:
+                progress(min(b * FRAME_S, duration), duration)
     index, vis = segments_to_phones(names, np.array(first), np.array(last), n)
     vis, filled = merge_energy(vis, index, frames, lv, options.fill, closure)
-    if classifier is not None:
+    if pieces.classifier is not None:
         index, names = split_closures(vis, index, names, frames.db)
     phones = frames_to_phones(vis, index, names, filled, duration)
     return Recognition(
@@ -579,6 +556,291 @@ def recognize(
         visemes=vis,
         words=[TimedWord(w.start, min(w.end, duration), w.label) for w in words],
     )
+
+
+def workers(options: RecognizerOptions, duration: float) -> int:
+    """How many processes :func:`recognize` decodes a recording of ``duration`` s in:
+    ``options.workers``, or where that is None, two where the recording makes two pieces of at
+    least :data:`MIN_PIECE_S` and this process may run on two CPUs or more, else one."""
+    if options.workers is not None:
+        return options.workers
+    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return 2 if duration >= 2 * MIN_PIECE_S and (cpus or 1) >= 2 else 1
+
+
+@dataclass
+class _Found:
+    """What :meth:`_Pieces.piece` found in one piece, its frames counted from the piece's
+    first: the phones' ``names``, ``first`` and ``last`` frames (inclusive); ``closure``,
+    ``(frames,)`` float32, the classifier's probability of p b m (empty without it); ``words``,
+    ``(word, first, last)``."""
+
+    names: list[str]
+    first: list[int]
+    last: list[int]
+    closure: np.ndarray
+    words: list[Segment]
+
+
+class _Pieces:
+    """The recognizer of one process (:func:`recognize`'s or a worker's): ``options``; the
+    viseme classifier where ``classify``; PocketSphinx's decoders, made when first needed,
+    where ``decode`` (there is audible sound) and the classifier wants their evidence. Their
+    features are made anew for each piece (``reinit_feat``: the dither's random numbers and
+    the cepstral mean from the start, some 0.1 ms), so that what a piece gives does not
+    depend on the pieces decoded before it: on how many processes, in which order."""
+
+    def __init__(self, options: RecognizerOptions, classify: bool, decode: bool) -> None:
+        self.options, self.classify, self.decode = options, classify, decode
+        self.classifier = None
+        if classify:
+            from vtts.speech.viseme_classifier import load_classifier
+
+            weights = None if options.weights is None else Path(options.weights)
+            self.classifier = load_classifier(weights)
+        c = self.classifier
+        self.use_decoder = decode and (c is None or c.evidence > 0 or c.evidence_per_nat > 0)
+        self._decoder = self._word_decoder = None
+
+    def piece(self, x: np.ndarray, audible: np.ndarray) -> _Found:
+        """The phones of one piece, ``(n,)`` float32 samples at :data:`DECODER_RATE` whose
+        ``(frames,)`` bool ``audible`` frames are louder than the recording's audible level."""
+        options, classifier = self.options, self.classifier
+        n = audible.size
+        pcm = np.round(x * 32767.0).astype(np.int16).tobytes() if self.use_decoder else b""
+        log_p, denoised = None, False
+        if classifier is not None:
+            log_p, _, denoised = classifier.warped_log_posteriors(x)
+        # PocketSphinx's phones: the words' where they are recognized, else the phone loop's —
+        # but not in noise (the classifier hears the piece better with the noise taken out),
+        # where the phone loop's phones mislead the classifier more than they help it
+        segments: list[Segment] = []
+        found: list[Segment] = []
+        evidence = None
+        decoded = False
+        if self.use_decoder and _wants_words(options.words, log_p, audible, denoised):
+            self._word_decoder = self._word_decoder or make_word_decoder(options)
+            self._word_decoder.reinit_feat()  # as new: the piece's result its own (see class)
+            found, segments = decode_words(self._word_decoder, pcm)
+            evidence = WORD_EVIDENCE if segments else None
+            decoded = bool(segments)
+        if self.use_decoder and not decoded and not denoised:
+            self._decoder = self._decoder or make_decoder(options)
+            self._decoder.reinit_feat()
+            self._decoder.start_utt()
+            self._decoder.process_raw(pcm, no_search=False, full_utt=True)
+            self._decoder.end_utt()
+            segments = [(s.word, s.start_frame, s.end_frame) for s in self._decoder.seg() or ()]
+            decoded = True
+        p_names = [name for name, _, _ in segments]
+        if log_p is None:
+            return _Found(p_names, [f for _, f, _ in segments], [e for _, _, e in segments],
+                          np.zeros(0, np.float32), found)  # fmt: skip
+        # PocketSphinx's visemes are evidence for the classifier; its phones name the
+        # classifier's runs where they agree
+        p_first = np.array([f for _, f, _ in segments], int)
+        p_last = np.array([e for _, _, e in segments], int)
+        p_index, p_vis = segments_to_phones(p_names, p_first, p_last, n)
+        run = classifier.smoothed(log_p, p_vis if decoded else None, evidence)[:n]
+        names: list[str] = []
+        edges = np.concatenate([[0], np.flatnonzero(np.diff(run)) + 1, [run.size]])
+        for s, e in zip(edges[:-1], edges[1:], strict=True):
+            v, mid = int(run[s]), (s + e) // 2
+            agree = decoded and p_vis[mid] == v and p_index[mid] >= 0
+            names.append(p_names[p_index[mid]] if agree else CLASS_NAMES[v])
+        return _Found(names, [int(s) for s in edges[:-1]], [int(e) - 1 for e in edges[1:]],
+                      np.exp(log_p[: run.size, 1]).astype(np.float32), found)  # fmt: skip
+
+
+class _Workers:
+    """``count`` processes decoding pieces (:meth:`map`): this one and ``count - 1`` workers
+    started with ``options`` (:func:`_serve`), each with its own :class:`_Pieces` (and so its
+    own decoders). A worker that fails (it could not start, or died) leaves its pieces to this
+    process. While pieces are decoded in several
+    processes, each one's BLAS runs one thread (the cores are the processes', and the sums
+    are the same in each)."""
+
+    def __init__(self, count: int, options: RecognizerOptions) -> None:
+        self.count = count
+        self.options = options
+        self._links: list = []  # [process, connection (None once failed)] per worker
+
+    def __enter__(self) -> _Workers:
+        # not multiprocessing's spawn: it runs the caller's main script again in each worker
+        # (a script without an ``if __name__ == "__main__"`` guard would run twice)
+        import socket
+        import subprocess
+        import sys
+        from multiprocessing.connection import Connection
+
+        import vtts
+
+        # this vtts, however the caller found it; one BLAS thread (the cores are the workers')
+        path = os.pathsep.join(filter(None, [os.path.dirname(os.path.dirname(vtts.__file__)),
+                                             os.environ.get("PYTHONPATH")]))  # fmt: skip
+        env = dict(os.environ, PYTHONPATH=path, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
+        for _ in range(self.count - 1):
+            mine, theirs = socket.socketpair()
+            try:
+                proc = subprocess.Popen(
+                    [sys.executable, "-c", "from vtts.speech.recognize import _serve; _serve()",
+                     str(theirs.fileno())],
+                    pass_fds=(theirs.fileno(),), env=env, stdin=subprocess.DEVNULL,
+                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                )  # fmt: skip
+            except OSError:
+                mine.close()
+                self._links.append([None, None])
+                continue
+            finally:
+                theirs.close()
+            self._links.append([proc, Connection(mine.detach())])
+            self._send(len(self._links) - 1, self.options)
+        return self
+
+    def map(self, pieces: _Pieces, jobs: list):
+        """The :class:`_Found` of each ``(samples, audible)`` job, in order: job ``i`` decoded
+        here with ``pieces`` where ``i % count`` is 0 (ahead of the others while a worker's
+        answer is not there), else by worker ``i % count - 1`` with ``pieces``' settings —
+        sent from a thread as soon as the worker takes it (each worker has its next job while
+        it decodes one: a few pieces' samples in flight at most) — or here, where that worker
+        failed (could not start, died). A piece's result is the same wherever it is decoded
+        (:class:`_Pieces`)."""
+        import threading
+
+        from vtts.threads import SIGNAL_SLICE, one_blas_thread
+
+        for k in range(len(self._links)):
+            self._send(k, (pieces.classify, pieces.decode))
+        sent = [False] * len(jobs)
+        done = [threading.Event() for _ in jobs]
+
+        def send() -> None:
+            for i, job in enumerate(jobs):
+                if i % self.count:
+                    sent[i] = self._send(i % self.count - 1, job)
+                done[i].set()
+
+        sender = threading.Thread(target=send, daemon=True)
+        sender.start()
+        mine = {}  # this process's jobs decoded ahead, by index
+        ahead = iter(range(0, len(jobs), self.count))
+
+        def decode_ahead() -> bool:
+            i = next(ahead, None)
+            if i is not None:
+                with one_blas_thread() if self.count > 1 else contextlib.nullcontext():
+                    mine[i] = pieces.piece(*jobs[i])
+            return i is not None
+
+        for i, job in enumerate(jobs):
+            if i % self.count == 0:
+                if i not in mine:
+                    decode_ahead()
+                yield mine.pop(i)
+                continue
+            k = i % self.count - 1
+            # this process decodes its next jobs until the worker's answer is there
+            while not self._answered(k, i, sent, done) and decode_ahead():
+                pass
+            while not done[i].wait(SIGNAL_SLICE):  # in slices: a signal ends the wait
+                pass
+            found = sent[i] and self._receive(k)
+            if not found:  # the worker failed: its job is decoded here
+                with one_blas_thread():
+                    found = pieces.piece(*job)
+            yield found
+
+    def _answered(self, k: int, i: int, sent: list[bool], done: list) -> bool:
+        """Whether job ``i`` of worker ``k`` needs no more waiting: sent and answered, or not
+        sent (this process decodes it)."""
+        if not done[i].is_set():
+            return False
+        link = self._links[k][1]
+        return not sent[i] or link is None or link.poll(0)
+
+    def _send(self, k: int, message) -> bool:
+        """Send ``message`` to worker ``k``: whether it went (else the worker is given up)."""
+        if self._links[k][1] is None:
+            return False
+        try:
+            self._links[k][1].send(message)
+            return True
+        except (OSError, EOFError, ValueError):
+            self._links[k][1] = None
+            return False
+
+    def _receive(self, k: int) -> _Found | None:
+        """Worker ``k``'s answer to its last job: None where it failed (and is given up); its
+        :class:`SpeechError` raised."""
+        from vtts.threads import SIGNAL_SLICE
+
+        proc, link = self._links[k]
+        if link is None:
+            return None
+        found = None
+        try:
+            while not link.poll(SIGNAL_SLICE):  # in slices: a signal ends the wait
+                if proc.poll() is not None and not link.poll(0):
+                    raise EOFError
+            found = link.recv()
+        except (OSError, EOFError):
+            pass
+        if isinstance(found, _Found):
+            return found
+        self._links[k][1] = None
+        if isinstance(found, SpeechError):
+            raise found
+        return None
+
+    def __exit__(self, kind, *exc) -> None:
+        for proc, link in self._links:
+            if proc is None:
+                continue
+            if kind is not None:  # this process failed: no more work for the workers
+                proc.kill()
+            if link is not None:
+                try:
+                    link.send(None)
+                except (OSError, EOFError, ValueError):
+                    pass
+                link.close()
+            try:
+                proc.wait(timeout=5)
+            except Exception:
+                proc.kill()
+                proc.wait()
+
+
+def _serve() -> None:
+    """A worker of :class:`_Workers`, run as ``python -c`` with the file descriptor of its
+    socket: given the :class:`RecognizerOptions` (it loads the classifier then) and then
+    :class:`_Pieces`' ``(classify, decode)``, it sends back the :class:`_Found` of each
+    ``(samples, audible)`` job received, until None (or the exception raised)."""
+    import sys
+    from multiprocessing.connection import Connection
+
+    link = Connection(int(sys.argv[1]))
+    try:
+        options = link.recv()
+        if options is None:
+            return
+        if options.classifier:  # while the parent resamples and cuts the audio
+            from vtts.speech.viseme_classifier import load_classifier
+
+            load_classifier(None if options.weights is None else Path(options.weights))
+        settings = link.recv()
+        if settings is None:
+            return
+        pieces = _Pieces(options, *settings)
+        while (job := link.recv()) is not None:
+            link.send(pieces.piece(*job))
+    except EOFError:
+        pass
+    except Exception as e:  # the parent decodes the piece itself (or raises a SpeechError)
+        link.send(e if isinstance(e, SpeechError) else RuntimeError(repr(e)))
+    finally:
+        link.close()
 
 
 class LiveRecognizer:
