@@ -673,11 +673,10 @@ class _Workers:
         import sys
         from multiprocessing.connection import Connection
 
-        import vtts
-
-        # this vtts, however the caller found it; one BLAS thread (the cores are the workers')
-        path = os.pathsep.join(filter(None, [os.path.dirname(os.path.dirname(vtts.__file__)),
-                                             os.environ.get("PYTHONPATH")]))  # fmt: skip
+        # this vtts (the folder above vtts/speech/), however the caller found it; one BLAS
+        # thread (the cores are the workers')
+        here = str(Path(__file__).resolve().parents[2])
+        path = os.pathsep.join(filter(None, [here, os.environ.get("PYTHONPATH")]))
         env = dict(os.environ, PYTHONPATH=path, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
         for _ in range(self.count - 1):
             mine, theirs = socket.socketpair()
