@@ -149,7 +149,7 @@ class RecognizerOptions:
     in place of the phone loop's — ``"auto"`` in the pieces where the classifier is unsure
     (:data:`WORDS_ENTROPY`: real speech, speech in noise), ``"always"`` or ``"never"``;
     ``workers``: how many processes :func:`recognize` decodes a recording's pieces in (None:
-    :func:`workers` chooses, two for a recording of two pieces or more on two CPUs or more)."""
+    :func:`workers` chooses, two for a recording of 20 s or more on two CPUs or more)."""
 
     language_weight: float = 0.8
     beam: float = 1e-20
