@@ -392,6 +392,51 @@ def test_a_worker_that_cannot_start_or_dies_leaves_its_pieces_here(four_pieces, 
     assert {"go", "forward"} <= {w for w, _, _ in found[True][1].words}
 
 
+def test_decoders_kept_between_recognitions_find_what_new_ones_do(monkeypatch) -> None:
+    """A recognition keeps its decoders for the next one in the process, which uses them
+    (none is made: making one fails here) and finds what new ones find, frame for frame and
+    word for word, whatever was recognized between; two recognitions at once each have their
+    own; :func:`release_decoders` drops them (the next recognition makes new ones)."""
+    import threading
+
+    from vtts.speech import recognize as module
+
+    module.release_decoders()
+    go, _ = _real("goforward.raw")
+    other, _ = _real("librivox/sense_and_sensibility_01_austen_64kb-0930.wav")
+    first = recognize(go, 16000)
+    assert ("words", True) in module._KEPT
+    recognize(other, 16000, RecognizerOptions(words="never"))  # the phone loop's decoder too
+
+    def no_new(options):
+        raise AssertionError("a decoder was made, not taken from those kept")
+
+    with monkeypatch.context() as m:
+        m.setattr(module, "make_word_decoder", no_new)
+        m.setattr(module, "make_decoder", no_new)
+        again = recognize(go, 16000)
+        assert np.array_equal(again.visemes, first.visemes)
+        assert again.phones == first.phones and again.words == first.words
+        assert recognize(other, 16000, RecognizerOptions(words="never")).phones
+    found = [None, None]
+
+    def run(i: int) -> None:
+        found[i] = recognize(go, 16000)
+
+    threads = [threading.Thread(target=run, args=(i,)) for i in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for rec in found:
+        assert np.array_equal(rec.visemes, first.visemes) and rec.words == first.words
+    assert module.release_decoders() == 2 and module._KEPT == {}
+    with monkeypatch.context() as m:
+        m.setattr(module, "make_word_decoder", no_new)
+        with pytest.raises(AssertionError, match="was made"):
+            recognize(go, 16000)
+
+
 def test_stream_resampler_has_no_seams() -> None:
     x = np.random.default_rng(1).normal(0, 0.1, 44100).astype(np.float32)
     whole = StreamResampler(44100, 16000)(x)

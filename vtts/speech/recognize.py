@@ -43,9 +43,9 @@ it.
 
 from __future__ import annotations
 
-import contextlib
 import os
 import re
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -73,6 +73,7 @@ __all__ = [
     "decode_words",
     "make_word_decoder",
     "recognize",
+    "release_decoders",
     "segments_to_phones",
     "split_closures",
 ]
@@ -505,14 +506,17 @@ def recognize(
     # in 30 s blocks: resample_poly works in float64, and 30 minutes at 48 kHz whole would
     # take over a gigabyte
     from vtts.speech.audio import resample_in_blocks as resample
+    from vtts.threads import one_blas_thread
 
     options = options or RecognizerOptions()
     check_rate(rate)
     x = np.nan_to_num(np.asarray(samples, dtype=np.float32), nan=0.0)
     duration = len(x) / rate
     count = workers(options, duration)
-    # the workers start first: they start Python and load the classifier meanwhile
-    with _Workers(count, options) as pool:
+    # the workers start first: they start Python and load the classifier meanwhile; BLAS on
+    # one thread (the classifier's products are small: a second thread cost a quarter more CPU
+    # for the same wall time, and the other core is the worker's)
+    with one_blas_thread(), _Workers(count, options) as pool:
         x = resample(np.clip(x, -1.0, 1.0), int(rate), DECODER_RATE)
         frames = energy_frames(x, DECODER_RATE)
         n = frames.db.size
@@ -543,6 +547,7 @@ def recognize(
                       for w, f, e in found.words]  # fmt: skip
             if progress is not None:
                 progress(min(b * FRAME_S, duration), duration)
+    pieces.keep_decoders()  # every piece decoded: for the next recognition in this process
     index, vis = segments_to_phones(names, np.array(first), np.array(last), n)
     vis, filled = merge_energy(vis, index, frames, lv, options.fill, closure)
     if pieces.classifier is not None:
@@ -602,6 +607,22 @@ class _Pieces:
         self.use_decoder = decode and (c is None or c.evidence > 0 or c.evidence_per_nat > 0)
         self._decoder = self._word_decoder = None
 
+    def _phone_key(self) -> tuple:
+        o = self.options
+        return ("phones", o.language_weight, o.beam, o.phone_beam, o.dither)
+
+    def _word_key(self) -> tuple:
+        return ("words", self.options.dither)
+
+    def keep_decoders(self) -> None:
+        """Keep this recognizer's decoders for the next one in this process
+        (:func:`release_decoders`); call it only where every piece was decoded to its end."""
+        for key, decoder in ((self._phone_key(), self._decoder),
+                             (self._word_key(), self._word_decoder)):  # fmt: skip
+            if decoder is not None:
+                _keep(key, decoder)
+        self._decoder = self._word_decoder = None
+
     def piece(self, x: np.ndarray, audible: np.ndarray) -> _Found:
         """The phones of one piece, ``(n,)`` float32 samples at :data:`DECODER_RATE` whose
         ``(frames,)`` bool ``audible`` frames are louder than the recording's audible level."""
@@ -619,13 +640,15 @@ class _Pieces:
         evidence = None
         decoded = False
         if self.use_decoder and _wants_words(options.words, log_p, audible, denoised):
-            self._word_decoder = self._word_decoder or make_word_decoder(options)
+            self._word_decoder = self._word_decoder or _take(
+                self._word_key(), lambda: make_word_decoder(options)
+            )
             self._word_decoder.reinit_feat()  # as new: the piece's result its own (see class)
             found, segments = decode_words(self._word_decoder, pcm)
             evidence = WORD_EVIDENCE if segments else None
             decoded = bool(segments)
         if self.use_decoder and not decoded and not denoised:
-            self._decoder = self._decoder or make_decoder(options)
+            self._decoder = self._decoder or _take(self._phone_key(), lambda: make_decoder(options))
             self._decoder.reinit_feat()
             self._decoder.start_utt()
             self._decoder.process_raw(pcm, no_search=False, full_utt=True)
@@ -652,13 +675,46 @@ class _Pieces:
                       np.exp(log_p[: run.size, 1]).astype(np.float32), found)  # fmt: skip
 
 
+#: PocketSphinx's decoders kept between recognitions in this process, idle, by what they were
+#: made with: at most one of each kind (the word decoder holds some 90 MB), the oldest
+#: dropped beyond :data:`MAX_KEPT`. Each piece's decoders start anew (:class:`_Pieces`), so a
+#: kept decoder finds what a new one would; a decoder is taken by one recognition at a time.
+_KEPT: dict[tuple, object] = {}
+_KEPT_LOCK = threading.Lock()
+MAX_KEPT = 3
+
+
+def _take(key: tuple, make: Callable[[], object]):
+    """The kept decoder made with ``key`` (no longer kept: it is the caller's), else ``make()``."""
+    with _KEPT_LOCK:
+        decoder = _KEPT.pop(key, None)
+    return make() if decoder is None else decoder
+
+
+def _keep(key: tuple, decoder) -> None:
+    """Keep ``decoder``, made with ``key``, for the next recognition (one of each kind)."""
+    with _KEPT_LOCK:
+        _KEPT.setdefault(key, decoder)
+        while len(_KEPT) > MAX_KEPT:
+            del _KEPT[next(iter(_KEPT))]
+
+
+def release_decoders() -> int:
+    """Drop the decoders :func:`recognize` keeps between recognitions in this process (their
+    memory goes back once nothing else holds them); how many were kept. The next recognition
+    makes new ones (some 0.35 s with words)."""
+    with _KEPT_LOCK:
+        count = len(_KEPT)
+        _KEPT.clear()
+    return count
+
+
 class _Workers:
     """``count`` processes decoding pieces (:meth:`map`): this one and ``count - 1`` workers
     started with ``options`` (:func:`_serve`), each with its own :class:`_Pieces` (and so its
     own decoders). A worker that fails (it could not start, or died) leaves its pieces to this
-    process. While pieces are decoded in several
-    processes, each one's BLAS runs one thread (the cores are the processes', and the sums
-    are the same in each)."""
+    process. Every process runs BLAS on one thread (:func:`recognize`; the workers by their
+    environment)."""
 
     def __init__(self, count: int, options: RecognizerOptions) -> None:
         self.count = count
@@ -705,9 +761,8 @@ class _Workers:
         it decodes one: a few pieces' samples in flight at most) — or here, where that worker
         failed (could not start, died). A piece's result is the same wherever it is decoded
         (:class:`_Pieces`)."""
-        import threading
 
-        from vtts.threads import SIGNAL_SLICE, one_blas_thread
+        from vtts.threads import SIGNAL_SLICE
 
         for k in range(len(self._links)):
             self._send(k, (pieces.classify, pieces.decode))
@@ -728,8 +783,7 @@ class _Workers:
         def decode_ahead() -> bool:
             i = next(ahead, None)
             if i is not None:
-                with one_blas_thread() if self.count > 1 else contextlib.nullcontext():
-                    mine[i] = pieces.piece(*jobs[i])
+                mine[i] = pieces.piece(*jobs[i])
             return i is not None
 
         for i, job in enumerate(jobs):
@@ -746,8 +800,7 @@ class _Workers:
                 pass
             found = sent[i] and self._receive(k)
             if not found:  # the worker failed: its job is decoded here
-                with one_blas_thread():
-                    found = pieces.piece(*job)
+                found = pieces.piece(*job)
             yield found
 
     def _answered(self, k: int, i: int, sent: list[bool], done: list) -> bool:
