@@ -38,7 +38,8 @@ chunks of PCM as they arrive and gives each 10 ms frame's viseme as soon as the 
 (what ``vtts play --audio -`` uses, and what a server can feed).
 
 ``pocketsphinx`` is imported when a decoder is made, not before: other commands do not pay for
-it.
+it. The decoders :func:`recognize` made are kept for the next recognition in the process (a
+batch's worker, a server), which finds what new ones would; :func:`release_decoders` drops them.
 """
 
 from __future__ import annotations
