@@ -762,7 +762,6 @@ class _Workers:
         it decodes one: a few pieces' samples in flight at most) — or here, where that worker
         failed (could not start, died). A piece's result is the same wherever it is decoded
         (:class:`_Pieces`)."""
-
         from vtts.threads import SIGNAL_SLICE
 
         for k in range(len(self._links)):
