@@ -366,15 +366,17 @@ def test_pieces_in_two_processes(four_pieces) -> None:
 
 
 def test_a_worker_that_cannot_start_or_dies_leaves_its_pieces_here(four_pieces, monkeypatch):
-    """No worker process (the interpreter missing) or one that died: this process decodes
-    the worker's pieces too, and finds what it finds with the worker."""
-    import sys
-
+    """No worker process (the fork failed) or one that died: this process decodes the
+    worker's pieces too, and finds what it finds with the worker."""
     from vtts.speech import recognize as module
 
     x, alone = four_pieces
+
+    def cannot(*args):
+        raise OSError(11, "Resource temporarily unavailable")
+
     with monkeypatch.context() as m:
-        m.setattr(sys, "executable", "/nonexistent/python3")
+        m.setattr(module.os, "fork", cannot)
         rec = recognize(x, 16000, RecognizerOptions(workers=2))
     assert np.array_equal(rec.visemes, alone.visemes) and rec.words == alone.words
     options = RecognizerOptions()
@@ -390,6 +392,83 @@ def test_a_worker_that_cannot_start_or_dies_leaves_its_pieces_here(four_pieces, 
     assert [f.names for f in found[True]] == [f.names for f in found[False]]
     assert [f.words for f in found[True]] == [f.words for f in found[False]]
     assert {"go", "forward"} <= {w for w, _, _ in found[True][1].words}
+
+
+def test_a_forked_worker_never_returns_into_its_parent(four_pieces, monkeypatch, tmp_path):
+    """A worker is forked from the recognizing process: whatever it raises — even what is not
+    an ``Exception`` — it ends there (``os._exit``), and never goes on with its parent's code;
+    its parent decodes its pieces. Recognizing in a thread that is not the main one forks too."""
+    import threading
+
+    from vtts.speech import recognize as module
+
+    x, alone = four_pieces
+    parent = os.getpid()
+
+    def dies(link):
+        raise KeyboardInterrupt
+
+    escaped = tmp_path / "escaped"
+    with monkeypatch.context() as m:
+        m.setattr(module, "_serve", dies)
+        try:
+            rec = recognize(x, 16000, RecognizerOptions(workers=2))
+        finally:
+            if os.getpid() != parent:  # only a worker that came back into this test
+                escaped.write_text(str(os.getpid()))
+                os._exit(0)
+    assert not escaped.exists()
+    assert np.array_equal(rec.visemes, alone.visemes) and rec.words == alone.words
+    found = []
+    thread = threading.Thread(
+        target=lambda: found.append(recognize(x, 16000, RecognizerOptions(workers=2)))
+    )
+    thread.start()
+    thread.join(120)
+    assert found and np.array_equal(found[0].visemes, alone.visemes)
+
+
+def test_the_word_search_loads_the_language_models_words_and_finds_the_same(
+    tmp_path, monkeypatch
+) -> None:
+    """The word decoder's dictionary is the wheel's cut to its language model's words (their
+    other pronunciations kept), made once in the user's cache; a decoder with the whole
+    dictionary finds the same words and phones. With the cache off, or a file there that is
+    not the user's own, the whole dictionary (an untrusted file is made anew, never read)."""
+    import stat
+
+    from vtts.speech import recognize as module
+
+    monkeypatch.setenv("VTTS_CACHE_DIR", str(tmp_path / "cache"))
+    hmm, _ = module.model_paths()
+    root = os.path.dirname(hmm)
+    whole, lm = os.path.join(root, "cmudict-en-us.dict"), os.path.join(root, "en-us.lm.bin")
+    cut = module.word_dictionary(whole, lm)
+    assert Path(cut).parent == tmp_path / "cache" / "speech"
+    entries = {line.split(maxsplit=1)[0] for line in Path(cut).read_text().splitlines()}
+    assert 70_000 < len(entries) < 90_000
+    assert {"been", "been(2)", "forward", "meters"} <= entries
+    assert entries < {line.split(maxsplit=1)[0] for line in open(whole) if line.strip()}
+    assert module.word_dictionary(whole, lm) == cut  # made once
+    go, _ = _real("goforward.raw")
+    other, _ = _real("librivox/sense_and_sensibility_01_austen_64kb-0930.wav")
+    decoders = [module.make_word_decoder(RecognizerOptions())]
+    monkeypatch.setenv("VTTS_CACHE_DIR", "")
+    assert module.word_dictionary(whole, lm) == whole
+    decoders.append(module.make_word_decoder(RecognizerOptions()))
+    for x in (go, other):
+        pcm = np.round(x * 32767).astype(np.int16).tobytes()
+        found = []
+        for d in decoders:
+            d.reinit_feat()
+            found.append(module.decode_words(d, pcm))
+        assert found[0] == found[1] and found[0][0]
+    monkeypatch.setenv("VTTS_CACHE_DIR", str(tmp_path / "cache"))
+    Path(cut).write_text("go G OW\n")
+    os.chmod(cut, 0o666)  # writable by others: planted, not trusted
+    assert module.word_dictionary(whole, lm) == cut
+    assert not os.stat(cut).st_mode & stat.S_IWOTH
+    assert len(Path(cut).read_text().splitlines()) > 70_000
 
 
 def test_decoders_kept_between_recognitions_find_what_new_ones_do(monkeypatch) -> None:

@@ -32,8 +32,8 @@ wholly in inaudible frames is a pause (viseme 0).
 
 :func:`recognize` decodes a whole recording in pieces of at most :data:`PIECE_S` cut at quiet
 frames (bounded memory; a ``progress`` callback after each), from 20 s on in two processes
-(:func:`workers`: every other piece in a worker; each piece's decoders start anew, so the result
-is the same in one process or two); :class:`LiveRecognizer` takes
+(:func:`workers`: every other piece in a worker forked from this process; each piece's decoders
+start anew, so the result is the same in one process or two); :class:`LiveRecognizer` takes
 chunks of PCM as they arrive and gives each 10 ms frame's viseme as soon as the decoder has one
 (what ``vtts play --audio -`` uses, and what a server can feed).
 
@@ -46,10 +46,12 @@ from __future__ import annotations
 
 import os
 import re
+import signal
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NoReturn
 
 import numpy as np
 
@@ -77,6 +79,7 @@ __all__ = [
     "release_decoders",
     "segments_to_phones",
     "split_closures",
+    "word_dictionary",
 ]
 
 #: The acoustic model's rate, Hz: audio is resampled to it.
@@ -238,7 +241,8 @@ def make_decoder(options: RecognizerOptions):
 
 def make_word_decoder(options: RecognizerOptions):
     """A ``pocketsphinx.Decoder`` recognizing words: the wheel's US-English acoustic model,
-    language model (``en-us.lm.bin``) and dictionary (``cmudict-en-us.dict``), one pass of the
+    language model (``en-us.lm.bin``) and dictionary (``cmudict-en-us.dict``, cut to the
+    language model's words: :func:`word_dictionary`), one pass of the
     tree search (no flat or lattice pass) capped at :data:`WORD_MAX_HMMS` active HMMs, the
     phone loop's dither; its log silenced."""
     from pocketsphinx import Decoder
@@ -251,7 +255,7 @@ def make_word_decoder(options: RecognizerOptions):
     return Decoder(
         hmm=hmm,
         lm=lm,
-        dict=dic,
+        dict=word_dictionary(dic, lm),
         fwdflat=False,
         bestpath=False,
         maxhmmpf=WORD_MAX_HMMS,
@@ -259,6 +263,49 @@ def make_word_decoder(options: RecognizerOptions):
         loglevel="FATAL",
         logfn=os.devnull,
     )
+
+
+def word_dictionary(dictionary: str, lm: str) -> str:
+    """The dictionary file the word search loads: ``dictionary`` (the wheel's
+    ``cmudict-en-us.dict``, 134,860 entries) cut to the words of the language model ``lm``
+    (72,547 words), their other pronunciations (``read(2)``) kept: 79,426 entries, which the
+    decoder loads in about 0.1 s less. The search finds the same with either, word for word
+    and phone for phone: it enters no word that its language model lacks.
+    Kept in the user's cache (``speech/`` in :func:`vtts.usercache.cache_dir`, named by the
+    ``pocketsphinx`` version and the two files' sizes and times) and made there on first use
+    (some 0.2 s); ``dictionary`` itself where the cache is off or not the user's own."""
+    import hashlib
+    from importlib.metadata import version
+
+    from vtts.atomic import atomic_path
+    from vtts.usercache import private_folder, trusted_file
+
+    folder = private_folder("speech")
+    if folder is None:
+        return dictionary
+    stats = [(os.stat(f).st_size, os.stat(f).st_mtime_ns) for f in (dictionary, lm)]
+    key = f"{version('pocketsphinx')}\0{dictionary}\0{lm}\0{stats}".encode()
+    path = folder / f"words-{hashlib.sha256(key).hexdigest()[:20]}.dict"
+    if trusted_file(path):
+        return str(path)
+    from pocketsphinx import NGramModel
+
+    model = NGramModel.readfile(lm)
+    unknown = model.prob(["<not a word of vtts>"])
+    kept: list[str] = []
+    with open(dictionary, encoding="utf-8") as f:
+        for line in f:
+            word = line.split(maxsplit=1)[0] if line.strip() else ""
+            if word and model.prob([_VARIANT.sub("", word)]) != unknown:
+                kept.append(line)
+    try:
+        if path.is_symlink() or path.exists():
+            path.unlink()  # not trusted (above): never read
+        with atomic_path(path) as tmp:
+            tmp.write_text("".join(kept), encoding="utf-8")
+    except OSError:
+        return dictionary
+    return str(path)
 
 
 def decode_words(decoder, pcm: bytes) -> tuple[list[Segment], list[Segment]]:
@@ -571,7 +618,8 @@ def workers(options: RecognizerOptions, duration: float) -> int:
     if options.workers is not None:
         return options.workers
     cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    return 2 if duration >= 2 * MIN_PIECE_S and (cpus or 1) >= 2 else 1
+    forks = hasattr(os, "fork")
+    return 2 if duration >= 2 * MIN_PIECE_S and (cpus or 1) >= 2 and forks else 1
 
 
 @dataclass
@@ -712,10 +760,10 @@ def release_decoders() -> int:
 
 class _Workers:
     """``count`` processes decoding pieces (:meth:`map`): this one and ``count - 1`` workers
-    started with ``options`` (:func:`_serve`), each with its own :class:`_Pieces` (and so its
-    own decoders). A worker that fails (it could not start, or died) leaves its pieces to this
-    process. Every process runs BLAS on one thread (:func:`recognize`; the workers by their
-    environment)."""
+    forked from it (:func:`_forked`) and given ``options`` (:func:`_serve`), each with its own
+    :class:`_Pieces` (and so its own decoders: a copy of those this process kept, else new). A
+    worker that fails (it could not be forked, or died) leaves its pieces to this process. Every
+    process runs BLAS on one thread (:func:`recognize`'s setting, which the workers inherit)."""
 
     def __init__(self, count: int, options: RecognizerOptions) -> None:
         self.count = count
@@ -723,34 +771,27 @@ class _Workers:
         self._links: list = []  # [process, connection (None once failed)] per worker
 
     def __enter__(self) -> _Workers:
-        # not multiprocessing's spawn: it runs the caller's main script again in each worker
-        # (a script without an ``if __name__ == "__main__"`` guard would run twice)
+        # forked, not started: a new interpreter would take longer to start than a short
+        # recording takes to decode (and multiprocessing's spawn runs the caller's main script
+        # again in each worker); the worker inherits this process's modules, its classifier
+        # and the decoders kept from the last recognition
         import socket
-        import subprocess
-        import sys
         from multiprocessing.connection import Connection
 
-        # this vtts (the folder above vtts/speech/), however the caller found it; one BLAS
-        # thread (the cores are the workers')
-        here = str(Path(__file__).resolve().parents[2])
-        path = os.pathsep.join(filter(None, [here, os.environ.get("PYTHONPATH")]))
-        env = dict(os.environ, PYTHONPATH=path, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
         for _ in range(self.count - 1):
             mine, theirs = socket.socketpair()
             try:
-                proc = subprocess.Popen(
-                    [sys.executable, "-c", "from vtts.speech.recognize import _serve; _serve()",
-                     str(theirs.fileno())],
-                    pass_fds=(theirs.fileno(),), env=env, stdin=subprocess.DEVNULL,
-                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                )  # fmt: skip
+                pid = os.fork()
             except OSError:
                 mine.close()
+                theirs.close()
                 self._links.append([None, None])
                 continue
-            finally:
-                theirs.close()
-            self._links.append([proc, Connection(mine.detach())])
+            if pid == 0:
+                mine.close()
+                _forked(theirs, [link for _, link in self._links if link is not None])
+            theirs.close()
+            self._links.append([_Child(pid), Connection(mine.detach())])
             self._send(len(self._links) - 1, self.options)
         return self
 
@@ -864,15 +905,70 @@ class _Workers:
                 proc.wait()
 
 
-def _serve() -> None:
-    """A worker of :class:`_Workers`, run as ``python -c`` with the file descriptor of its
-    socket: given the :class:`RecognizerOptions` (it loads the classifier then) and then
+class _Child:
+    """A forked worker of :class:`_Workers` by its process id: ``subprocess.Popen``'s
+    ``poll``, ``kill`` and ``wait`` for it."""
+
+    def __init__(self, pid: int) -> None:
+        self.pid = pid
+        self.returncode: int | None = None
+
+    def poll(self) -> int | None:
+        """Its exit code once it has ended (reaped), else None."""
+        if self.returncode is None:
+            try:
+                pid, status = os.waitpid(self.pid, os.WNOHANG)
+            except ChildProcessError:  # reaped elsewhere
+                self.returncode = -1
+            else:
+                if pid:
+                    self.returncode = os.waitstatus_to_exitcode(status)
+        return self.returncode
+
+    def kill(self) -> None:
+        if self.poll() is None:
+            try:
+                os.kill(self.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+
+    def wait(self, timeout: float | None = None) -> int:
+        """Its exit code, waiting at most ``timeout`` s (``TimeoutError`` after)."""
+        import time
+
+        end = None if timeout is None else time.monotonic() + timeout
+        while self.poll() is None:
+            if end is not None and time.monotonic() > end:
+                raise TimeoutError(f"worker {self.pid} still runs after {timeout} s")
+            time.sleep(0.005)
+        return self.returncode
+
+
+def _forked(sock, others: list) -> NoReturn:
+    """The forked worker's life (:class:`_Workers`): ``sock``, its end of the socket; it
+    closes ``others``, the parent's links to the workers forked before it, ends where a
+    signal would (not in the parent's handlers: they are the parent's), serves, and leaves
+    with ``os._exit``, never returning into the parent's stack (nor running its exit
+    handlers)."""
+    code = 1
+    try:
+        for link in others:
+            link.close()
+        for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+            signal.signal(getattr(signal, name), signal.SIG_DFL)
+        from multiprocessing.connection import Connection
+
+        _serve(Connection(sock.detach()))
+        code = 0
+    finally:
+        os._exit(code)
+
+
+def _serve(link) -> None:
+    """A worker of :class:`_Workers` on its ``link`` (a ``Connection``): given the
+    :class:`RecognizerOptions` (it loads the classifier then, unless the parent had) and then
     :class:`_Pieces`' ``(classify, decode)``, it sends back the :class:`_Found` of each
     ``(samples, audible)`` job received, until None (or the exception raised)."""
-    import sys
-    from multiprocessing.connection import Connection
-
-    link = Connection(int(sys.argv[1]))
     try:
         options = link.recv()
         if options is None:
@@ -893,6 +989,17 @@ def _serve() -> None:
         link.send(e if isinstance(e, SpeechError) else RuntimeError(repr(e)))
     finally:
         link.close()
+
+
+def _new_lock_in_child() -> None:
+    """After a fork: the kept decoders' lock anew (another thread of the parent may have held
+    it at the fork, and none of them is in the child)."""
+    global _KEPT_LOCK
+    _KEPT_LOCK = threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_new_lock_in_child)
 
 
 class LiveRecognizer:
