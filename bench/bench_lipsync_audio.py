@@ -26,8 +26,9 @@ closures that overlap none of the truth's p b m widened by 1/30 s; **speed**: re
 time (the target: what a user waits for, on this machine's cores; a recording of two pieces or
 more is decoded in two processes) and CPU time (both processes') as a fraction of the audio's
 duration (60 s of festival's speech in one file; 60 s of the real read speech with its words
-recognized, the default, and without; 7 s of it, one piece, one process, first in its process
-or with the decoders the last recognition kept; ``vtts batch --workers 2`` of lip-sync jobs over
+recognized, the default, and without; 3 s, 7 s and 12 s of it, one piece in one process, each
+first in its process or with the decoders the last recognition kept; ``vtts batch --workers 2``
+of lip-sync jobs over
 the ten real recordings three times, 103 s of audio in 30 files of 1.1–7.1 s, from the
 command's start to its exit);
 **live latency**: :class:`~vtts.speech.recognize.LiveRecognizer` fed 20 ms chunks in real time
@@ -584,15 +585,16 @@ def run() -> list[dict]:
             case = f"speed: recognize {len(real) / 16000:.0f} s of real speech, words {words}"
             rows.append(_row(f"{case}, wall", wall, "× duration", "≤ 0.1", wall <= 0.1))
             rows.append(_row(f"{case}, CPU", cpu, "× duration"))
-        # one piece: one process, and the decoders' making (some 0.35 s) counts for more; a
-        # process recognizing one file after another (batch, serve) makes them once
-        for kept in (False, True):
-            wall, cpu = _speed(real[: 7 * 16000], 16000, kept=kept)
-            case = "speed: recognize 7 s of real speech (one piece), " + (
-                "decoders kept from the last file" if kept else "first in its process"
-            )
-            rows.append(_row(f"{case}, wall", wall, "× duration"))
-            rows.append(_row(f"{case}, CPU", cpu, "× duration"))
+        # under 20 s one piece in one process: the decoders' making (some 0.25 s) counts for
+        # more; a process recognizing one file after another (batch, serve) makes them once
+        for seconds in (3, 7, 12):
+            for kept in (False, True):
+                wall, cpu = _speed(real[: seconds * 16000], 16000, kept=kept)
+                case = f"speed: recognize {seconds} s of real speech (one piece), " + (
+                    "decoders kept from the last file" if kept else "first in its process"
+                )
+                rows.append(_row(f"{case}, wall", wall, "× duration"))
+                rows.append(_row(f"{case}, CPU", cpu, "× duration"))
         # files one after another on both cores, as a user lip-syncs a game's lines
         wall, audio, jobs = batch_of_files(1 if QUICK else BATCH_ROUNDS)
         case = f"speed: vtts batch --workers 2 of {jobs} real recordings ({audio:.0f} s), wall"
