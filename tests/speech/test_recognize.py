@@ -450,6 +450,10 @@ def test_the_word_search_loads_the_language_models_words_and_finds_the_same(
     assert {"been", "been(2)", "forward", "meters"} <= entries
     assert entries < {line.split(maxsplit=1)[0] for line in open(whole) if line.strip()}
     assert module.word_dictionary(whole, lm) == cut  # made once
+    bad = tmp_path / "bad.lm"
+    bad.write_bytes(b"not a language model")
+    for lm_file in (bad, tmp_path / "missing.lm"):  # the decoder reports what is wrong
+        assert module.word_dictionary(whole, str(lm_file)) == whole
     go, _ = _real("goforward.raw")
     other, _ = _real("librivox/sense_and_sensibility_01_austen_64kb-0930.wav")
     decoders = [module.make_word_decoder(RecognizerOptions())]

@@ -283,21 +283,27 @@ def word_dictionary(dictionary: str, lm: str) -> str:
     folder = private_folder("speech")
     if folder is None:
         return dictionary
-    stats = [(os.stat(f).st_size, os.stat(f).st_mtime_ns) for f in (dictionary, lm)]
+    try:
+        stats = [(os.stat(f).st_size, os.stat(f).st_mtime_ns) for f in (dictionary, lm)]
+    except OSError:  # the decoder names what is missing
+        return dictionary
     key = f"{version('pocketsphinx')}\0{dictionary}\0{lm}\0{stats}".encode()
     path = folder / f"words-{hashlib.sha256(key).hexdigest()[:20]}.dict"
     if trusted_file(path):
         return str(path)
     from pocketsphinx import NGramModel
 
-    model = NGramModel.readfile(lm)
-    unknown = model.prob(["<not a word of vtts>"])
-    kept: list[str] = []
-    with open(dictionary, encoding="utf-8") as f:
-        for line in f:
-            word = line.split(maxsplit=1)[0] if line.strip() else ""
-            if word and model.prob([_VARIANT.sub("", word)]) != unknown:
-                kept.append(line)
+    try:  # what cannot be read here, the decoder reports in its own words
+        model = NGramModel.readfile(lm)
+        unknown = model.prob(["<not a word of vtts>"])
+        kept: list[str] = []
+        with open(dictionary, encoding="utf-8") as f:
+            for line in f:
+                word = line.split(maxsplit=1)[0] if line.strip() else ""
+                if word and model.prob([_VARIANT.sub("", word)]) != unknown:
+                    kept.append(line)
+    except (OSError, RuntimeError, UnicodeDecodeError, ValueError):
+        return dictionary
     try:
         if path.is_symlink() or path.exists():
             path.unlink()  # not trusted (above): never read
