@@ -428,6 +428,39 @@ def test_a_forked_worker_never_returns_into_its_parent(four_pieces, monkeypatch,
     assert found and np.array_equal(found[0].visemes, alone.visemes)
 
 
+def test_a_forked_worker_ends_on_the_signals_its_parent_handles_and_ignores_the_others(
+    four_pieces, monkeypatch, tmp_path
+) -> None:
+    """The parent's signal handlers are not the worker's: where the parent handles a signal
+    (Ctrl-C's KeyboardInterrupt, a CLI's SIGTERM handler) the worker ends on it; where the
+    parent ignores one (started with ``nohup``, or in the background of a script), so does
+    the worker."""
+    import signal
+
+    from vtts.speech import recognize as module
+
+    x, alone = four_pieces
+    seen = tmp_path / "signals"
+
+    def report(link):
+        seen.write_text(" ".join(str(signal.getsignal(s)) for s in (signal.SIGTERM, signal.SIGHUP)))
+        raise RuntimeError("reported")
+
+    with monkeypatch.context() as m:
+        m.setattr(module, "_serve", report)
+        old = (
+            signal.signal(signal.SIGTERM, lambda *a: None),
+            signal.signal(signal.SIGHUP, signal.SIG_IGN),
+        )
+        try:
+            rec = recognize(x, 16000, RecognizerOptions(workers=2))
+        finally:
+            signal.signal(signal.SIGTERM, old[0])
+            signal.signal(signal.SIGHUP, old[1])
+    assert seen.read_text() == f"{signal.SIG_DFL} {signal.SIG_IGN}"
+    assert np.array_equal(rec.visemes, alone.visemes)  # its pieces decoded here
+
+
 def test_the_word_search_loads_the_language_models_words_and_finds_the_same(
     tmp_path, monkeypatch
 ) -> None:

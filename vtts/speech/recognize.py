@@ -953,7 +953,8 @@ class _Child:
 def _forked(sock, others: list) -> NoReturn:
     """The forked worker's life (:class:`_Workers`): ``sock``, its end of the socket; it
     closes ``others``, the parent's links to the workers forked before it, ends where a
-    signal would (not in the parent's handlers: they are the parent's), serves, and leaves
+    signal the parent handles would end a process (the handlers are the parent's; a signal the
+    parent ignores it ignores too), serves, and leaves
     with ``os._exit``, never returning into the parent's stack (nor running its exit
     handlers)."""
     code = 1
@@ -961,7 +962,8 @@ def _forked(sock, others: list) -> NoReturn:
         for link in others:
             link.close()
         for name in ("SIGINT", "SIGTERM", "SIGHUP"):
-            signal.signal(getattr(signal, name), signal.SIG_DFL)
+            if signal.getsignal(getattr(signal, name)) not in (signal.SIG_IGN, None):
+                signal.signal(getattr(signal, name), signal.SIG_DFL)
         from multiprocessing.connection import Connection
 
         _serve(Connection(sock.detach()))
