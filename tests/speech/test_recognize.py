@@ -383,12 +383,12 @@ def test_a_worker_that_cannot_start_or_dies_leaves_its_pieces_here(four_pieces, 
     jobs = [(x[a:b], np.ones((b - a) // 160, bool)) for a, b in ((0, 48000), (48000, 97000))]
     found = {}
     for dies in (False, True):
-        with module._Workers(2, options) as pool:
+        with module._Workers(2, module._Pieces(options, True, True), jobs) as pool:
             if dies:
                 proc = pool._links[0][0]
                 proc.kill()
                 proc.wait()
-            found[dies] = list(pool.map(module._Pieces(options, True, True), jobs))
+            found[dies] = list(pool.results())
     assert [f.names for f in found[True]] == [f.names for f in found[False]]
     assert [f.words for f in found[True]] == [f.words for f in found[False]]
     assert {"go", "forward"} <= {w for w, _, _ in found[True][1].words}
@@ -405,7 +405,7 @@ def test_a_forked_worker_never_returns_into_its_parent(four_pieces, monkeypatch,
     x, alone = four_pieces
     parent = os.getpid()
 
-    def dies(link):
+    def dies(link, pieces, jobs):
         raise KeyboardInterrupt
 
     escaped = tmp_path / "escaped"
@@ -442,7 +442,7 @@ def test_a_forked_worker_ends_on_the_signals_its_parent_handles_and_ignores_the_
     x, alone = four_pieces
     seen = tmp_path / "signals"
 
-    def report(link):
+    def report(link, pieces, jobs):
         seen.write_text(" ".join(str(signal.getsignal(s)) for s in (signal.SIGTERM, signal.SIGHUP)))
         raise RuntimeError("reported")
 

@@ -284,7 +284,7 @@ def word_dictionary(dictionary: str, lm: str) -> str:
     if folder is None:
         return dictionary
     try:
-        stats = [(os.stat(f).st_size, os.stat(f).st_mtime_ns) for f in (dictionary, lm)]
+        stats = [(st.st_size, st.st_mtime_ns) for st in map(os.stat, (dictionary, lm))]
     except OSError:  # the decoder names what is missing
         return dictionary
     key = f"{version('pocketsphinx')}\0{dictionary}\0{lm}\0{stats}".encode()
@@ -567,10 +567,9 @@ def recognize(
     x = np.nan_to_num(np.asarray(samples, dtype=np.float32), nan=0.0)
     duration = len(x) / rate
     count = workers(options, duration)
-    # the workers start first: they start Python and load the classifier meanwhile; BLAS on
-    # one thread (the classifier's products are small: a second thread cost a quarter more CPU
-    # for the same wall time, and the other core is the worker's)
-    with one_blas_thread(), _Workers(count, options) as pool:
+    # BLAS on one thread: the classifier's products are small (a second thread cost a quarter
+    # more CPU for the same wall time), and the other core is the worker's
+    with one_blas_thread():
         x = resample(np.clip(x, -1.0, 1.0), int(rate), DECODER_RATE)
         frames = energy_frames(x, DECODER_RATE)
         n = frames.db.size
@@ -591,16 +590,17 @@ def recognize(
         closure = np.zeros(n, np.float32) if pieces.classifier is not None else None
         words: list[TimedWord] = []
         jobs = [(x[a * hop : b * hop], audible[a:b]) for a, b in bounds]  # views
-        for (a, b), found in zip(bounds, pool.map(pieces, jobs), strict=True):
-            names += found.names
-            first += [a + f for f in found.first]
-            last += [a + e for e in found.last]
-            if closure is not None:
-                closure[a : a + found.closure.size] = found.closure
-            words += [TimedWord((a + f) * FRAME_S, (a + e + 1) * FRAME_S, w)
-                      for w, f, e in found.words]  # fmt: skip
-            if progress is not None:
-                progress(min(b * FRAME_S, duration), duration)
+        with _Workers(count, pieces, jobs) as pool:
+            for (a, b), found in zip(bounds, pool.results(), strict=True):
+                names += found.names
+                first += [a + f for f in found.first]
+                last += [a + e for e in found.last]
+                if closure is not None:
+                    closure[a : a + found.closure.size] = found.closure
+                words += [TimedWord((a + f) * FRAME_S, (a + e + 1) * FRAME_S, w)
+                          for w, f, e in found.words]  # fmt: skip
+                if progress is not None:
+                    progress(min(b * FRAME_S, duration), duration)
     pieces.keep_decoders()  # every piece decoded: for the next recognition in this process
     index, vis = segments_to_phones(names, np.array(first), np.array(last), n)
     vis, filled = merge_energy(vis, index, frames, lv, options.fill, closure)
@@ -765,26 +765,27 @@ def release_decoders() -> int:
 
 
 class _Workers:
-    """``count`` processes decoding pieces (:meth:`map`): this one and ``count - 1`` workers
-    forked from it (:func:`_forked`) and given ``options`` (:func:`_serve`), each with its own
-    :class:`_Pieces` (and so its own decoders: a copy of those this process kept, else new). A
-    worker that fails (it could not be forked, or died) leaves its pieces to this process. Every
-    process runs BLAS on one thread (:func:`recognize`'s setting, which the workers inherit)."""
+    """``count`` processes decoding the ``(samples, audible)`` ``jobs`` with ``pieces``
+    (:meth:`results`): this one and ``count - 1`` workers forked from it on entering
+    (:func:`_forked`), which have ``pieces`` and ``jobs`` as this process has them (and so the
+    classifier, and a copy of the decoders it kept); worker ``k`` decodes the jobs ``i`` where
+    ``i % count == k + 1`` (:func:`_serve`) and sends back what it found, nothing sent to it.
+    A worker that fails (it could not be forked, or died) leaves its jobs to this process.
+    Every process runs BLAS on one thread (:func:`recognize`'s setting, which the workers
+    inherit)."""
 
-    def __init__(self, count: int, options: RecognizerOptions) -> None:
-        self.count = count
-        self.options = options
+    def __init__(self, count: int, pieces: _Pieces, jobs: list) -> None:
+        self.count, self.pieces, self.jobs = count, pieces, jobs
         self._links: list = []  # [process, connection (None once failed)] per worker
 
     def __enter__(self) -> _Workers:
         # forked, not started: a new interpreter would take longer to start than a short
         # recording takes to decode (and multiprocessing's spawn runs the caller's main script
-        # again in each worker); the worker inherits this process's modules, its classifier
-        # and the decoders kept from the last recognition
+        # again in each worker)
         import socket
         from multiprocessing.connection import Connection
 
-        for _ in range(self.count - 1):
+        for k in range(self.count - 1):
             mine, theirs = socket.socketpair()
             try:
                 pid = os.fork()
@@ -795,35 +796,18 @@ class _Workers:
                 continue
             if pid == 0:
                 mine.close()
-                _forked(theirs, [link for _, link in self._links if link is not None])
+                others = [link for _, link in self._links if link is not None]
+                _forked(theirs, others, self.pieces, self.jobs[k + 1 :: self.count])
             theirs.close()
             self._links.append([_Child(pid), Connection(mine.detach())])
-            self._send(len(self._links) - 1, self.options)
         return self
 
-    def map(self, pieces: _Pieces, jobs: list):
-        """The :class:`_Found` of each ``(samples, audible)`` job, in order: job ``i`` decoded
-        here with ``pieces`` where ``i % count`` is 0 (ahead of the others while a worker's
-        answer is not there), else by worker ``i % count - 1`` with ``pieces``' settings —
-        sent from a thread as soon as the worker takes it (each worker has its next job while
-        it decodes one: a few pieces' samples in flight at most) — or here, where that worker
-        failed (could not start, died). A piece's result is the same wherever it is decoded
-        (:class:`_Pieces`)."""
-        from vtts.threads import SIGNAL_SLICE
-
-        for k in range(len(self._links)):
-            self._send(k, (pieces.classify, pieces.decode))
-        sent = [False] * len(jobs)
-        done = [threading.Event() for _ in jobs]
-
-        def send() -> None:
-            for i, job in enumerate(jobs):
-                if i % self.count:
-                    sent[i] = self._send(i % self.count - 1, job)
-                done[i].set()
-
-        sender = threading.Thread(target=send, daemon=True)
-        sender.start()
+    def results(self):
+        """The :class:`_Found` of each job, in order: job ``i`` decoded here where
+        ``i % count`` is 0 (ahead of the others while a worker's answer is not there), else by
+        worker ``i % count - 1``, or here where that worker failed. A piece's result is the
+        same wherever it is decoded (:class:`_Pieces`)."""
+        pieces, jobs = self.pieces, self.jobs
         mine = {}  # this process's jobs decoded ahead, by index
         ahead = iter(range(0, len(jobs), self.count))
 
@@ -841,36 +825,21 @@ class _Workers:
                 continue
             k = i % self.count - 1
             # this process decodes its next jobs until the worker's answer is there
-            while not self._answered(k, i, sent, done) and decode_ahead():
+            while not self._answered(k) and decode_ahead():
                 pass
-            while not done[i].wait(SIGNAL_SLICE):  # in slices: a signal ends the wait
-                pass
-            found = sent[i] and self._receive(k)
+            found = self._receive(k)
             if not found:  # the worker failed: its job is decoded here
                 found = pieces.piece(*job)
             yield found
 
-    def _answered(self, k: int, i: int, sent: list[bool], done: list) -> bool:
-        """Whether job ``i`` of worker ``k`` needs no more waiting: sent and answered, or not
-        sent (this process decodes it)."""
-        if not done[i].is_set():
-            return False
+    def _answered(self, k: int) -> bool:
+        """Whether worker ``k``'s next answer needs no more waiting: it is there, or the
+        worker failed (this process decodes its jobs)."""
         link = self._links[k][1]
-        return not sent[i] or link is None or link.poll(0)
-
-    def _send(self, k: int, message) -> bool:
-        """Send ``message`` to worker ``k``: whether it went (else the worker is given up)."""
-        if self._links[k][1] is None:
-            return False
-        try:
-            self._links[k][1].send(message)
-            return True
-        except (OSError, EOFError, ValueError):
-            self._links[k][1] = None
-            return False
+        return link is None or link.poll(0)
 
     def _receive(self, k: int) -> _Found | None:
-        """Worker ``k``'s answer to its last job: None where it failed (and is given up); its
+        """Worker ``k``'s answer to its next job: None where it failed (and is given up); its
         :class:`SpeechError` raised."""
         from vtts.threads import SIGNAL_SLICE
 
@@ -887,6 +856,7 @@ class _Workers:
             pass
         if isinstance(found, _Found):
             return found
+        link.close()
         self._links[k][1] = None
         if isinstance(found, SpeechError):
             raise found
@@ -899,11 +869,7 @@ class _Workers:
             if kind is not None:  # this process failed: no more work for the workers
                 proc.kill()
             if link is not None:
-                try:
-                    link.send(None)
-                except (OSError, EOFError, ValueError):
-                    pass
-                link.close()
+                link.close()  # a worker still sending ends (its answers are not wanted)
             try:
                 proc.wait(timeout=5)
             except Exception:
@@ -950,13 +916,12 @@ class _Child:
         return self.returncode
 
 
-def _forked(sock, others: list) -> NoReturn:
-    """The forked worker's life (:class:`_Workers`): ``sock``, its end of the socket; it
-    closes ``others``, the parent's links to the workers forked before it, ends where a
-    signal the parent handles would end a process (the handlers are the parent's; a signal the
-    parent ignores it ignores too), serves, and leaves
-    with ``os._exit``, never returning into the parent's stack (nor running its exit
-    handlers)."""
+def _forked(sock, others: list, pieces: _Pieces, jobs: list) -> NoReturn:
+    """The forked worker's life (:class:`_Workers`), on ``sock``, its end of the socket: it
+    closes ``others`` (the parent's links to the workers forked before it), ends on a signal
+    whose handler is the parent's (and ignores those the parent ignores), decodes ``jobs``
+    with ``pieces`` (:func:`_serve`) and leaves with ``os._exit`` whatever happened, never
+    returning into the parent's stack nor running its exit handlers."""
     code = 1
     try:
         for link in others:
@@ -966,34 +931,20 @@ def _forked(sock, others: list) -> NoReturn:
                 signal.signal(getattr(signal, name), signal.SIG_DFL)
         from multiprocessing.connection import Connection
 
-        _serve(Connection(sock.detach()))
+        _serve(Connection(sock.detach()), pieces, jobs)
         code = 0
     finally:
         os._exit(code)
 
 
-def _serve(link) -> None:
-    """A worker of :class:`_Workers` on its ``link`` (a ``Connection``): given the
-    :class:`RecognizerOptions` (it loads the classifier then, unless the parent had) and then
-    :class:`_Pieces`' ``(classify, decode)``, it sends back the :class:`_Found` of each
-    ``(samples, audible)`` job received, until None (or the exception raised)."""
+def _serve(link, pieces: _Pieces, jobs: list) -> None:
+    """A worker of :class:`_Workers`: the :class:`_Found` of each ``(samples, audible)`` of
+    ``jobs``, decoded with ``pieces``, sent on ``link`` (a ``Connection``) in order, or the
+    exception raised (the parent then decodes the rest itself, or raises a SpeechError)."""
     try:
-        options = link.recv()
-        if options is None:
-            return
-        if options.classifier:  # while the parent resamples and cuts the audio
-            from vtts.speech.viseme_classifier import load_classifier
-
-            load_classifier(None if options.weights is None else Path(options.weights))
-        settings = link.recv()
-        if settings is None:
-            return
-        pieces = _Pieces(options, *settings)
-        while (job := link.recv()) is not None:
+        for job in jobs:
             link.send(pieces.piece(*job))
-    except EOFError:
-        pass
-    except Exception as e:  # the parent decodes the piece itself (or raises a SpeechError)
+    except Exception as e:
         link.send(e if isinstance(e, SpeechError) else RuntimeError(repr(e)))
     finally:
         link.close()
