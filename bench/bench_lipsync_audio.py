@@ -28,9 +28,8 @@ more is decoded in two processes) and CPU time (both processes') as a fraction o
 duration (60 s of festival's speech in one file; 60 s of the real read speech with its words
 recognized, the default, and without; 3 s, 7 s and 12 s of it, one piece in one process, each
 first in its process or with the decoders the last recognition kept; ``vtts batch --workers 2``
-of lip-sync jobs over
-the ten real recordings three times, 103 s of audio in 30 files of 1.1–7.1 s, from the
-command's start to its exit);
+of lip-sync jobs over the ten real recordings three times, 103 s of audio in 30 files of
+1.1–7.1 s, from the command's start to its exit);
 **live latency**: :class:`~vtts.speech.recognize.LiveRecognizer` fed 20 ms chunks in real time
 (simulated: each chunk arrives when its last sample would, is processed once it has arrived and
 the one before is done, the measured wall time of each ``feed``); a frame's latency is from its
