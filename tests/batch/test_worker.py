@@ -67,3 +67,19 @@ def test_stale_temporaries_of_a_dead_worker_are_removed(tmp_path, runner):
     result = runner.run(job, str(tmp_path))
     assert result.ok, result.message
     assert not stale.exists() and (tmp_path / "r.png").is_file()
+
+
+def test_a_worker_counts_on_its_share_of_the_cores_for_recognition(monkeypatch):
+    """A worker given its share of the machine's cores (``cpus``) recognizes a long recording
+    in that many processes: with one, in its own alone, since a second would take another
+    worker's core; without it, on every CPU the process may run on."""
+    from vtts.speech import recognize as module
+
+    monkeypatch.setattr(module, "_CPUS", None)  # as it was, whatever the test does
+    options = module.RecognizerOptions()
+    JobRunner(cpus=1)
+    assert module.workers(options, 30.0) == 1
+    JobRunner()
+    assert module.workers(options, 30.0) == min(2, len(os.sched_getaffinity(0)))
+    with pytest.raises(ValueError, match="at least 1"):
+        module.set_cpus(0)

@@ -327,6 +327,58 @@ def test_long_audio_in_pieces_cut_at_quiet_frames_with_progress() -> None:
     assert [d for d, _ in seen] == sorted(d for d, _ in seen)
 
 
+def test_a_one_piece_recording_is_cut_for_its_word_search_near_the_middle() -> None:
+    """The cut of a one-piece recording's word search: in the middle of the longest quiet run
+    of the eighth of its frames around the middle (not one further off, however long), else
+    at the quietest of those frames."""
+    from vtts.speech.recognize import _half
+
+    db = np.linspace(-20.0, -30.0, 800)
+    quiet = np.zeros(800, bool)
+    assert _half(db, quiet) == 449  # no quiet frame: the quietest, at the window's end
+    quiet[100:300] = True  # long, but far from the middle
+    quiet[380:384] = quiet[410:420] = True
+    assert _half(db, quiet) == 415
+
+
+def test_a_one_piece_recording_has_its_word_search_in_two_halves(monkeypatch) -> None:
+    """A recording of one piece and 8 s or more (two of ``HALF_S``) has its words searched
+    for in two halves, each hearing ``CONTEXT_FRAMES`` of the other, the second in a forked
+    worker (its CPU time among this process's children); what is found is what one process
+    finds, frame for frame and word for word, each word once, in order. Under 8 s, one
+    search."""
+    import resource
+
+    from vtts.speech import recognize as module
+
+    x = np.concatenate([_real("librivox/sense_and_sensibility_01_austen_64kb-0870.wav")[0],
+                        _real("goforward.raw")[0]])  # fmt: skip
+    n = len(x) // 160
+    spans = []
+    words = module._Pieces._words
+    monkeypatch.setattr(module._Pieces, "_words", lambda self, pcm, a, b: (
+        spans.append((a, b)), words(self, pcm, a, b))[1])  # fmt: skip
+    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_utime
+    two = recognize(x, 16000, RecognizerOptions(workers=2))
+    assert resource.getrusage(resource.RUSAGE_CHILDREN).ru_utime - before > 0.2
+    c = module.CONTEXT_FRAMES
+    assert len(spans) == 1  # the worker's half is not seen here
+    ((a, b),) = spans
+    assert a == 0 and abs(b - c - n // 2) <= n // 16
+    spans.clear()
+    alone = recognize(x, 16000, RecognizerOptions(workers=1))
+    assert spans[0] == (0, b) and spans[1][0] == b - 2 * c and abs(spans[1][1] - n) <= 1
+    assert np.array_equal(two.visemes, alone.visemes)
+    assert two.phones == alone.phones and two.words == alone.words
+    labels = [w.label for w in two.words]
+    assert labels[:4] == ["and", "mr", "john", "dashwood"]
+    assert labels[-4:] == ["go", "forward", "ten", "meters"]
+    assert all(u.end <= v.start for u, v in zip(two.words, two.words[1:], strict=False))
+    spans.clear()
+    recognize(x[: 7 * 16000], 16000, RecognizerOptions(workers=2))
+    assert spans == [(0, 700)]
+
+
 @pytest.fixture
 def four_pieces(monkeypatch):
     """Two real recordings one after the other, 6.1 s, cut into four pieces (pieces of at
@@ -383,7 +435,7 @@ def test_a_worker_that_cannot_start_or_dies_leaves_its_pieces_here(four_pieces, 
     jobs = [(x[a:b], np.ones((b - a) // 160, bool)) for a, b in ((0, 48000), (48000, 97000))]
     found = {}
     for dies in (False, True):
-        with module._Workers(2, module._Pieces(options, True, True), jobs) as pool:
+        with module._Workers(2, module._Pieces(options, True, True).piece, jobs) as pool:
             if dies:
                 proc = pool._links[0][0]
                 proc.kill()

@@ -42,7 +42,7 @@ def _serve(conn: Connection, cwd: str | None, lp_threads: int | None) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _interrupt)
     try:
-        runner = JobRunner(cwd=cwd, lp_threads=lp_threads)
+        runner = JobRunner(cwd=cwd, lp_threads=lp_threads, cpus=lp_threads)
         conn.send(("ready", runner.warm_up()))
         while (message := conn.recv()) is not None:
             job, out_dir = message
@@ -86,8 +86,9 @@ class _Worker:
 class LocalPool:
     """``n`` worker processes on this machine, started at once.
 
-    ``cwd``: the folder relative input paths are read from; ``lp_threads``: Mesa llvmpipe's
-    rasterizer threads per worker (``LP_NUM_THREADS``, unless the environment sets it).
+    ``cwd``: the folder relative input paths are read from; ``lp_threads``: each worker's share
+    of the machine's cores: Mesa llvmpipe's rasterizer threads (``LP_NUM_THREADS``, unless the
+    environment sets it) and the CPUs a recognition counts on (``JobRunner(cpus=…)``).
 
     :meth:`submit` gives a job to an idle worker with a token of the caller's; :meth:`next`
     waits for a worker to finish and returns ``(token, JobResult)``, or ``(token, Died)`` when

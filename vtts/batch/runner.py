@@ -231,7 +231,9 @@ def _run_on_ray(
         actor_class = ray.remote(num_cpus=1, max_restarts=0, max_task_retries=0)(JobRunner)
 
         def new_actor():
-            actor = actor_class.remote(cwd=os.getcwd(), lp_threads=lp)
+            # an actor holds one CPU of Ray's (num_cpus=1): its recognitions count on that one
+            # where the machine's share is not known (a cluster)
+            actor = actor_class.remote(cwd=os.getcwd(), lp_threads=lp, cpus=lp or 1)
             return actor, actor.warm_up.remote()
 
         started = [new_actor() for _ in range(n)]

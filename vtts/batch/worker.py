@@ -68,14 +68,20 @@ class JobRunner:
     ``cwd``: the folder relative input paths are read from (``vtts batch``'s working folder;
     None: this process's); ``lp_threads``: Mesa llvmpipe's rasterizer threads for this process
     (``LP_NUM_THREADS``, unless the environment sets it; it must be set before the first
-    render).
+    render); ``cpus``: the CPUs a lip-sync job's recognition may count on, this worker's share
+    of the machine's (:func:`vtts.speech.recognize.set_cpus`: at 1 it forks no second
+    process); None: every CPU the process may run on.
     """
 
-    def __init__(self, cwd: str | None = None, lp_threads: int | None = None) -> None:
+    def __init__(
+        self, cwd: str | None = None, lp_threads: int | None = None, cpus: int | None = None
+    ) -> None:
+        from vtts.speech.recognize import set_cpus
         from vtts.warm import Warm
 
         if lp_threads is not None:
             os.environ.setdefault("LP_NUM_THREADS", str(lp_threads))
+        set_cpus(cpus)
         if cwd is not None:
             os.chdir(cwd)
         self.warm = Warm()

@@ -32,8 +32,10 @@ wholly in inaudible frames is a pause (viseme 0).
 
 :func:`recognize` decodes a whole recording in pieces of at most :data:`PIECE_S` cut at quiet
 frames (bounded memory; a ``progress`` callback after each), from 20 s on in two processes
-(:func:`workers`: every other piece in a worker forked from this process; each piece's decoders
-start anew, so the result is the same in one process or two); :class:`LiveRecognizer` takes
+(:func:`workers`: every other piece in a worker forked from this process); a recording of one
+piece from 8 s on has its word search in two halves (:data:`HALF_S`), the second in a forked
+worker. Each piece's and half's decoders start anew, so the result is the same in one process
+or two, on any machine. :class:`LiveRecognizer` takes
 chunks of PCM as they arrive and gives each 10 ms frame's viseme as soon as the decoder has one
 (what ``vtts play --audio -`` uses, and what a server can feed).
 
@@ -78,6 +80,7 @@ __all__ = [
     "recognize",
     "release_decoders",
     "segments_to_phones",
+    "set_cpus",
     "split_closures",
     "word_dictionary",
 ]
@@ -91,8 +94,15 @@ PIECE_S = 30.0
 #: A piece is cut at the quietest frame of the CUT_WINDOW_S around its even share's end.
 CUT_WINDOW_S = 5.0
 #: Shortest piece made for two processes (:func:`workers`): a recording of less than two of
-#: them is one piece, in one process; a longer one an even number of pieces.
+#: them is one piece; a longer one an even number of pieces.
 MIN_PIECE_S = 10.0
+#: A recording of one piece and at least two HALF_S long has its word search in two halves,
+#: in two processes (:func:`workers`), cut near its middle (:func:`_half`); the classifier,
+#: and whether words are recognized at all, still judge the piece whole.
+HALF_S = 4.0
+#: Each half's word search also hears CONTEXT_FRAMES of the other half around the cut (the
+#: language model's context of the first words after it), and keeps what lies in its own.
+CONTEXT_FRAMES = 60
 #: Names the decoder gives to what is not a phone.
 NOT_PHONES = frozenset({"SIL", "<sil>", "<s>", "</s>", "(NULL)", "+SPN+", "+NSN+", "[NOISE]"})
 #: Names of the classifier's phones, by viseme: the ARPAbet phones of its class.
@@ -154,7 +164,7 @@ class RecognizerOptions:
     in place of the phone loop's — ``"auto"`` in the pieces where the classifier is unsure
     (:data:`WORDS_ENTROPY`: real speech, speech in noise), ``"always"`` or ``"never"``;
     ``workers``: how many processes :func:`recognize` decodes a recording's pieces in (None:
-    :func:`workers` chooses, two for a recording of 20 s or more on two CPUs or more)."""
+    :func:`workers` chooses, two for a recording of 8 s or more on two CPUs or more)."""
 
     language_weight: float = 0.8
     beam: float = 1e-20
@@ -531,6 +541,22 @@ def _cuts(db: np.ndarray, piece: int, window: int, least: int = 0) -> list[int]:
     return cuts
 
 
+def _half(db: np.ndarray, quiet: np.ndarray) -> int:
+    """Where a one-piece recording's ``(n,)`` frames (their ``db``, and which are ``quiet``:
+    not audible) are cut in two for its word search (:data:`HALF_S`): in the middle of the
+    longest run of quiet frames among the eighth of the frames around the middle, or at the
+    quietest of them where none is quiet."""
+    n = db.size
+    w = max(n // 8, 1)
+    lo = n // 2 - w // 2
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], quiet[lo : lo + w], [0]]).astype(np.int8)))
+    starts, ends = edges[::2], edges[1::2]
+    if starts.size:
+        k = int(np.argmax(ends - starts))
+        return lo + int(starts[k] + ends[k]) // 2
+    return lo + int(np.argmin(db[lo : lo + w]))
+
+
 def check_rate(rate: int) -> None:
     """A recording's rate must be at least :data:`MIN_RATE`."""
     if isinstance(rate, bool) or not isinstance(rate, int | np.integer) or rate < MIN_RATE:
@@ -553,10 +579,11 @@ def recognize(
     :data:`PIECE_S` cut at quiet frames, one utterance each (each its own cepstral mean), in
     :func:`workers` processes (``RecognizerOptions.workers``; an even number of pieces of
     :data:`MIN_PIECE_S` at least, for two): piece ``i`` in process ``i % workers``, this one
-    first; each piece's result is its own (:class:`_Pieces`), the same in any process and
-    whatever the number of workers;
-    ``progress(done_s, total_s)`` is called after each piece. Raises :class:`SpeechError` for a
-    rate below :data:`MIN_RATE`; silence gives one pause."""
+    first; a recording of one piece and at least 2 * :data:`HALF_S` has its word search in
+    two halves, the second in the worker (:func:`_half`, :meth:`_Pieces._search`). Each
+    piece's and half's result is its own (:class:`_Pieces`), the same in any process and
+    whatever the number of workers; ``progress(done_s, total_s)`` is called after each piece.
+    Raises :class:`SpeechError` for a rate below :data:`MIN_RATE`; silence gives one pause."""
     # in 30 s blocks: resample_poly works in float64, and 30 minutes at 48 kHz whole would
     # take over a gigabyte
     from vtts.speech.audio import resample_in_blocks as resample
@@ -580,17 +607,18 @@ def recognize(
         cuts = _cuts(frames.db, int(PIECE_S / FRAME_S), int(CUT_WINDOW_S / FRAME_S),
                      int(MIN_PIECE_S / FRAME_S))  # fmt: skip
         bounds = list(zip([0, *cuts], [*cuts, n], strict=True))
+        half = _half(frames.db, ~audible) if not cuts and n >= 2 * HALF_S / FRAME_S else None
         # a steady loud sound (music, loud noise) lacks speech's rise and fall: the
         # classifier, trained on speech, would see visemes in it; PocketSphinx and the energy
         # judge it alone
-        pieces = _Pieces(options, options.classifier and heard and not lv.steady, heard)
+        pieces = _Pieces(options, options.classifier and heard and not lv.steady, heard, count)
         names: list[str] = []
         first: list[int] = []
         last: list[int] = []
         closure = np.zeros(n, np.float32) if pieces.classifier is not None else None
         words: list[TimedWord] = []
-        jobs = [(x[a * hop : b * hop], audible[a:b]) for a, b in bounds]  # views
-        with _Workers(count, pieces, jobs) as pool:
+        jobs = [(x[a * hop : b * hop], audible[a:b], half) for a, b in bounds]  # views
+        with _Workers(min(count, len(jobs)), pieces.piece, jobs) as pool:
             for (a, b), found in zip(bounds, pool.results(), strict=True):
                 names += found.names
                 first += [a + f for f in found.first]
@@ -617,15 +645,34 @@ def recognize(
     )
 
 
+#: The CPUs a recognition in this process may count on (:func:`set_cpus`); None: all it may
+#: run on.
+_CPUS: int | None = None
+
+
+def set_cpus(count: int | None) -> None:
+    """Let :func:`recognize` in this process count on at most ``count`` CPUs — a batch worker
+    sharing the machine's cores with others (``vtts.batch``): at 1 it decodes in this process
+    alone, as a second process would only take another worker's core; None: every CPU this
+    process may run on (the default)."""
+    global _CPUS
+    if count is not None and (isinstance(count, bool) or not isinstance(count, int) or count < 1):
+        raise ValueError(f"CPUs must be a whole number of at least 1 or None, got {count!r}")
+    _CPUS = count
+
+
 def workers(options: RecognizerOptions, duration: float) -> int:
     """How many processes :func:`recognize` decodes a recording of ``duration`` s in:
-    ``options.workers``, or where that is None, two where the recording makes two pieces of at
-    least :data:`MIN_PIECE_S` and this process may run on two CPUs or more, else one."""
+    ``options.workers``, or where that is None, two where the recording makes two pieces (of
+    at least :data:`MIN_PIECE_S`) or its word search two halves (:data:`HALF_S`) and this
+    process may run on two CPUs or more (of those :func:`set_cpus` allows), else one."""
     if options.workers is not None:
         return options.workers
     cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    cpus = min(cpus or 1, _CPUS or cpus or 1)
     forks = hasattr(os, "fork")
-    return 2 if duration >= 2 * MIN_PIECE_S and (cpus or 1) >= 2 and forks else 1
+    least = 2 * min(MIN_PIECE_S, HALF_S)
+    return 2 if duration >= least and (cpus or 1) >= 2 and forks else 1
 
 
 @dataclass
@@ -645,13 +692,17 @@ class _Found:
 class _Pieces:
     """The recognizer of one process (:func:`recognize`'s or a worker's): ``options``; the
     viseme classifier where ``classify``; PocketSphinx's decoders, made when first needed,
-    where ``decode`` (there is audible sound) and the classifier wants their evidence. Their
-    features are made anew for each piece (``reinit_feat``: the dither's random numbers and
+    where ``decode`` (there is audible sound) and the classifier wants their evidence;
+    ``processes``, how many a piece's word search in halves may use. The decoders' features
+    are made anew for each piece or half (``reinit_feat``: the dither's random numbers and
     the cepstral mean from the start, some 0.1 ms), so that what a piece gives does not
     depend on the pieces decoded before it: on how many processes, in which order."""
 
-    def __init__(self, options: RecognizerOptions, classify: bool, decode: bool) -> None:
+    def __init__(
+        self, options: RecognizerOptions, classify: bool, decode: bool, processes: int = 1
+    ) -> None:
         self.options, self.classify, self.decode = options, classify, decode
+        self.processes = processes
         self.classifier = None
         if classify:
             from vtts.speech.viseme_classifier import load_classifier
@@ -678,9 +729,12 @@ class _Pieces:
                 _keep(key, decoder)
         self._decoder = self._word_decoder = None
 
-    def piece(self, x: np.ndarray, audible: np.ndarray) -> _Found:
+    def piece(self, x: np.ndarray, audible: np.ndarray, half: int | None = None) -> _Found:
         """The phones of one piece, ``(n,)`` float32 samples at :data:`DECODER_RATE` whose
-        ``(frames,)`` bool ``audible`` frames are louder than the recording's audible level."""
+        ``(frames,)`` bool ``audible`` frames are louder than the recording's audible level;
+        given ``half``, a frame, its words are searched for in the frames before it and from
+        it on, each its own utterance, in up to :attr:`processes` processes
+        (:class:`_Workers`)."""
         options, classifier = self.options, self.classifier
         n = audible.size
         pcm = np.round(x * 32767.0).astype(np.int16).tobytes() if self.use_decoder else b""
@@ -695,11 +749,7 @@ class _Pieces:
         evidence = None
         decoded = False
         if self.use_decoder and _wants_words(options.words, log_p, audible, denoised):
-            self._word_decoder = self._word_decoder or _take(
-                self._word_key(), lambda: make_word_decoder(options)
-            )
-            self._word_decoder.reinit_feat()  # as new: the piece's result its own (see class)
-            found, segments = decode_words(self._word_decoder, pcm)
+            found, segments = self._search(pcm, n, half)
             evidence = WORD_EVIDENCE if segments else None
             decoded = bool(segments)
         if self.use_decoder and not decoded and not denoised:
@@ -728,6 +778,42 @@ class _Pieces:
             names.append(p_names[p_index[mid]] if agree else CLASS_NAMES[v])
         return _Found(names, [int(s) for s in edges[:-1]], [int(e) - 1 for e in edges[1:]],
                       np.exp(log_p[: run.size, 1]).astype(np.float32), found)  # fmt: skip
+
+    def _search(self, pcm: bytes, n: int, half: int | None) -> tuple[list[Segment], list[Segment]]:
+        """The words and their phones (:func:`decode_words`) of a piece's ``pcm`` of ``n``
+        frames: searched for as one utterance, or given ``half`` as two, the frames before it
+        and from it on, each with :data:`CONTEXT_FRAMES` of the other around it (what lies
+        in it kept: a word by its middle frame, a phone cut at ``half``), in up to
+        :attr:`processes` processes."""
+        spans = [(0, n)] if half is None else [(0, half), (half, n)]
+        c = CONTEXT_FRAMES
+        jobs = [(pcm, max(a - c, 0), min(b + c, n)) for a, b in spans]
+        words: list[Segment] = []
+        phones: list[Segment] = []
+        with _Workers(min(self.processes, len(jobs)), self._words, jobs) as pool:
+            for (a, b), (_, lo, _), (w, p) in zip(spans, jobs, pool.results(), strict=True):
+                words += [(name, f + lo, e + lo) for name, f, e in w
+                          if a <= lo + (f + e) // 2 < b]  # fmt: skip
+                for name, f, e in p:
+                    f, e = max(f + lo, a), min(e + lo, b - 1)
+                    if f <= e:
+                        phones.append((name, f, e))
+        return words, phones
+
+    def _word_decoder_made(self):
+        """This process's word decoder, made (or taken from those kept) when first needed."""
+        self._word_decoder = self._word_decoder or _take(
+            self._word_key(), lambda: make_word_decoder(self.options)
+        )
+        return self._word_decoder
+
+    def _words(self, pcm: bytes, a: int, b: int) -> tuple[list[Segment], list[Segment]]:
+        """:func:`decode_words` of frames ``a`` to ``b`` (exclusive) of a piece's ``pcm``, as
+        their own utterance (frames counted from ``a``), with this process's word decoder."""
+        decoder = self._word_decoder_made()
+        decoder.reinit_feat()  # as new: the result its own (see the class)
+        step = 2 * int(DECODER_RATE * FRAME_S)  # bytes of a frame's int16 samples
+        return decode_words(decoder, pcm[a * step : b * step])
 
 
 #: PocketSphinx's decoders kept between recognitions in this process, idle, by what they were
@@ -765,17 +851,18 @@ def release_decoders() -> int:
 
 
 class _Workers:
-    """``count`` processes decoding the ``(samples, audible)`` ``jobs`` with ``pieces``
-    (:meth:`results`): this one and ``count - 1`` workers forked from it on entering
-    (:func:`_forked`), which have ``pieces`` and ``jobs`` as this process has them (and so the
-    classifier, and a copy of the decoders it kept); worker ``k`` decodes the jobs ``i`` where
-    ``i % count == k + 1`` (:func:`_serve`) and sends back what it found, nothing sent to it.
-    A worker that fails (it could not be forked, or died) leaves its jobs to this process.
-    Every process runs BLAS on one thread (:func:`recognize`'s setting, which the workers
-    inherit)."""
+    """``count`` processes doing ``work(*job)`` for each of ``jobs`` (:meth:`results`): a
+    recording's pieces (:meth:`_Pieces.piece`), or a piece's halves of its word search
+    (:meth:`_Pieces._words`). This one and ``count - 1`` workers forked from it on entering
+    (:func:`_forked`), which have ``work`` and ``jobs`` as this process has them (and so the
+    classifier, and a copy of the decoders it kept); worker ``k`` does the jobs ``i`` where
+    ``i % count == k + 1`` (:func:`_serve`) and sends back what each gave (it must pickle),
+    nothing sent to it. A worker that fails (it could not be forked, or died) leaves its jobs
+    to this process. Every process runs BLAS on one thread (:func:`recognize`'s setting,
+    which the workers inherit)."""
 
-    def __init__(self, count: int, pieces: _Pieces, jobs: list) -> None:
-        self.count, self.pieces, self.jobs = count, pieces, jobs
+    def __init__(self, count: int, work: Callable, jobs: list) -> None:
+        self.count, self.work, self.jobs = count, work, jobs
         self._links: list = []  # [process, connection (None once failed)] per worker
 
     def __enter__(self) -> _Workers:
@@ -797,24 +884,24 @@ class _Workers:
             if pid == 0:
                 mine.close()
                 others = [link for _, link in self._links if link is not None]
-                _forked(theirs, others, self.pieces, self.jobs[k + 1 :: self.count])
+                _forked(theirs, others, self.work, self.jobs[k + 1 :: self.count])
             theirs.close()
             self._links.append([_Child(pid), Connection(mine.detach())])
         return self
 
     def results(self):
-        """The :class:`_Found` of each job, in order: job ``i`` decoded here where
-        ``i % count`` is 0 (ahead of the others while a worker's answer is not there), else by
-        worker ``i % count - 1``, or here where that worker failed. A piece's result is the
-        same wherever it is decoded (:class:`_Pieces`)."""
-        pieces, jobs = self.pieces, self.jobs
-        mine = {}  # this process's jobs decoded ahead, by index
+        """What each job gave, in order: job ``i`` done here where ``i % count`` is 0 (ahead
+        of the others while a worker's answer is not there), else by worker ``i % count -
+        1``, or here where that worker failed. A job's result is the same wherever it is done
+        (:class:`_Pieces`)."""
+        work, jobs = self.work, self.jobs
+        mine = {}  # this process's jobs done ahead, by index
         ahead = iter(range(0, len(jobs), self.count))
 
         def decode_ahead() -> bool:
             i = next(ahead, None)
             if i is not None:
-                mine[i] = pieces.piece(*jobs[i])
+                mine[i] = work(*jobs[i])
             return i is not None
 
         for i, job in enumerate(jobs):
@@ -827,10 +914,9 @@ class _Workers:
             # this process decodes its next jobs until the worker's answer is there
             while not self._answered(k) and decode_ahead():
                 pass
-            found = self._receive(k)
-            if not found:  # the worker failed: its job is decoded here
-                found = pieces.piece(*job)
-            yield found
+            answer = self._receive(k)
+            # the worker failed: its job is done here
+            yield answer[0] if answer is not None else work(*job)
 
     def _answered(self, k: int) -> bool:
         """Whether worker ``k``'s next answer needs no more waiting: it is there, or the
@@ -838,9 +924,9 @@ class _Workers:
         link = self._links[k][1]
         return link is None or link.poll(0)
 
-    def _receive(self, k: int) -> _Found | None:
-        """Worker ``k``'s answer to its next job: None where it failed (and is given up); its
-        :class:`SpeechError` raised."""
+    def _receive(self, k: int) -> tuple | None:
+        """Worker ``k``'s answer to its next job, ``(result,)``: None where it failed (and is
+        given up); its :class:`SpeechError` raised."""
         from vtts.threads import SIGNAL_SLICE
 
         proc, link = self._links[k]
@@ -854,7 +940,7 @@ class _Workers:
             found = link.recv()
         except (OSError, EOFError):
             pass
-        if isinstance(found, _Found):
+        if isinstance(found, tuple):
             return found
         link.close()
         self._links[k][1] = None
@@ -916,12 +1002,12 @@ class _Child:
         return self.returncode
 
 
-def _forked(sock, others: list, pieces: _Pieces, jobs: list) -> NoReturn:
+def _forked(sock, others: list, work: Callable, jobs: list) -> NoReturn:
     """The forked worker's life (:class:`_Workers`), on ``sock``, its end of the socket: it
     closes ``others`` (the parent's links to the workers forked before it), ends on a signal
-    whose handler is the parent's (and ignores those the parent ignores), decodes ``jobs``
-    with ``pieces`` (:func:`_serve`) and leaves with ``os._exit`` whatever happened, never
-    returning into the parent's stack nor running its exit handlers."""
+    whose handler is the parent's (and ignores those the parent ignores), does ``work`` for
+    ``jobs`` (:func:`_serve`) and leaves with ``os._exit`` whatever happened, never returning
+    into the parent's stack nor running its exit handlers."""
     code = 1
     try:
         for link in others:
@@ -931,19 +1017,19 @@ def _forked(sock, others: list, pieces: _Pieces, jobs: list) -> NoReturn:
                 signal.signal(getattr(signal, name), signal.SIG_DFL)
         from multiprocessing.connection import Connection
 
-        _serve(Connection(sock.detach()), pieces, jobs)
+        _serve(Connection(sock.detach()), work, jobs)
         code = 0
     finally:
         os._exit(code)
 
 
-def _serve(link, pieces: _Pieces, jobs: list) -> None:
-    """A worker of :class:`_Workers`: the :class:`_Found` of each ``(samples, audible)`` of
-    ``jobs``, decoded with ``pieces``, sent on ``link`` (a ``Connection``) in order, or the
-    exception raised (the parent then decodes the rest itself, or raises a SpeechError)."""
+def _serve(link, work: Callable, jobs: list) -> None:
+    """A worker of :class:`_Workers`: ``(work(*job),)`` for each of ``jobs``, sent on
+    ``link`` (a ``Connection``) in order, or the exception raised (the parent then does the
+    rest itself, or raises a SpeechError)."""
     try:
         for job in jobs:
-            link.send(pieces.piece(*job))
+            link.send((work(*job),))
     except Exception as e:
         link.send(e if isinstance(e, SpeechError) else RuntimeError(repr(e)))
     finally:
