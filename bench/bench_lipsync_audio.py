@@ -217,6 +217,11 @@ class Tally:
         self.same = self.n = self.speech_same = self.speech = self.bil = self.bil_total = 0
         self.clo = self.clo_total = self.false = self.false_total = 0
 
+    def merge(self, other: Tally) -> None:
+        """Add ``other``'s counts to this tally's."""
+        for k in vars(other):
+            setattr(self, k, getattr(self, k) + getattr(other, k))
+
     def add(self, truth: np.ndarray, got: np.ndarray, bil: tuple[int, int],
             clo: tuple[int, int] = (0, 0), false: tuple[int, int] = (0, 0)) -> None:  # fmt: skip
         n = min(truth.size, got.size)
@@ -389,8 +394,7 @@ def _joined_rows(label: str, voices: dict[str, list], real: list) -> list[dict]:
         if not recordings:
             continue
         t = _joined(recordings)
-        for k in vars(t):
-            setattr(every, k, getattr(every, k) + getattr(t, k))
+        every.merge(t)
         rows.append(_row(f"{case}, {voice}: recognized: agreement ({len(recordings)} files, "
                          f"{t.n} frames)", 100.0 * t.same / max(t.n, 1), "%"))  # fmt: skip
     sets = [("all synthetic voices", every)] if every.n else []
@@ -648,9 +652,7 @@ def run() -> list[dict]:
             _synthetic(texts, voice, tallies, spoken.setdefault(label, {}).setdefault(voice[0], []))
             rows += _agreement_rows(f"{label}, {voice[0]}", tallies)
             for path, t in tallies.items():
-                acc = every.setdefault(path, Tally())
-                for k in vars(t):
-                    setattr(acc, k, getattr(acc, k) + getattr(t, k))
+                every.setdefault(path, Tally()).merge(t)
         rows += _agreement_rows(f"{label}, all synthetic voices", every)
     if REAL_DIR.is_dir():
         for label, items in (("tuning", REAL_TUNING), ("held out", REAL_HELD_OUT)):

@@ -669,7 +669,7 @@ def workers(options: RecognizerOptions, duration: float) -> int:
     if options.workers is not None:
         return options.workers
     cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    cpus = min(cpus or 1, _CPUS or cpus or 1)
+    cpus = min(cpus or 1, _CPUS) if _CPUS is not None else cpus or 1
     forks = hasattr(os, "fork")
     least = 2 * min(MIN_PIECE_S, HALF_S)
     return 2 if duration >= least and (cpus or 1) >= 2 and forks else 1
@@ -800,20 +800,16 @@ class _Pieces:
                         phones.append((name, f, e))
         return words, phones
 
-    def _word_decoder_made(self):
-        """This process's word decoder, made (or taken from those kept) when first needed."""
+    def _words(self, pcm: bytes, a: int, b: int) -> tuple[list[Segment], list[Segment]]:
+        """:func:`decode_words` of frames ``a`` to ``b`` (exclusive) of a piece's ``pcm``, as
+        their own utterance (frames counted from ``a``), with this process's word decoder (made,
+        or taken from those kept, when first needed)."""
         self._word_decoder = self._word_decoder or _take(
             self._word_key(), lambda: make_word_decoder(self.options)
         )
-        return self._word_decoder
-
-    def _words(self, pcm: bytes, a: int, b: int) -> tuple[list[Segment], list[Segment]]:
-        """:func:`decode_words` of frames ``a`` to ``b`` (exclusive) of a piece's ``pcm``, as
-        their own utterance (frames counted from ``a``), with this process's word decoder."""
-        decoder = self._word_decoder_made()
-        decoder.reinit_feat()  # as new: the result its own (see the class)
+        self._word_decoder.reinit_feat()  # as new: the result its own (see the class)
         step = 2 * int(DECODER_RATE * FRAME_S)  # bytes of a frame's int16 samples
-        return decode_words(decoder, pcm[a * step : b * step])
+        return decode_words(self._word_decoder, pcm[a * step : b * step])
 
 
 #: PocketSphinx's decoders kept between recognitions in this process, idle, by what they were
