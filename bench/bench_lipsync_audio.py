@@ -119,7 +119,7 @@ REAL_HELD_OUT = [
 ]
 FRAME = 0.010
 #: Least length of the recordings joined from a part's sentences (:func:`_joined_rows`), s:
-#: from 8 s, a recording of one piece has its word search in two halves.
+#: from 8 s (two of ``HALF_S``), a recording of one piece has its word search in two halves.
 JOINED_S = 8.0
 FPS = 30.0
 QUICK = bool(os.environ.get("VTTS_BENCH_QUICK"))
@@ -685,13 +685,14 @@ def run() -> list[dict]:
         # under 20 s one piece: the decoders' making (some 0.25 s) counts for more; a process
         # recognizing one file after another (batch, serve) makes them once. Under 8 s one
         # word search in one process, from 8 s its two halves in two
+        from vtts.speech.recognize import HALF_S
+
         for seconds in (3, 7, 8, 12):
             for kept in (False, True):
                 wall, cpu = _speed(real[: seconds * 16000], 16000, kept=kept)
-                case = (
-                    f"speed: recognize {seconds} s of real speech (one piece, "
-                    + ("its word search in two halves), " if seconds >= 8 else "one search), ")
-                    + ("decoders kept from the last file" if kept else "first in its process")
+                search = "its word search in two halves" if seconds >= 2 * HALF_S else "one search"
+                case = f"speed: recognize {seconds} s of real speech (one piece, {search}), " + (
+                    "decoders kept from the last file" if kept else "first in its process"
                 )
                 rows.append(_row(f"{case}, wall", wall, "× duration", "≤ 0.1", wall <= 0.1))
                 rows.append(_row(f"{case}, CPU", cpu, "× duration"))

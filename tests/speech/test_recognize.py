@@ -379,6 +379,39 @@ def test_a_one_piece_recording_has_its_word_search_in_two_halves(monkeypatch) ->
     assert spans == [(0, 700)]
 
 
+def test_the_second_half_is_searched_while_the_piece_is_classified(speech, monkeypatch) -> None:
+    """The worker of a one-piece recording's second half is forked before the classifier
+    judges the piece, so that its search runs meanwhile; where the classifier then wants no
+    words (a speech engine's clean voice) the worker is ended, and the phones are one
+    process's; with ``words="never"`` none is forked."""
+    from vtts.speech import recognize as module
+    from vtts.speech.viseme_classifier import VisemeClassifier
+
+    events: list[str] = []
+    fork, judge, cancel = os.fork, VisemeClassifier.warped_log_posteriors, module._Workers.cancel
+    monkeypatch.setattr(os, "fork", lambda: (events.append("fork"), fork())[1])
+    monkeypatch.setattr(VisemeClassifier, "warped_log_posteriors",
+                        lambda self, x: (events.append("classify"), judge(self, x))[1])  # fmt: skip
+    monkeypatch.setattr(module._Workers, "cancel",
+                        lambda self: (events.append("cancel"), cancel(self))[1])  # fmt: skip
+    real = np.concatenate([_real("librivox/sense_and_sensibility_01_austen_64kb-0870.wav")[0],
+                           _real("goforward.raw")[0]])  # fmt: skip
+    assert recognize(real, 16000, RecognizerOptions(workers=2)).words
+    assert events == ["fork", "classify"]
+    x, rate, _ = speech
+    x = np.concatenate([x, x, x])  # over 8 s: festival's voice, which the classifier is sure of
+    events.clear()
+    two = recognize(x, rate, RecognizerOptions(workers=2))
+    assert events == ["fork", "classify", "cancel"] and two.words == []
+    events.clear()
+    alone = recognize(x, rate, RecognizerOptions(workers=1))
+    assert "fork" not in events
+    assert np.array_equal(two.visemes, alone.visemes) and two.phones == alone.phones
+    events.clear()
+    recognize(real, 16000, RecognizerOptions(workers=2, words="never"))
+    assert "fork" not in events and "classify" in events
+
+
 @pytest.fixture
 def four_pieces(monkeypatch):
     """Two real recordings one after the other, 6.1 s, cut into four pieces (pieces of at

@@ -34,10 +34,11 @@ wholly in inaudible frames is a pause (viseme 0).
 frames (bounded memory; a ``progress`` callback after each), from 20 s on in two processes
 (:func:`workers`: every other piece in a worker forked from this process); a recording of one
 piece from 8 s on has its word search in two halves (:data:`HALF_S`), the second in a forked
-worker. Each piece's and half's decoders start anew, so the result is the same in one process
-or two, on any machine. :class:`LiveRecognizer` takes
-chunks of PCM as they arrive and gives each 10 ms frame's viseme as soon as the decoder has one
-(what ``vtts play --audio -`` uses, and what a server can feed).
+worker, which starts on it while this process classifies the piece. Each piece's and half's
+decoders start anew, so the result is the same in one process or two, on any machine.
+:class:`LiveRecognizer` takes chunks of PCM as they arrive and gives each 10 ms frame's
+viseme as soon as the decoder has one (what ``vtts play --audio -`` uses, and what a server
+can feed).
 
 ``pocketsphinx`` is imported when a decoder is made, not before: other commands do not pay for
 it. The decoders :func:`recognize` made are kept for the next recognition in the process (a
@@ -135,6 +136,10 @@ WORD_EVIDENCE = 6.0
 #: The word search's cap on the HMMs active per frame (``-maxhmmpf``): half its time, and on
 #: the bench's tuning part the same agreement and closures as with no cap.
 WORD_MAX_HMMS = 1500
+#: The word search's beam on the last phone of one-phone words (``-lponlybeam``; PocketSphinx's
+#: default is 7e-29): a tenth of its time, and on the bench's tuning part the same phones
+#: and words, frame for frame, as with the default.
+WORD_LAST_PHONE_BEAM = 1e-20
 #: A dictionary word's alternative pronunciation: ``read(2)``.
 _VARIANT = re.compile(r"\(\d+\)$")
 #: A recognized word or phone: its name and its first and last 10 ms frames (inclusive).
@@ -269,6 +274,7 @@ def make_word_decoder(options: RecognizerOptions):
         fwdflat=False,
         bestpath=False,
         maxhmmpf=WORD_MAX_HMMS,
+        lponlybeam=WORD_LAST_PHONE_BEAM,
         dither=options.dither,
         loglevel="FATAL",
         logfn=os.devnull,
@@ -693,7 +699,9 @@ class _Pieces:
     """The recognizer of one process (:func:`recognize`'s or a worker's): ``options``; the
     viseme classifier where ``classify``; PocketSphinx's decoders, made when first needed,
     where ``decode`` (there is audible sound) and the classifier wants their evidence;
-    ``processes``, how many a piece's word search in halves may use. The decoders' features
+    ``processes``, how many a piece's word search in halves may use (the second half's
+    search started in a worker before the classifier, and ended where the classifier wants
+    no words: :meth:`piece`). The decoders' features
     are made anew for each piece or half (``reinit_feat``: the dither's random numbers and
     the cepstral mean from the start, some 0.1 ms), so that what a piece gives does not
     depend on the pieces decoded before it: on how many processes, in which order."""
@@ -738,20 +746,30 @@ class _Pieces:
         options, classifier = self.options, self.classifier
         n = audible.size
         pcm = np.round(x * 32767.0).astype(np.int16).tobytes() if self.use_decoder else b""
-        log_p, denoised = None, False
-        if classifier is not None:
-            log_p, _, denoised = classifier.warped_log_posteriors(x)
-        # PocketSphinx's phones: the words' where they are recognized, else the phone loop's —
-        # but not in noise (the classifier hears the piece better with the noise taken out),
-        # where the phone loop's phones mislead the classifier more than they help it
-        segments: list[Segment] = []
-        found: list[Segment] = []
-        evidence = None
-        decoded = False
-        if self.use_decoder and _wants_words(options.words, log_p, audible, denoised):
-            found, segments = self._search(pcm, n, half)
-            evidence = WORD_EVIDENCE if segments else None
-            decoded = bool(segments)
+        spans, jobs = self._spans(n, half)
+        # the second half's search starts in the worker before the classifier has judged
+        # whether the words are wanted, and is ended where they are not: the classifier's
+        # time is hidden behind it
+        ahead = self.use_decoder and options.words != "never"
+        count = min(self.processes, len(jobs)) if ahead else 1
+        with _Workers(count, self._words, [(pcm, lo, hi) for lo, hi in jobs]) as pool:
+            log_p, denoised = None, False
+            if classifier is not None:
+                log_p, _, denoised = classifier.warped_log_posteriors(x)
+            # PocketSphinx's phones: the words' where they are recognized, else the phone
+            # loop's — but not in noise (the classifier hears the piece better with the noise
+            # taken out), where the phone loop's phones mislead the classifier more than they
+            # help it
+            segments: list[Segment] = []
+            found: list[Segment] = []
+            evidence = None
+            decoded = False
+            if self.use_decoder and _wants_words(options.words, log_p, audible, denoised):
+                found, segments = self._gather(spans, jobs, pool.results())
+                evidence = WORD_EVIDENCE if segments else None
+                decoded = bool(segments)
+            else:
+                pool.cancel()
         if self.use_decoder and not decoded and not denoised:
             self._decoder = self._decoder or _take(self._phone_key(), lambda: make_decoder(options))
             self._decoder.reinit_feat()
@@ -779,25 +797,32 @@ class _Pieces:
         return _Found(names, [int(s) for s in edges[:-1]], [int(e) - 1 for e in edges[1:]],
                       np.exp(log_p[: run.size, 1]).astype(np.float32), found)  # fmt: skip
 
-    def _search(self, pcm: bytes, n: int, half: int | None) -> tuple[list[Segment], list[Segment]]:
-        """The words and their phones (:func:`decode_words`) of a piece's ``pcm`` of ``n``
-        frames: searched for as one utterance, or given ``half`` as two, the frames before it
-        and from it on, each with :data:`CONTEXT_FRAMES` of the other around it (what lies
-        in it kept: a word by its middle frame, a phone cut at ``half``), in up to
-        :attr:`processes` processes."""
+    @staticmethod
+    def _spans(n: int, half: int | None) -> tuple[list[tuple[int, int]], list[tuple[int, int]]]:
+        """The word search's utterances of a piece of ``n`` frames: one, or given ``half``, a
+        frame, two, the frames before it and from it on — ``(spans, heard)``, the frames each
+        keeps and those it hears, :data:`CONTEXT_FRAMES` of the other around its own (the
+        language model's context of the first words after the cut)."""
         spans = [(0, n)] if half is None else [(0, half), (half, n)]
         c = CONTEXT_FRAMES
-        jobs = [(pcm, max(a - c, 0), min(b + c, n)) for a, b in spans]
+        return spans, [(max(a - c, 0), min(b + c, n)) for a, b in spans]
+
+    @staticmethod
+    def _gather(
+        spans: list[tuple[int, int]], heard: list[tuple[int, int]], results
+    ) -> tuple[list[Segment], list[Segment]]:
+        """The words and their phones of a piece from what its utterances' searches gave
+        (``results``, :func:`decode_words` of each of ``heard``, :meth:`_spans`), each keeping
+        what lies in its own span: a word by its middle frame, a phone cut at the span's
+        ends."""
         words: list[Segment] = []
         phones: list[Segment] = []
-        with _Workers(min(self.processes, len(jobs)), self._words, jobs) as pool:
-            for (a, b), (_, lo, _), (w, p) in zip(spans, jobs, pool.results(), strict=True):
-                words += [(name, f + lo, e + lo) for name, f, e in w
-                          if a <= lo + (f + e) // 2 < b]  # fmt: skip
-                for name, f, e in p:
-                    f, e = max(f + lo, a), min(e + lo, b - 1)
-                    if f <= e:
-                        phones.append((name, f, e))
+        for (a, b), (lo, _), (w, p) in zip(spans, heard, results, strict=True):
+            words += [(name, f + lo, e + lo) for name, f, e in w if a <= lo + (f + e) // 2 < b]
+            for name, f, e in p:
+                f, e = max(f + lo, a), min(e + lo, b - 1)
+                if f <= e:
+                    phones.append((name, f, e))
         return words, phones
 
     def _words(self, pcm: bytes, a: int, b: int) -> tuple[list[Segment], list[Segment]]:
@@ -913,6 +938,15 @@ class _Workers:
             answer = self._receive(k)
             # the worker failed: its job is done here
             yield answer[0] if answer is not None else work(*job)
+
+    def cancel(self) -> None:
+        """End the workers now: their answers are not wanted (none of the jobs is done)."""
+        for link in self._links:
+            if link[0] is not None:
+                link[0].kill()
+            if link[1] is not None:
+                link[1].close()
+                link[1] = None
 
     def _answered(self, k: int) -> bool:
         """Whether worker ``k``'s next answer needs no more waiting: it is there, or the
