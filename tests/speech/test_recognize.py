@@ -5,6 +5,8 @@ input of every kind (silence, noise, music, clipping, rates, channels, NaN, a 2-
 from __future__ import annotations
 
 import os
+import signal
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -544,6 +546,43 @@ def test_a_forked_worker_ends_on_the_signals_its_parent_handles_and_ignores_the_
             signal.signal(signal.SIGHUP, old[1])
     assert seen.read_text() == f"{signal.SIG_DFL} {signal.SIG_IGN}"
     assert np.array_equal(rec.visemes, alone.visemes)  # its pieces decoded here
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux's")
+def test_a_forked_worker_dies_with_the_thread_that_forked_it(tmp_path) -> None:
+    """A command ended by SIGTERM or SIGKILL does not wait for the thread recognizing its
+    speech: the worker that thread forked is killed when it ends, not left decoding as an
+    orphan (here the thread ends once the worker has begun its job, and sleeps in it)."""
+    import threading
+    import time
+
+    from vtts.speech import recognize as module
+
+    pools = []
+    begun = tmp_path / "begun"
+
+    def job(i: int) -> None:
+        begun.touch()
+        time.sleep(30)
+
+    def fork_and_go() -> None:  # the thread ends with its worker still busy
+        pools.append(module._Workers(2, job, [(0,), (1,)]).__enter__())
+        end = time.monotonic() + 10
+        while not begun.exists() and time.monotonic() < end:
+            time.sleep(0.01)
+
+    thread = threading.Thread(target=fork_and_go)
+    thread.start()
+    thread.join()
+    child = pools[0]._links[0][0]
+    try:
+        end = time.monotonic() + 10
+        while child.poll() is None and time.monotonic() < end:
+            time.sleep(0.02)
+        assert child.returncode == -signal.SIGKILL
+    finally:
+        child.kill()
+        child.wait()
 
 
 def test_the_word_search_loads_the_language_models_words_and_finds_the_same(

@@ -47,9 +47,11 @@ batch's worker, a server), which finds what new ones would; :func:`release_decod
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 import signal
+import sys
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -893,6 +895,8 @@ class _Workers:
         import socket
         from multiprocessing.connection import Connection
 
+        die = _death_signal() if self.count > 1 else None
+        parent = os.getpid()
         for k in range(self.count - 1):
             mine, theirs = socket.socketpair()
             try:
@@ -905,7 +909,7 @@ class _Workers:
             if pid == 0:
                 mine.close()
                 others = [link for _, link in self._links if link is not None]
-                _forked(theirs, others, self.work, self.jobs[k + 1 :: self.count])
+                _forked(theirs, others, self.work, self.jobs[k + 1 :: self.count], die, parent)
             theirs.close()
             self._links.append([_Child(pid), Connection(mine.detach())])
         return self
@@ -1032,14 +1036,44 @@ class _Child:
         return self.returncode
 
 
-def _forked(sock, others: list, work: Callable, jobs: list) -> NoReturn:
+@functools.cache
+def _death_signal() -> Callable[[], bool] | None:
+    """Linux's ``prctl(PR_SET_PDEATHSIG, SIGKILL)`` as a call (True where it took): a forked
+    worker that makes it is killed when the thread that forked it ends — its command exited
+    or was killed while the worker still decoded (a command ended by SIGTERM or SIGKILL does
+    not wait for the thread that recognizes its speech). None where there is no such call; a
+    worker there ends when it finds its link closed, after the job at hand. Looked up before
+    the fork, so that the worker only calls it."""
+    import ctypes
+
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        prctl = ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return None
+    prctl.argtypes = [ctypes.c_int, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong]
+    return lambda: prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0) == 0
+
+
+#: ``PR_SET_PDEATHSIG`` of Linux's ``<sys/prctl.h>``.
+_PR_SET_PDEATHSIG = 1
+
+
+def _forked(
+    sock, others: list, work: Callable, jobs: list, die: Callable[[], bool] | None, parent: int
+) -> NoReturn:
     """The forked worker's life (:class:`_Workers`), on ``sock``, its end of the socket: it
-    closes ``others`` (the parent's links to the workers forked before it), ends on a signal
-    whose handler is the parent's (and ignores those the parent ignores), does ``work`` for
-    ``jobs`` (:func:`_serve`) and leaves with ``os._exit`` whatever happened, never returning
-    into the parent's stack nor running its exit handlers."""
+    dies with the thread that forked it where ``die`` (:func:`_death_signal`) takes — and
+    leaves at once where its ``parent`` (process id) is already gone —, closes ``others``
+    (the parent's links to the workers forked before it), ends on a signal whose handler is
+    the parent's (and ignores those the parent ignores), does ``work`` for ``jobs``
+    (:func:`_serve`) and leaves with ``os._exit`` whatever happened, never returning into the
+    parent's stack nor running its exit handlers."""
     code = 1
     try:
+        if die is not None and die() and os.getppid() != parent:
+            return  # the parent ended before the death signal was asked for
         for link in others:
             link.close()
         for name in ("SIGINT", "SIGTERM", "SIGHUP"):
