@@ -361,8 +361,15 @@ def test_a_one_piece_recording_has_its_word_search_in_two_halves(monkeypatch) ->
     monkeypatch.setattr(module._Pieces, "_words", lambda self, pcm, a, b: (
         spans.append((a, b)), words(self, pcm, a, b))[1])  # fmt: skip
     before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_utime
+    from vtts.speech.viseme_classifier import VisemeClassifier
+
+    fork, judge, events = os.fork, VisemeClassifier.warped_log_posteriors, []
+    monkeypatch.setattr(os, "fork", lambda: (events.append("fork"), fork())[1])
+    monkeypatch.setattr(VisemeClassifier, "warped_log_posteriors",
+                        lambda self, x: (events.append("classify"), judge(self, x))[1])  # fmt: skip
     two = recognize(x, 16000, RecognizerOptions(workers=2))
     assert resource.getrusage(resource.RUSAGE_CHILDREN).ru_utime - before > 0.2
+    assert events == ["fork", "classify"]  # the second half searched while this one classifies
     c = module.CONTEXT_FRAMES
     assert len(spans) == 1  # the worker's half is not seen here
     ((a, b),) = spans
@@ -383,9 +390,10 @@ def test_a_one_piece_recording_has_its_word_search_in_two_halves(monkeypatch) ->
 
 def test_the_second_half_is_searched_while_the_piece_is_classified(speech, monkeypatch) -> None:
     """The worker of a one-piece recording's second half is forked before the classifier
-    judges the piece, so that its search runs meanwhile; where the classifier then wants no
-    words (a speech engine's clean voice) the worker is ended, and the phones are one
-    process's; with ``words="never"`` none is forked."""
+    judges the piece, so that its search runs meanwhile (with the words of real speech, the
+    test above); where the classifier then wants no words (a speech engine's clean voice) the
+    worker is ended, and the phones are one process's; with ``words="never"`` none is
+    forked."""
     from vtts.speech import recognize as module
     from vtts.speech.viseme_classifier import VisemeClassifier
 
@@ -396,13 +404,8 @@ def test_the_second_half_is_searched_while_the_piece_is_classified(speech, monke
                         lambda self, x: (events.append("classify"), judge(self, x))[1])  # fmt: skip
     monkeypatch.setattr(module._Workers, "cancel",
                         lambda self: (events.append("cancel"), cancel(self))[1])  # fmt: skip
-    real = np.concatenate([_real("librivox/sense_and_sensibility_01_austen_64kb-0870.wav")[0],
-                           _real("goforward.raw")[0]])  # fmt: skip
-    assert recognize(real, 16000, RecognizerOptions(workers=2)).words
-    assert events == ["fork", "classify"]
     x, rate, _ = speech
     x = np.concatenate([x, x, x])  # over 8 s: festival's voice, which the classifier is sure of
-    events.clear()
     two = recognize(x, rate, RecognizerOptions(workers=2))
     assert events == ["fork", "classify", "cancel"] and two.words == []
     events.clear()
@@ -410,7 +413,7 @@ def test_the_second_half_is_searched_while_the_piece_is_classified(speech, monke
     assert "fork" not in events
     assert np.array_equal(two.visemes, alone.visemes) and two.phones == alone.phones
     events.clear()
-    recognize(real, 16000, RecognizerOptions(workers=2, words="never"))
+    recognize(x, rate, RecognizerOptions(workers=2, words="never"))
     assert "fork" not in events and "classify" in events
 
 
