@@ -588,7 +588,7 @@ def recognize(
     :func:`workers` processes (``RecognizerOptions.workers``; an even number of pieces of
     :data:`MIN_PIECE_S` at least, for two): piece ``i`` in process ``i % workers``, this one
     first; a recording of one piece and at least 2 * :data:`HALF_S` has its word search in
-    two halves, the second in the worker (:func:`_half`, :meth:`_Pieces._search`). Each
+    two halves, the second in the worker (:func:`_half`, :meth:`_Pieces.piece`). Each
     piece's and half's result is its own (:class:`_Pieces`), the same in any process and
     whatever the number of workers; ``progress(done_s, total_s)`` is called after each piece.
     Raises :class:`SpeechError` for a rate below :data:`MIN_RATE`; silence gives one pause."""
@@ -680,7 +680,7 @@ def workers(options: RecognizerOptions, duration: float) -> int:
     cpus = min(cpus or 1, _CPUS) if _CPUS is not None else cpus or 1
     forks = hasattr(os, "fork")
     least = 2 * min(MIN_PIECE_S, HALF_S)
-    return 2 if duration >= least and (cpus or 1) >= 2 and forks else 1
+    return 2 if duration >= least and cpus >= 2 and forks else 1
 
 
 @dataclass
