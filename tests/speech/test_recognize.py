@@ -760,6 +760,21 @@ def test_say_without_text_writes_the_recognized_words(tmp_path: Path) -> None:
     assert r.returncode == 2 and "invalid choice: 'often'" in r.stderr
 
 
+def test_the_commands_word_modes_are_the_recognizers() -> None:
+    """``vtts say --words`` offers :data:`WORD_MODES`, which its parser spells out (so that
+    parsing a command line does not import the recognizer)."""
+    import argparse
+
+    from vtts.cli.say import add_parser
+    from vtts.speech.recognize import WORD_MODES
+
+    parser = argparse.ArgumentParser()
+    add_parser(parser.add_subparsers())
+    say = parser._subparsers._group_actions[0].choices["say"]
+    (words,) = [a for a in say._actions if "--words" in a.option_strings]
+    assert tuple(words.choices) == WORD_MODES and words.default == WORD_MODES[0]
+
+
 @pytest.mark.parametrize(
     "args, message",
     [

@@ -52,7 +52,7 @@ def add_parser(sub) -> None:
     )
     sy.add_argument(
         "--words",
-        choices=("auto", "always", "never"),
+        choices=("auto", "always", "never"),  # vtts.speech.recognize.WORD_MODES, not imported
         default="auto",
         help="with --audio and no text: also recognize words (a language model) where the "
         "phones are uncertain, as in real speech (auto, the default), always, or never (faster)",
