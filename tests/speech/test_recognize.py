@@ -635,6 +635,57 @@ def test_the_word_search_loads_the_language_models_words_and_finds_the_same(
     assert len(Path(cut).read_text().splitlines()) > 70_000
 
 
+def test_a_damaged_pocketsphinx_installation_is_named_without_a_traceback(
+    tmp_path, monkeypatch, capfd
+) -> None:
+    """A file of the wheel that PocketSphinx cannot read (a damaged installation): a
+    SpeechError naming it and how to mend it, none of PocketSphinx's own complaints on stderr;
+    ``vtts say --audio`` says so in one line. The phone loop's language model too, which
+    PocketSphinx would silently go without; the acoustic model, named with the dictionary."""
+    from vtts.speech import recognize as module
+
+    hmm, phone_lm = module.model_paths()
+    fake = tmp_path / "en-us"
+    fake.mkdir()
+    (fake / "en-us").symlink_to(hmm)
+    (fake / "en-us-phone.lm.bin").symlink_to(phone_lm)
+    (fake / "cmudict-en-us.dict").symlink_to(Path(hmm).parent / "cmudict-en-us.dict")
+    (fake / "en-us.lm.bin").write_bytes(b"not a language model")
+    paths = (str(fake / "en-us"), str(fake / "en-us-phone.lm.bin"))
+    monkeypatch.setattr(module, "model_paths", lambda: paths)
+    monkeypatch.setenv("VTTS_CACHE_DIR", str(tmp_path / "cache"))
+    module.release_decoders()  # none of those a recognition before kept
+    mend = "reinstall it: pip install --force-reinstall pocketsphinx==5.1.1"
+    with pytest.raises(SpeechError) as e:
+        module.make_word_decoder(RecognizerOptions())
+    assert (
+        str(e.value)
+        == f"PocketSphinx cannot read its language model {fake / 'en-us.lm.bin'}: {mend}"
+    )
+    x, _ = _real("goforward.raw")
+    wav = tmp_path / "go.wav"
+    sf.write(wav, x, 16000)
+    r = vtts("say", "--audio", wav, "--words", "always", "--model", HEAD, "--timings-out",
+             tmp_path / "t.tsv")  # fmt: skip
+    assert r.returncode == 1 and f"{fake / 'en-us.lm.bin'}: {mend}" in r.stderr, r.stderr
+    assert not (tmp_path / "t.tsv").exists()
+    (fake / "en-us-phone.lm.bin").unlink()
+    (fake / "en-us-phone.lm.bin").write_bytes(b"not a phone model")
+    with pytest.raises(SpeechError, match="cannot read its language model .*en-us-phone.lm.bin"):
+        module.make_decoder(RecognizerOptions())
+    (fake / "en-us-phone.lm.bin").unlink()
+    (fake / "en-us-phone.lm.bin").symlink_to(phone_lm)
+    (fake / "en-us.lm.bin").unlink()
+    (fake / "en-us.lm.bin").symlink_to(Path(hmm).parent / "en-us.lm.bin")
+    (fake / "en-us").unlink()
+    (fake / "en-us").mkdir()  # no acoustic model in it
+    with pytest.raises(SpeechError) as e:
+        module.make_word_decoder(RecognizerOptions())
+    assert str(e.value).startswith(f"PocketSphinx cannot load {fake / 'en-us'} and ")
+    assert str(e.value).endswith(f".dict: {mend}")
+    assert capfd.readouterr().err == ""
+
+
 def test_decoders_kept_between_recognitions_find_what_new_ones_do(monkeypatch) -> None:
     """A recognition keeps its decoders for the next one in the process, which uses them
     (none is made: making one fails here) and finds what new ones find, frame for frame and

@@ -222,6 +222,10 @@ class Recognition:
     words: list[TimedWord] = field(default_factory=list)
 
 
+#: The ``pocketsphinx`` the recognizer was measured with (``constraints.txt`` installs it).
+_PINNED = "pocketsphinx==5.1.1"
+
+
 def model_paths() -> tuple[str, str]:
     """The acoustic model's folder and the phone language model inside the ``pocketsphinx``
     wheel; :class:`SpeechError` saying what to install when it is missing."""
@@ -229,7 +233,7 @@ def model_paths() -> tuple[str, str]:
         import pocketsphinx
     except ImportError:
         raise SpeechError(
-            "recognizing speech needs the pocketsphinx package: pip install pocketsphinx==5.1.1"
+            f"recognizing speech needs the pocketsphinx package: pip install {_PINNED}"
         ) from None
     root = os.path.join(pocketsphinx.get_model_path(), "en-us")
     hmm, phone_lm = os.path.join(root, "en-us"), os.path.join(root, "en-us-phone.lm.bin")
@@ -240,10 +244,8 @@ def model_paths() -> tuple[str, str]:
 
 def make_decoder(options: RecognizerOptions):
     """A ``pocketsphinx.Decoder`` in allphone mode with ``options``, its log silenced."""
-    from pocketsphinx import Decoder
-
     hmm, phone_lm = model_paths()
-    return Decoder(
+    return _decoder(
         hmm=hmm,
         allphone=phone_lm,
         allphone_ci=True,
@@ -251,9 +253,45 @@ def make_decoder(options: RecognizerOptions):
         beam=options.beam,
         pbeam=options.phone_beam,
         dither=options.dither,
-        loglevel="FATAL",
-        logfn=os.devnull,
     )
+
+
+#: What to do about a damaged ``pocketsphinx`` installation.
+_REINSTALL = f"reinstall it: pip install --force-reinstall {_PINNED}"
+
+
+def _decoder(**config):
+    """A ``pocketsphinx.Decoder`` of ``config``, its log silenced; where PocketSphinx cannot
+    make it (a file of its installation damaged), a :class:`SpeechError` naming the language
+    model it cannot read, else the acoustic model and dictionary it was given. The phone
+    language model (``allphone``) is read first: without it PocketSphinx would decode an
+    unconstrained phone loop, saying nothing."""
+    from pocketsphinx import Decoder
+
+    if "allphone" in config:
+        _check_lm(config["allphone"])
+    try:
+        return Decoder(**config, loglevel="FATAL", logfn=os.devnull)
+    except (RuntimeError, ValueError):
+        pass
+    if "lm" in config:
+        _check_lm(config["lm"])
+    files = " and ".join(str(config[k]) for k in ("hmm", "dict") if k in config)
+    raise SpeechError(f"PocketSphinx cannot load {files}: {_REINSTALL}")
+
+
+def _check_lm(path: str) -> None:
+    """A :class:`SpeechError` naming the language model ``path`` where PocketSphinx cannot
+    read it (its own complaints silenced)."""
+    from pocketsphinx import NGramModel, set_loglevel
+
+    set_loglevel("FATAL")
+    try:
+        NGramModel.readfile(path)
+    except (OSError, RuntimeError, ValueError):
+        raise SpeechError(
+            f"PocketSphinx cannot read its language model {path}: {_REINSTALL}"
+        ) from None
 
 
 def make_word_decoder(options: RecognizerOptions):
@@ -262,14 +300,12 @@ def make_word_decoder(options: RecognizerOptions):
     language model's words: :func:`word_dictionary`), one pass of the
     tree search (no flat or lattice pass) capped at :data:`WORD_MAX_HMMS` active HMMs, the
     phone loop's dither; its log silenced."""
-    from pocketsphinx import Decoder
-
     hmm, _ = model_paths()
     root = os.path.dirname(hmm)
     lm, dic = os.path.join(root, "en-us.lm.bin"), os.path.join(root, "cmudict-en-us.dict")
     if not (os.path.isfile(lm) and os.path.isfile(dic)):
         raise SpeechError(f"the pocketsphinx wheel lacks its en-us language model ({root})")
-    return Decoder(
+    return _decoder(
         hmm=hmm,
         lm=lm,
         dict=word_dictionary(dic, lm),
@@ -278,8 +314,6 @@ def make_word_decoder(options: RecognizerOptions):
         maxhmmpf=WORD_MAX_HMMS,
         lponlybeam=WORD_LAST_PHONE_BEAM,
         dither=options.dither,
-        loglevel="FATAL",
-        logfn=os.devnull,
     )
 
 
@@ -309,9 +343,10 @@ def word_dictionary(dictionary: str, lm: str) -> str:
     path = folder / f"words-{hashlib.sha256(key).hexdigest()[:20]}.dict"
     if trusted_file(path):
         return str(path)
-    from pocketsphinx import NGramModel
+    from pocketsphinx import NGramModel, set_loglevel
 
-    try:  # what cannot be read here, the decoder reports in its own words
+    set_loglevel("FATAL")  # as the decoders' own: what cannot be read here, they report
+    try:
         model = NGramModel.readfile(lm)
         unknown = model.prob(["<not a word of vtts>"])
         kept: list[str] = []
