@@ -273,11 +273,10 @@ def _decoder(**config):
     try:
         return Decoder(**config, loglevel="FATAL", logfn=os.devnull)
     except (RuntimeError, ValueError):
-        pass
-    if "lm" in config:
-        _check_lm(config["lm"])
-    files = " and ".join(str(config[k]) for k in ("hmm", "dict") if k in config)
-    raise SpeechError(f"PocketSphinx cannot load {files}: {_REINSTALL}")
+        if "lm" in config:
+            _check_lm(config["lm"])
+        files = " and ".join(str(config[k]) for k in ("hmm", "dict") if k in config)
+        raise SpeechError(f"PocketSphinx cannot load {files}: {_REINSTALL}") from None
 
 
 def _check_lm(path: str) -> None:
